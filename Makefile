@@ -1,0 +1,170 @@
+# loom - structure-aware synthesis of woven fabric volumes.
+#
+#   make            build libloom.a, libloom.so, the loom command, default data
+#   make demo       build and run `loom demo` on the built-in data
+#   make test       build with -Werror and run every test; ends "N passed, N failed"
+#   make sanitize   the same suite under AddressSanitizer + UBSan
+#   make tsan       the threaded tests under ThreadSanitizer
+#   make bench      run the benchmarks (figures, never pass/fail)
+#   make install    PREFIX=/usr/local DESTDIR=
+#   make help       this text
+#
+# Quiet unless V=1.  Build outputs go to $(BUILD) (default build/).
+
+PREFIX  ?= /usr/local
+DESTDIR ?=
+BUILD   ?= build
+CC      ?= cc
+OPT     ?= -O2
+SAN     ?=
+
+ifeq ($(V),1)
+Q :=
+else
+Q := @
+endif
+
+VERSION := 0.1.0
+SOVER   := 0
+
+# Dependencies (see ../shared/DEPENDENCIES.md): pkg-config where a .pc
+# exists; OpenEXR's .pc pulls the C++ libraries, so only its cflags are used
+# and the Core C library is linked by name; Embree ships no .pc.
+# The probes run once per make invocation; before deps.sh has run they may
+# print nothing, which is fine because nothing compiles before it.
+PKGS      := libdeflate libpng
+DEP_CFLAGS = $(shell pkg-config --cflags $(PKGS) OpenEXR 2>/dev/null)
+DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 -lembree3 -lm -lpthread
+
+WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes -Wno-unused-parameter
+CFLAGS  ?= $(OPT) -g
+ALL_CFLAGS = -std=c11 -D_GNU_SOURCE -fPIC -fvisibility=hidden $(WARN) $(CFLAGS) $(SAN) \
+             -Iengine/include -Iengine -Iio $(DEP_CFLAGS) -DLOOM_BUILDING
+LDFLAGS ?=
+
+ENGINE_SRC := $(sort $(wildcard engine/*.c))
+IO_SRC     := $(sort $(wildcard io/*.c))
+LIB_SRC    := $(ENGINE_SRC) $(IO_SRC)
+TOOL_SRC   := $(sort $(wildcard tools/loom/*.c))
+UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
+FUZZ_SRC   := $(sort $(wildcard tests/fuzz/fuzz_*.c))
+BENCH_SRC  := $(sort $(wildcard bench/bench_*.c))
+
+LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
+TOOL_OBJ  := $(TOOL_SRC:%.c=$(BUILD)/obj/%.o)
+UNIT_BIN  := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+FUZZ_BIN  := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=$(BUILD)/tests/replay_%)
+BENCH_BIN := $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+
+STATIC := $(BUILD)/libloom.a
+SHARED := $(BUILD)/libloom.so.$(VERSION)
+LOOM   := $(BUILD)/loom
+DEPS_OK := $(BUILD)/.deps-ok
+TESTDEPS_OK := $(BUILD)/.testdeps-ok
+
+# Default data built by make (issue 3 adds the exemplar database here).
+DATA_DIR := $(BUILD)/share/loom
+DATA     := $(DATA_DIR)/README
+
+.SECONDARY:
+.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz
+all: $(STATIC) $(SHARED) $(LOOM) $(DATA)
+
+help:
+	@sed -n '3,12p' Makefile | sed 's/^# \{0,1\}//'
+
+$(DEPS_OK): tools/deps.sh
+	@mkdir -p $(@D)
+	$(Q)sh tools/deps.sh build
+	@touch $@
+
+$(TESTDEPS_OK): tools/deps.sh
+	@mkdir -p $(@D)
+	$(Q)sh tools/deps.sh test
+	@touch $@
+
+$(BUILD)/obj/%.o: %.c | $(DEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(ALL_CFLAGS) -MMD -MP -c $< -o $@
+
+$(STATIC): $(LIB_OBJ)
+	@$(if $(Q),echo "  AR      $@")
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(SHARED): $(LIB_OBJ)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) -shared -Wl,-soname,libloom.so.$(SOVER) $(SAN) $(LDFLAGS) -o $@ $^ $(DEP_LIBS)
+	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so.$(SOVER)
+	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so
+
+$(LOOM): $(TOOL_OBJ) $(STATIC)
+	@$(if $(Q),echo "  LD      $@")
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(STATIC) $(DEP_LIBS)
+
+$(DATA): data/README
+	@mkdir -p $(@D)
+	$(Q)cp data/README data/*.wif $(DATA_DIR)/
+
+# Unit tests: one program per module, linked against the static library.
+$(BUILD)/tests/%: $(BUILD)/obj/tests/unit/%.o $(STATIC)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) $(DEP_LIBS)
+
+# Fuzz targets replayed over their corpus as plain tests.
+$(BUILD)/tests/replay_%: $(BUILD)/obj/tests/fuzz/fuzz_%.o $(BUILD)/obj/tests/fuzz/replay_main.o $(STATIC)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $^ $(DEP_LIBS)
+
+$(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) $(DEP_LIBS)
+
+demo: all
+	$(LOOM) demo
+
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(TESTDEPS_OK)
+	$(Q)BUILD=$(BUILD) sh tests/run.sh
+
+sanitize:
+	$(Q)$(MAKE) --no-print-directory BUILD=build/asan OPT=-O1 \
+	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" test
+
+tsan:
+	$(Q)$(MAKE) --no-print-directory BUILD=build/tsan OPT=-O1 \
+	    SAN="-fsanitize=thread" test
+
+bench: all $(BENCH_BIN)
+	$(Q)BUILD=$(BUILD) sh bench/run.sh
+
+# libFuzzer builds (clang): make fuzz, then build/fuzz/fuzz_wif tests/fuzz/corpus/wif
+fuzz: | $(DEPS_OK)
+	@mkdir -p $(BUILD)/fuzz
+	$(Q)for f in $(FUZZ_SRC); do n=$$(basename $$f .c); \
+	  clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined \
+	    -Iengine/include -Iengine -Iio $(DEP_CFLAGS) $$f $(LIB_SRC) \
+	    -o $(BUILD)/fuzz/$$n $(DEP_LIBS) || exit 1; echo "  FUZZ    $(BUILD)/fuzz/$$n"; done
+
+install: all
+	install -d $(DESTDIR)$(PREFIX)/lib $(DESTDIR)$(PREFIX)/include/loom \
+	    $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/share/loom
+	install -m 644 $(STATIC) $(DESTDIR)$(PREFIX)/lib/
+	install -m 755 $(SHARED) $(DESTDIR)$(PREFIX)/lib/
+	ln -sf libloom.so.$(VERSION) $(DESTDIR)$(PREFIX)/lib/libloom.so.$(SOVER)
+	ln -sf libloom.so.$(VERSION) $(DESTDIR)$(PREFIX)/lib/libloom.so
+	install -m 644 engine/include/loom.h $(DESTDIR)$(PREFIX)/include/
+	install -m 644 engine/include/loom/*.h $(DESTDIR)$(PREFIX)/include/loom/
+	install -m 755 $(LOOM) $(DESTDIR)$(PREFIX)/bin/
+	cp -R $(DATA_DIR)/. $(DESTDIR)$(PREFIX)/share/loom/
+	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@VERSION@|$(VERSION)|g' loom.pc.in \
+	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/loom.pc
+
+uninstall:
+	rm -f $(DESTDIR)$(PREFIX)/lib/libloom.* $(DESTDIR)$(PREFIX)/include/loom.h \
+	    $(DESTDIR)$(PREFIX)/bin/loom $(DESTDIR)$(PREFIX)/lib/pkgconfig/loom.pc
+	rm -rf $(DESTDIR)$(PREFIX)/include/loom $(DESTDIR)$(PREFIX)/share/loom
+
+clean:
+	rm -rf build
+
+-include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)

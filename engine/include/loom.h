@@ -1,0 +1,18 @@
+/*
+ * loom.h - the one public header of libloom.
+ *
+ * loom builds volumetric models of woven cloth from a fabric design and a
+ * small database of volumetric exemplars (Zhao, Jakob, Marschner, Bala,
+ * "Structure-aware Synthesis for Predictive Woven Fabric Appearance",
+ * SIGGRAPH 2012).  See docs/api.md for one entry per function.
+ *
+ * Build against it with:  cc prog.c $(pkg-config --cflags --libs loom)
+ */
+#ifndef LOOM_H
+#define LOOM_H
+
+#include "loom/common.h"
+#include "loom/design.h"
+#include "loom/io.h"
+
+#endif /* LOOM_H */

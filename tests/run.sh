@@ -1,0 +1,60 @@
+#!/bin/sh
+# tests/run.sh - run every loom test and print "N passed, N failed".
+#
+# Test programs and scripts print one line per test: "PASS name" or
+# "FAIL name".  A program that exits non-zero without printing a FAIL line
+# (a crash, a sanitizer report) counts as one failure.  Output of each
+# program goes to $BUILD/test-logs/<name>.log; failures are shown in full.
+set -u
+BUILD=${BUILD:-build}
+TOP=$(pwd)
+LOGS=$BUILD/test-logs
+rm -rf "$LOGS"
+mkdir -p "$LOGS"
+export LOOM="$TOP/$BUILD/loom"
+export LOOM_BUILD="$TOP/$BUILD"
+export LOOM_TOP="$TOP"
+export LOOM_TEST_TMP="$TOP/$BUILD/test-tmp"
+rm -rf "$LOOM_TEST_TMP"
+mkdir -p "$LOOM_TEST_TMP"
+
+passed=0
+failed=0
+
+run_one() { # run_one NAME COMMAND...
+	name=$1; shift
+	log=$LOGS/$name.log
+	"$@" >"$log" 2>&1
+	rc=$?
+	p=$(grep -c '^PASS ' "$log")
+	f=$(grep -c '^FAIL ' "$log")
+	if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then
+		echo "FAIL $name (exit status $rc)" >>"$log"
+		f=1
+	fi
+	passed=$((passed + p))
+	failed=$((failed + f))
+	if [ "$f" -ne 0 ]; then
+		echo "---- $name: $f failed ----"
+		tail -n 60 "$log"
+	else
+		echo "  ok   $name ($p)"
+	fi
+}
+
+for t in "$BUILD"/tests/test_*; do
+	[ -x "$t" ] || continue
+	run_one "$(basename "$t")" "$t"
+done
+for t in "$BUILD"/tests/replay_*; do
+	[ -x "$t" ] || continue
+	n=$(basename "$t" | sed 's/^replay_//')
+	run_one "replay_$n" "$t" "tests/fuzz/corpus/$n"
+done
+for t in tests/cli/test_*.sh; do
+	[ -f "$t" ] || continue
+	run_one "$(basename "$t" .sh)" sh "$t"
+done
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]

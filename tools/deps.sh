@@ -1,0 +1,56 @@
+#!/bin/sh
+# tools/deps.sh - make sure the Debian packages loom needs are installed.
+#
+#   tools/deps.sh build   libraries and headers needed to compile loom
+#   tools/deps.sh test    build + independent readers used by the tests
+#
+# Missing packages are installed with apt-get (as root, or through sudo -n)
+# and named as they are installed.  Where that is impossible the script
+# prints one line naming the packages to install and exits 1.
+set -u
+what=${1:-build}
+
+missing=""
+need() { # need PACKAGE TEST-COMMAND...
+	pkg=$1; shift
+	if ! "$@" >/dev/null 2>&1; then
+		missing="$missing $pkg"
+	fi
+}
+has_header() { [ -f "/usr/include/$1" ]; }
+
+need pkg-config      command -v pkg-config
+need libdeflate-dev  has_header libdeflate.h
+need libpng-dev      has_header png.h
+need libopenexr-dev  has_header OpenEXR/openexr.h
+need libembree-dev   has_header embree3/rtcore.h
+if [ "$what" = test ]; then
+	need openexr     command -v exrheader
+	need teem-apps   command -v teem-unu
+fi
+
+[ -z "$missing" ] && exit 0
+
+echo "loom: installing missing Debian packages:$missing" >&2
+if [ "$(id -u)" = 0 ]; then
+	SUDO=""
+elif command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
+	SUDO="sudo -n"
+else
+	echo "loom: cannot install packages (not root, no sudo); please run: apt-get install$missing" >&2
+	exit 1
+fi
+if ! command -v apt-get >/dev/null 2>&1; then
+	echo "loom: no apt-get on this system; please install:$missing" >&2
+	exit 1
+fi
+export DEBIAN_FRONTEND=noninteractive
+# A fresh machine has empty package lists: update once, quietly.
+$SUDO apt-get update -qq >&2 || true
+# shellcheck disable=SC2086
+if ! $SUDO apt-get install -y -qq --no-install-recommends $missing >&2; then
+	echo "loom: apt-get failed; please install:$missing" >&2
+	exit 1
+fi
+echo "loom: installed:$missing" >&2
+exit 0

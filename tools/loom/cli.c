@@ -1,0 +1,363 @@
+/* tools/loom/cli.c - argument parsing, messages, data lookup. */
+#include "cli.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+void cli_init(cli_args *a, int argc, char **argv, const char *prog,
+              const char *help)
+{
+	a->argc = argc;
+	a->argv = argv;
+	a->i = 1;
+	a->prog = prog;
+	a->help = help;
+}
+
+int cli_more(const cli_args *a)
+{
+	return a->i < a->argc;
+}
+
+int cli_flag(cli_args *a, const char *name)
+{
+	const char *s;
+
+	if (a->i >= a->argc)
+		return 0;
+	s = a->argv[a->i];
+	if (strcmp(s, "--help") == 0 || strcmp(s, "-h") == 0) {
+		fputs(a->help, stdout);
+		exit(0);
+	}
+	if (strcmp(s, name) == 0) {
+		a->i++;
+		return 1;
+	}
+	return 0;
+}
+
+int cli_value(cli_args *a, const char *name, const char **val)
+{
+	const char *s;
+	size_t n = strlen(name);
+
+	if (cli_flag(a, name)) {
+		if (a->i >= a->argc)
+			cli_usage(a, "option %s needs a value", name);
+		*val = a->argv[a->i++];
+		return 1;
+	}
+	if (a->i >= a->argc)
+		return 0;
+	s = a->argv[a->i];
+	if (strncmp(s, name, n) == 0 && s[n] == '=') {
+		*val = s + n + 1;
+		a->i++;
+		return 1;
+	}
+	return 0;
+}
+
+const char *cli_positional(cli_args *a)
+{
+	const char *s;
+
+	if (a->i >= a->argc)
+		return NULL;
+	s = a->argv[a->i];
+	if (strcmp(s, "--help") == 0 || strcmp(s, "-h") == 0) {
+		fputs(a->help, stdout);
+		exit(0);
+	}
+	if (s[0] == '-' && s[1] != 0)
+		return NULL;
+	a->i++;
+	return s;
+}
+
+void cli_unknown(const cli_args *a)
+{
+	const char *s = a->i < a->argc ? a->argv[a->i] : "";
+	if (s[0] == '-')
+		cli_usage(a, "unknown option '%s'", s);
+	cli_usage(a, "unexpected argument '%s'", s);
+}
+
+void cli_usage(const cli_args *a, const char *fmt, ...)
+{
+	va_list ap;
+	fprintf(stderr, "%s: ", a->prog);
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fprintf(stderr, "\nTry '%s --help'.\n", a->prog);
+	exit(EXIT_USAGE);
+}
+
+void cli_error(const char *prog, const char *fmt, ...)
+{
+	va_list ap;
+	fprintf(stderr, "%s: ", prog);
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fputc('\n', stderr);
+}
+
+void cli_fail(const char *prog, const char *fmt, ...)
+{
+	va_list ap;
+	fprintf(stderr, "%s: ", prog);
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fputc('\n', stderr);
+	exit(EXIT_BAD_INPUT);
+}
+
+int cli_parse_u64(const char *s, uint64_t *v)
+{
+	char *end;
+	unsigned long long x;
+
+	if (!s || !*s || *s == '-' || *s == '+')
+		return -1;
+	errno = 0;
+	x = strtoull(s, &end, 10);
+	if (errno || *end)
+		return -1;
+	*v = x;
+	return 0;
+}
+
+int cli_parse_u32(const char *s, uint32_t *v)
+{
+	uint64_t x;
+	if (cli_parse_u64(s, &x) || x > UINT32_MAX)
+		return -1;
+	*v = (uint32_t)x;
+	return 0;
+}
+
+int cli_parse_i64(const char *s, int64_t *v)
+{
+	char *end;
+	long long x;
+
+	if (!s || !*s)
+		return -1;
+	errno = 0;
+	x = strtoll(s, &end, 10);
+	if (errno || *end)
+		return -1;
+	*v = x;
+	return 0;
+}
+
+int cli_parse_double(const char *s, double *v)
+{
+	char *end;
+	double x;
+
+	if (!s || !*s)
+		return -1;
+	errno = 0;
+	x = strtod(s, &end);
+	if (errno || *end || x != x)
+		return -1;
+	*v = x;
+	return 0;
+}
+
+int cli_parse_size2(const char *s, uint32_t *a, uint32_t *b)
+{
+	char buf[64];
+	char *sep;
+
+	if (!s || strlen(s) >= sizeof buf)
+		return -1;
+	strcpy(buf, s);
+	sep = strpbrk(buf, "xX,");
+	if (!sep)
+		return -1;
+	*sep = 0;
+	if (cli_parse_u32(buf, a) || cli_parse_u32(sep + 1, b))
+		return -1;
+	return 0;
+}
+
+void cli_warn_sink(void *user, const char *msg)
+{
+	if (user && *(int *)user)
+		return;
+	fprintf(stderr, "loom: warning: %s\n", msg);
+}
+
+void cli_diag_init(loom_diag *d, int *quiet)
+{
+	memset(d, 0, sizeof *d);
+	d->warn = cli_warn_sink;
+	d->user = quiet;
+}
+
+static int is_dir(const char *p)
+{
+	struct stat st;
+	return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+const char *cli_data_dir(void)
+{
+	static char buf[PATH_MAX + 64];
+	char exe[PATH_MAX];
+	const char *env = getenv("LOOM_DATA");
+	ssize_t n;
+	char *slash;
+
+	if (env && *env)
+		return env;
+	n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+	if (n <= 0)
+		return NULL;
+	exe[n] = 0;
+	slash = strrchr(exe, '/');
+	if (!slash)
+		return NULL;
+	*slash = 0;
+	snprintf(buf, sizeof buf, "%s/share/loom", exe);
+	if (is_dir(buf))
+		return buf;
+	snprintf(buf, sizeof buf, "%s/../share/loom", exe);
+	if (is_dir(buf))
+		return buf;
+	return NULL;
+}
+
+/* ---- JSON ---------------------------------------------------------------- */
+
+static void jw_indent(json_w *w)
+{
+	fputc('\n', w->fp);
+	for (int k = 0; k < w->depth; k++)
+		fputs("  ", w->fp);
+}
+
+static void jw_escape(FILE *fp, const char *s)
+{
+	fputc('"', fp);
+	for (; *s; s++) {
+		unsigned char c = (unsigned char)*s;
+		if (c == '"' || c == '\\')
+			fprintf(fp, "\\%c", c);
+		else if (c == '\n')
+			fputs("\\n", fp);
+		else if (c == '\t')
+			fputs("\\t", fp);
+		else if (c < 0x20)
+			fprintf(fp, "\\u%04x", c);
+		else
+			fputc(c, fp);
+	}
+	fputc('"', fp);
+}
+
+static void jw_key(json_w *w, const char *key)
+{
+	if (!w->first[w->depth])
+		fputc(',', w->fp);
+	w->first[w->depth] = 0;
+	jw_indent(w);
+	if (key) {
+		jw_escape(w->fp, key);
+		fputs(": ", w->fp);
+	}
+}
+
+void jw_begin(json_w *w, FILE *fp)
+{
+	memset(w, 0, sizeof *w);
+	w->fp = fp;
+	fputc('{', fp);
+	w->depth = 1;
+	w->first[1] = 1;
+}
+
+void jw_end(json_w *w)
+{
+	while (w->depth > 1)
+		jw_close(w);
+	fputs("\n}\n", w->fp);
+	w->depth = 0;
+}
+
+static void jw_open(json_w *w, const char *key, char c)
+{
+	jw_key(w, key);
+	fputc(c, w->fp);
+	if (w->depth < 31)
+		w->depth++;
+	w->first[w->depth] = 1;
+	w->close[w->depth] = c == '{' ? '}' : ']';
+}
+
+void jw_obj(json_w *w, const char *key)
+{
+	jw_open(w, key, '{');
+}
+
+void jw_arr(json_w *w, const char *key)
+{
+	jw_open(w, key, '[');
+}
+
+void jw_close(json_w *w)
+{
+	int empty = w->first[w->depth];
+	char c = w->close[w->depth];
+	w->depth--;
+	if (!empty)
+		jw_indent(w);
+	fputc(c, w->fp);
+}
+
+void jw_str(json_w *w, const char *key, const char *s)
+{
+	jw_key(w, key);
+	if (s)
+		jw_escape(w->fp, s);
+	else
+		fputs("null", w->fp);
+}
+
+void jw_int(json_w *w, const char *key, long long v)
+{
+	jw_key(w, key);
+	fprintf(w->fp, "%lld", v);
+}
+
+void jw_uint(json_w *w, const char *key, unsigned long long v)
+{
+	jw_key(w, key);
+	fprintf(w->fp, "%llu", v);
+}
+
+void jw_num(json_w *w, const char *key, double v)
+{
+	jw_key(w, key);
+	if (v != v || v > 1e308 || v < -1e308)
+		fputs("null", w->fp);
+	else
+		fprintf(w->fp, "%.9g", v);
+}
+
+void jw_bool(json_w *w, const char *key, int v)
+{
+	jw_key(w, key);
+	fputs(v ? "true" : "false", w->fp);
+}

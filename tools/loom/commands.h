@@ -1,0 +1,8 @@
+/* tools/loom/commands.h - the subcommands of `loom`; one file each. */
+#ifndef LOOM_COMMANDS_H
+#define LOOM_COMMANDS_H
+
+int cmd_pattern(int argc, char **argv);  /* cmd_pattern.c */
+int cmd_demo(int argc, char **argv);     /* cmd_demo.c */
+
+#endif
