@@ -102,9 +102,9 @@ $(LOOM): $(TOOL_OBJ) $(STATIC)
 	@$(if $(Q),echo "  LD      $@")
 	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(STATIC) $(DEP_LIBS)
 
-$(DATA): data/README
+$(DATA): $(wildcard data/*)
 	@mkdir -p $(@D)
-	$(Q)cp data/README data/*.wif $(DATA_DIR)/
+	$(Q)cp data/* $(DATA_DIR)/
 
 # Unit tests: one program per module, linked against the static library.
 $(BUILD)/tests/%: $(BUILD)/obj/tests/unit/%.o $(STATIC)
