@@ -53,7 +53,7 @@ for t in "$BUILD"/tests/replay_*; do
 done
 for t in tests/cli/test_*.sh; do
 	[ -f "$t" ] || continue
-	run_one "$(basename "$t" .sh)" sh "$t"
+	run_one "cli_$(basename "$t" .sh)" sh "$t"
 done
 
 echo "$passed passed, $failed failed"
