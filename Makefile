@@ -65,10 +65,11 @@ TESTDEPS_OK := $(BUILD)/.testdeps-ok
 # Default data built by make (issue 3 adds the exemplar database here).
 DATA_DIR := $(BUILD)/share/loom
 DATA     := $(DATA_DIR)/README
+DEFAULT_DB := $(DATA_DIR)/default.ldb
 
 .SECONDARY:
 .PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz
-all: $(STATIC) $(SHARED) $(LOOM) $(DATA)
+all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB)
 
 help:
 	@sed -n '3,12p' Makefile | sed 's/^# \{0,1\}//'
@@ -106,6 +107,13 @@ $(DATA): $(wildcard data/*)
 	@mkdir -p $(@D)
 	$(Q)cp data/* $(DATA_DIR)/
 
+# The default exemplar database (small preset, fixed seed; docs/exemplars.md),
+# made by the loom binary and remade when it changes.
+$(DEFAULT_DB): $(LOOM) | $(DATA)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  GEN     $@")
+	$(Q)$(LOOM) exemplar generate --preset small --seed 1 --quiet -o $@
+
 # Unit tests: one program per module, linked against the static library.
 $(BUILD)/tests/%: $(BUILD)/obj/tests/unit/%.o $(STATIC)
 	@mkdir -p $(@D)
@@ -124,7 +132,7 @@ demo: all
 	$(LOOM) demo
 
 test check: all $(UNIT_BIN) $(FUZZ_BIN) $(TESTDEPS_OK)
-	$(Q)BUILD=$(BUILD) sh tests/run.sh
+	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 sanitize:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/asan OPT=-O1 \
