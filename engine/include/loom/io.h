@@ -33,29 +33,55 @@ typedef struct loom_image {
 	uint32_t width, height;
 	uint32_t channels;     /* 1 or 3 */
 	uint8_t *pixels;       /* width*height*channels bytes */
-	int bilevel;           /* 1 when read from a PBM (0/1 data, 1 = black) */
+	int bilevel;           /* 1 when read from a PBM or a 1-bit grey PNG
+	                          (pixels still 0 = black, 255 = white); set it
+	                          to have loom_image_write make a 1-bit PNG */
+	uint32_t n_palette;    /* entries of palette (indexed PNG), else 0 */
+	uint8_t *palette;      /* n_palette*3 bytes RGB, or NULL; owned; the
+	                          pixels are already expanded to RGB */
 } loom_image;
 
+/*
+ * Allocate a width x height image of `channels` (1 or 3) channels, all
+ * pixels 0, no palette.  Returns LOOM_OK, LOOM_EINVAL (NULL out, zero size,
+ * other channel counts), LOOM_ERANGE (size overflows), LOOM_ENOMEM; *out is
+ * NULL on failure.  Thread-safe.
+ */
 LOOM_API int loom_image_new(uint32_t width, uint32_t height, uint32_t channels,
                             loom_image **out);
+/* Free an image and its palette; NULL is a no-op. */
 LOOM_API void loom_image_free(loom_image *img);
 
-/* Read PBM (P1, P4), PGM (P2, P5), PPM (P3, P6) or PNG (any colour type,
-   palette expanded, 16-bit reduced to 8).  Format chosen by content.
-   PBM pixels are returned as 1 channel, 255 = white, 0 = black. */
+/*
+ * Read PBM (P1, P4), PGM (P2, P5), PPM (P3, P6) or PNG (any colour type,
+ * palette expanded, 16-bit reduced to 8).  Format chosen by content.
+ * PBM pixels are returned as 1 channel, 255 = white, 0 = black; PGM/PPM
+ * samples are scaled from maxval to 0..255; PNG alpha is ignored.
+ * Returns LOOM_OK, LOOM_EFORMAT (malformed; diag names the line or byte
+ * offset), LOOM_ETRUNCATED, LOOM_ERANGE (larger than 2^30 pixels),
+ * LOOM_EIO, LOOM_ENOMEM.  *out is NULL on failure; free it with
+ * loom_image_free.  Thread-safe.
+ */
 LOOM_API int loom_image_read(const char *path, loom_image **out, loom_diag *diag);
 LOOM_API int loom_image_parse(const uint8_t *data, size_t len, const char *name,
                               loom_image **out, loom_diag *diag);
 
-/* Write as PNG, or as PNM (PGM/PPM binary) by the path's extension
-   (.png, .pgm, .ppm, .pnm).  Atomic. */
+/*
+ * Write by the path's extension: .png (1-bit grey when img->bilevel, else
+ * 8-bit grey or RGB), .pbm (P4; pixels below 128 are black), .pgm (P5),
+ * .ppm (P6), .pnm (P5 or P6 by channels).  An RGB image is not written as
+ * PGM (LOOM_EINVAL).  Atomic.  Returns LOOM_OK, LOOM_EINVAL, LOOM_EIO.
+ */
 LOOM_API int loom_image_write(const char *path, const loom_image *img,
                               loom_diag *diag);
 
 /* ---- Designs as files -------------------------------------------------- */
 
-/* Read a weave pattern: .wif (WIF), .pbm, .png, .pgm (dark = warp over;
-   a PNG/PGM must be two-level).  Chosen by extension, then content. */
+/* Read a weave pattern: .wif (WIF), .pbm, .png, .pgm, .ppm, .pnm (dark =
+   warp over; an image must be two-level: the darker level is warp over, a
+   one-level image is all over when darker than 128).  Chosen by extension,
+   else by content.  An image gives the default yarn table and maps of
+   loom_design_new.  LOOM_OK or the reader's error; *out NULL on failure. */
 LOOM_API int loom_design_read(const char *path, loom_design **out,
                               loom_diag *diag);
 
@@ -64,9 +90,46 @@ LOOM_API int loom_design_read(const char *path, loom_design **out,
 LOOM_API int loom_weave_write(const char *path, const loom_design *d,
                               loom_diag *diag);
 
-/* Posterized image to weave (paper 5.2): W(x,y) = V_p(I(x,y))(x,y).
-   `map_text` is a mapping file (format in docs/formats.md) assigning each
-   colour an elementary weave and warp/weft yarn types. */
+/*
+ * Yarn-type maps as images: one grey pixel per cell, pixel value = type ID
+ * (.pgm P5 maxval 255, or .png 8-bit grey), same size as the weave.
+ * `which` selects the warp-type or the weft-type map.
+ *
+ * loom_type_map_write writes d's map atomically; LOOM_OK, LOOM_EINVAL
+ * (NULL, unknown extension), LOOM_EIO.
+ *
+ * loom_type_map_read reads a map into an existing design d, replacing its
+ * map.  Any PGM/PNG grey image is accepted, its stored values taken as they
+ * are (a PGM with maxval 7 gives IDs 0..7; a 4-bit PNG gives 0..15; an
+ * indexed PNG gives its palette indices; a PBM gives 1 for black).  IDs
+ * beyond the yarn table extend it with default entries (named "typeK"),
+ * with a warning.  Errors: LOOM_EMISMATCH (size differs from the design),
+ * LOOM_EFORMAT (colour image, value above 255, malformed), LOOM_EIO,
+ * LOOM_ENOMEM; d is unchanged on failure.  Thread-safe on distinct designs.
+ */
+enum loom_type_map_which {
+	LOOM_MAP_WARP = 0,  /* d->warp_type */
+	LOOM_MAP_WEFT = 1   /* d->weft_type */
+};
+LOOM_API int loom_type_map_write(const char *path, const loom_design *d,
+                                 int which, loom_diag *diag);
+LOOM_API int loom_type_map_read(const char *path, loom_design *d, int which,
+                                loom_diag *diag);
+
+/*
+ * Posterized image to weave (paper 5.2): W(x,y) = V_p(I(x,y))(x,y), each
+ * elementary weave tiled from the image origin (row y = pick y, column
+ * x = end x).  `map_text` (map_len bytes, need not be NUL-terminated) is a
+ * mapping file, format in docs/designs.md: yarn lines build the yarn table,
+ * colour lines assign each image colour (#RRGGBB, grey level or palette
+ * index) an elementary weave and warp/weft yarn types.  `map_name` is used
+ * in messages ("map_name:line: ...").
+ * Errors (LOOM_EFORMAT unless noted): a malformed line (file:line and what
+ * was expected), an image colour without a mapping (names the colour and
+ * its first pixel), more than 64 distinct colours (LOOM_ERANGE), an
+ * impossible weave (LOOM_EINVAL).  Mapped colours absent from the image
+ * are warned about.  *out is NULL on failure.  Thread-safe.
+ */
 LOOM_API int loom_design_from_image(const loom_image *img, const char *map_text,
                                     size_t map_len, const char *map_name,
                                     loom_design **out, loom_diag *diag);
