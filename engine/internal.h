@@ -43,6 +43,10 @@ int loom__atomic_open(loom__atomic *a, const char *path, loom_diag *diag);
 int loom__atomic_commit(loom__atomic *a, loom_diag *diag);
 void loom__atomic_abort(loom__atomic *a);
 
+/* sRGB-encoded component c in [0,1] to linear (IEC 61966-2-1).  Colours
+   users type (#RRGGBB, WIF colour tables) are sRGB; albedo is linear. */
+float loom__srgb_to_linear(double c);
+
 /* Case-insensitive ASCII string compare helpers. */
 int loom__strieq(const char *a, const char *b);
 int loom__strnieq(const char *a, const char *b, size_t n);

@@ -2,6 +2,7 @@
 #include "internal.h"
 
 #include <ctype.h>
+#include <math.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -219,4 +220,9 @@ int loom__strnieq(const char *a, const char *b, size_t n)
 			return 1;
 	}
 	return 1;
+}
+
+float loom__srgb_to_linear(double c)
+{
+	return (float)(c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
 }

@@ -200,7 +200,7 @@ static int parse_albedo(mapfile *m, tok t, float rgb[3])
 
 	if (parse_hex(t, &key)) {
 		for (int k = 0; k < 3; k++)
-			rgb[k] = (float)((key >> (16 - 8 * k)) & 255) / 255.0f;
+			rgb[k] = loom__srgb_to_linear(((key >> (16 - 8 * k)) & 255) / 255.0);
 		return LOOM_OK;
 	}
 	for (int k = 0; k < 3; k++) {

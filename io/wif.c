@@ -1155,11 +1155,6 @@ static int side_types(wif_parser *p, wif_build *b, wif_palette *pal,
 	return LOOM_OK;
 }
 
-static float srgb_to_linear(double c)
-{
-	return (float)(c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4));
-}
-
 /* Fill the design's yarn table and type maps. */
 static int yarn_types(wif_parser *p, wif_build *b, loom_design *d)
 {
@@ -1200,7 +1195,7 @@ static int yarn_types(wif_parser *p, wif_build *b, loom_design *d)
 		memset(ty, 0, sizeof *ty);
 		if (y->has_color) {
 			for (int q = 0; q < 3; q++)
-				ty->albedo[q] = srgb_to_linear(y->rgb[q] / 65535.0);
+				ty->albedo[q] = loom__srgb_to_linear(y->rgb[q] / 65535.0);
 			w = snprintf(ty->name, sizeof ty->name, "%s #%02x%02x%02x",
 			             side_name[y->side], (unsigned)lrint(y->rgb[0] / 257.0),
 			             (unsigned)lrint(y->rgb[1] / 257.0),

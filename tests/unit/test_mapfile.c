@@ -75,7 +75,8 @@ static void hand_computed(void)
 	CHECK(fabsf(d->types[0].alignment - 0.2f) < 1e-6f);
 	CHECK(fabsf(d->types[1].albedo[2] - 0.5f) < 1e-6f);
 	CHECK(fabsf(d->types[1].thickness - 1.5f) < 1e-6f);
-	CHECK(fabsf(d->types[2].albedo[1] - 128.0f / 255.0f) < 1e-6f);
+	/* #xx80xx is sRGB 128/255: linear ((0.50196 + 0.055) / 1.055)^2.4 = 0.21586 */
+	CHECK(fabsf(d->types[2].albedo[1] - 0.215861f) < 1e-5f);
 	CHECK(fabsf(d->types[2].alignment - 0.3f) < 1e-6f); /* default */
 	CHECK_EQ_INT(dg.n_warnings, 0);
 	CHECK_EQ_INT(loom_design_validate(d, NULL), LOOM_OK);
