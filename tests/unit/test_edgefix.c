@@ -1,0 +1,506 @@
+/* tests/unit/test_edgefix.c - edge fixing (engine/edgefix.c) against an
+   independent iterative Laplace solver, the exact per-block solve and the
+   paper's per-output-block formulation.  Profiles are synthetic smooth
+   random curves (the database provides the real ones). */
+#include "check.h"
+#include "loom.h"
+
+#include <math.h>
+
+static uint64_t rng_state;
+
+static double urand(void) /* [-1, 1) */
+{
+	rng_state = loom_synth_mix(rng_state);
+	return (double)(rng_state >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+}
+
+static uint32_t rnd(uint32_t n)
+{
+	rng_state = loom_synth_mix(rng_state);
+	return (uint32_t)(rng_state % n);
+}
+
+/* One smooth random curve of n samples: 1/f^2 spectrum. */
+static void curve(float *v, uint32_t n, double base, double amp)
+{
+	double a[24], b[24];
+	for (int f = 0; f < 24; f++) {
+		a[f] = urand();
+		b[f] = urand();
+	}
+	for (uint32_t i = 0; i < n; i++) {
+		double s = (double)i / (double)(n - 1), h = base;
+		for (int f = 1; f <= 24; f++)
+			h += amp / (f * f) * (a[f - 1] * cos(M_PI * f * s) + b[f - 1] * sin(M_PI * f * s));
+		v[i] = (float)h;
+	}
+}
+
+/* K records of synthetic profiles; corner samples shared between edges
+   (the same voxel column), as real profiles are. */
+static float *profiles(uint32_t K, uint32_t b1, uint32_t b2, loom_edge_profiles *p)
+{
+	uint32_t rec = LOOM_EDGE_RECORD(b1, b2);
+	float *h = malloc(sizeof(float) * rec * K);
+	for (uint32_t t = 0; t < K; t++) {
+		float *r = h + (size_t)t * rec;
+		float *N = r, *S = r + b1, *W = r + 2 * b1, *E = r + 2 * b1 + b2;
+		double base = 100 + 6 * urand();
+		curve(N, b1, base, 8);
+		curve(S, b1, base, 8);
+		curve(W, b2, base, 8);
+		curve(E, b2, base, 8);
+		W[0] = N[0];
+		E[0] = N[b1 - 1];
+		W[b2 - 1] = S[0];
+		E[b2 - 1] = S[b1 - 1];
+	}
+	p->b1 = b1;
+	p->b2 = b2;
+	p->n_blocks = K;
+	p->heights = h;
+	return h;
+}
+
+static const float *pr(const loom_edge_profiles *p, uint32_t t, int e)
+{
+	const float *r = p->heights + (size_t)t * LOOM_EDGE_RECORD(p->b1, p->b2);
+	return e == 0 ? r : e == 1 ? r + p->b1 : e == 2 ? r + 2 * p->b1 : r + 2 * p->b1 + p->b2;
+}
+
+static loom_synth_nbhd random_nb(uint32_t K)
+{
+	loom_synth_nbhd nb;
+	nb.self = (uint16_t)rnd(K);
+	nb.n = (uint16_t)rnd(K);
+	nb.s = (uint16_t)rnd(K);
+	nb.w = (uint16_t)rnd(K);
+	nb.e = (uint16_t)rnd(K);
+	return nb;
+}
+
+/* Independent reference: boundary values as documented, interior by SOR. */
+static void reference(const loom_edge_profiles *p, const loom_synth_nbhd *nb, double *u)
+{
+	uint32_t b1 = p->b1, b2 = p->b2;
+	memset(u, 0, sizeof(double) * b1 * b2);
+	for (uint32_t y = 1; y + 1 < b2; y++) {
+		u[y * b1] = 0.5 * (pr(p, nb->w, 3)[y] - pr(p, nb->self, 2)[y]);
+		u[y * b1 + b1 - 1] = 0.5 * (pr(p, nb->e, 2)[y] - pr(p, nb->self, 3)[y]);
+	}
+	for (uint32_t x = 0; x < b1; x++) { /* the N/S rows own the corners */
+		u[x] = 0.5 * (pr(p, nb->n, 1)[x] - pr(p, nb->self, 0)[x]);
+		u[(b2 - 1) * b1 + x] = 0.5 * (pr(p, nb->s, 0)[x] - pr(p, nb->self, 1)[x]);
+	}
+	for (int it = 0; it < 200000; it++) {
+		double big = 0;
+		for (uint32_t y = 1; y + 1 < b2; y++)
+			for (uint32_t x = 1; x + 1 < b1; x++) {
+				double *c = u + y * b1 + x;
+				double g = 0.25 * (c[-1] + c[1] + c[-(long)b1] + c[b1]);
+				double d = 1.8 * (g - *c);
+				*c += d;
+				if (fabs(d) > big)
+					big = fabs(d);
+			}
+		if (big < 1e-13)
+			break;
+	}
+}
+
+static double maxdiff(const float *a, const float *b, size_t n)
+{
+	double m = 0;
+	for (size_t k = 0; k < n; k++)
+		if (fabs((double)a[k] - b[k]) > m)
+			m = fabs((double)a[k] - b[k]);
+	return m;
+}
+
+/* ---- tests --------------------------------------------------------------- */
+
+static void exact_vs_iterative(void)
+{
+	static const uint32_t sizes[][2] = {{3, 3}, {7, 3}, {3, 8}, {12, 9}, {24, 16}, {31, 11}};
+	rng_state = check_seed();
+	for (unsigned s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
+		loom_edge_profiles p;
+		uint32_t b1 = sizes[s][0], b2 = sizes[s][1];
+		float *h = profiles(5, b1, b2, &p);
+		float *dz = malloc(sizeof(float) * b1 * b2);
+		double *u = malloc(sizeof(double) * b1 * b2);
+		for (int trial = 0; trial < 4; trial++) {
+			loom_synth_nbhd nb = random_nb(5);
+			double m = 0;
+			CHECK_EQ_INT(loom_edgefix_exact(&p, &nb, dz), LOOM_OK);
+			reference(&p, &nb, u);
+			for (size_t k = 0; k < (size_t)b1 * b2; k++)
+				if (fabs(dz[k] - u[k]) > m)
+					m = fabs(dz[k] - u[k]);
+			if (m > 2e-5)
+				printf("  %ux%u: max |exact - SOR| = %g\n", b1, b2, m);
+			CHECK(m < 2e-5);
+		}
+		free(h);
+		free(dz);
+		free(u);
+	}
+}
+
+/* Sign convention by hand: flat profiles, the N neighbour 4 voxels higher. */
+static void sign_by_hand(void)
+{
+	uint32_t b1 = 9, b2 = 7, rec = LOOM_EDGE_RECORD(9, 7);
+	float h[2 * LOOM_EDGE_RECORD(9, 7)];
+	float dz[63], dz2[63];
+	loom_edge_profiles p = {9, 7, 2, h};
+	loom_synth_nbhd nb = {0, 1, 0, 0, 0};
+	loom_edgefix *ef = NULL;
+	for (uint32_t k = 0; k < rec; k++) {
+		h[k] = 10;
+		h[rec + k] = 14;
+	}
+	CHECK_EQ_INT(loom_edgefix_exact(&p, &nb, dz), LOOM_OK);
+	for (uint32_t x = 0; x < b1; x++) {
+		CHECK(fabs(dz[x] - 2.0) < 1e-6);                  /* raised by half of 4 */
+		CHECK(fabs(dz[(b2 - 1) * b1 + x]) < 1e-6);        /* S edge: no jump */
+	}
+	for (uint32_t y = 1; y + 1 < b2; y++) {
+		CHECK(fabs(dz[y * b1]) < 1e-6);
+		for (uint32_t x = 1; x + 1 < b1; x++) {
+			CHECK(dz[y * b1 + x] > 0 && dz[y * b1 + x] < 2);
+			if (y > 1)
+				CHECK(dz[y * b1 + x] < dz[(y - 1) * b1 + x]); /* decays away */
+		}
+	}
+	/* symmetric in x */
+	CHECK(fabs(dz[3 * b1 + 2] - dz[3 * b1 + 6]) < 1e-6);
+	/* constant deviations: rank 1 is exact */
+	CHECK_EQ_INT(loom_edgefix_build(&p, 1, &ef, NULL), LOOM_OK);
+	loom_edgefix_block(ef, &nb, dz2);
+	CHECK(maxdiff(dz, dz2, 63) < 1e-5);
+	loom_edgefix_free(ef);
+}
+
+static void exact_boundary_and_residual(void)
+{
+	loom_edge_profiles p;
+	uint32_t b1 = 40, b2 = 25;
+	float *h, dz[40 * 25];
+	rng_state = check_seed() + 1;
+	h = profiles(7, b1, b2, &p);
+	for (int trial = 0; trial < 5; trial++) {
+		loom_synth_nbhd nb = random_nb(7);
+		double res = 0, bnd = 0;
+		loom_edgefix_exact(&p, &nb, dz);
+		for (uint32_t x = 0; x < b1; x++) {
+			bnd = fmax(bnd, fabs(dz[x] - 0.5 * (pr(&p, nb.n, 1)[x] - pr(&p, nb.self, 0)[x])));
+			bnd = fmax(bnd, fabs(dz[(b2 - 1) * b1 + x] -
+			                     0.5 * (pr(&p, nb.s, 0)[x] - pr(&p, nb.self, 1)[x])));
+		}
+		for (uint32_t y = 1; y + 1 < b2; y++) {
+			bnd = fmax(bnd, fabs(dz[y * b1] - 0.5 * (pr(&p, nb.w, 3)[y] - pr(&p, nb.self, 2)[y])));
+			bnd = fmax(bnd, fabs(dz[y * b1 + b1 - 1] -
+			                     0.5 * (pr(&p, nb.e, 2)[y] - pr(&p, nb.self, 3)[y])));
+			for (uint32_t x = 1; x + 1 < b1; x++) {
+				const float *c = dz + y * b1 + x;
+				res = fmax(res, fabs(4.0 * c[0] - c[-1] - c[1] - c[-(long)b1] - c[b1]));
+			}
+		}
+		CHECK(bnd < 1e-5);
+		CHECK(res < 1e-4);
+	}
+	free(h);
+}
+
+/* Errors of the rank-r tables against the exact solve over random
+   neighbourhoods. */
+static void rank_errors(const loom_edge_profiles *p, uint32_t rank, int n,
+                        double *maxe, double *meane)
+{
+	loom_edgefix *ef = NULL;
+	size_t cells = (size_t)p->b1 * p->b2;
+	float *a = malloc(sizeof(float) * cells), *b = malloc(sizeof(float) * cells);
+	double sum = 0;
+	*maxe = 0;
+	CHECK_EQ_INT(loom_edgefix_build(p, rank, &ef, NULL), LOOM_OK);
+	for (int k = 0; k < n && ef; k++) {
+		loom_synth_nbhd nb = random_nb(p->n_blocks);
+		loom_edgefix_block(ef, &nb, a);
+		loom_edgefix_exact(p, &nb, b);
+		for (size_t c = 0; c < cells; c++) {
+			double d = fabs((double)a[c] - b[c]);
+			sum += d;
+			if (d > *maxe)
+				*maxe = d;
+		}
+	}
+	*meane = sum / (double)(cells * (size_t)n);
+	loom_edgefix_free(ef);
+	free(a);
+	free(b);
+}
+
+static void full_rank_is_exact_and_truncation(void)
+{
+	loom_edge_profiles p;
+	float *h;
+	double mx[6], mn[6];
+	static const uint32_t ranks[6] = {1, 3, 6, 10, 16, 24};
+	rng_state = check_seed() + 2;
+	h = profiles(30, 24, 16, &p);
+	for (int k = 0; k < 6; k++) {
+		rank_errors(&p, ranks[k], 20, &mx[k], &mn[k]);
+		printf("  rank %2u: max %.3g mean %.3g voxels\n", ranks[k], mx[k], mn[k]);
+	}
+	for (int k = 1; k < 6; k++)
+		CHECK(mn[k] < mn[k - 1]);
+	CHECK(mx[5] < 1e-4); /* full rank (24 = b1, 14 = b2-2) */
+	CHECK(mn[0] > 1e-2);  /* truncation is visible */
+	free(h);
+}
+
+static void at_equals_block_and_tables(void)
+{
+	loom_edge_profiles p;
+	loom_edgefix *ef = NULL, *ef2 = NULL;
+	loom_edgefix_tables t;
+	float *h, a[20 * 13], b[20 * 13];
+	rng_state = check_seed() + 3;
+	h = profiles(9, 20, 13, &p);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 5, &ef, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_get_tables(ef, &t), LOOM_OK);
+	CHECK_EQ_INT(t.rank_h, 5);
+	CHECK_EQ_INT(t.rank_v, 5);
+	CHECK(loom_edgefix_bytes(ef) >= sizeof(float) * (20 * 13 * 10 + 9 * 20));
+	CHECK_EQ_INT(loom_edgefix_from_tables(&t, &ef2, NULL), LOOM_OK);
+	for (int trial = 0; trial < 10; trial++) {
+		loom_synth_nbhd nb = random_nb(9);
+		loom_edgefix_block(ef, &nb, a);
+		loom_edgefix_block(ef2, &nb, b);
+		CHECK(memcmp(a, b, sizeof a) == 0);
+		for (uint32_t y = 0; y < 13; y++)
+			for (uint32_t x = 0; x < 20; x++)
+				CHECK(loom_edgefix_at(ef, &nb, x, y) == a[y * 20 + x]);
+	}
+	/* basis orthonormal */
+	for (uint32_t k = 0; k < t.rank_h; k++)
+		for (uint32_t l = 0; l < t.rank_h; l++) {
+			double s = 0;
+			for (uint32_t x = 0; x < 20; x++)
+				s += (double)t.basis_h[x * t.rank_h + k] * t.basis_h[x * t.rank_h + l];
+			CHECK(fabs(s - (k == l)) < 1e-5);
+		}
+	loom_edgefix_free(ef2);
+	t.rank_h = 99;
+	CHECK_EQ_INT(loom_edgefix_from_tables(&t, &ef2, NULL), LOOM_EINVAL);
+	CHECK(ef2 == NULL);
+	loom_edgefix_free(ef);
+	free(h);
+}
+
+static void paper_equivalence(void)
+{
+	loom_edge_profiles p;
+	loom_edgefix *ef = NULL, *full = NULL;
+	loom_edgefix_paper *pp = NULL, *pf = NULL;
+	uint32_t rows = 5, cols = 6, K = 12;
+	uint16_t as[30];
+	float *h, a[24 * 16], b[24 * 16], c[24 * 16];
+	double worst_same = 0, worst_full = 0;
+
+	rng_state = check_seed() + 4;
+	h = profiles(K, 24, 16, &p);
+	for (int k = 0; k < 30; k++)
+		as[k] = (uint16_t)rnd(K);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 6, &ef, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 24, &full, NULL), LOOM_OK);
+	/* the paper's formula on the same basis */
+	CHECK_EQ_INT(loom_edgefix_paper_new(&p, as, rows, cols, 6, ef, &pp, NULL), LOOM_OK);
+	/* the paper's own SVD of T and L at full rank */
+	CHECK_EQ_INT(loom_edgefix_paper_new(&p, as, rows, cols, 24, NULL, &pf, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_paper_bytes(pf) > 30 * 38 * 4, 1);
+	for (uint32_t i = 0; i < rows; i++)
+		for (uint32_t j = 0; j < cols; j++) {
+			loom_synth_nbhd nb;
+			nb.self = as[i * cols + j];
+			nb.n = as[((i + rows - 1) % rows) * cols + j];
+			nb.s = as[((i + 1) % rows) * cols + j];
+			nb.w = as[i * cols + (j + cols - 1) % cols];
+			nb.e = as[i * cols + (j + 1) % cols];
+			loom_edgefix_block(ef, &nb, a);
+			CHECK_EQ_INT(loom_edgefix_paper_block(pp, i, j, b), LOOM_OK);
+			worst_same = fmax(worst_same, maxdiff(a, b, 24 * 16));
+			loom_edgefix_exact(&p, &nb, c);
+			CHECK_EQ_INT(loom_edgefix_paper_block(pf, i, j, b), LOOM_OK);
+			worst_full = fmax(worst_full, maxdiff(b, c, 24 * 16));
+			loom_edgefix_block(full, &nb, a);
+			worst_full = fmax(worst_full, maxdiff(a, c, 24 * 16));
+		}
+	printf("  same basis: max |ours - paper| = %.3g; full rank: max |.-exact| = %.3g\n",
+	       worst_same, worst_full);
+	CHECK(worst_same < 1e-4);
+	CHECK(worst_full < 1e-4);
+	CHECK_EQ_INT(loom_edgefix_paper_block(pp, rows, 0, b), LOOM_ERANGE);
+	loom_edgefix_paper_free(pp);
+	loom_edgefix_paper_free(pf);
+	loom_edgefix_free(ef);
+	loom_edgefix_free(full);
+	free(h);
+}
+
+/* A small exemplar set and a design, for lookups over a window. */
+static void make_lookup(loom_synth_set **s, loom_design **d, uint16_t **base,
+                        loom_synth_lookup *lk)
+{
+	static const uint8_t tw[25] = {1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 1, 1, 0,
+	                               0, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1};
+	static const uint8_t pl[4] = {1, 0, 0, 1};
+	loom_synth_exemplar ex[2] = {{5, 5, tw, 0}, {2, 2, pl, 0}};
+	loom_synth_options o = LOOM_SYNTH_OPTIONS_INIT;
+	loom_synth_set_new(ex, 2, s, NULL);
+	loom_design_new(11, 13, d);
+	for (int k = 0; k < 11 * 13; k++)
+		(*d)->weave[k] = (uint8_t)rnd(2);
+	*base = malloc(2 * 11 * 13);
+	loom_synth_assign(*s, *d, &o, *base, NULL);
+	loom_synth_lookup_init(lk, *s, *base, 11, 13, &o);
+}
+
+static void seams_meet_after_exact_fix(void)
+{
+	loom_edge_profiles p;
+	loom_synth_set *s;
+	loom_design *d;
+	uint16_t *base;
+	loom_synth_lookup lk;
+	float *h, A[18 * 12], B[18 * 12];
+	uint32_t b1 = 18, b2 = 12;
+	double worst = 0, before = 0;
+
+	rng_state = check_seed() + 5;
+	make_lookup(&s, &d, &base, &lk);
+	h = profiles(29, b1, b2, &p);
+	for (int64_t I = -3; I < 4; I++)
+		for (int64_t J = 20; J < 27; J++) {
+			loom_synth_nbhd a, bl, rt;
+			loom_synth_nbhd_at(&lk, I, J, &a);
+			loom_synth_nbhd_at(&lk, I + 1, J, &bl);
+			loom_synth_nbhd_at(&lk, I, J + 1, &rt);
+			loom_edgefix_exact(&p, &a, A);
+			loom_edgefix_exact(&p, &bl, B);
+			for (uint32_t x = 0; x < b1; x++) {
+				double h0 = pr(&p, a.self, 1)[x], h1 = pr(&p, bl.self, 0)[x];
+				before = fmax(before, fabs(h0 - h1));
+				worst = fmax(worst, fabs(h0 + A[(b2 - 1) * b1 + x] - h1 - B[x]));
+			}
+			loom_edgefix_exact(&p, &rt, B);
+			for (uint32_t y = 1; y + 1 < b2; y++) { /* corners: N/S edges */
+				double h0 = pr(&p, a.self, 3)[y], h1 = pr(&p, rt.self, 2)[y];
+				before = fmax(before, fabs(h0 - h1));
+				worst = fmax(worst, fabs(h0 + A[y * b1 + b1 - 1] - h1 - B[y * b1]));
+			}
+		}
+	printf("  max jump before %.3g, after exact fix %.3g voxels\n", before, worst);
+	CHECK(before > 1);
+	CHECK(worst < 1e-4);
+	free(h);
+	free(base);
+	loom_design_free(d);
+	loom_synth_set_free(s);
+}
+
+static void seam_metric(void)
+{
+	loom_edge_profiles p;
+	loom_synth_set *s;
+	loom_design *d;
+	uint16_t *base;
+	loom_synth_lookup lk;
+	loom_edgefix *lo = NULL, *hi = NULL;
+	loom_seam_metrics m1, m2;
+	double blk[4];
+	float *h;
+
+	rng_state = check_seed() + 6;
+	make_lookup(&s, &d, &base, &lk);
+	h = profiles(29, 18, 12, &p);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 2, &lo, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 18, &hi, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_seam(lo, &p, &lk, -5, 7, 9, 10, 0.5, &m1), LOOM_OK);
+	CHECK_EQ_INT(loom_edgefix_seam(hi, &p, &lk, -5, 7, 9, 10, 0.5, &m2), LOOM_OK);
+	printf("  rank 2: before %.3f after %.3f; full: after %.3g (corners %.3f)\n",
+	       m1.before_mean, m1.after_mean, m2.after_mean, m2.corner_after_mean);
+	CHECK_EQ_INT(m1.samples, 90 * (18 + 12));
+	CHECK_EQ_INT(m1.corner_samples, 90 * 2);
+	CHECK(m1.before_mean == m2.before_mean);
+	CHECK(m1.after_mean < 0.5 * m1.before_mean);
+	CHECK(m2.after_mean < m1.after_mean);
+	/* at full rank only the corner samples of the E edges keep a jump */
+	CHECK(fabs(m2.after_mean * m2.samples - m2.corner_after_mean * m2.corner_samples) <
+	      1e-3 * m2.samples);
+	CHECK(m2.corner_after_mean > 0.1 && m2.corner_before_mean > 0.1);
+	CHECK(fabs(m1.before_ratio - m1.before_mean / 0.5) < 1e-12);
+	CHECK_EQ_INT(loom_edgefix_seam_block(hi, &p, &lk, 3, 4, blk), LOOM_OK);
+	CHECK(blk[1] < 1e-4 && blk[0] > 0);
+	CHECK_EQ_INT(loom_edgefix_seam(lo, NULL, &lk, 0, 0, 1, 1, 0, &m1), LOOM_EINVAL);
+	loom_edgefix_free(lo);
+	loom_edgefix_free(hi);
+	free(h);
+	free(base);
+	loom_design_free(d);
+	loom_synth_set_free(s);
+}
+
+static void bad_arguments(void)
+{
+	loom_edge_profiles p;
+	loom_edgefix *ef = NULL;
+	loom_diag diag = {0};
+	loom_synth_nbhd nb = {0, 0, 0, 0, 9};
+	float *h, dz[64];
+	rng_state = 5;
+	h = profiles(3, 8, 8, &p);
+	CHECK_EQ_INT(loom_edgefix_build(NULL, 5, &ef, &diag), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 5, NULL, &diag), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_edgefix_build(&p, 0, &ef, &diag), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_edgefix_build(&p, LOOM_EDGEFIX_MAX_RANK + 1, &ef, &diag), LOOM_ERANGE);
+	p.b1 = 2;
+	CHECK_EQ_INT(loom_edgefix_build(&p, 5, &ef, &diag), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(diag.message, "at least 3x3");
+	p.b1 = 8;
+	h[17] = NAN;
+	CHECK_EQ_INT(loom_edgefix_build(&p, 5, &ef, &diag), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(diag.message, "not finite");
+	CHECK(ef == NULL);
+	h[17] = 1;
+	CHECK_EQ_INT(loom_edgefix_exact(&p, &nb, dz), LOOM_EINVAL); /* block 9 of 3 */
+	CHECK_EQ_INT(loom_edgefix_build(&p, 50, &ef, &diag), LOOM_OK); /* ranks clipped */
+	{
+		loom_edgefix_tables t;
+		loom_edgefix_get_tables(ef, &t);
+		CHECK_EQ_INT(t.rank_h, 6); /* min(50, b1 = 8, 2K = 6) */
+		CHECK_EQ_INT(t.rank_v, 6); /* min(50, b2-2 = 6, 2K = 6) */
+	}
+	CHECK(loom_edgefix_at(ef, &nb, 8, 0) == 0);
+	loom_edgefix_free(ef);
+	loom_edgefix_free(NULL);
+	loom_edgefix_paper_free(NULL);
+	free(h);
+}
+
+int main(void)
+{
+	CHECK_MAIN_BEGIN("test_edgefix");
+	RUN(exact_vs_iterative);
+	RUN(sign_by_hand);
+	RUN(exact_boundary_and_residual);
+	RUN(full_rank_is_exact_and_truncation);
+	RUN(at_equals_block_and_tables);
+	RUN(paper_equivalence);
+	RUN(seams_meet_after_exact_fix);
+	RUN(seam_metric);
+	RUN(bad_arguments);
+	CHECK_MAIN_END();
+}
