@@ -73,6 +73,13 @@ void cli_diag_init(loom_diag *d, int *quiet);
    <exe dir>/../share/loom (installed).  Returns a static string or NULL. */
 const char *cli_data_dir(void);
 
+/* The exemplar database to use (tools/loom/dbpath.c): opt (a --db value) if
+   set, else $LOOM_DB, else cli_data_dir()/default.ldb if it exists; NULL if
+   none.  cli_db_require fails (exit 1, message naming where it looked)
+   instead of returning NULL. */
+const char *cli_db_path(const char *opt);
+const char *cli_db_require(const char *opt, const char *prog);
+
 /* ---- JSON output -------------------------------------------------------- */
 /* A small streaming writer that produces valid, indented JSON. */
 typedef struct json_w {

@@ -4,5 +4,6 @@
 
 int cmd_pattern(int argc, char **argv);  /* cmd_pattern.c */
 int cmd_demo(int argc, char **argv);     /* cmd_demo.c */
+int cmd_exemplar(int argc, char **argv); /* cmd_exemplar.c */
 
 #endif

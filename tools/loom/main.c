@@ -14,6 +14,7 @@ static const struct command {
 	const char *summary;
 } commands[] = {
 	{"pattern", cmd_pattern, "make, convert, inspect weave patterns (WIF, PBM, PNG)"},
+	{"exemplar", cmd_exemplar, "generate, inspect, verify, export exemplar databases"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

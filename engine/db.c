@@ -1,0 +1,992 @@
+/*
+ * engine/db.c - reader of exemplar databases (.ldb); format in
+ * docs/formats.md, layout summary in db_internal.h.
+ *
+ * Open (numbered steps, cited below):
+ *   1. open + fstat; the file must hold a header and a trailer;
+ *   2. header: magic, version (before anything else, so a newer layout is
+ *      reported as a version), header CRC, geometry fields;
+ *   3. trailer (last 64 bytes): magic (else the file is truncated or
+ *      unfinished), trailer CRC, recorded file size;
+ *   4. metadata: range, read, CRC32, content hash;
+ *   5. parse the exemplar table, per-exemplar sections and brick index,
+ *      checking every count, offset and size against the file.
+ *   6. measure one decompressor (for loom__db_reader_bytes).
+ * After open the handle is immutable; memory is the parsed metadata only
+ * (O(exemplars + blocks + bricks)), never brick data.  Bricks are read by
+ * loom__db_read_brick with pread: thread-safe.
+ */
+#include "db_internal.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <libdeflate.h>
+#include <malloc.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+typedef struct db_brick {
+	uint64_t offset;       /* absolute, 0 for empty */
+	uint32_t stored;       /* bytes on disk */
+	uint32_t crc;          /* CRC32 of the stored bytes */
+	uint8_t storage;       /* LOOM__DB_STORE_* */
+} db_brick;
+
+typedef struct db_exm {
+	loom_db_exemplar_info pub;  /* pointers below */
+	uint8_t *weave;
+	loom_db_yarn yarns[256]; /* rows beyond n_yarns are zero */
+	uint16_t *sym;
+	uint8_t *bmeta;        /* rows*cols * 4: code, centre kind, gaps(2) */
+	float *bf;             /* rows*cols * (3 + 2*b1 + 2*b2) */
+} db_exm;
+
+struct loom_db {
+	int fd;
+	char *path;
+	loom_db_info info;
+	uint32_t n_bricks;
+	size_t brick_voxels, brick_bytes;
+	size_t max_stored;
+	size_t reader_bytes;   /* bound of one loom__db_reader, set at open */
+	uint64_t data_end;     /* = metadata offset: bricks lie in [128, data_end) */
+	db_exm *ex;
+	db_brick *bricks;
+};
+
+static int read_at(int fd, void *buf, size_t n, uint64_t off, size_t *got)
+{
+	size_t done = 0;
+
+	while (done < n) {
+		ssize_t r = pread(fd, (uint8_t *)buf + done, n - done, (off_t)(off + done));
+		if (r < 0) {
+			if (errno == EINTR)
+				continue;
+			*got = done;
+			return -1;
+		}
+		if (r == 0)
+			break;
+		done += (size_t)r;
+	}
+	*got = done;
+	return 0;
+}
+
+/* ---- open ------------------------------------------------------------- */
+
+#define FAILF(code, ...) loom__fail(diag, code, __VA_ARGS__)
+
+static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
+{
+	const char *p = db->path;
+	uint32_t v;
+	static const char *const axis[3] = {"x", "y", "z"};
+
+	if (memcmp(h, LOOM__DB_MAGIC, 8) != 0)
+		return FAILF(LOOM_EFORMAT, "%s: offset 0: bad magic %02x %02x %02x %02x "
+		             "%02x %02x %02x %02x, expected 89 4c 44 42 0d 0a 1a 0a (not "
+		             "an exemplar database)", p, h[0], h[1], h[2], h[3], h[4], h[5],
+		             h[6], h[7]);
+	v = loom__le32(h + 8);
+	if (v != LOOM__DB_VERSION)
+		return FAILF(LOOM_EVERSION, "%s: offset 8: format version %u, this loom "
+		             "reads version %u", p, v, LOOM__DB_VERSION);
+	if (loom__le32(h + 124) != libdeflate_crc32(0, h, 124))
+		return FAILF(LOOM_ECORRUPT, "%s: offset 124: header CRC32 0x%08x does not "
+		             "match the header (0x%08x)", p, loom__le32(h + 124),
+		             libdeflate_crc32(0, h, 124));
+	if (loom__le32(h + 12) != LOOM__DB_HEADER_BYTES)
+		return FAILF(LOOM_EFORMAT, "%s: offset 12: header size %u, expected %u", p,
+		             loom__le32(h + 12), LOOM__DB_HEADER_BYTES);
+	db->info.version = v;
+	db->info.n_exemplars = loom__le32(h + 16);
+	if (db->info.n_exemplars < 1 || db->info.n_exemplars > LOOM__DB_MAX_EXEMPLARS)
+		return FAILF(LOOM_EFORMAT, "%s: offset 16: %u exemplars, expected 1..%u",
+		             p, db->info.n_exemplars, LOOM__DB_MAX_EXEMPLARS);
+	for (int a = 0; a < 3; a++) {
+		db->info.block[a] = loom__le32(h + 20 + 4 * a);
+		db->info.brick[a] = loom__le32(h + 32 + 4 * a);
+		if (db->info.block[a] < 1 || db->info.block[a] > LOOM__DB_MAX_BLOCK)
+			return FAILF(LOOM_EFORMAT, "%s: offset %d: block size %u along %s, "
+			             "expected 1..%u", p, 20 + 4 * a, db->info.block[a],
+			             axis[a], LOOM__DB_MAX_BLOCK);
+		if (db->info.brick[a] < 1 || db->info.brick[a] > LOOM__DB_MAX_BRICK)
+			return FAILF(LOOM_EFORMAT, "%s: offset %d: brick size %u along %s, "
+			             "expected 1..%u", p, 32 + 4 * a, db->info.brick[a],
+			             axis[a], LOOM__DB_MAX_BRICK);
+	}
+	db->brick_voxels = (size_t)db->info.brick[0] * db->info.brick[1] * db->info.brick[2];
+	db->brick_bytes = db->brick_voxels * LOOM__VOXEL_PLANES;
+	if (db->brick_bytes > LOOM__DB_MAX_BRICK_BYTES)
+		return FAILF(LOOM_EFORMAT, "%s: offset 32: brick %ux%ux%u is larger than "
+		             "%u bytes", p, db->info.brick[0], db->info.brick[1],
+		             db->info.brick[2], LOOM__DB_MAX_BRICK_BYTES);
+	if (loom__le32(h + 44) != LOOM__DB_LAYOUT_PLANES)
+		return FAILF(LOOM_EUNSUPPORTED, "%s: offset 44: voxel layout %u, expected "
+		             "%u", p, loom__le32(h + 44), LOOM__DB_LAYOUT_PLANES);
+	db->info.voxel_size_um = loom__lef32(h + 48);
+	if (!(db->info.voxel_size_um > 0.0f) || !(db->info.voxel_size_um < 1e6f))
+		return FAILF(LOOM_EFORMAT, "%s: offset 48: voxel size %g um", p,
+		             (double)db->info.voxel_size_um);
+	db->info.top_threshold = loom__le32(h + 52);
+	if (db->info.top_threshold > 255)
+		return FAILF(LOOM_EFORMAT, "%s: offset 52: top threshold %u > 255", p,
+		             db->info.top_threshold);
+	db->info.seed = loom__le64(h + 64);
+	return LOOM_OK;
+}
+
+/* Range check of a section [off, off+len) inside the metadata. */
+static int sect_ok(uint64_t off, uint64_t len, uint64_t meta_len)
+{
+	return off <= meta_len && len <= meta_len - off;
+}
+
+static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
+                          uint64_t mlen, uint32_t *next_brick, loom_diag *diag)
+{
+	const char *p = db->path;
+	size_t xo = LOOM__DB_META_HEADER_BYTES + (size_t)k * LOOM__DB_EXEMPLAR_BYTES;
+	const uint8_t *x = m + xo;
+	db_exm *e = &db->ex[k];
+	loom_db_exemplar_info *pub = &e->pub;
+	uint32_t b1 = db->info.block[0], b2 = db->info.block[1];
+	size_t esz = loom__db_block_entry_bytes(b1, b2), nblk, nf;
+	uint64_t wo, yo, so, bo;
+
+#define XFAIL(code, field, fmt, ...)                                           \
+	loom__fail(diag, code, "%s: exemplar %u at metadata offset %zu, field "   \
+	           "'%s': " fmt, p, k, xo, field, __VA_ARGS__)
+	if (memchr(x, 0, 32) == NULL || x[0] == 0)
+		return XFAIL(LOOM_EFORMAT, "name", "%s", "not a NUL-terminated string");
+	if (memchr(x + 32, 0, 32) == NULL)
+		return XFAIL(LOOM_EFORMAT, "weave_name", "%s", "not a NUL-terminated string");
+	memcpy(pub->name, x, 32);
+	memcpy(pub->weave_name, x + 32, 32);
+	pub->rows = loom__le32(x + 64);
+	pub->cols = loom__le32(x + 68);
+	if (pub->rows < 1 || pub->cols < 1 || pub->rows > LOOM__DB_MAX_CROSSINGS ||
+	    pub->cols > LOOM__DB_MAX_CROSSINGS)
+		return XFAIL(LOOM_EFORMAT, "rows/cols", "%ux%u crossings, expected 1..%u",
+		             pub->rows, pub->cols, LOOM__DB_MAX_CROSSINGS);
+	for (int a = 0; a < 3; a++) {
+		uint32_t want = a == 0 ? pub->cols * b1 : a == 1 ? pub->rows * b2
+		                                                  : db->info.block[2];
+		pub->size[a] = loom__le32(x + 72 + 4 * a);
+		pub->block[a] = loom__le32(x + 84 + 4 * a);
+		pub->bricks[a] = loom__le32(x + 100 + 4 * a);
+		if (pub->size[a] != want || want > LOOM__DB_MAX_EXTENT)
+			return XFAIL(LOOM_EFORMAT, "size", "axis %d is %u voxels, expected %u",
+			             a, pub->size[a], want);
+		if (pub->block[a] != db->info.block[a])
+			return XFAIL(LOOM_EFORMAT, "block", "axis %d is %u, the header says %u",
+			             a, pub->block[a], db->info.block[a]);
+		if (pub->bricks[a] != (want + db->info.brick[a] - 1) / db->info.brick[a])
+			return XFAIL(LOOM_EFORMAT, "bricks", "axis %d has %u bricks, expected %u",
+			             a, pub->bricks[a],
+			             (want + db->info.brick[a] - 1) / db->info.brick[a]);
+	}
+	pub->voxel_size_um = loom__lef32(x + 96);
+	if (pub->voxel_size_um != db->info.voxel_size_um)
+		return XFAIL(LOOM_EFORMAT, "voxel_size", "%g um, the header says %g um",
+		             (double)pub->voxel_size_um, (double)db->info.voxel_size_um);
+	pub->first_brick = loom__le32(x + 112);
+	if (pub->first_brick != *next_brick)
+		return XFAIL(LOOM_EFORMAT, "first_brick", "%u, expected %u",
+		             pub->first_brick, *next_brick);
+	{
+		uint64_t nb = (uint64_t)pub->bricks[0] * pub->bricks[1] * pub->bricks[2];
+		if (nb > db->n_bricks - *next_brick)
+			return XFAIL(LOOM_ERANGE, "bricks", "%llu bricks from %u exceed the "
+			             "index of %u bricks", (unsigned long long)nb, *next_brick,
+			             db->n_bricks);
+		*next_brick += (uint32_t)nb;
+	}
+	pub->n_yarns = loom__le32(x + 116);
+	if (pub->n_yarns > 255)
+		return XFAIL(LOOM_EFORMAT, "n_yarns", "%u, expected at most 255",
+		             pub->n_yarns);
+	pub->n_symmetries = loom__le32(x + 120);
+	if (pub->n_symmetries < 1 ||
+	    pub->n_symmetries > (uint64_t)pub->rows * pub->cols)
+		return XFAIL(LOOM_EFORMAT, "n_symmetries", "%u, expected 1..%u",
+		             pub->n_symmetries, pub->rows * pub->cols);
+	wo = loom__le64(x + 128);
+	yo = loom__le64(x + 136);
+	so = loom__le64(x + 144);
+	bo = loom__le64(x + 152);
+	nblk = (size_t)pub->rows * pub->cols;
+	if (!sect_ok(wo, nblk, mlen))
+		return XFAIL(LOOM_ERANGE, "weave_offset", "%llu + %zu bytes outside the "
+		             "%llu-byte metadata", (unsigned long long)wo, nblk,
+		             (unsigned long long)mlen);
+	if (!sect_ok(yo, (uint64_t)(pub->n_yarns + 1) * 4, mlen))
+		return XFAIL(LOOM_ERANGE, "yarns_offset", "%llu outside the metadata",
+		             (unsigned long long)yo);
+	if (!sect_ok(so, (uint64_t)pub->n_symmetries * 4, mlen))
+		return XFAIL(LOOM_ERANGE, "symmetries_offset", "%llu outside the metadata",
+		             (unsigned long long)so);
+	if (!sect_ok(bo, (uint64_t)nblk * esz, mlen))
+		return XFAIL(LOOM_ERANGE, "blocks_offset", "%llu outside the metadata",
+		             (unsigned long long)bo);
+	pub->raw_bytes = loom__le64(x + 160);
+	pub->stored_bytes = loom__le64(x + 168);
+	if (pub->raw_bytes != (uint64_t)pub->size[0] * pub->size[1] * pub->size[2] *
+	                          LOOM__VOXEL_PLANES)
+		return XFAIL(LOOM_EFORMAT, "raw_bytes", "%llu, expected %llu",
+		             (unsigned long long)pub->raw_bytes,
+		             (unsigned long long)pub->size[0] * pub->size[1] *
+		                     pub->size[2] * LOOM__VOXEL_PLANES);
+	nf = 3 + 2 * ((size_t)b1 + b2);
+	e->weave = malloc(nblk);
+	e->sym = malloc((size_t)pub->n_symmetries * 4);
+	e->bmeta = malloc(nblk * 4);
+	e->bf = malloc(nblk * nf * sizeof(float));
+	if (!e->weave || !e->sym || !e->bmeta || !e->bf)
+		return FAILF(LOOM_ENOMEM, "%s: out of memory", p);
+	for (size_t i = 0; i < nblk; i++) {
+		if (m[wo + i] > 1)
+			return XFAIL(LOOM_EFORMAT, "weave", "cell %zu is %u, expected 0 or 1",
+			             i, m[wo + i]);
+		e->weave[i] = m[wo + i];
+	}
+	memset(e->yarns, 0, sizeof e->yarns);
+	for (uint32_t l = 1; l <= pub->n_yarns; l++) {
+		const uint8_t *y = m + yo + 4 * (size_t)l;
+		if (y[0] > LOOM_YARN_WEFT || y[1] > 3)
+			return XFAIL(LOOM_EFORMAT, "yarns", "label %u has kind %u flags %u", l,
+			             y[0], y[1]);
+		e->yarns[l].kind = y[0];
+		e->yarns[l].flags = y[1];
+		e->yarns[l].index = (int16_t)loom__le16(y + 2);
+	}
+	for (uint32_t s = 0; s < pub->n_symmetries; s++) {
+		uint16_t dx = loom__le16(m + so + 4 * (size_t)s);
+		uint16_t dy = loom__le16(m + so + 4 * (size_t)s + 2);
+		if (dx >= pub->cols || dy >= pub->rows)
+			return XFAIL(LOOM_EFORMAT, "symmetries", "entry %u (%u, %u) outside "
+			             "%ux%u", s, dx, dy, pub->rows, pub->cols);
+		e->sym[2 * s] = dx;
+		e->sym[2 * s + 1] = dy;
+	}
+	for (size_t i = 0; i < nblk; i++) {
+		const uint8_t *b = m + bo + i * esz;
+		float *f = e->bf + i * nf;
+		if (b[0] > 31 || b[1] > LOOM_YARN_WEFT)
+			return XFAIL(LOOM_EFORMAT, "blocks", "block %zu: code %u, centre kind %u",
+			             i, b[0], b[1]);
+		memcpy(e->bmeta + 4 * i, b, 4);
+		for (size_t j = 0; j < nf; j++)
+			f[j] = loom__lef32(b + 4 + 4 * j);
+	}
+	pub->weave = e->weave;
+	pub->yarns = e->yarns;
+	pub->symmetries = e->sym;
+#undef XFAIL
+	return LOOM_OK;
+}
+
+static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
+                       uint64_t io, loom_diag *diag)
+{
+
+	for (uint32_t i = 0; i < db->n_bricks; i++) {
+		const uint8_t *x = m + io + (size_t)i * LOOM__DB_INDEX_BYTES;
+		db_brick *b = &db->bricks[i];
+		uint32_t raw = loom__le32(x + 12);
+		char name[192];
+
+		b->offset = loom__le64(x);
+		b->stored = loom__le32(x + 8);
+		b->crc = loom__le32(x + 16);
+		b->storage = x[20];
+		if (b->storage > LOOM__DB_STORE_RAW || x[21] || x[22] || x[23]) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_EFORMAT, "%s: index entry at metadata offset %zu: "
+			             "storage kind %u", name, (size_t)(io + (size_t)i * 24),
+			             b->storage);
+		}
+		if (raw != db->brick_bytes) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_ECORRUPT, "%s: uncompressed size %u in the index, "
+			             "expected %zu (decompressed size mismatch)", name, raw,
+			             db->brick_bytes);
+		}
+		if (b->storage == LOOM__DB_STORE_EMPTY) {
+			if (b->offset || b->stored || b->crc) {
+				loom__db_brick_name(db, i, name, sizeof name);
+				return FAILF(LOOM_EFORMAT, "%s: empty brick with offset %llu, "
+				             "size %u", name, (unsigned long long)b->offset,
+				             b->stored);
+			}
+			db->info.n_empty_bricks++;
+			continue;
+		}
+		if (b->storage == LOOM__DB_STORE_RAW && b->stored != db->brick_bytes) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_ECORRUPT, "%s: raw brick of %u bytes, expected %zu "
+			             "(size mismatch)", name, b->stored, db->brick_bytes);
+		}
+		if (b->stored == 0 || b->stored > db->brick_bytes + 1024) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_ERANGE, "%s: stored size %u out of range 1..%zu",
+			             name, b->stored, db->brick_bytes + 1024);
+		}
+		if (b->offset < LOOM__DB_HEADER_BYTES || b->offset > db->data_end ||
+		    b->stored > db->data_end - b->offset) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_ERANGE, "%s: bytes [%llu, %llu) outside the brick "
+			             "data [%u, %llu) (index out of range)", name,
+			             (unsigned long long)b->offset,
+			             (unsigned long long)b->offset + b->stored,
+			             LOOM__DB_HEADER_BYTES, (unsigned long long)db->data_end);
+		}
+		if (b->storage == LOOM__DB_STORE_RAW)
+			db->info.n_raw_bricks++;
+		db->info.stored_bytes += b->stored;
+		if (b->stored > db->max_stored)
+			db->max_stored = b->stored;
+	}
+	(void)mlen;
+	return LOOM_OK;
+}
+
+static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
+                          uint32_t trailer_bricks, loom_diag *diag)
+{
+	const char *p = db->path;
+	uint64_t xo, io;
+	uint32_t next = 0;
+	int rc;
+
+	if (mlen < LOOM__DB_META_HEADER_BYTES)
+		return FAILF(LOOM_EFORMAT, "%s: metadata of %llu bytes is shorter than its "
+		             "header", p, (unsigned long long)mlen);
+	if (memcmp(m, LOOM__DB_META_MAGIC, 8) != 0)
+		return FAILF(LOOM_EFORMAT, "%s: metadata offset 0: bad magic, expected "
+		             "'LDBMETA1'", p);
+	if (loom__le32(m + 8) != db->info.n_exemplars)
+		return FAILF(LOOM_EFORMAT, "%s: metadata offset 8: %u exemplars, the "
+		             "header says %u", p, loom__le32(m + 8), db->info.n_exemplars);
+	if (loom__le32(m + 12) != LOOM__DB_EXEMPLAR_BYTES ||
+	    loom__le32(m + 20) != LOOM__DB_INDEX_BYTES ||
+	    loom__le32(m + 24) != loom__db_block_entry_bytes(db->info.block[0],
+	                                                     db->info.block[1]))
+		return FAILF(LOOM_EFORMAT, "%s: metadata offset 12: entry sizes %u/%u/%u, "
+		             "expected %u/%u/%zu", p, loom__le32(m + 12), loom__le32(m + 20),
+		             loom__le32(m + 24), LOOM__DB_EXEMPLAR_BYTES,
+		             LOOM__DB_INDEX_BYTES,
+		             loom__db_block_entry_bytes(db->info.block[0], db->info.block[1]));
+	db->n_bricks = loom__le32(m + 16);
+	if (db->n_bricks != trailer_bricks)
+		return FAILF(LOOM_EFORMAT, "%s: metadata offset 16: %u bricks, the trailer "
+		             "says %u", p, db->n_bricks, trailer_bricks);
+	xo = loom__le64(m + 32);
+	io = loom__le64(m + 40);
+	if (xo != LOOM__DB_META_HEADER_BYTES ||
+	    !sect_ok(xo, (uint64_t)db->info.n_exemplars * LOOM__DB_EXEMPLAR_BYTES, mlen))
+		return FAILF(LOOM_ERANGE, "%s: metadata offset 32: exemplar table at %llu "
+		             "outside the %llu-byte metadata", p, (unsigned long long)xo,
+		             (unsigned long long)mlen);
+	if (!sect_ok(io, (uint64_t)db->n_bricks * LOOM__DB_INDEX_BYTES, mlen))
+		return FAILF(LOOM_ERANGE, "%s: metadata offset 40: brick index at %llu "
+		             "(%u bricks) outside the %llu-byte metadata", p,
+		             (unsigned long long)io, db->n_bricks, (unsigned long long)mlen);
+	db->ex = calloc(db->info.n_exemplars, sizeof *db->ex);
+	db->bricks = calloc(db->n_bricks ? db->n_bricks : 1, sizeof *db->bricks);
+	if (!db->ex || !db->bricks)
+		return FAILF(LOOM_ENOMEM, "%s: out of memory", p);
+	for (uint32_t k = 0; k < db->info.n_exemplars; k++) {
+		rc = parse_exemplar(db, k, m, mlen, &next, diag);
+		if (rc)
+			return rc;
+		db->info.raw_bytes += db->ex[k].pub.raw_bytes;
+	}
+	if (next != db->n_bricks)
+		return FAILF(LOOM_EFORMAT, "%s: the exemplars cover %u bricks, the index "
+		             "has %u", p, next, db->n_bricks);
+	rc = parse_index(db, m, mlen, io, diag);
+	if (rc)
+		return rc;
+	db->info.n_bricks = db->n_bricks;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_db_open(const char *path, loom_db **out, loom_diag *diag)
+{
+	loom_db *db;
+	uint8_t h[LOOM__DB_HEADER_BYTES], t[LOOM__DB_TRAILER_BYTES];
+	uint8_t *meta = NULL;
+	uint64_t size, mo, ml, fb, hash;
+	struct stat st;
+	size_t got;
+	int rc;
+
+	if (!out || !path)
+		return loom__fail(diag, LOOM_EINVAL, "loom_db_open: NULL argument");
+	*out = NULL;
+	db = calloc(1, sizeof *db);
+	if (!db)
+		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+	db->fd = -1;
+	db->path = strdup(path);
+	if (!db->path) {
+		free(db);
+		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+	}
+	/* Step 1. */
+	db->fd = open(path, O_RDONLY | O_CLOEXEC);
+	if (db->fd < 0 || fstat(db->fd, &st) != 0) {
+		rc = FAILF(LOOM_EIO, "%s: cannot open: %s", path, strerror(errno));
+		goto fail;
+	}
+	if (!S_ISREG(st.st_mode)) {
+		rc = FAILF(LOOM_EIO, "%s: not a regular file", path);
+		goto fail;
+	}
+	size = (uint64_t)st.st_size;
+	db->info.file_bytes = size;
+	if (size < LOOM__DB_HEADER_BYTES) {
+		/* a short file may still say what it is: check the magic we have */
+		if (read_at(db->fd, h, (size_t)size, 0, &got) == 0 && got >= 8 &&
+		    memcmp(h, LOOM__DB_MAGIC, 8) != 0) {
+			rc = parse_header(db, h, diag);
+			goto fail;
+		}
+		rc = FAILF(LOOM_ETRUNCATED, "%s: file of %llu bytes ends inside the "
+		           "%u-byte header (truncated)", path, (unsigned long long)size,
+		           LOOM__DB_HEADER_BYTES);
+		goto fail;
+	}
+	/* Step 2. */
+	if (read_at(db->fd, h, sizeof h, 0, &got) != 0 || got != sizeof h) {
+		rc = FAILF(LOOM_EIO, "%s: cannot read the header: %s", path, strerror(errno));
+		goto fail;
+	}
+	rc = parse_header(db, h, diag);
+	if (rc)
+		goto fail;
+	/* Step 3. */
+	if (size < LOOM__DB_HEADER_BYTES + LOOM__DB_TRAILER_BYTES) {
+		rc = FAILF(LOOM_ETRUNCATED, "%s: file of %llu bytes ends before the "
+		           "trailer (truncated)", path, (unsigned long long)size);
+		goto fail;
+	}
+	if (read_at(db->fd, t, sizeof t, size - sizeof t, &got) != 0 || got != sizeof t) {
+		rc = FAILF(LOOM_EIO, "%s: cannot read the trailer: %s", path, strerror(errno));
+		goto fail;
+	}
+	if (memcmp(t, LOOM__DB_TRAILER_MAGIC, 8) != 0) {
+		rc = FAILF(LOOM_ETRUNCATED, "%s: no trailer in the last 64 bytes (offset "
+		           "%llu): the file is truncated or was not completely written",
+		           path, (unsigned long long)(size - sizeof t));
+		goto fail;
+	}
+	if (loom__le32(t + 60) != libdeflate_crc32(0, t, 60)) {
+		rc = FAILF(LOOM_ECORRUPT, "%s: offset %llu: trailer CRC32 mismatch", path,
+		           (unsigned long long)(size - 4));
+		goto fail;
+	}
+	fb = loom__le64(t + 32);
+	if (fb != size) {
+		rc = FAILF(fb > size ? LOOM_ETRUNCATED : LOOM_EFORMAT,
+		           "%s: the trailer records %llu bytes, the file has %llu%s", path,
+		           (unsigned long long)fb, (unsigned long long)size,
+		           fb > size ? " (truncated)" : "");
+		goto fail;
+	}
+	/* Step 4. */
+	mo = loom__le64(t + 8);
+	ml = loom__le64(t + 16);
+	if (mo < LOOM__DB_HEADER_BYTES || (mo & 7) || ml > LOOM__DB_MAX_META_BYTES ||
+	    mo > size || ml != size - LOOM__DB_TRAILER_BYTES - mo) {
+		rc = FAILF(LOOM_ERANGE, "%s: offset %llu: metadata [%llu, +%llu) does not "
+		           "end at the trailer", path,
+		           (unsigned long long)(size - sizeof t + 8), (unsigned long long)mo,
+		           (unsigned long long)ml);
+		goto fail;
+	}
+	db->data_end = mo;
+	meta = malloc(ml ? (size_t)ml : 1);
+	if (!meta) {
+		rc = FAILF(LOOM_ENOMEM, "%s: out of memory", path);
+		goto fail;
+	}
+	if (read_at(db->fd, meta, (size_t)ml, mo, &got) != 0 || got != ml) {
+		rc = FAILF(got < ml ? LOOM_ETRUNCATED : LOOM_EIO, "%s: cannot read the "
+		           "metadata at offset %llu", path, (unsigned long long)mo);
+		goto fail;
+	}
+	if (libdeflate_crc32(0, meta, (size_t)ml) != loom__le32(t + 24)) {
+		rc = FAILF(LOOM_ECORRUPT, "%s: metadata at offset %llu: CRC32 0x%08x, the "
+		           "trailer says 0x%08x", path, (unsigned long long)mo,
+		           libdeflate_crc32(0, meta, (size_t)ml), loom__le32(t + 24));
+		goto fail;
+	}
+	hash = loom__fnv1a64(loom__fnv1a64(LOOM__FNV_OFFSET, h, sizeof h), meta, (size_t)ml);
+	if (hash != loom__le64(t + 40)) {
+		rc = FAILF(LOOM_ECORRUPT, "%s: content hash %016llx, the trailer says "
+		           "%016llx", path, (unsigned long long)hash,
+		           (unsigned long long)loom__le64(t + 40));
+		goto fail;
+	}
+	db->info.content_hash = hash;
+	db->info.metadata_bytes = ml;
+	/* Step 5. */
+	rc = parse_metadata(db, meta, ml, loom__le32(t + 28), diag);
+	if (rc)
+		goto fail;
+	free(meta);
+	{
+		/* Step 6: measure one decompressor for loom__db_reader_bytes */
+		struct libdeflate_decompressor *probe = libdeflate_alloc_decompressor();
+		size_t dsz = probe ? malloc_usable_size(probe) : 0;
+		if (probe)
+			libdeflate_free_decompressor(probe);
+		db->reader_bytes = (dsz ? dsz : 65536) + loom__db_scratch_bytes(db) + 64 +
+		                   sizeof(void *) * 4;
+	}
+	*out = db;
+	return LOOM_OK;
+fail:
+	free(meta);
+	loom_db_close(db);
+	return rc;
+}
+
+LOOM_API void loom_db_close(loom_db *db)
+{
+	if (!db)
+		return;
+	if (db->fd >= 0)
+		close(db->fd);
+	if (db->ex)
+		for (uint32_t k = 0; k < db->info.n_exemplars; k++) {
+			free(db->ex[k].weave);
+			free(db->ex[k].sym);
+			free(db->ex[k].bmeta);
+			free(db->ex[k].bf);
+		}
+	free(db->ex);
+	free(db->bricks);
+	free(db->path);
+	free(db);
+}
+
+/* ---- queries ------------------------------------------------------------ */
+
+LOOM_API int loom_db_get_info(const loom_db *db, loom_db_info *info)
+{
+	if (!db || !info)
+		return LOOM_EINVAL;
+	*info = db->info;
+	return LOOM_OK;
+}
+
+LOOM_API uint64_t loom_db_content_hash(const loom_db *db)
+{
+	return db ? db->info.content_hash : 0;
+}
+
+LOOM_API int loom_db_exemplar(const loom_db *db, uint32_t k, loom_db_exemplar_info *out)
+{
+	if (!db || !out)
+		return LOOM_EINVAL;
+	if (k >= db->info.n_exemplars)
+		return LOOM_ERANGE;
+	*out = db->ex[k].pub;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_db_find_exemplar(const loom_db *db, const char *s, uint32_t *k)
+{
+	char *end;
+	unsigned long v;
+
+	if (!db || !s || !k)
+		return LOOM_EINVAL;
+	for (uint32_t i = 0; i < db->info.n_exemplars; i++)
+		if (strcmp(db->ex[i].pub.name, s) == 0) {
+			*k = i;
+			return LOOM_OK;
+		}
+	if (*s >= '0' && *s <= '9') {
+		errno = 0;
+		v = strtoul(s, &end, 10);
+		if (!errno && !*end && v < db->info.n_exemplars) {
+			*k = (uint32_t)v;
+			return LOOM_OK;
+		}
+	}
+	return LOOM_ENOTFOUND;
+}
+
+LOOM_API int loom_db_block(const loom_db *db, uint32_t k, uint32_t row,
+                           uint32_t col, loom_db_block_info *out)
+{
+	const db_exm *e;
+	size_t i, nf;
+	const float *f;
+
+	if (!db || !out)
+		return LOOM_EINVAL;
+	if (k >= db->info.n_exemplars)
+		return LOOM_ERANGE;
+	e = &db->ex[k];
+	if (row >= e->pub.rows || col >= e->pub.cols)
+		return LOOM_ERANGE;
+	i = (size_t)row * e->pub.cols + col;
+	nf = 3 + 2 * ((size_t)db->info.block[0] + db->info.block[1]);
+	f = e->bf + i * nf;
+	out->code = e->bmeta[4 * i];
+	out->centre_kind = e->bmeta[4 * i + 1];
+	out->gap_columns = loom__le16(e->bmeta + 4 * i + 2);
+	out->mean_dh_x = f[0];
+	out->mean_dh_y = f[1];
+	out->mean_height = f[2];
+	out->north = f + 3;
+	out->south = out->north + db->info.block[0];
+	out->west = out->south + db->info.block[0];
+	out->east = out->west + db->info.block[1];
+	return LOOM_OK;
+}
+
+/* ---- bricks ------------------------------------------------------------- */
+
+void loom__db_geometry(const loom_db *db, loom__db_geom *g)
+{
+	memcpy(g->brick, db->info.brick, sizeof g->brick);
+	memcpy(g->block, db->info.block, sizeof g->block);
+	g->brick_voxels = db->brick_voxels;
+	g->brick_bytes = db->brick_bytes;
+	g->n_exemplars = db->info.n_exemplars;
+	g->n_bricks = db->n_bricks;
+	g->top_threshold = (uint8_t)db->info.top_threshold;
+}
+
+int loom__db_brick_id(const loom_db *db, uint32_t k, uint32_t bx, uint32_t by,
+                      uint32_t bz, uint32_t *id)
+{
+	const loom_db_exemplar_info *e;
+
+	if (k >= db->info.n_exemplars)
+		return LOOM_ERANGE;
+	e = &db->ex[k].pub;
+	if (bx >= e->bricks[0] || by >= e->bricks[1] || bz >= e->bricks[2])
+		return LOOM_ERANGE;
+	*id = e->first_brick + (by * e->bricks[0] + bx) * e->bricks[2] + bz;
+	return LOOM_OK;
+}
+
+int loom__db_brick_coords(const loom_db *db, uint32_t id, uint32_t *k,
+                          uint32_t *bx, uint32_t *by, uint32_t *bz)
+{
+	uint32_t lo = 0, hi = db->info.n_exemplars, local;
+	const loom_db_exemplar_info *e;
+
+	if (!db->ex || id >= db->n_bricks)
+		return LOOM_ERANGE;
+	while (hi - lo > 1) { /* last exemplar with first_brick <= id */
+		uint32_t mid = (lo + hi) / 2;
+		if (db->ex[mid].pub.first_brick <= id)
+			lo = mid;
+		else
+			hi = mid;
+	}
+	e = &db->ex[lo].pub;
+	local = id - e->first_brick;
+	*k = lo;
+	*bz = local % e->bricks[2];
+	*bx = (local / e->bricks[2]) % e->bricks[0];
+	*by = local / e->bricks[2] / e->bricks[0];
+	return LOOM_OK;
+}
+
+void loom__db_brick_name(const loom_db *db, uint32_t id, char *buf, size_t n)
+{
+	uint32_t k, bx, by, bz;
+
+	if (loom__db_brick_coords(db, id, &k, &bx, &by, &bz) == LOOM_OK &&
+	    db->ex[k].pub.name[0])
+		snprintf(buf, n, "%s: brick %u (exemplar %u '%s', brick x=%u y=%u z=%u)",
+		         db->path, id, k, db->ex[k].pub.name, bx, by, bz);
+	else
+		snprintf(buf, n, "%s: brick %u", db->path, id);
+}
+
+int loom__db_brick_empty(const loom_db *db, uint32_t id)
+{
+	return id < db->n_bricks && db->bricks[id].storage == LOOM__DB_STORE_EMPTY;
+}
+
+size_t loom__db_scratch_bytes(const loom_db *db)
+{
+	return db->max_stored ? db->max_stored : 1;
+}
+
+const loom_db_yarn *loom__db_yarn_lut(const loom_db *db, uint32_t k)
+{
+	return k < db->info.n_exemplars ? db->ex[k].yarns : NULL;
+}
+
+int loom__db_read_brick(const loom_db *db, uint32_t id,
+                        struct libdeflate_decompressor *dec, uint8_t *scratch,
+                        uint8_t *out, size_t *n_read, loom_diag *diag)
+{
+	const db_brick *b;
+	uint8_t *dst;
+	size_t got;
+	uint32_t crc;
+	enum libdeflate_result r;
+	char name[192];
+
+	if (n_read)
+		*n_read = 0;
+	if (id >= db->n_bricks)
+		return loom__fail(diag, LOOM_ERANGE, "%s: brick %u out of range (the "
+		                  "database has %u bricks)", db->path, id, db->n_bricks);
+	b = &db->bricks[id];
+	if (b->storage == LOOM__DB_STORE_EMPTY) {
+		memset(out, 0, db->brick_bytes);
+		return LOOM_OK;
+	}
+	dst = b->storage == LOOM__DB_STORE_RAW ? out : scratch;
+	if (read_at(db->fd, dst, b->stored, b->offset, &got) != 0) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_EIO, "%s: read at offset %llu failed: %s",
+		                  name, (unsigned long long)b->offset, strerror(errno));
+	}
+	if (n_read)
+		*n_read = got;
+	if (got != b->stored) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ETRUNCATED, "%s: file ends after %zu of its %u "
+		                  "bytes at offset %llu (truncated)", name, got, b->stored,
+		                  (unsigned long long)b->offset);
+	}
+	crc = libdeflate_crc32(0, dst, b->stored);
+	if (crc != b->crc) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ECORRUPT, "%s: CRC32 mismatch at offset %llu "
+		                  "(%u bytes): computed 0x%08x, index says 0x%08x", name,
+		                  (unsigned long long)b->offset, b->stored, crc, b->crc);
+	}
+	if (b->storage == LOOM__DB_STORE_RAW)
+		return LOOM_OK;
+	r = libdeflate_deflate_decompress(dec, scratch, b->stored, out, db->brick_bytes,
+	                                  NULL);
+	if (r != LIBDEFLATE_SUCCESS) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ECORRUPT, "%s: %s (expected %zu bytes)", name,
+		                  r == LIBDEFLATE_SHORT_OUTPUT ?
+		                          "decompressed size mismatch: fewer bytes" :
+		                  r == LIBDEFLATE_INSUFFICIENT_SPACE ?
+		                          "decompressed size mismatch: more bytes" :
+		                          "invalid deflate data",
+		                  db->brick_bytes);
+	}
+	return LOOM_OK;
+}
+
+struct loom__db_reader {
+	const loom_db *db;
+	struct libdeflate_decompressor *dec;
+	uint8_t *scratch;
+};
+
+loom__db_reader *loom__db_reader_new(const loom_db *db)
+{
+	loom__db_reader *r = calloc(1, sizeof *r);
+
+	if (!r)
+		return NULL;
+	r->db = db;
+	r->dec = libdeflate_alloc_decompressor();
+	r->scratch = malloc(loom__db_scratch_bytes(db));
+	if (!r->dec || !r->scratch) {
+		loom__db_reader_free(r);
+		return NULL;
+	}
+	return r;
+}
+
+void loom__db_reader_free(loom__db_reader *r)
+{
+	if (!r)
+		return;
+	if (r->dec)
+		libdeflate_free_decompressor(r->dec);
+	free(r->scratch);
+	free(r);
+}
+
+size_t loom__db_reader_bytes(const loom_db *db)
+{
+	return db->reader_bytes;
+}
+
+int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
+                         size_t *n_read, loom_diag *diag)
+{
+	return loom__db_read_brick(r->db, id, r->dec, r->scratch, out, n_read, diag);
+}
+
+/* ---- whole-exemplar helpers -------------------------------------------------- */
+
+LOOM_API int loom_db_read_box(const loom_db *db, uint32_t k,
+                              const uint32_t origin[3], const uint32_t size[3],
+                              uint8_t *density, uint16_t *orientation,
+                              uint8_t *label, loom_diag *diag)
+{
+	const loom_db_exemplar_info *e;
+	struct libdeflate_decompressor *dec;
+	uint8_t *brick, *scratch;
+	uint32_t bmin[3], bmax[3];
+	const uint32_t *bs;
+	size_t nv;
+	int rc = LOOM_OK;
+
+	if (!db || !origin || !size)
+		return loom__fail(diag, LOOM_EINVAL, "loom_db_read_box: NULL argument");
+	if (k >= db->info.n_exemplars)
+		return loom__fail(diag, LOOM_ERANGE, "%s: exemplar %u out of range (%u "
+		                  "exemplars)", db->path, k, db->info.n_exemplars);
+	e = &db->ex[k].pub;
+	for (int a = 0; a < 3; a++)
+		if (size[a] == 0 || origin[a] >= e->size[a] || size[a] > e->size[a] - origin[a])
+			return loom__fail(diag, LOOM_ERANGE, "%s: box [%u, +%u) on axis %d "
+			                  "outside exemplar '%s' (%u voxels)", db->path,
+			                  origin[a], size[a], a, e->name, e->size[a]);
+	bs = db->info.brick;
+	nv = db->brick_voxels;
+	dec = libdeflate_alloc_decompressor();
+	brick = malloc(db->brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(db));
+	if (!dec || !brick || !scratch) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", db->path);
+		goto done;
+	}
+	for (int a = 0; a < 3; a++) {
+		bmin[a] = origin[a] / bs[a];
+		bmax[a] = (origin[a] + size[a] - 1) / bs[a];
+	}
+	for (uint32_t by = bmin[1]; by <= bmax[1] && !rc; by++)
+		for (uint32_t bx = bmin[0]; bx <= bmax[0] && !rc; bx++)
+			for (uint32_t bz = bmin[2]; bz <= bmax[2] && !rc; bz++) {
+				uint32_t id = 0, lo[3], hi[3];
+				loom__db_brick_id(db, k, bx, by, bz, &id);
+				rc = loom__db_read_brick(db, id, dec, scratch, brick, NULL, diag);
+				if (rc)
+					break;
+				lo[0] = bx * bs[0];
+				lo[1] = by * bs[1];
+				lo[2] = bz * bs[2];
+				for (int a = 0; a < 3; a++) {
+					hi[a] = lo[a] + bs[a];
+					if (lo[a] < origin[a])
+						lo[a] = origin[a];
+					if (hi[a] > origin[a] + size[a])
+						hi[a] = origin[a] + size[a];
+				}
+				for (uint32_t y = lo[1]; y < hi[1]; y++)
+					for (uint32_t x = lo[0]; x < hi[0]; x++) {
+						size_t src = loom__brick_index(bs[0], bs[2], x - bx * bs[0],
+						                               y - by * bs[1], 0);
+						for (uint32_t z = lo[2]; z < hi[2]; z++) {
+							size_t s = src + (z - bz * bs[2]);
+							size_t d = ((size_t)(z - origin[2]) * size[1] +
+							            (y - origin[1])) * size[0] + (x - origin[0]);
+							if (density)
+								density[d] = brick[s];
+							if (orientation)
+								orientation[d] = loom__brick_orient(brick, nv, s);
+							if (label)
+								label[d] = brick[3 * nv + s];
+						}
+					}
+			}
+done:
+	if (dec)
+		libdeflate_free_decompressor(dec);
+	free(brick);
+	free(scratch);
+	return rc;
+}
+
+LOOM_API int loom_db_verify(const loom_db *db,
+                            void (*progress)(void *user, uint64_t done,
+                                             uint64_t total),
+                            void *user, loom_diag *diag)
+{
+	struct libdeflate_decompressor *dec;
+	uint8_t *brick, *scratch;
+	int rc = LOOM_OK;
+
+	if (!db)
+		return loom__fail(diag, LOOM_EINVAL, "loom_db_verify: NULL database");
+	dec = libdeflate_alloc_decompressor();
+	brick = malloc(db->brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(db));
+	if (!dec || !brick || !scratch) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", db->path);
+		goto done;
+	}
+	for (uint32_t id = 0; id < db->n_bricks; id++) {
+		uint32_t k, bx, by, bz;
+		const uint8_t *lab = brick + 3 * db->brick_voxels;
+
+		rc = loom__db_read_brick(db, id, dec, scratch, brick, NULL, diag);
+		if (rc)
+			break;
+		loom__db_brick_coords(db, id, &k, &bx, &by, &bz);
+		for (size_t i = 0; i < db->brick_voxels; i++)
+			if (lab[i] > db->ex[k].pub.n_yarns) {
+				char name[192];
+				loom__db_brick_name(db, id, name, sizeof name);
+				rc = loom__fail(diag, LOOM_ECORRUPT, "%s: voxel %zu has label %u, "
+				                "the yarn table has %u labels", name, i, lab[i],
+				                db->ex[k].pub.n_yarns);
+				break;
+			}
+		if (rc)
+			break;
+		if (progress && ((id & 63) == 63 || id + 1 == db->n_bricks))
+			progress(user, id + 1, db->n_bricks);
+	}
+done:
+	if (dec)
+		libdeflate_free_decompressor(dec);
+	free(brick);
+	free(scratch);
+	return rc;
+}
+
+/* ---- voxel encodings (public wrappers of voxel.h) ---------------------------- */
+
+LOOM_API void loom_orientation_decode(uint16_t code, float dir[3])
+{
+	loom__orient_decode(code, dir);
+}
+
+LOOM_API uint16_t loom_orientation_encode(const float dir[3])
+{
+	return loom__orient_encode(dir[0], dir[1], dir[2]);
+}
+
+LOOM_API int loom_db_channel_parse(const char *s, int *channel)
+{
+	static const char *const names[LOOM_DB_CH_COUNT_] = {
+		"density", "label", "kind", "orientation", "orient-code"};
+
+	if (!s || !channel)
+		return LOOM_EINVAL;
+	for (int c = 0; c < LOOM_DB_CH_COUNT_; c++)
+		if (strcmp(s, names[c]) == 0) {
+			*channel = c;
+			return LOOM_OK;
+		}
+	return LOOM_EINVAL;
+}

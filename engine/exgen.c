@@ -1,0 +1,1131 @@
+/*
+ * engine/exgen.c - procedural CT-like exemplars and the parallel database
+ * build (`loom exemplar generate`).  docs/exemplars.md describes the model
+ * for users; this is the implementer's summary.
+ *
+ * Sheet.  An endless sheet woven with the weave W (periodic with the
+ * window), ends (warps) along y at x = (c + 1/2) Sx, picks (wefts) along x
+ * at y = (r + 1/2) Sy, with Sx = b1 * voxel, Sy = b2 * voxel.  The exemplar
+ * is the window of rows x cols crossings starting at crossing (0, 0); the
+ * yarns just outside it (c = -1, cols; r = -1, rows) exist too, with their
+ * own irregularities, so the window's borders are real cuts.
+ *
+ * Yarn centre curves are closed-form functions of the along-yarn coordinate
+ * s (y for a warp, x for a weft):
+ *   height  z(s) = z0 + A * crimp(s) + jz * n1(s)
+ *           crimp interpolates +1 (over) / -1 (under) between the crossing
+ *           centres with a smoothstep (C1: flat on floats, S-shaped where
+ *           the yarn changes side);
+ *   lateral l(s) = centre + jl * n1'(s)
+ *   radii   a(s), c(s): elliptical cross-section (half-width along the
+ *           lateral axis, half-height), per-yarn scale and along-yarn noise.
+ * n1 is 1-D value noise keyed by the yarn's seed.  Warp and weft differ in
+ * radii, crimp amplitude, twist pitch and direction (warp Z, weft S),
+ * density and fibre size, so an exemplar cannot be rotated or mirrored.
+ *
+ * Voxels.  Per voxel column only the three nearest warps and wefts can
+ * reach it; for each, the column's z-interval inside the ellipse (in the
+ * yarn's cross-section frame e1, e2 around the tangent T) is a quadratic
+ * solved once per column.  Inside, per voxel: (u, v) = normalised
+ * cross-section coordinates, rho^2 = u^2 + v^2 (the yarn with the smallest
+ * rho owns the voxel);
+ *   density      dmax * core(rho) * edge(distance to boundary) *
+ *                fibres(u', v'), where (u', v') co-rotates with the twist,
+ *                so the 2-D fibre noise becomes helical striations;
+ *   orientation  the helix tangent T + omega (-(a/c) p2 e1 + (c/a) p1 e2)
+ *                plus a small per-fibre misalignment;
+ *   label        the yarn.
+ * Flyaway fibres: cubic Bezier arcs leaving a yarn's top surface, sampled
+ * every 0.4 voxel and splatted with max(); they only fill voxels outside
+ * yarns and have their own labels (flag FLYAWAY).
+ *
+ * Determinism: every value is a function of the voxel position, the
+ * parameters and the seed (splitmix-style hashing), so boxes can be made
+ * in any order on any number of threads.
+ *
+ * Build pipeline (loom_exgen_write_db): tasks are brick columns (all bricks
+ * of one (bx, by)), numbered exemplar by exemplar.  Workers take tasks in
+ * order, generate, cut into bricks and encode them (deflate + CRC) into a
+ * ring of 2 * threads slots; the calling thread writes slots strictly in
+ * task order.  Memory: per worker one brick column of voxels and a
+ * compressor; per slot one brick column of encoded bricks.
+ */
+#include "exgen.h"
+#include "db_internal.h"
+#include "db_write.h"
+
+#include <libdeflate.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+
+#define KIND_WARP 1
+#define KIND_WEFT 2
+#define MAX_SIDE 64         /* crossings per side a generated window may have */
+#define MAX_FLY 16
+
+/* ---- hashing and noise ------------------------------------------------- */
+
+static inline uint64_t mix64(uint64_t z)
+{
+	z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+	z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+	return z ^ (z >> 31);
+}
+
+static inline uint64_t hash2(uint64_t seed, int64_t a, int64_t b)
+{
+	return mix64(seed ^ ((uint64_t)a * 0x9e3779b97f4a7c15ull) ^
+	             ((uint64_t)b * 0xc2b2ae3d27d4eb4full));
+}
+
+static inline float u01(uint64_t h)
+{
+	return (float)(h >> 40) * (1.0f / 16777216.0f);
+}
+
+static inline float smooth(float f)
+{
+	return f * f * (3.0f - 2.0f * f);
+}
+
+/* 1-D value noise in [-1, 1], knots at integers. */
+static float noise1(uint64_t seed, float t)
+{
+	float fl = floorf(t), f = t - fl;
+	int64_t i = (int64_t)fl;
+	float a = 2.0f * u01(hash2(seed, i, 0)) - 1.0f;
+	float b = 2.0f * u01(hash2(seed, i + 1, 0)) - 1.0f;
+	return a + (b - a) * smooth(f);
+}
+
+/* 2-D value noise in [0, 1]. */
+static inline float noise2(uint64_t seed, float x, float y)
+{
+	float fx = floorf(x), fy = floorf(y);
+	int64_t ix = (int64_t)fx, iy = (int64_t)fy;
+	float sx = smooth(x - fx), sy = smooth(y - fy);
+	float v00 = u01(hash2(seed, ix, iy)), v10 = u01(hash2(seed, ix + 1, iy));
+	float v01 = u01(hash2(seed, ix, iy + 1)), v11 = u01(hash2(seed, ix + 1, iy + 1));
+	float a = v00 + (v10 - v00) * sx, b = v01 + (v11 - v01) * sx;
+	return a + (b - a) * sy;
+}
+
+/* ---- model ------------------------------------------------------------- */
+
+typedef struct kind_params {
+	float a, c;          /* half-width (lateral), half-height, um */
+	float crimp;         /* crimp amplitude A, um */
+	float omega;         /* twist, rad per um along the yarn; > 0: Z twist */
+	float dmax;          /* density at the core */
+	float fibre;         /* fibre noise cell, um */
+	float jit_lat, jit_z;/* path jitter amplitudes, um */
+	float jit_r;         /* radius jitter (fraction) */
+	float noise_len;     /* along-yarn correlation length, um */
+	float misalign;      /* fibre direction noise */
+	float spacing;       /* crossing spacing along the yarn, um */
+} kind_params;
+
+typedef struct yarn {
+	int kind;            /* KIND_WARP or KIND_WEFT */
+	int index;           /* c (warp) or r (weft), -1 .. cols/rows */
+	uint8_t label;
+	uint64_t seed;
+	float centre;        /* nominal lateral position, um */
+	float wscale, hscale;/* per-yarn radius factors */
+	float phase;         /* twist phase, rad */
+} yarn;
+
+typedef struct flyaway {
+	uint8_t label;
+	float peak;          /* density 0..1 at the axis */
+	float r;             /* radius, voxels */
+	uint32_t n;          /* samples */
+	float *pos;          /* 3n, voxel units (voxel i's centre at i) */
+	uint16_t *code;      /* n orientation codes */
+	float lo[3], hi[3];  /* bounding box incl. radius, voxel units */
+} flyaway;
+
+struct loom__exgen {
+	uint32_t b1, b2, b3, rows, cols;
+	uint32_t size[3];
+	float vs;            /* voxel size, um */
+	float Sx, Sy;        /* crossing spacings, um */
+	float z0;            /* cloth mid-plane, um */
+	uint64_t seed;
+	uint8_t *weave;
+	char name[32], weave_name[32];
+	kind_params kp[3];   /* by kind */
+	yarn *warps;         /* cols + 2: c = -1 .. cols */
+	yarn *wefts;         /* rows + 2 */
+	uint32_t n_fly;
+	flyaway fly[MAX_FLY];
+	uint32_t n_labels;
+	loom_db_yarn table[256];
+};
+
+static inline int weave_at(const loom__exgen *g, int64_t i, int64_t j)
+{
+	int64_t r = ((i % g->rows) + g->rows) % g->rows;
+	int64_t c = ((j % g->cols) + g->cols) % g->cols;
+	return g->weave[r * g->cols + c];
+}
+
+/* +1 where yarn y passes over at its crossing number i, -1 under. */
+static inline float crossing_sign(const loom__exgen *g, const yarn *y, int64_t i)
+{
+	if (y->kind == KIND_WARP)
+		return weave_at(g, i, y->index) ? 1.0f : -1.0f;
+	return weave_at(g, y->index, i) ? -1.0f : 1.0f;
+}
+
+/* Centre curve of yarn y at along-yarn coordinate s (um). */
+static void yarn_eval(const loom__exgen *g, const yarn *y, float s, float *lat,
+                      float *zc, float *ha, float *hc)
+{
+	const kind_params *kp = &g->kp[y->kind];
+	float t = s / kp->spacing - 0.5f;
+	float fl = floorf(t), f = t - fl;
+	int64_t i = (int64_t)fl;
+	float s0 = crossing_sign(g, y, i), s1 = crossing_sign(g, y, i + 1);
+	float u = s / kp->noise_len;
+
+	*zc = g->z0 + kp->crimp * (s0 + (s1 - s0) * smooth(f)) +
+	      kp->jit_z * noise1(y->seed ^ 0x11, u);
+	*lat = y->centre + kp->jit_lat * noise1(y->seed ^ 0x22, u);
+	*ha = kp->a * y->wscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x33, u));
+	*hc = kp->c * y->hscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x44, u));
+}
+
+static void normalize3(float v[3])
+{
+	float n = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+	if (n > 0) {
+		v[0] /= n;
+		v[1] /= n;
+		v[2] /= n;
+	}
+}
+
+static void cross3(const float a[3], const float b[3], float o[3])
+{
+	o[0] = a[1] * b[2] - a[2] * b[1];
+	o[1] = a[2] * b[0] - a[0] * b[2];
+	o[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* Tangent and cross-section frame of yarn y at s: T along the yarn; e1
+   lateral (-x for warps, +y for wefts) so that e2 = T x e1 points up and
+   (e1, e2, T) is right-handed for both kinds. */
+static void yarn_frame(const loom__exgen *g, const yarn *y, float s, float T[3],
+                       float e1[3], float e2[3])
+{
+	float h = g->vs, l0, l1, z0, z1, a, c, d;
+	int warp = y->kind == KIND_WARP;
+
+	yarn_eval(g, y, s - h, &l0, &z0, &a, &c);
+	yarn_eval(g, y, s + h, &l1, &z1, &a, &c);
+	T[0] = warp ? (l1 - l0) / (2 * h) : 1.0f;
+	T[1] = warp ? 1.0f : (l1 - l0) / (2 * h);
+	T[2] = (z1 - z0) / (2 * h);
+	normalize3(T);
+	e1[0] = warp ? -1.0f : 0.0f;
+	e1[1] = warp ? 0.0f : 1.0f;
+	e1[2] = 0.0f;
+	d = e1[0] * T[0] + e1[1] * T[1];
+	for (int k = 0; k < 3; k++)
+		e1[k] -= d * T[k];
+	normalize3(e1);
+	cross3(T, e1, e2);
+}
+
+/* One yarn's contribution to one voxel column. */
+typedef struct hit {
+	const yarn *y;
+	const kind_params *kp;
+	float zc, a, c;
+	float al1, be1, al2, be2;  /* p1 = al1 + be1*dz, p2 = al2 + be2*dz */
+	float T[3], e1[3], e2[3];
+	float cs, sn;              /* co-rotation of the fibre pattern */
+	float fscale;              /* sqrt(a c) / fibre cell */
+	int zlo, zhi;              /* voxel z range (inclusive) */
+} hit;
+
+/* Column (px, py) in um against yarn y: fill h, return 1 if it reaches. */
+static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
+                      hit *h)
+{
+	int warp = y->kind == KIND_WARP;
+	float s = warp ? py : px, lat, zc, a, c, off;
+	float A, B, C, disc, sq, dzlo, dzhi, psi;
+	float La[3]; /* lateral axis of the column's offset */
+
+	yarn_eval(g, y, s, &lat, &zc, &a, &c);
+	off = (warp ? px : py) - lat;
+	if (fabsf(off) > a * 1.1f + g->vs)
+		return 0;
+	yarn_frame(g, y, s, h->T, h->e1, h->e2);
+	La[0] = warp ? 1.0f : 0.0f;
+	La[1] = warp ? 0.0f : 1.0f;
+	La[2] = 0.0f;
+	h->al1 = off * (h->e1[0] * La[0] + h->e1[1] * La[1]);
+	h->be1 = h->e1[2];
+	h->al2 = off * (h->e2[0] * La[0] + h->e2[1] * La[1]);
+	h->be2 = h->e2[2];
+	A = h->be1 * h->be1 / (a * a) + h->be2 * h->be2 / (c * c);
+	B = 2.0f * (h->al1 * h->be1 / (a * a) + h->al2 * h->be2 / (c * c));
+	C = h->al1 * h->al1 / (a * a) + h->al2 * h->al2 / (c * c) - 1.0f;
+	disc = B * B - 4.0f * A * C;
+	if (!(disc > 0.0f) || !(A > 0.0f))
+		return 0;
+	sq = sqrtf(disc);
+	dzlo = (-B - sq) / (2.0f * A);
+	dzhi = (-B + sq) / (2.0f * A);
+	h->zlo = (int)ceilf((zc + dzlo) / g->vs - 0.5f);
+	h->zhi = (int)floorf((zc + dzhi) / g->vs - 0.5f);
+	if (h->zhi < h->zlo)
+		return 0;
+	h->y = y;
+	h->kp = &g->kp[y->kind];
+	h->zc = zc;
+	h->a = a;
+	h->c = c;
+	psi = h->kp->omega * s + y->phase;
+	h->cs = cosf(psi);
+	h->sn = sinf(psi);
+	h->fscale = sqrtf(a * c) / h->kp->fibre;
+	return 1;
+}
+
+/* Voxel z (index) of a column from hit h, with u, v already known. */
+static void voxel_value(const loom__exgen *g, const hit *h, float u, float v,
+                        float r2, uint8_t *dens, uint16_t *orient)
+{
+	const kind_params *kp = h->kp;
+	float rho = sqrtf(r2), gu = u / h->a, gv = v / h->c;
+	float grad = sqrtf(gu * gu + gv * gv) / (rho > 1e-4f ? rho : 1e-4f);
+	float dist = (1.0f - rho) / (grad > 1e-9f ? grad : 1e-9f);
+	float edge = dist / g->vs + 0.5f;
+	float up = u * h->cs + v * h->sn, vp = v * h->cs - u * h->sn;
+	float X = up * h->fscale, Y = vp * h->fscale;
+	float fine = noise2(h->y->seed ^ 0x55, X, Y);
+	float coarse = noise2(h->y->seed ^ 0x66, X * 0.3f, Y * 0.3f);
+	float fib = 0.42f + 0.58f * (0.6f * fine + 0.4f * coarse);
+	float core = 0.82f + 0.18f * (1.0f - r2);
+	float p1 = u * h->a, p2 = v * h->c, dir[3];
+	uint64_t hm = hash2(h->y->seed ^ 0x77, (int64_t)floorf(X + 0.5f),
+	                    (int64_t)floorf(Y + 0.5f));
+	float d1 = (u01(hm) - 0.5f) * 2.0f * kp->misalign;
+	float d2 = (u01(mix64(hm)) - 0.5f) * 2.0f * kp->misalign;
+	float w1 = -kp->omega * (h->a / h->c) * p2 + d1;
+	float w2 = kp->omega * (h->c / h->a) * p1 + d2;
+
+	if (edge > 1.0f)
+		edge = 1.0f;
+	if (edge < 0.0f)
+		edge = 0.0f;
+	*dens = loom__density_encode(kp->dmax * core * fib * edge);
+	for (int k = 0; k < 3; k++)
+		dir[k] = h->T[k] + w1 * h->e1[k] + w2 * h->e2[k];
+	*orient = loom__orient_encode(dir[0], dir[1], dir[2]);
+}
+
+/* Fill voxel column (x, y), z in [zs, ze), into column arrays whose index 0
+   is z = zbase. */
+static void gen_column(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
+                       int64_t ze, int64_t zbase, uint8_t *dens, uint16_t *orient,
+                       uint8_t *label)
+{
+	float px = ((float)x + 0.5f) * g->vs, py = ((float)y + 0.5f) * g->vs;
+	int64_t cw = (int64_t)floorf(px / g->Sx), rw = (int64_t)floorf(py / g->Sy);
+	hit hits[6];
+	int n = 0, zmin = INT32_MAX, zmax = INT32_MIN;
+
+	for (int64_t c = cw - 1; c <= cw + 1; c++)
+		if (c >= -1 && c <= (int64_t)g->cols &&
+		    column_hit(g, &g->warps[c + 1], px, py, &hits[n]))
+			n++;
+	for (int64_t r = rw - 1; r <= rw + 1; r++)
+		if (r >= -1 && r <= (int64_t)g->rows &&
+		    column_hit(g, &g->wefts[r + 1], px, py, &hits[n]))
+			n++;
+	for (int i = 0; i < n; i++) {
+		if (hits[i].zlo < zmin)
+			zmin = hits[i].zlo;
+		if (hits[i].zhi > zmax)
+			zmax = hits[i].zhi;
+	}
+	if (zmin < zs)
+		zmin = (int)zs;
+	if (zmax > ze - 1)
+		zmax = (int)(ze - 1);
+	for (int z = zmin; z <= zmax; z++) {
+		float pz = ((float)z + 0.5f) * g->vs, best = 1.0f, bu = 0, bv = 0;
+		int bi = -1;
+		for (int i = 0; i < n; i++) {
+			const hit *h = &hits[i];
+			float dz, u, v, r2;
+			if (z < h->zlo || z > h->zhi)
+				continue;
+			dz = pz - h->zc;
+			u = (h->al1 + h->be1 * dz) / h->a;
+			v = (h->al2 + h->be2 * dz) / h->c;
+			r2 = u * u + v * v;
+			if (r2 <= best) {
+				best = r2;
+				bi = i;
+				bu = u;
+				bv = v;
+			}
+		}
+		if (bi < 0)
+			continue;
+		voxel_value(g, &hits[bi], bu, bv, best, &dens[z - zbase], &orient[z - zbase]);
+		label[z - zbase] = hits[bi].y->label;
+	}
+}
+
+/* Flyaway overlay on a box (same layout as loom__exgen_box). */
+static void overlay_flyaways(const loom__exgen *g, int64_t x0, int64_t y0,
+                             int64_t z0, uint32_t nx, uint32_t ny, uint32_t nz,
+                             uint8_t *dens, uint16_t *orient, uint8_t *label)
+{
+	int64_t lo[3] = {x0 < 0 ? 0 : x0, y0 < 0 ? 0 : y0, z0 < 0 ? 0 : z0};
+	int64_t hi[3] = {x0 + nx, y0 + ny, z0 + nz}; /* exclusive */
+
+	for (int a = 0; a < 3; a++)
+		if (hi[a] > (int64_t)g->size[a])
+			hi[a] = g->size[a];
+	for (uint32_t f = 0; f < g->n_fly; f++) {
+		const flyaway *fa = &g->fly[f];
+		float r2max = fa->r * fa->r;
+		if (fa->hi[0] < lo[0] || fa->lo[0] > hi[0] - 1 || fa->hi[1] < lo[1] ||
+		    fa->lo[1] > hi[1] - 1 || fa->hi[2] < lo[2] || fa->lo[2] > hi[2] - 1)
+			continue;
+		for (uint32_t k = 0; k < fa->n; k++) {
+			const float *q = fa->pos + 3 * k;
+			int64_t vlo[3], vhi[3];
+			int skip = 0;
+			for (int a = 0; a < 3; a++) {
+				vlo[a] = (int64_t)ceilf(q[a] - fa->r);
+				vhi[a] = (int64_t)floorf(q[a] + fa->r);
+				if (vlo[a] < lo[a])
+					vlo[a] = lo[a];
+				if (vhi[a] > hi[a] - 1)
+					vhi[a] = hi[a] - 1;
+				if (vlo[a] > vhi[a])
+					skip = 1;
+			}
+			if (skip)
+				continue;
+			for (int64_t y = vlo[1]; y <= vhi[1]; y++)
+				for (int64_t x = vlo[0]; x <= vhi[0]; x++)
+					for (int64_t z = vlo[2]; z <= vhi[2]; z++) {
+						float dx = (float)x - q[0], dy = (float)y - q[1];
+						float dz = (float)z - q[2], d2 = dx * dx + dy * dy + dz * dz;
+						size_t i;
+						uint8_t dv, lv;
+						if (d2 >= r2max)
+							continue;
+						i = ((size_t)(y - y0) * nx + (size_t)(x - x0)) * nz +
+						    (size_t)(z - z0);
+						lv = label[i];
+						if (lv && !(g->table[lv].flags & LOOM_DB_YARN_FLYAWAY))
+							continue; /* inside a yarn */
+						dv = loom__density_encode(fa->peak * (1.0f - d2 / r2max));
+						if (dv > dens[i]) {
+							dens[i] = dv;
+							orient[i] = fa->code[k];
+							label[i] = fa->label;
+						}
+					}
+		}
+	}
+}
+
+void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
+                     uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
+                     uint16_t *orientation, uint8_t *label)
+{
+	size_t n = (size_t)nx * ny * nz;
+	int64_t zs = z0 < 0 ? 0 : z0, ze = z0 + nz;
+
+	memset(density, 0, n);
+	memset(orientation, 0, n * sizeof *orientation);
+	memset(label, 0, n);
+	if (ze > (int64_t)g->size[2])
+		ze = g->size[2];
+	for (uint32_t j = 0; j < ny; j++) {
+		int64_t y = y0 + j;
+		if (y < 0 || y >= (int64_t)g->size[1])
+			continue;
+		for (uint32_t i = 0; i < nx; i++) {
+			int64_t x = x0 + i;
+			size_t col = ((size_t)j * nx + i) * nz;
+			if (x < 0 || x >= (int64_t)g->size[0] || zs >= ze)
+				continue;
+			gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
+			           label + col);
+		}
+	}
+	overlay_flyaways(g, x0, y0, z0, nx, ny, nz, density, orientation, label);
+}
+
+/* ---- construction -------------------------------------------------------- */
+
+static void set_kinds(loom__exgen *g)
+{
+	kind_params *w = &g->kp[KIND_WARP], *f = &g->kp[KIND_WEFT];
+	float total;
+
+	/* warp: wide, flat, little crimp (it is under tension), Z twist */
+	w->a = 0.44f * g->Sx;
+	w->c = 0.17f * g->Sy;
+	/* weft: narrower, rounder, more crimp, S twist, more twist */
+	f->a = 0.43f * g->Sy;
+	f->c = 0.21f * g->Sy;
+	total = 0.95f * (w->c + f->c); /* centres a little closer than touching */
+	w->crimp = 0.38f * total;
+	f->crimp = 0.62f * total;
+	w->omega = 2.0f * (float)M_PI / (7.0f * g->Sx);
+	f->omega = -2.0f * (float)M_PI / (7.0f * g->Sy);
+	w->dmax = 0.86f;
+	f->dmax = 0.78f;
+	w->fibre = fmaxf(12.0f, 1.2f * g->vs);
+	f->fibre = fmaxf(15.0f, 1.2f * g->vs);
+	w->jit_lat = 0.025f * g->Sx;
+	f->jit_lat = 0.03f * g->Sy;
+	w->jit_z = 0.06f * w->c;
+	f->jit_z = 0.08f * f->c;
+	w->jit_r = 0.05f;
+	f->jit_r = 0.06f;
+	w->spacing = g->Sy;
+	f->spacing = g->Sx;
+	w->noise_len = 0.9f * g->Sy;
+	f->noise_len = 0.9f * g->Sx;
+	w->misalign = 0.05f;
+	f->misalign = 0.07f;
+}
+
+static void init_yarn(loom__exgen *g, yarn *y, int kind, int index, uint8_t label)
+{
+	uint64_t h = hash2(g->seed, kind, index);
+
+	y->kind = kind;
+	y->index = index;
+	y->label = label;
+	y->seed = h;
+	y->centre = ((float)index + 0.5f) * (kind == KIND_WARP ? g->Sx : g->Sy);
+	y->wscale = 1.0f + 0.08f * (u01(mix64(h ^ 1)) - 0.5f);
+	y->hscale = 1.0f + 0.12f * (u01(mix64(h ^ 2)) - 0.5f);
+	y->phase = 6.2831853f * u01(mix64(h ^ 3));
+	g->table[label].kind = (uint8_t)kind;
+	g->table[label].index = (int16_t)index;
+	g->table[label].flags = (index < 0 || index >= (int)(kind == KIND_WARP ? g->cols
+	                                                                       : g->rows))
+	                                ? LOOM_DB_YARN_OUTSIDE : 0;
+}
+
+static void bezier(const float P[4][3], float t, float p[3], float d[3])
+{
+	float s = 1.0f - t;
+	for (int k = 0; k < 3; k++) {
+		p[k] = s * s * s * P[0][k] + 3 * s * s * t * P[1][k] +
+		       3 * s * t * t * P[2][k] + t * t * t * P[3][k];
+		d[k] = 3 * s * s * (P[1][k] - P[0][k]) + 6 * s * t * (P[2][k] - P[1][k]) +
+		       3 * t * t * (P[3][k] - P[2][k]);
+	}
+}
+
+static int make_flyaway(loom__exgen *g, uint32_t f)
+{
+	flyaway *fa = &g->fly[f];
+	uint64_t h = hash2(g->seed ^ 0xf1f1, f, 0);
+	int warp = (h & 1) != 0;
+	const yarn *y = warp ? &g->warps[1 + (h >> 8) % g->cols]
+	                     : &g->wefts[1 + (h >> 8) % g->rows];
+	const kind_params *kp = &g->kp[y->kind];
+	float extent = warp ? (float)g->size[1] * g->vs : (float)g->size[0] * g->vs;
+	float s0 = (0.1f + 0.8f * u01(mix64(h ^ 10))) * extent;
+	float lat, zc, a, c, P[4][3], dirh[3], len = 0, L, H, Hend, side, mixl;
+	float fr = 7.0f; /* fibre radius, um */
+	float zmax = (float)g->size[2] * g->vs - 2.0f * g->vs;
+
+	yarn_eval(g, y, s0, &lat, &zc, &a, &c);
+	side = u01(mix64(h ^ 11)) - 0.5f;
+	/* root on the top surface, a little off the yarn axis */
+	P[0][0] = warp ? lat + side * a : s0;
+	P[0][1] = warp ? s0 : lat + side * a;
+	P[0][2] = zc + c * sqrtf(1.0f - side * side) * 0.9f;
+	L = kp->spacing * (0.8f + 1.4f * u01(mix64(h ^ 12)));
+	H = c * (1.0f + 2.0f * u01(mix64(h ^ 13)));
+	Hend = H * (0.2f + 0.8f * u01(mix64(h ^ 14)));
+	mixl = 0.8f * (u01(mix64(h ^ 15)) - 0.5f);
+	dirh[0] = warp ? mixl : ((h >> 4) & 1 ? 1.0f : -1.0f);
+	dirh[1] = warp ? ((h >> 4) & 1 ? 1.0f : -1.0f) : mixl;
+	dirh[2] = 0.0f;
+	normalize3(dirh);
+	for (int k = 0; k < 2; k++) {
+		P[1][k] = P[0][k] + dirh[k] * L * 0.25f;
+		P[2][k] = P[0][k] + dirh[k] * L * 0.7f;
+		P[3][k] = P[0][k] + dirh[k] * L;
+	}
+	P[1][2] = P[0][2] + H;
+	P[2][2] = P[0][2] + H * 1.1f;
+	P[3][2] = P[0][2] + Hend;
+	for (int i = 1; i < 4; i++) {
+		float d2 = 0;
+		if (P[i][2] > zmax)
+			P[i][2] = zmax;
+		for (int k = 0; k < 3; k++)
+			d2 += (P[i][k] - P[i - 1][k]) * (P[i][k] - P[i - 1][k]);
+		len += sqrtf(d2);
+	}
+	fa->n = (uint32_t)ceilf(len / (0.4f * g->vs)) + 1;
+	if (fa->n > 20000)
+		fa->n = 20000;
+	fa->pos = malloc(sizeof(float) * 3 * fa->n);
+	fa->code = malloc(sizeof(uint16_t) * fa->n);
+	if (!fa->pos || !fa->code)
+		return LOOM_ENOMEM;
+	fa->r = fmaxf(fr / g->vs, 0.75f);
+	fa->peak = 0.8f * fminf(1.0f, (fr / g->vs) * (fr / g->vs) / (fa->r * fa->r));
+	fa->label = (uint8_t)(g->n_labels + 1);
+	g->n_labels++;
+	g->table[fa->label].kind = (uint8_t)y->kind;
+	g->table[fa->label].index = (int16_t)y->index;
+	g->table[fa->label].flags = LOOM_DB_YARN_FLYAWAY;
+	for (int k = 0; k < 3; k++) {
+		fa->lo[k] = INFINITY;
+		fa->hi[k] = -INFINITY;
+	}
+	for (uint32_t i = 0; i < fa->n; i++) {
+		float p[3], d[3], t = fa->n > 1 ? (float)i / (float)(fa->n - 1) : 0.0f;
+		bezier((const float(*)[3])P, t, p, d);
+		for (int k = 0; k < 3; k++) {
+			float q = p[k] / g->vs - 0.5f;
+			fa->pos[3 * i + k] = q;
+			fa->lo[k] = fminf(fa->lo[k], q - fa->r);
+			fa->hi[k] = fmaxf(fa->hi[k], q + fa->r);
+		}
+		fa->code[i] = loom__orient_encode(d[0], d[1], d[2]);
+	}
+	return LOOM_OK;
+}
+
+int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
+{
+	if (!p)
+		return loom__fail(diag, LOOM_EINVAL, "generator: NULL parameters");
+	if (p->size != sizeof *p)
+		return loom__fail(diag, LOOM_EINVAL, "generator: parameters of size %zu, "
+		                  "expected %zu (initialise with loom_exgen_preset)",
+		                  p->size, sizeof *p);
+	if (p->block[0] < 2 || p->block[1] < 2 || p->block[2] < 4 ||
+	    p->block[0] > LOOM__DB_MAX_BLOCK || p->block[1] > LOOM__DB_MAX_BLOCK ||
+	    p->block[2] > LOOM__DB_MAX_BLOCK)
+		return loom__fail(diag, LOOM_EINVAL, "generator: block %ux%ux%u (expected "
+		                  "at least 2x2x4, at most %u per axis)", p->block[0],
+		                  p->block[1], p->block[2], LOOM__DB_MAX_BLOCK);
+	if (!(p->voxel_size_um > 0.0f) || !(p->voxel_size_um <= 10000.0f))
+		return loom__fail(diag, LOOM_EINVAL, "generator: voxel size %g um (expected "
+		                  "0 < size <= 10000)", (double)p->voxel_size_um);
+	if (p->n_weaves < 1 || p->n_weaves > LOOM_EXGEN_MAX_WEAVES)
+		return loom__fail(diag, LOOM_EINVAL, "generator: %u weaves (expected 1..%u)",
+		                  p->n_weaves, LOOM_EXGEN_MAX_WEAVES);
+	if (p->rows > MAX_SIDE || p->cols > MAX_SIDE)
+		return loom__fail(diag, LOOM_EINVAL, "generator: %ux%u crossings (at most "
+		                  "%u per side)", p->rows, p->cols, MAX_SIDE);
+	if (p->threads > 64)
+		return loom__fail(diag, LOOM_EINVAL, "generator: %u threads (at most 64)",
+		                  p->threads);
+	return LOOM_OK;
+}
+
+static uint32_t auto_side(uint32_t repeat)
+{
+	uint32_t m = repeat;
+	while (m < 4)
+		m += repeat;
+	return m;
+}
+
+int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
+                    loom__exgen **out, loom_diag *diag)
+{
+	loom_weave_params wp;
+	loom__exgen *g;
+	uint32_t rr, rc, r0, c0, label;
+	uint64_t h;
+	int rcode;
+
+	*out = NULL;
+	rcode = loom__exgen_check(p, diag);
+	if (rcode)
+		return rcode;
+	if (k >= p->n_weaves || !p->weaves[k])
+		return loom__fail(diag, LOOM_EINVAL, "generator: no weave %u", k);
+	rcode = loom_weave_parse(p->weaves[k], &wp, diag);
+	if (!rcode)
+		rcode = loom_weave_repeat(&wp, &rr, &rc, diag);
+	if (rcode) {
+		if (diag) {
+			char why[LOOM_DIAG_MSG_MAX];
+			snprintf(why, sizeof why, "%s", diag->message);
+			loom__fail(diag, rcode, "weave %u '%s': %s", k + 1, p->weaves[k], why);
+		}
+		return rcode;
+	}
+	g = calloc(1, sizeof *g);
+	if (!g)
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	g->rows = p->rows ? p->rows : auto_side(rr);
+	g->cols = p->cols ? p->cols : auto_side(rc);
+	if (g->rows % rr || g->cols % rc || g->rows > MAX_SIDE || g->cols > MAX_SIDE) {
+		loom__exgen_free(g);
+		return loom__fail(diag, LOOM_EINVAL, "weave '%s' repeats every %ux%u "
+		                  "crossings, which does not tile a %ux%u window (use "
+		                  "multiples of the repeat, at most %u)", p->weaves[k], rr,
+		                  rc, p->rows ? p->rows : auto_side(rr),
+		                  p->cols ? p->cols : auto_side(rc), MAX_SIDE);
+	}
+	loom_weave_name(&wp, g->weave_name, sizeof g->weave_name);
+	snprintf(g->name, sizeof g->name, "%s", g->weave_name);
+	for (char *s = g->name; *s; s++)
+		if (*s == ':' || *s == '/' || *s == '=')
+			*s = '-';
+	if (variant) {
+		size_t n = strlen(g->name);
+		snprintf(g->name + (n > 24 ? 24 : n), sizeof g->name - (n > 24 ? 24 : n),
+		         "-%u", variant + 1);
+	}
+	g->b1 = p->block[0];
+	g->b2 = p->block[1];
+	g->b3 = p->block[2];
+	g->size[0] = g->cols * g->b1;
+	g->size[1] = g->rows * g->b2;
+	g->size[2] = g->b3;
+	g->vs = p->voxel_size_um;
+	g->Sx = (float)g->b1 * g->vs;
+	g->Sy = (float)g->b2 * g->vs;
+	g->seed = mix64(p->seed ^ loom__fnv1a64(LOOM__FNV_OFFSET, g->weave_name,
+	                                         strlen(g->weave_name)) ^
+	                mix64(variant + 0x5151));
+	h = mix64(g->seed ^ 0xabc);
+	r0 = (uint32_t)(h % rr);
+	c0 = (uint32_t)((h >> 32) % rc);
+	g->weave = malloc((size_t)g->rows * g->cols);
+	if (!g->weave) {
+		loom__exgen_free(g);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	for (uint32_t r = 0; r < g->rows; r++)
+		for (uint32_t c = 0; c < g->cols; c++)
+			g->weave[(size_t)r * g->cols + c] =
+			        (uint8_t)loom_weave_cell(&wp, r + r0, c + c0);
+	/* mid-plane: centred, with a small per-exemplar offset (scans are not
+	   registered in z) */
+	g->z0 = (float)g->b3 * g->vs * (0.5f + 0.04f * (u01(mix64(h ^ 7)) - 0.5f));
+	set_kinds(g);
+	g->warps = calloc(g->cols + 2, sizeof *g->warps);
+	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
+	if (!g->warps || !g->wefts) {
+		loom__exgen_free(g);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	label = 1;
+	for (int c = -1; c <= (int)g->cols; c++)
+		init_yarn(g, &g->warps[c + 1], KIND_WARP, c, (uint8_t)label++);
+	for (int r = -1; r <= (int)g->rows; r++)
+		init_yarn(g, &g->wefts[r + 1], KIND_WEFT, r, (uint8_t)label++);
+	g->n_labels = label - 1;
+	g->n_fly = g->rows * g->cols / 4;
+	if (g->n_fly < 2)
+		g->n_fly = 2;
+	if (g->n_fly > MAX_FLY)
+		g->n_fly = MAX_FLY;
+	for (uint32_t f = 0; f < g->n_fly; f++)
+		if (make_flyaway(g, f) != LOOM_OK) {
+			loom__exgen_free(g);
+			return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+		}
+	*out = g;
+	return LOOM_OK;
+}
+
+void loom__exgen_free(loom__exgen *g)
+{
+	if (!g)
+		return;
+	for (uint32_t f = 0; f < MAX_FLY; f++) {
+		free(g->fly[f].pos);
+		free(g->fly[f].code);
+	}
+	free(g->weave);
+	free(g->warps);
+	free(g->wefts);
+	free(g);
+}
+
+void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d)
+{
+	d->name = g->name;
+	d->weave_name = g->weave_name;
+	d->rows = g->rows;
+	d->cols = g->cols;
+	d->weave = g->weave;
+	memcpy(d->size, g->size, sizeof d->size);
+	d->n_yarns = g->n_labels;
+	d->yarns = g->table;
+}
+
+float loom__exgen_mid_z(const loom__exgen *g)
+{
+	return g->z0 / g->vs - 0.5f;
+}
+
+/* ---- presets ------------------------------------------------------------ */
+
+static const char *const default_weaves[8] = {
+	"twill:2/3", "twill:3/2", "twill:1/4", "twill:4/1",
+	"satin:2/3", "satin:3/2", "satin:1/4", "satin:4/1",
+};
+
+LOOM_API int loom_exgen_preset(const char *name, loom_exgen_params *p)
+{
+	static const struct {
+		const char *name;
+		uint32_t b[3];
+		float vs;
+	} presets[] = {
+		{"paper", {115, 70, 300}, 5.0f},
+		{"small", {24, 16, 48}, 24.0f},
+		{"tiny", {8, 6, 12}, 72.0f},
+	};
+
+	if (!name || !p)
+		return LOOM_EINVAL;
+	for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++) {
+		if (strcmp(name, presets[i].name) != 0)
+			continue;
+		memset(p, 0, sizeof *p);
+		p->size = sizeof *p;
+		memcpy(p->block, presets[i].b, sizeof p->block);
+		p->voxel_size_um = presets[i].vs;
+		p->n_weaves = 8;
+		for (int k = 0; k < 8; k++)
+			p->weaves[k] = default_weaves[k];
+		p->seed = 1;
+		p->brick[0] = LOOM_DB_DEFAULT_BRICK_X;
+		p->brick[1] = LOOM_DB_DEFAULT_BRICK_Y;
+		p->brick[2] = LOOM_DB_DEFAULT_BRICK_Z;
+		p->level = LOOM_DB_DEFAULT_LEVEL;
+		p->threads = 2;
+		return LOOM_OK;
+	}
+	return LOOM_EINVAL;
+}
+
+/* ---- parallel build ------------------------------------------------------- */
+
+enum { SLOT_FREE, SLOT_BUSY, SLOT_READY };
+
+typedef struct slot {
+	int state;
+	uint64_t task;
+	loom__dbw_brick *b;       /* one per brick of the column */
+	uint8_t *cbuf;            /* nbz_max * brick_bytes */
+	int16_t *top;             /* nbz_max * bx*by */
+	uint8_t *top_label;
+} slot;
+
+typedef struct pipe {
+	pthread_mutex_t mu;
+	pthread_cond_t cv;
+	uint64_t next_task, n_tasks;
+	int abort;                /* set on any failure: everyone stops */
+	int worker_error;         /* a worker could not allocate */
+	slot *slots;
+	unsigned n_slots;
+	const loom_exgen_params *p;
+	loom__exgen **models;
+	uint32_t n_models;
+	uint64_t *task_start;     /* n_models + 1 prefix sums */
+	uint32_t (*nb)[3];        /* bricks per axis per model */
+	uint8_t (*solid)[256];
+	uint32_t nbz_max;
+	size_t brick_bytes, brick_voxels;
+} pipe;
+
+static uint32_t model_of_task(const pipe *P, uint64_t t)
+{
+	uint32_t k = 0;
+	while (k + 1 < P->n_models && P->task_start[k + 1] <= t)
+		k++;
+	return k;
+}
+
+/* Copy brick bz of a generated column box into the four planes of pack. */
+static void pack_brick(const pipe *P, uint32_t bz, uint32_t nzr, const uint8_t *d,
+                       const uint16_t *o, const uint8_t *l, uint8_t *pack)
+{
+	const uint32_t *bs = P->p->brick;
+	size_t nv = P->brick_voxels, ncol = (size_t)bs[0] * bs[1];
+
+	for (size_t col = 0; col < ncol; col++) {
+		size_t src = col * nzr + (size_t)bz * bs[2], dst = col * bs[2];
+		memcpy(pack + dst, d + src, bs[2]);
+		memcpy(pack + 3 * nv + dst, l + src, bs[2]);
+		for (uint32_t z = 0; z < bs[2]; z++) {
+			uint16_t c = o[src + z];
+			pack[nv + dst + z] = (uint8_t)c;
+			pack[2 * nv + dst + z] = (uint8_t)(c >> 8);
+		}
+	}
+}
+
+static void *worker(void *arg)
+{
+	pipe *P = arg;
+	const uint32_t *bs = P->p->brick;
+	uint32_t nzr = P->nbz_max * bs[2];
+	size_t ncol = (size_t)bs[0] * bs[1], nbox = ncol * nzr;
+	struct libdeflate_compressor *comp = libdeflate_alloc_compressor(P->p->level);
+	uint8_t *d = malloc(nbox), *l = malloc(nbox), *pack = malloc(P->brick_bytes);
+	uint16_t *o = malloc(nbox * sizeof *o);
+
+	if (!comp || !d || !l || !o || !pack) {
+		pthread_mutex_lock(&P->mu);
+		P->abort = P->worker_error = 1;
+		pthread_cond_broadcast(&P->cv);
+		pthread_mutex_unlock(&P->mu);
+		goto out;
+	}
+	for (;;) {
+		uint64_t t, local;
+		uint32_t k, bx, by;
+		slot *s;
+
+		pthread_mutex_lock(&P->mu);
+		for (;;) {
+			if (P->abort || P->next_task >= P->n_tasks) {
+				pthread_mutex_unlock(&P->mu);
+				goto out;
+			}
+			s = &P->slots[P->next_task % P->n_slots];
+			if (s->state == SLOT_FREE)
+				break;
+			pthread_cond_wait(&P->cv, &P->mu);
+		}
+		t = P->next_task++;
+		s->state = SLOT_BUSY;
+		s->task = t;
+		pthread_mutex_unlock(&P->mu);
+
+		k = model_of_task(P, t);
+		local = t - P->task_start[k];
+		bx = (uint32_t)(local % P->nb[k][0]);
+		by = (uint32_t)(local / P->nb[k][0]);
+		loom__exgen_box(P->models[k], (int64_t)bx * bs[0], (int64_t)by * bs[1], 0,
+		                bs[0], bs[1], P->nb[k][2] * bs[2], d, o, l);
+		for (uint32_t bz = 0; bz < P->nb[k][2]; bz++) {
+			loom__dbw_brick *b = &s->b[bz];
+			uint8_t *cb = s->cbuf + (size_t)bz * P->brick_bytes;
+			pack_brick(P, bz, P->nb[k][2] * bs[2], d, o, l, pack);
+			b->top = s->top + bz * ncol;
+			b->top_label = s->top_label + bz * ncol;
+			loom__dbw_encode(pack, bs, P->solid[k], LOOM__DB_TOP_THRESHOLD, comp, cb, b);
+			if (b->storage == LOOM__DB_STORE_RAW) {
+				memcpy(cb, pack, P->brick_bytes);
+				b->data = cb;
+			}
+		}
+		pthread_mutex_lock(&P->mu);
+		s->state = SLOT_READY;
+		pthread_cond_broadcast(&P->cv);
+		pthread_mutex_unlock(&P->mu);
+	}
+out:
+	if (comp)
+		libdeflate_free_compressor(comp);
+	free(d);
+	free(l);
+	free(o);
+	free(pack);
+	return NULL;
+}
+
+/* The writer's side: put every task's bricks in order. */
+static int drain(pipe *P, loom__dbw *w, loom_diag *diag)
+{
+	uint64_t bricks_done = 0, bricks_total = 0;
+
+	for (uint32_t k = 0; k < P->n_models; k++)
+		bricks_total += (uint64_t)P->nb[k][0] * P->nb[k][1] * P->nb[k][2];
+	for (uint64_t t = 0; t < P->n_tasks; t++) {
+		slot *s = &P->slots[t % P->n_slots];
+		uint32_t k = model_of_task(P, t);
+		int rc = LOOM_OK;
+
+		pthread_mutex_lock(&P->mu);
+		while (!(s->state == SLOT_READY && s->task == t) && !P->abort)
+			pthread_cond_wait(&P->cv, &P->mu);
+		pthread_mutex_unlock(&P->mu);
+		if (P->abort)
+			return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory in a "
+			                  "worker thread");
+		if (t == P->task_start[k]) {
+			loom__exgen_desc d;
+			loom__dbw_exemplar e;
+			loom__exgen_describe(P->models[k], &d);
+			e.name = d.name;
+			e.weave_name = d.weave_name;
+			e.rows = d.rows;
+			e.cols = d.cols;
+			e.weave = d.weave;
+			e.n_yarns = d.n_yarns;
+			e.yarns = d.yarns;
+			rc = loom__dbw_begin_exemplar(w, &e, diag);
+		}
+		for (uint32_t bz = 0; !rc && bz < P->nb[k][2]; bz++)
+			rc = loom__dbw_put(w, &s->b[bz], diag);
+		if (rc)
+			return rc;
+		bricks_done += P->nb[k][2];
+		if (P->p->progress)
+			P->p->progress(P->p->user, bricks_done, bricks_total);
+		pthread_mutex_lock(&P->mu);
+		s->state = SLOT_FREE;
+		pthread_cond_broadcast(&P->cv);
+		pthread_mutex_unlock(&P->mu);
+	}
+	return LOOM_OK;
+}
+
+static void free_pipe(pipe *P)
+{
+	if (P->slots)
+		for (unsigned i = 0; i < P->n_slots; i++) {
+			free(P->slots[i].b);
+			free(P->slots[i].cbuf);
+			free(P->slots[i].top);
+			free(P->slots[i].top_label);
+		}
+	free(P->slots);
+	if (P->models)
+		for (uint32_t k = 0; k < P->n_models; k++)
+			loom__exgen_free(P->models[k]);
+	free(P->models);
+	free(P->task_start);
+	free(P->nb);
+	free(P->solid);
+}
+
+LOOM_API int loom_exgen_write_db(const char *path, const loom_exgen_params *p,
+                                 uint64_t *hash, loom_diag *diag)
+{
+	pipe P;
+	loom__dbw_params wp;
+	loom__dbw *w = NULL;
+	pthread_t th[64];
+	unsigned nth, started = 0;
+	int rc;
+
+	memset(&P, 0, sizeof P);
+	if (!path)
+		return loom__fail(diag, LOOM_EINVAL, "generator: NULL path");
+	rc = loom__exgen_check(p, diag);
+	if (rc)
+		return rc;
+	P.p = p;
+	P.n_models = p->n_weaves;
+	P.models = calloc(P.n_models, sizeof *P.models);
+	P.task_start = calloc(P.n_models + 1, sizeof *P.task_start);
+	P.nb = calloc(P.n_models, sizeof *P.nb);
+	P.solid = calloc(P.n_models, sizeof *P.solid);
+	if (!P.models || !P.task_start || !P.nb || !P.solid) {
+		free_pipe(&P);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	for (uint32_t k = 0; k < P.n_models; k++) {
+		uint32_t variant = 0;
+		loom__exgen_desc d;
+		for (uint32_t j = 0; j < k; j++)
+			if (strcmp(p->weaves[j], p->weaves[k]) == 0)
+				variant++;
+		rc = loom__exgen_new(p, k, variant, &P.models[k], diag);
+		if (rc) {
+			free_pipe(&P);
+			return rc;
+		}
+		loom__exgen_describe(P.models[k], &d);
+		for (int a = 0; a < 3; a++)
+			P.nb[k][a] = (d.size[a] + p->brick[a] - 1) / (p->brick[a] ? p->brick[a] : 1);
+		if (P.nb[k][2] > P.nbz_max)
+			P.nbz_max = P.nb[k][2];
+		P.task_start[k + 1] = P.task_start[k] + (uint64_t)P.nb[k][0] * P.nb[k][1];
+		loom__db_solid_lut(d.yarns, d.n_yarns, P.solid[k]);
+	}
+	memset(&wp, 0, sizeof wp);
+	wp.n_exemplars = P.n_models;
+	memcpy(wp.block, p->block, sizeof wp.block);
+	memcpy(wp.brick, p->brick, sizeof wp.brick);
+	wp.voxel_size_um = p->voxel_size_um;
+	wp.top_threshold = LOOM__DB_TOP_THRESHOLD;
+	wp.level = p->level;
+	wp.seed = p->seed;
+	wp.flags = 1;
+	rc = loom__dbw_create(path, &wp, &w, diag);
+	if (rc) {
+		free_pipe(&P);
+		return rc;
+	}
+	P.n_tasks = P.task_start[P.n_models];
+	P.brick_voxels = (size_t)p->brick[0] * p->brick[1] * p->brick[2];
+	P.brick_bytes = P.brick_voxels * LOOM__VOXEL_PLANES;
+	nth = p->threads ? p->threads : 2;
+	P.n_slots = 2 * nth;
+	P.slots = calloc(P.n_slots, sizeof *P.slots);
+	if (!P.slots) {
+		loom__dbw_abort(w);
+		free_pipe(&P);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	for (unsigned i = 0; i < P.n_slots; i++) {
+		slot *s = &P.slots[i];
+		size_t ncol = (size_t)p->brick[0] * p->brick[1];
+		s->b = calloc(P.nbz_max, sizeof *s->b);
+		s->cbuf = malloc(P.nbz_max * P.brick_bytes);
+		s->top = malloc(P.nbz_max * ncol * sizeof *s->top);
+		s->top_label = malloc(P.nbz_max * ncol);
+		if (!s->b || !s->cbuf || !s->top || !s->top_label) {
+			loom__dbw_abort(w);
+			free_pipe(&P);
+			return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+		}
+	}
+	pthread_mutex_init(&P.mu, NULL);
+	pthread_cond_init(&P.cv, NULL);
+	for (; started < nth; started++)
+		if (pthread_create(&th[started], NULL, worker, &P) != 0)
+			break;
+	if (started == 0)
+		rc = loom__fail(diag, LOOM_ENOMEM, "generator: cannot start a thread");
+	else
+		rc = drain(&P, w, diag);
+	pthread_mutex_lock(&P.mu);
+	if (rc)
+		P.abort = 1;
+	pthread_cond_broadcast(&P.cv);
+	pthread_mutex_unlock(&P.mu);
+	for (unsigned i = 0; i < started; i++)
+		pthread_join(th[i], NULL);
+	pthread_mutex_destroy(&P.mu);
+	pthread_cond_destroy(&P.cv);
+	if (rc)
+		loom__dbw_abort(w);
+	else
+		rc = loom__dbw_finish(w, hash, diag);
+	free_pipe(&P);
+	return rc;
+}

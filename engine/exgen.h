@@ -1,0 +1,55 @@
+/*
+ * engine/exgen.h - procedural CT-like exemplars (docs/exemplars.md).
+ * Internal.
+ *
+ * A model (loom__exgen) describes one exemplar: a window of rows x cols
+ * crossings cut from an endless woven sheet with closed-form yarn centre
+ * curves.  Any box of voxels can be evaluated independently, in any order
+ * and on any thread, and always gives the same bytes: the database writer
+ * evaluates brick columns in parallel; tests evaluate whole volumes.
+ */
+#ifndef LOOM_EXGEN_H
+#define LOOM_EXGEN_H
+
+#include "internal.h"
+#include "loom/db.h"
+
+typedef struct loom__exgen loom__exgen;
+
+/* What the database records about a generated exemplar. */
+typedef struct loom__exgen_desc {
+	const char *name;          /* "twill-2-3" (variant suffix "-2", ...) */
+	const char *weave_name;    /* "twill:2/3" */
+	uint32_t rows, cols;
+	const uint8_t *weave;      /* rows*cols, 1 = warp over */
+	uint32_t size[3];          /* voxels */
+	uint32_t n_yarns;
+	const loom_db_yarn *yarns; /* n_yarns + 1 rows */
+} loom__exgen_desc;
+
+/* Check the parameters that do not depend on a weave. */
+int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag);
+
+/*
+ * Model of exemplar k of p (weave p->weaves[k]).  `variant` counts earlier
+ * exemplars with the same weave (0 for the first): it changes the seed and
+ * the name suffix.  LOOM_EINVAL (message names the weave), LOOM_ENOMEM.
+ */
+int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
+                    loom__exgen **out, loom_diag *diag);
+void loom__exgen_free(loom__exgen *g);
+void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d);
+
+/*
+ * Evaluate the box [x0, x0+nx) x [y0, y0+ny) x [z0, z0+nz) (voxels; parts
+ * outside the exemplar are empty).  Output index ((y-y0)*nx + (x-x0))*nz +
+ * (z-z0): z fastest, as in a brick.  Thread-safe.
+ */
+void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
+                     uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
+                     uint16_t *orientation, uint8_t *label);
+
+/* Nominal mid-plane of the cloth, in voxels (for tests). */
+float loom__exgen_mid_z(const loom__exgen *g);
+
+#endif /* LOOM_EXGEN_H */

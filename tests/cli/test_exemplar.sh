@@ -1,0 +1,144 @@
+# `loom exemplar generate|info|verify|export` end to end, with teem's unu
+# as the independent NRRD reader.
+SUITE=exemplar
+. "$LOOM_TOP/tests/cli/lib.sh"
+UNU=teem-unu
+DB=$T/two.ldb
+
+for c in "" generate info verify export; do
+	expect_ok "help_${c:-main}" "$LOOM" exemplar $c --help
+done
+expect_exit no_subcommand 2 "$LOOM" exemplar
+expect_exit unknown_subcommand 2 "$LOOM" exemplar frob
+expect_exit generate_no_output 2 "$LOOM" exemplar generate
+expect_exit generate_bad_preset 2 "$LOOM" exemplar generate --preset huge -o "$T/x.ldb"
+expect_exit generate_bad_weave 1 "$LOOM" exemplar generate --weaves twill:0/2 -o "$T/x.ldb"
+expect_err_contains generate_bad_weave_msg "twill:0/2"
+if [ -e "$T/x.ldb" ]; then fail no_partial_output "x.ldb exists"; else pass no_partial_output; fi
+
+# generate: two weaves, small preset; no progress when stderr is not a terminal
+expect_ok generate "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
+	--seed 5 -o "$DB"
+if [ -s "$T/err" ]; then fail generate_quiet_stderr "$(head -c 200 "$T/err")"; else pass generate_quiet_stderr; fi
+expect_out_contains generate_summary "2 exemplars"
+expect_ok generate_again "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
+	--seed 5 --threads 1 --quiet -o "$T/again.ldb"
+expect_same deterministic "$DB" "$T/again.ldb"
+
+# info --json: valid JSON with the documented keys
+expect_ok info_json "$LOOM" exemplar info "$DB" --json
+cp "$T/out" "$T/info.json"
+if python3 - "$T/info.json" >"$T/py" 2>&1 <<'EOF'
+import json, sys
+j = json.load(open(sys.argv[1]))
+ex = j["exemplars"]
+assert len(ex) == 2, ex
+for e in ex:
+    for k in ("name", "weave", "crossings", "block", "raw_bytes", "compressed_bytes"):
+        assert k in e, k
+    assert e["crossings"] == [5, 5], e["crossings"]
+    assert e["block"] == [24, 16, 48], e["block"]
+    assert len(e["weave"]) == 5 and all(len(r) == 5 and set(r) <= {"0", "1"} for r in e["weave"])
+    assert e["raw_bytes"] == 120 * 80 * 48 * 4
+    assert 0 < e["compressed_bytes"] < e["raw_bytes"]
+assert ex[0]["name"] == "twill-2-3" and ex[1]["name"] == "satin-1-4"
+# twill 2/3: every column has two 1s, every row two 1s
+assert all(r.count("1") == 2 for r in ex[0]["weave"])
+assert all(r.count("1") == 1 for r in ex[1]["weave"])
+print(ex[0]["weave"][0])
+EOF
+then pass info_json_keys; else fail info_json_keys "$(head -c 400 "$T/py")"; fi
+row0=$(cat "$T/py")
+expect_ok info_text "$LOOM" exemplar info "$DB"
+expect_out_contains info_text_name "satin-1-4"
+expect_out_contains info_text_weave "$row0"
+
+# default database lookup: LOOM_DB, then the data directory
+expect_ok info_env env LOOM_DB="$DB" "$LOOM" exemplar info
+expect_out_contains info_env_path "$DB"
+mkdir -p "$T/nodata"
+expect_exit info_none 1 env LOOM_DB= LOOM_DATA="$T/nodata" "$LOOM" exemplar info
+expect_err_contains info_none_msg "no exemplar database"
+expect_ok info_default env LOOM_DB= LOOM_DATA= "$LOOM" exemplar info
+expect_out_contains info_default_path "default.ldb"
+
+# verify, then damage one byte of the first stored brick (it starts right
+# after the 128-byte header: brick 0 is the bottom brick of column 0,0,
+# which holds cloth)
+expect_ok verify "$LOOM" exemplar verify "$DB"
+expect_out_contains verify_ok "ok"
+cp "$DB" "$T/flip.ldb"
+b=$(od -An -tu1 -j 140 -N1 "$T/flip.ldb" | tr -d ' ')
+nb=$(( b ^ 32 ))
+printf "\\$(printf %o "$nb")" | dd of="$T/flip.ldb" bs=1 seek=140 conv=notrunc 2>/dev/null
+expect_exit verify_flip 1 "$LOOM" exemplar verify "$T/flip.ldb"
+expect_err_contains verify_flip_brick "flip.ldb: brick 0 (exemplar 0 'twill-2-3', brick x=0 y=0 z=0)"
+expect_err_contains verify_flip_crc "CRC32 mismatch"
+expect_exit export_flip 1 "$LOOM" exemplar export "$T/flip.ldb" --exemplar 0 -o "$T/flip.nrrd"
+expect_err_contains export_flip_msg "brick 0"
+
+# truncation
+size=$(wc -c <"$DB")
+head -c $((size - 1)) "$DB" >"$T/trunc.ldb"
+expect_exit verify_trunc 1 "$LOOM" exemplar verify "$T/trunc.ldb"
+expect_err_contains verify_trunc_msg "trunc.ldb: no trailer in the last 64 bytes (offset $((size - 65))): the file is truncated"
+head -c 100 "$DB" >"$T/trunc2.ldb"
+expect_exit info_trunc 1 "$LOOM" exemplar info "$T/trunc2.ldb"
+expect_err_contains info_trunc_msg "file of 100 bytes ends inside the 128-byte header"
+printf 'not a database at all, just text ................................................................................................................\n' >"$T/text.ldb"
+expect_exit info_text_file 1 "$LOOM" exemplar info "$T/text.ldb"
+expect_err_contains info_text_file_msg "bad magic"
+
+# export: attached density, read back with unu
+expect_ok export "$LOOM" exemplar export "$DB" --exemplar twill-2-3 -o "$T/d.nrrd"
+if $UNU head "$T/d.nrrd" >"$T/head" 2>&1; then pass unu_head; else fail unu_head "$(cat "$T/head")"; fi
+if grep -q "^sizes: 120 80 48" "$T/head" && grep -q "^type: uint8" "$T/head" &&
+   grep -q "^space directions: (0.024,0,0) (0,0.024,0) (0,0,0.024)" "$T/head"; then
+	pass unu_sizes; else fail unu_sizes "$(cat "$T/head")"; fi
+# the top slice is empty, the middle one is not
+$UNU slice -i "$T/d.nrrd" -a 2 -p 47 | $UNU save -f text -o "$T/top.txt"
+if [ "$(tr ' ' '\n' <"$T/top.txt" | grep -c '[1-9]')" = 0 ] && [ -s "$T/top.txt" ]; then
+	pass top_slice_empty; else fail top_slice_empty "non-zero voxels in the top slice"; fi
+$UNU slice -i "$T/d.nrrd" -a 2 -p 24 | $UNU save -f text -o "$T/mid.txt"
+n=$(tr ' ' '\n' <"$T/mid.txt" | grep -c '[1-9]')
+if [ "$n" -gt 1000 ]; then pass mid_slice_full; else fail mid_slice_full "$n non-zero voxels"; fi
+# kind channel: at every crossing centre the top-most yarn (density >= 64,
+# so that faint flyaway fibres do not count) is the warp (1) exactly where
+# the weave says 1
+expect_ok export_kind "$LOOM" exemplar export "$DB" --exemplar 0 --channel kind -o "$T/k.nrrd"
+bad=0
+r=0
+python3 -c "import json;print('\n'.join(json.load(open('$T/info.json'))['exemplars'][0]['weave']))" >"$T/weave.txt"
+while read -r wrow; do
+	c=0
+	while [ $c -lt 5 ]; do
+		x=$((c * 24 + 12)); y=$((r * 16 + 8))
+		$UNU slice -i "$T/k.nrrd" -a 0 -p $x | $UNU slice -a 0 -p $y | $UNU save -f text |
+			tr ' ' '\n' | grep -v '^$' >"$T/kcol"
+		$UNU slice -i "$T/d.nrrd" -a 0 -p $x | $UNU slice -a 0 -p $y | $UNU save -f text |
+			tr ' ' '\n' | grep -v '^$' >"$T/dcol"
+		# the surface rule: highest voxel with a yarn and density >= 64
+		top=$(paste "$T/kcol" "$T/dcol" | awk '$1 != 0 && $2 >= 64 {k = $1} END {print k}')
+		want=$(echo "$wrow" | cut -c$((c + 1)))
+		[ "$want" = 1 ] && want=1 || want=2
+		[ "$top" = "$want" ] || bad=$((bad + 1))
+		c=$((c + 1))
+	done
+	r=$((r + 1))
+done <"$T/weave.txt"
+if [ "$bad" = 0 ] && [ "$r" = 5 ]; then pass kind_over_under; else fail kind_over_under "$bad crossings wrong"; fi
+# detached header + orientation vectors
+expect_ok export_detached "$LOOM" exemplar export "$DB" --exemplar 1 --channel orientation \
+	--detached -o "$T/o.nhdr"
+if [ -f "$T/o.raw" ] && [ "$(wc -c <"$T/o.raw")" = $((3 * 120 * 80 * 48 * 4)) ]; then
+	pass detached_raw; else fail detached_raw "o.raw missing or wrong size"; fi
+if $UNU head "$T/o.nhdr" >"$T/head2" 2>&1 && grep -q "^sizes: 3 120 80 48" "$T/head2" &&
+   grep -q "^kinds: 3-vector domain domain domain" "$T/head2"; then
+	pass unu_vector; else fail unu_vector "$(cat "$T/head2")"; fi
+# unit vectors: the largest component magnitude is <= 1 (unu reads the data)
+$UNU project -i "$T/o.nhdr" -a 3 -m max | $UNU project -a 2 -m max | $UNU project -a 1 -m max |
+	$UNU save -f text -o "$T/omax.txt"
+if awk '{for (i = 1; i <= NF; i++) if ($i > 1.0001 || $i < -1.0001) bad = 1} END {exit bad}' "$T/omax.txt" &&
+   [ -s "$T/omax.txt" ]; then pass orientation_values; else fail orientation_values "$(cat "$T/omax.txt")"; fi
+expect_exit export_bad_exemplar 1 "$LOOM" exemplar export "$DB" --exemplar nope -o "$T/n.nrrd"
+expect_exit export_bad_channel 2 "$LOOM" exemplar export "$DB" --exemplar 0 --channel rgb -o "$T/n.nrrd"

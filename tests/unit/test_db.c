@@ -1,0 +1,915 @@
+/*
+ * tests/unit/test_db.c - the exemplar database: write, read back every
+ * voxel against the generator, empty and raw-stored bricks, tables of a
+ * hand-made database, and every malformed-input case (each with its code
+ * and a message naming the place; none may crash).
+ */
+#include "check.h"
+#include "db_internal.h"
+#include "db_write.h"
+#include "exgen.h"
+
+#include <fcntl.h>
+#include <libdeflate.h>
+#include <math.h>
+#include <pthread.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static char tmpdir[4096];
+
+static const char *tpath(const char *name)
+{
+	static char buf[8][4200];
+	static int slot;
+	char *p = buf[slot++ & 7];
+	snprintf(p, 4200, "%s/%s", tmpdir, name);
+	return p;
+}
+
+static uint8_t *slurp(const char *path, size_t *len)
+{
+	FILE *fp = fopen(path, "rb");
+	uint8_t *b;
+	long n;
+
+	if (!fp)
+		return NULL;
+	fseek(fp, 0, SEEK_END);
+	n = ftell(fp);
+	fseek(fp, 0, SEEK_SET);
+	b = malloc((size_t)n + 1);
+	if (fread(b, 1, (size_t)n, fp) != (size_t)n) {
+		free(b);
+		b = NULL;
+	}
+	fclose(fp);
+	*len = (size_t)n;
+	return b;
+}
+
+static void spit(const char *path, const uint8_t *b, size_t n)
+{
+	FILE *fp = fopen(path, "wb");
+	if (fp) {
+		if (n)
+			fwrite(b, 1, n, fp);
+		fclose(fp);
+	}
+}
+
+/* Recompute the header CRC, metadata CRC, content hash and trailer CRC of
+   an edited database image, so that a deliberate inconsistency reaches the
+   check behind them. */
+static void reseal(uint8_t *b, size_t n)
+{
+	uint8_t *t = b + n - LOOM__DB_TRAILER_BYTES;
+	uint64_t mo = loom__le64(t + 8), ml = loom__le64(t + 16), h;
+
+	loom__put32(b + 124, libdeflate_crc32(0, b, 124));
+	if (mo > n || ml > n - mo) /* damaged trailer: nothing to reseal */
+		return;
+	loom__put32(t + 24, libdeflate_crc32(0, b + mo, ml));
+	h = loom__fnv1a64(loom__fnv1a64(LOOM__FNV_OFFSET, b, 128), b + mo, ml);
+	loom__put64(t + 40, h);
+	loom__put32(t + 60, libdeflate_crc32(0, t, 60));
+}
+
+/* Offset of brick id's index entry in the file image. */
+static size_t index_entry(const uint8_t *b, size_t n, uint32_t id)
+{
+	const uint8_t *t = b + n - LOOM__DB_TRAILER_BYTES;
+	uint64_t mo = loom__le64(t + 8);
+	return (size_t)(mo + loom__le64(b + mo + 40) + (uint64_t)id * LOOM__DB_INDEX_BYTES);
+}
+
+static int open_code(const char *path, loom_diag *d)
+{
+	loom_db *db = NULL;
+	int rc;
+
+	memset(d, 0, sizeof *d);
+	rc = loom_db_open(path, &db, d);
+	if (rc == LOOM_OK)
+		loom_db_close(db);
+	else
+		CHECK(db == NULL);
+	return rc;
+}
+
+/* ---- generated database: every voxel equals the generator's ----------------- */
+
+static loom_exgen_params gen_params(void)
+{
+	loom_exgen_params p;
+	loom_exgen_preset("small", &p);
+	p.block[0] = 12;
+	p.block[1] = 8;
+	p.block[2] = 20;
+	p.voxel_size_um = 40;
+	p.brick[0] = p.brick[1] = p.brick[2] = 8;
+	p.n_weaves = 2;
+	p.weaves[0] = "twill:2/3";
+	p.weaves[1] = "plain";
+	p.seed = 7;
+	return p;
+}
+
+static void test_roundtrip_generated(void)
+{
+	loom_exgen_params p = gen_params();
+	loom_diag d = {0};
+	loom_db *db = NULL;
+	loom_db_info info;
+	uint64_t hash = 0;
+	int rc;
+
+	rc = loom_exgen_write_db(tpath("gen.ldb"), &p, &hash, &d);
+	CHECK_EQ_INT(rc, LOOM_OK);
+	if (rc) {
+		printf("  %s\n", d.message);
+		return;
+	}
+	rc = loom_db_open(tpath("gen.ldb"), &db, &d);
+	CHECK_EQ_INT(rc, LOOM_OK);
+	if (rc) {
+		printf("  %s\n", d.message);
+		return;
+	}
+	loom_db_get_info(db, &info);
+	CHECK_EQ_INT(info.n_exemplars, 2);
+	CHECK(info.content_hash == hash && hash != 0);
+	CHECK(loom_db_content_hash(db) == hash);
+	CHECK_EQ_INT(info.block[0], 12);
+	CHECK_EQ_INT(info.brick[2], 8);
+	CHECK(info.n_empty_bricks > 0);
+	CHECK(info.n_empty_bricks < info.n_bricks);
+	for (uint32_t k = 0; k < 2; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom_db_exemplar_info e;
+		size_t n;
+		uint8_t *gd8, *gl8, *rd, *rl;
+		uint16_t *go, *ro;
+		uint32_t org[3] = {0, 0, 0};
+		long bad = 0;
+
+		CHECK_EQ_INT(loom__exgen_new(&p, k, 0, &g, &d), LOOM_OK);
+		loom__exgen_describe(g, &gd);
+		CHECK_EQ_INT(loom_db_exemplar(db, k, &e), LOOM_OK);
+		CHECK_EQ_INT(e.rows, gd.rows);
+		CHECK_EQ_INT(e.cols, gd.cols);
+		CHECK(strcmp(e.name, gd.name) == 0);
+		CHECK(memcmp(e.weave, gd.weave, (size_t)e.rows * e.cols) == 0);
+		CHECK_EQ_INT(e.n_yarns, gd.n_yarns);
+		for (uint32_t l = 0; l <= e.n_yarns; l++)
+			CHECK(e.yarns[l].kind == gd.yarns[l].kind &&
+			      e.yarns[l].index == gd.yarns[l].index &&
+			      e.yarns[l].flags == gd.yarns[l].flags);
+		n = (size_t)e.size[0] * e.size[1] * e.size[2];
+		gd8 = malloc(n);
+		gl8 = malloc(n);
+		go = malloc(2 * n);
+		rd = malloc(n);
+		rl = malloc(n);
+		ro = malloc(2 * n);
+		loom__exgen_box(g, 0, 0, 0, e.size[0], e.size[1], e.size[2], gd8, go, gl8);
+		CHECK_EQ_INT(loom_db_read_box(db, k, org, e.size, rd, ro, rl, &d), LOOM_OK);
+		for (uint32_t y = 0; y < e.size[1]; y++)
+			for (uint32_t x = 0; x < e.size[0]; x++)
+				for (uint32_t z = 0; z < e.size[2]; z++) {
+					size_t gi = ((size_t)y * e.size[0] + x) * e.size[2] + z;
+					size_t ri = ((size_t)z * e.size[1] + y) * e.size[0] + x;
+					if (gd8[gi] != rd[ri] || go[gi] != ro[ri] || gl8[gi] != rl[ri])
+						bad++;
+				}
+		CHECK_EQ_INT(bad, 0);
+		/* non-trivial content: yarns of both kinds, empty space above */
+		{
+			long filled = 0, warp = 0, weft = 0;
+			for (size_t i = 0; i < n; i++) {
+				filled += rl[i] != 0;
+				warp += e.yarns[rl[i]].kind == LOOM_YARN_WARP;
+				weft += e.yarns[rl[i]].kind == LOOM_YARN_WEFT;
+			}
+			CHECK(filled > (long)n / 10 && filled < (long)n / 2);
+			CHECK(warp > 0 && weft > 0);
+		}
+		/* every brick: empty flag <=> all voxels zero; raw reads agree */
+		{
+			loom__db_geom geo;
+			struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+			uint8_t *brick, *scratch;
+			loom__db_geometry(db, &geo);
+			brick = malloc(geo.brick_bytes);
+			scratch = malloc(loom__db_scratch_bytes(db));
+			for (uint32_t by = 0; by < e.bricks[1]; by++)
+				for (uint32_t bx = 0; bx < e.bricks[0]; bx++)
+					for (uint32_t bz = 0; bz < e.bricks[2]; bz++) {
+						uint32_t id, kk, x1, y1, z1;
+						int nz = 0;
+						CHECK_EQ_INT(loom__db_brick_id(db, k, bx, by, bz, &id), LOOM_OK);
+						CHECK_EQ_INT(loom__db_brick_coords(db, id, &kk, &x1, &y1, &z1),
+						             LOOM_OK);
+						CHECK(kk == k && x1 == bx && y1 == by && z1 == bz);
+						CHECK_EQ_INT(loom__db_read_brick(db, id, dec, scratch, brick,
+						                                 NULL, &d), LOOM_OK);
+						for (size_t i = 0; i < geo.brick_bytes; i++)
+							nz |= brick[i] != 0;
+						CHECK_EQ_INT(loom__db_brick_empty(db, id), !nz);
+					}
+			free(brick);
+			free(scratch);
+			libdeflate_free_decompressor(dec);
+		}
+		free(gd8);
+		free(gl8);
+		free(go);
+		free(rd);
+		free(rl);
+		free(ro);
+		loom__exgen_free(g);
+	}
+	CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
+	/* out-of-range queries */
+	{
+		uint32_t id, org[3] = {0, 0, 0}, sz[3] = {1, 1, 100};
+		uint8_t buf[100];
+		loom_db_block_info bi;
+		CHECK_EQ_INT(loom__db_brick_id(db, 2, 0, 0, 0, &id), LOOM_ERANGE);
+		CHECK_EQ_INT(loom__db_brick_id(db, 0, 99, 0, 0, &id), LOOM_ERANGE);
+		CHECK_EQ_INT(loom_db_read_box(db, 0, org, sz, buf, NULL, NULL, &d), LOOM_ERANGE);
+		CHECK_STR_CONTAINS(d.message, "outside exemplar");
+		CHECK_EQ_INT(loom_db_block(db, 0, 5, 0, &bi), LOOM_ERANGE);
+		CHECK_EQ_INT(loom_db_read_box(db, 9, org, sz, buf, NULL, NULL, &d), LOOM_ERANGE);
+		CHECK_EQ_INT(loom__db_read_brick(db, 1u << 30, NULL, NULL, NULL, NULL, &d),
+		             LOOM_ERANGE);
+		CHECK_STR_CONTAINS(d.message, "out of range");
+	}
+	loom_db_close(db);
+}
+
+/* Two threads reading every brick concurrently get the same bytes. */
+typedef struct reader_arg {
+	const loom_db *db;
+	uint64_t sum;
+	int rc;
+} reader_arg;
+
+static void *reader(void *p)
+{
+	reader_arg *a = p;
+	loom__db_geom geo;
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	uint8_t *brick, *scratch;
+	loom_diag d = {0};
+
+	loom__db_geometry(a->db, &geo);
+	brick = malloc(geo.brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(a->db));
+	for (int rep = 0; rep < 3; rep++)
+		for (uint32_t id = 0; id < geo.n_bricks; id++) {
+			a->rc |= loom__db_read_brick(a->db, id, dec, scratch, brick, NULL, &d);
+			a->sum = loom__fnv1a64(a->sum, brick, geo.brick_bytes);
+		}
+	free(brick);
+	free(scratch);
+	libdeflate_free_decompressor(dec);
+	return NULL;
+}
+
+static void test_threaded_reads(void)
+{
+	loom_db *db = NULL;
+	loom_diag d = {0};
+	pthread_t t[2];
+	reader_arg a[2];
+
+	CHECK_EQ_INT(loom_db_open(tpath("gen.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		return;
+	for (int i = 0; i < 2; i++) {
+		a[i].db = db;
+		a[i].sum = LOOM__FNV_OFFSET;
+		a[i].rc = 0;
+		pthread_create(&t[i], NULL, reader, &a[i]);
+	}
+	for (int i = 0; i < 2; i++)
+		pthread_join(t[i], NULL);
+	CHECK_EQ_INT(a[0].rc, 0);
+	CHECK_EQ_INT(a[1].rc, 0);
+	CHECK(a[0].sum == a[1].sum);
+	loom_db_close(db);
+}
+
+/* The per-thread reader object the brick cache uses. */
+static void test_reader_object(void)
+{
+	loom_db *db = NULL;
+	loom_diag d = {0};
+	loom__db_reader *r;
+	loom__db_geom geo;
+	uint8_t *a, *b, *scratch;
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	int bad = 0;
+
+	CHECK_EQ_INT(loom_db_open(tpath("gen.ldb"), &db, &d), LOOM_OK);
+	if (!db) {
+		libdeflate_free_decompressor(dec);
+		return;
+	}
+	loom__db_geometry(db, &geo);
+	r = loom__db_reader_new(db);
+	CHECK(r != NULL);
+	/* the bound covers the decompressor (about 10 KB in libdeflate 1.14)
+	   and the scratch */
+	CHECK(loom__db_reader_bytes(db) > loom__db_scratch_bytes(db) + 4096);
+	CHECK(loom__db_reader_bytes(db) < loom__db_scratch_bytes(db) + (1u << 20));
+	a = malloc(geo.brick_bytes);
+	b = malloc(geo.brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(db));
+	for (uint32_t id = 0; id < geo.n_bricks && r; id++) {
+		size_t n1 = 0, n2 = 0;
+		bad |= loom__db_reader_read(r, id, a, &n1, &d) != LOOM_OK;
+		bad |= loom__db_read_brick(db, id, dec, scratch, b, &n2, &d) != LOOM_OK;
+		bad |= memcmp(a, b, geo.brick_bytes) != 0 || n1 != n2;
+		bad |= loom__db_brick_empty(db, id) ? n1 != 0 : n1 == 0;
+	}
+	CHECK(!bad);
+	CHECK_EQ_INT(loom__db_reader_read(r, geo.n_bricks, a, NULL, &d), LOOM_ERANGE);
+	loom__db_reader_free(r);
+	loom__db_reader_free(NULL);
+	free(a);
+	free(b);
+	free(scratch);
+	libdeflate_free_decompressor(dec);
+	loom_db_close(db);
+	loom_db_close(NULL);
+}
+
+/* ---- hand-made database: raw bricks, empty bricks, tables ------------------- */
+
+/*
+ * One exemplar, plain weave 2x2 crossings, block 4x4x8, brick 4x4x4, so the
+ * volume 8x8x8 is 2x2x2 bricks.  Label 1 = warp, 2 = weft, 3 = flyaway,
+ * labels up to 255 exist (kind weft) so that noise labels are valid.
+ * Brick (0,0,0): noise (stored raw); (0,0,1): empty; the others: a known
+ * height map, top surface at h(x,y) = 2 + (x + 2y) % 5 over solid voxels,
+ * a flyaway voxel above it at (5,5) which the tables must ignore.
+ */
+static uint32_t hm(uint32_t x, uint32_t y)
+{
+	return 2 + (x + 2 * y) % 5;
+}
+
+static void fill_brick(uint8_t *raw, uint32_t bx, uint32_t by, uint32_t bz,
+                       uint64_t *rng)
+{
+	size_t nv = 64;
+
+	memset(raw, 0, 4 * nv);
+	if (bx == 0 && by == 0 && bz == 0) {
+		for (size_t i = 0; i < 4 * nv; i++) {
+			*rng = *rng * 6364136223846793005ull + 1442695040888963407ull;
+			raw[i] = (uint8_t)(*rng >> 56);
+		}
+		return;
+	}
+	if (bx == 0 && by == 0 && bz == 1)
+		return;
+	for (uint32_t ly = 0; ly < 4; ly++)
+		for (uint32_t lx = 0; lx < 4; lx++) {
+			uint32_t x = bx * 4 + lx, y = by * 4 + ly;
+			for (uint32_t lz = 0; lz < 4; lz++) {
+				uint32_t z = bz * 4 + lz;
+				size_t i = loom__brick_index(4, 4, lx, ly, lz);
+				if (z < hm(x, y)) {
+					raw[i] = 200;
+					raw[3 * nv + i] = (x / 4 + y / 4) % 2 ? 2 : 1;
+					raw[nv + i] = 7;
+				} else if (x == 5 && y == 5 && z == 7) {
+					raw[i] = 255;
+					raw[3 * nv + i] = 3; /* flyaway */
+				}
+			}
+		}
+}
+
+static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
+{
+	loom__dbw_params wp;
+	loom__dbw_exemplar e;
+	loom_db_yarn yarns[256];
+	uint8_t weave[4] = {1, 0, 0, 1}, raw[256];
+	loom__dbw *w;
+	uint64_t rng = 12345;
+	int rc;
+
+	memset(&wp, 0, sizeof wp);
+	wp.n_exemplars = 1;
+	wp.block[0] = wp.block[1] = 4;
+	wp.block[2] = 8;
+	wp.brick[0] = wp.brick[1] = wp.brick[2] = 4;
+	wp.voxel_size_um = 10;
+	wp.top_threshold = 64;
+	wp.level = 6;
+	memset(yarns, 0, sizeof yarns);
+	for (int l = 1; l < 256; l++) {
+		yarns[l].kind = LOOM_YARN_WEFT;
+		yarns[l].index = (int16_t)l;
+	}
+	yarns[1].kind = LOOM_YARN_WARP;
+	yarns[1].index = 0;
+	yarns[3].flags = LOOM_DB_YARN_FLYAWAY;
+	e.name = "hand";
+	e.weave_name = "plain";
+	e.rows = e.cols = 2;
+	e.weave = weave;
+	e.n_yarns = 255;
+	e.yarns = yarns;
+	if ((rc = loom__dbw_create(path, &wp, &w, d)) != LOOM_OK)
+		return rc;
+	if ((rc = loom__dbw_begin_exemplar(w, &e, d)) != LOOM_OK) {
+		loom__dbw_abort(w);
+		return rc;
+	}
+	for (uint32_t by = 0; by < 2; by++)
+		for (uint32_t bx = 0; bx < 2; bx++)
+			for (uint32_t bz = 0; bz < 2; bz++) {
+				fill_brick(raw, bx, by, bz, &rng);
+				if ((rc = loom__dbw_add_brick(w, raw, d)) != LOOM_OK) {
+					loom__dbw_abort(w);
+					return rc;
+				}
+			}
+	return loom__dbw_finish(w, hash, d);
+}
+
+static void test_handmade(void)
+{
+	loom_diag d = {0};
+	loom_db *db = NULL;
+	loom_db_info info;
+	loom_db_exemplar_info e;
+	loom_db_block_info b;
+	uint64_t hash = 0, rng = 12345;
+	uint8_t want[256], got[256], scratch[512];
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	int rc;
+
+	rc = write_handmade(tpath("hand.ldb"), &hash, &d);
+	CHECK_EQ_INT(rc, LOOM_OK);
+	rc = loom_db_open(tpath("hand.ldb"), &db, &d);
+	CHECK_EQ_INT(rc, LOOM_OK);
+	if (rc) {
+		printf("  %s\n", d.message);
+		libdeflate_free_decompressor(dec);
+		return;
+	}
+	loom_db_get_info(db, &info);
+	CHECK_EQ_INT(info.n_bricks, 8);
+	CHECK_EQ_INT(info.n_empty_bricks, 1);
+	CHECK_EQ_INT(info.n_raw_bricks, 1);
+	CHECK(loom__db_brick_empty(db, 1));
+	/* every brick reads back as written (raw, empty and deflate) */
+	for (uint32_t by = 0; by < 2; by++)
+		for (uint32_t bx = 0; bx < 2; bx++)
+			for (uint32_t bz = 0; bz < 2; bz++) {
+				uint32_t id;
+				fill_brick(want, bx, by, bz, &rng);
+				loom__db_brick_id(db, 0, bx, by, bz, &id);
+				CHECK_EQ_INT(loom__db_read_brick(db, id, dec, scratch, got, NULL, &d),
+				             LOOM_OK);
+				CHECK(memcmp(want, got, 256) == 0);
+			}
+	CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
+	/* tables (brute force from the known height map) */
+	CHECK_EQ_INT(loom_db_exemplar(db, 0, &e), LOOM_OK);
+	CHECK_EQ_INT(e.n_symmetries, 2); /* plain: (0,0) and (1,1) */
+	CHECK(e.symmetries[0] == 0 && e.symmetries[1] == 0);
+	CHECK(e.symmetries[2] == 1 && e.symmetries[3] == 1);
+	for (uint32_t r = 0; r < 2; r++)
+		for (uint32_t c = 0; c < 2; c++) {
+			uint32_t x0 = c * 4, y0 = r * 4;
+			double sx = 0, sy = 0, sum = 0;
+			int nx = 0, ny = 0, nn = 0;
+			CHECK_EQ_INT(loom_db_block(db, 0, r, c, &b), LOOM_OK);
+			/* plain weave: own bit = (r == c), all four neighbours opposite */
+			CHECK_EQ_INT(b.code, r == c ? LOOM_DB_CODE_SELF
+			                            : LOOM_DB_CODE_N | LOOM_DB_CODE_S |
+			                                      LOOM_DB_CODE_W | LOOM_DB_CODE_E);
+			if (r == 0 && c == 0) {
+				/* brick (0,0,0) is noise: its labels are random, skip values */
+				continue;
+			}
+			for (uint32_t i = 0; i < 4; i++) {
+				CHECK(b.north[i] == (float)hm(x0 + i, y0));
+				CHECK(b.south[i] == (float)hm(x0 + i, y0 + 3));
+				CHECK(b.west[i] == (float)hm(x0, y0 + i));
+				CHECK(b.east[i] == (float)hm(x0 + 3, y0 + i));
+			}
+			for (uint32_t y = y0; y < y0 + 4; y++)
+				for (uint32_t x = x0; x < x0 + 4; x++) {
+					sum += hm(x, y);
+					nn++;
+					if (x + 1 < x0 + 4) {
+						sx += fabs((double)hm(x + 1, y) - hm(x, y));
+						nx++;
+					}
+					if (y + 1 < y0 + 4) {
+						sy += fabs((double)hm(x, y + 1) - hm(x, y));
+						ny++;
+					}
+				}
+			CHECK(fabs(b.mean_dh_x - sx / nx) < 1e-5);
+			CHECK(fabs(b.mean_dh_y - sy / ny) < 1e-5);
+			CHECK(fabs(b.mean_height - sum / nn) < 1e-5);
+			CHECK_EQ_INT(b.gap_columns, 0);
+			CHECK_EQ_INT(b.centre_kind, (c + r) % 2 ? LOOM_YARN_WEFT : LOOM_YARN_WARP);
+		}
+	libdeflate_free_decompressor(dec);
+	loom_db_close(db);
+}
+
+/* ---- malformed inputs ----------------------------------------------------- */
+
+static void test_bad_magic_version(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("hand.ldb"), &n), *c;
+	loom_diag d;
+
+	CHECK(b != NULL);
+	if (!b)
+		return;
+	c = malloc(n);
+	memcpy(c, b, n);
+	c[1] = 'X';
+	spit(tpath("bad_magic.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("bad_magic.ldb"), &d), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(d.message, "bad_magic.ldb: offset 0: bad magic");
+	/* a text file */
+	spit(tpath("text.ldb"), (const uint8_t *)"hello\n", 6);
+	CHECK_EQ_INT(open_code(tpath("text.ldb"), &d), LOOM_ETRUNCATED);
+	spit(tpath("text2.ldb"), (const uint8_t *)"hello world, not a db\n", 22);
+	CHECK_EQ_INT(open_code(tpath("text2.ldb"), &d), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(d.message, "bad magic");
+	/* version 2, even with a valid CRC, is a version error */
+	memcpy(c, b, n);
+	loom__put32(c + 8, 2);
+	reseal(c, n);
+	spit(tpath("v2.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("v2.ldb"), &d), LOOM_EVERSION);
+	CHECK_STR_CONTAINS(d.message, "offset 8: format version 2");
+	/* header CRC */
+	memcpy(c, b, n);
+	c[100] ^= 1;
+	spit(tpath("hcrc.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("hcrc.ldb"), &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, "header CRC32");
+	/* a bad geometry field behind a valid CRC */
+	memcpy(c, b, n);
+	loom__put32(c + 32, 0);
+	reseal(c, n);
+	spit(tpath("brick0.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("brick0.ldb"), &d), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(d.message, "offset 32: brick size 0");
+	/* trailer CRC and metadata CRC */
+	memcpy(c, b, n);
+	c[n - 10] ^= 1;
+	spit(tpath("tcrc.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("tcrc.ldb"), &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, "trailer CRC32");
+	memcpy(c, b, n);
+	c[n - LOOM__DB_TRAILER_BYTES - 30] ^= 1;
+	spit(tpath("mcrc.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("mcrc.ldb"), &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, "metadata at offset");
+	/* content hash alone */
+	memcpy(c, b, n);
+	c[n - LOOM__DB_TRAILER_BYTES + 40] ^= 1;
+	loom__put32(c + n - 4, libdeflate_crc32(0, c + n - 64, 60));
+	spit(tpath("hash.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("hash.ldb"), &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, "content hash");
+	/* missing file, NULL */
+	CHECK_EQ_INT(open_code(tpath("nonexistent.ldb"), &d), LOOM_EIO);
+	CHECK_STR_CONTAINS(d.message, "nonexistent.ldb: cannot open");
+	CHECK_EQ_INT(loom_db_open(NULL, NULL, NULL), LOOM_EINVAL);
+	free(b);
+	free(c);
+}
+
+static void test_truncation(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("gen.ldb"), &n);
+	int bad = 0, tested = 0;
+	loom_diag d;
+
+	CHECK(b != NULL);
+	if (!b)
+		return;
+	for (size_t len = 0; len < n; len += (len < 300 || len + 300 > n) ? 1 : 97) {
+		int rc;
+		spit(tpath("trunc.ldb"), b, len);
+		rc = open_code(tpath("trunc.ldb"), &d);
+		tested++;
+		if (rc != LOOM_ETRUNCATED || !strstr(d.message, "trunc.ldb") ||
+		    !strstr(d.message, "truncated")) {
+			if (!bad)
+				printf("  length %zu: code %d, '%s'\n", len, rc, d.message);
+			bad++;
+		}
+	}
+	printf("  %d truncation lengths tested\n", tested);
+	CHECK_EQ_INT(bad, 0);
+	/* the whole file still opens */
+	spit(tpath("trunc.ldb"), b, n);
+	CHECK_EQ_INT(open_code(tpath("trunc.ldb"), &d), LOOM_OK);
+	/* trailing garbage */
+	{
+		uint8_t *c = malloc(n + 5);
+		memcpy(c, b, n);
+		memcpy(c + n, "extra", 5);
+		spit(tpath("long.ldb"), c, n + 5);
+		CHECK(open_code(tpath("long.ldb"), &d) != LOOM_OK);
+		free(c);
+	}
+	free(b);
+}
+
+/* The file shrinks after it was opened: brick reads say so. */
+static void test_truncated_after_open(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("gen.ldb"), &n), *brick, *scratch;
+	loom_db *db = NULL;
+	loom_diag d = {0};
+	loom__db_geom geo;
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	int rc = LOOM_OK;
+	uint32_t id;
+
+	spit(tpath("shrink.ldb"), b, n);
+	CHECK_EQ_INT(loom_db_open(tpath("shrink.ldb"), &db, &d), LOOM_OK);
+	if (!db) {
+		free(b);
+		libdeflate_free_decompressor(dec);
+		return;
+	}
+	CHECK_EQ_INT(truncate(tpath("shrink.ldb"), 200), 0);
+	loom__db_geometry(db, &geo);
+	brick = malloc(geo.brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(db));
+	for (id = 0; id < geo.n_bricks && rc == LOOM_OK; id++)
+		rc = loom__db_read_brick(db, id, dec, scratch, brick, NULL, &d);
+	CHECK_EQ_INT(rc, LOOM_ETRUNCATED);
+	CHECK_STR_CONTAINS(d.message, "shrink.ldb: brick ");
+	CHECK_STR_CONTAINS(d.message, "(exemplar 0 'twill-2-3', brick x=");
+	CHECK_STR_CONTAINS(d.message, "truncated");
+	CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_ETRUNCATED);
+	free(brick);
+	free(scratch);
+	free(b);
+	libdeflate_free_decompressor(dec);
+	loom_db_close(db);
+}
+
+/* First non-empty deflate brick of an image. */
+static uint32_t first_deflate(const uint8_t *b, size_t n)
+{
+	uint32_t nb = loom__le32(b + n - LOOM__DB_TRAILER_BYTES + 28);
+	for (uint32_t id = 0; id < nb; id++)
+		if (b[index_entry(b, n, id) + 20] == LOOM__DB_STORE_DEFLATE)
+			return id;
+	return 0;
+}
+
+static void test_crc_mismatch(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("gen.ldb"), &n), *brick, *scratch;
+	uint32_t id = first_deflate(b, n);
+	size_t e = index_entry(b, n, id);
+	uint64_t off = loom__le64(b + e);
+	uint32_t sz = loom__le32(b + e + 8);
+	loom_db *db = NULL;
+	loom_diag d = {0};
+	loom__db_geom geo;
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	char want[64];
+
+	b[off + sz / 2] ^= 0x20; /* one flipped byte inside the brick */
+	spit(tpath("flip.ldb"), b, n);
+	CHECK_EQ_INT(loom_db_open(tpath("flip.ldb"), &db, &d), LOOM_OK);
+	if (!db) {
+		free(b);
+		libdeflate_free_decompressor(dec);
+		return;
+	}
+	loom__db_geometry(db, &geo);
+	brick = malloc(geo.brick_bytes);
+	scratch = malloc(loom__db_scratch_bytes(db));
+	CHECK_EQ_INT(loom__db_read_brick(db, id, dec, scratch, brick, NULL, &d),
+	             LOOM_ECORRUPT);
+	snprintf(want, sizeof want, "flip.ldb: brick %u (exemplar", id);
+	CHECK_STR_CONTAINS(d.message, want);
+	CHECK_STR_CONTAINS(d.message, "CRC32 mismatch");
+	memset(&d, 0, sizeof d);
+	CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, want);
+	/* the handle stays usable: another brick still reads */
+	CHECK_EQ_INT(loom__db_read_brick(db, id + 1 < geo.n_bricks ? id + 1 : 0, dec,
+	                                 scratch, brick, NULL, &d), LOOM_OK);
+	free(brick);
+	free(scratch);
+	free(b);
+	libdeflate_free_decompressor(dec);
+	loom_db_close(db);
+}
+
+static void test_index_out_of_range(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("gen.ldb"), &n), *c = malloc(n);
+	uint32_t id = first_deflate(b, n);
+	size_t e = index_entry(b, n, id);
+	loom_diag d;
+	char want[64];
+
+	snprintf(want, sizeof want, "gen_oor.ldb: brick %u (exemplar 0", id);
+	/* offset past the brick data */
+	memcpy(c, b, n);
+	loom__put64(c + e, n - 100);
+	reseal(c, n);
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_ERANGE);
+	CHECK_STR_CONTAINS(d.message, want);
+	CHECK_STR_CONTAINS(d.message, "index out of range");
+	/* offset inside the header */
+	memcpy(c, b, n);
+	loom__put64(c + e, 16);
+	reseal(c, n);
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_ERANGE);
+	CHECK_STR_CONTAINS(d.message, want);
+	/* huge stored size */
+	memcpy(c, b, n);
+	loom__put32(c + e + 8, 0xfffffff0u);
+	reseal(c, n);
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_ERANGE);
+	CHECK_STR_CONTAINS(d.message, want);
+	/* unknown storage kind */
+	memcpy(c, b, n);
+	c[e + 20] = 9;
+	reseal(c, n);
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(d.message, want);
+	/* exemplar table: rows out of range */
+	memcpy(c, b, n);
+	{
+		uint64_t mo = loom__le64(c + n - 64 + 8);
+		loom__put32(c + mo + 64 + 64, 5000);
+	}
+	reseal(c, n);
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(d.message, "exemplar 0 at metadata offset 64, field 'rows/cols'");
+	/* metadata range in the trailer */
+	memcpy(c, b, n);
+	loom__put64(c + n - 64 + 8, 3);
+	loom__put32(c + n - 4, libdeflate_crc32(0, c + n - 64, 60));
+	spit(tpath("gen_oor.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("gen_oor.ldb"), &d), LOOM_ERANGE);
+	CHECK_STR_CONTAINS(d.message, "metadata");
+	free(b);
+	free(c);
+}
+
+static void test_size_mismatch(void)
+{
+	size_t n, csz;
+	uint8_t *b = slurp(tpath("gen.ldb"), &n), *c = malloc(n), *brick, *scratch;
+	uint32_t id = first_deflate(b, n);
+	size_t e = index_entry(b, n, id);
+	uint64_t off = loom__le64(b + e);
+	uint32_t sz = loom__le32(b + e + 8);
+	loom_diag d;
+	loom_db *db = NULL;
+	loom__db_geom geo;
+	struct libdeflate_compressor *comp = libdeflate_alloc_compressor(6);
+	struct libdeflate_decompressor *dec = libdeflate_alloc_decompressor();
+	uint8_t *zeros, *tmp;
+	char want[64];
+
+	snprintf(want, sizeof want, "size.ldb: brick %u (exemplar 0", id);
+	/* (a) the index's uncompressed size disagrees with the brick shape */
+	memcpy(c, b, n);
+	loom__put32(c + e + 12, loom__le32(b + e + 12) - 4);
+	reseal(c, n);
+	spit(tpath("size.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("size.ldb"), &d), LOOM_ECORRUPT);
+	CHECK_STR_CONTAINS(d.message, want);
+	CHECK_STR_CONTAINS(d.message, "decompressed size mismatch");
+	/* (b) a valid deflate stream that inflates to too few / too many bytes,
+	   with a matching CRC: caught at read time */
+	CHECK_EQ_INT(loom_db_open(tpath("gen.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		goto out;
+	loom__db_geometry(db, &geo);
+	loom_db_close(db);
+	zeros = calloc(1, geo.brick_bytes + 100);
+	tmp = malloc(geo.brick_bytes + 200);
+	for (int variant = 0; variant < 2; variant++) {
+		size_t len = variant ? geo.brick_bytes + 100 : geo.brick_bytes - 100;
+		csz = libdeflate_deflate_compress(comp, zeros, len, tmp, geo.brick_bytes + 200);
+		CHECK(csz > 0 && csz <= sz);
+		memcpy(c, b, n);
+		memcpy(c + off, tmp, csz);
+		loom__put32(c + e + 8, (uint32_t)csz);
+		loom__put32(c + e + 16, libdeflate_crc32(0, tmp, csz));
+		reseal(c, n);
+		spit(tpath("size.ldb"), c, n);
+		db = NULL;
+		CHECK_EQ_INT(loom_db_open(tpath("size.ldb"), &db, &d), LOOM_OK);
+		if (!db)
+			continue;
+		brick = malloc(geo.brick_bytes);
+		scratch = malloc(loom__db_scratch_bytes(db));
+		memset(&d, 0, sizeof d);
+		CHECK_EQ_INT(loom__db_read_brick(db, id, dec, scratch, brick, NULL, &d),
+		             LOOM_ECORRUPT);
+		CHECK_STR_CONTAINS(d.message, want);
+		CHECK_STR_CONTAINS(d.message, variant ? "decompressed size mismatch: more"
+		                                      : "decompressed size mismatch: fewer");
+		free(brick);
+		free(scratch);
+		loom_db_close(db);
+	}
+	free(zeros);
+	free(tmp);
+out:
+	libdeflate_free_compressor(comp);
+	libdeflate_free_decompressor(dec);
+	free(b);
+	free(c);
+}
+
+/* Random damage anywhere (with and without resealing) never crashes. */
+static void test_random_damage(void)
+{
+	size_t n;
+	uint8_t *b = slurp(tpath("hand.ldb"), &n), *c = malloc(n);
+	uint64_t rng = check_seed();
+	int opened = 0;
+
+	for (int it = 0; it < 400; it++) {
+		loom_diag d = {0};
+		loom_db *db = NULL;
+		memcpy(c, b, n);
+		for (int k = 0; k < 1 + it % 4; k++) {
+			rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+			c[(rng >> 20) % n] ^= (uint8_t)(1u << ((rng >> 8) & 7));
+		}
+		if (it & 1)
+			reseal(c, n);
+		spit(tpath("dmg.ldb"), c, n);
+		if (loom_db_open(tpath("dmg.ldb"), &db, &d) == LOOM_OK) {
+			opened++;
+			loom_db_verify(db, NULL, NULL, &d);
+			loom_db_close(db);
+		} else {
+			CHECK(d.message[0] != 0);
+		}
+	}
+	printf("  %d of 400 damaged images opened\n", opened);
+	free(b);
+	free(c);
+}
+
+int main(void)
+{
+	const char *base = getenv("LOOM_TEST_TMP");
+
+	CHECK_MAIN_BEGIN("test_db");
+	snprintf(tmpdir, sizeof tmpdir, "%s/test_db.XXXXXX", base ? base : "/tmp");
+	if (!mkdtemp(tmpdir)) {
+		printf("FAIL test_db/setup (cannot create %s)\n", tmpdir);
+		return 1;
+	}
+	RUN(test_roundtrip_generated);
+	RUN(test_threaded_reads);
+	RUN(test_reader_object);
+	RUN(test_handmade);
+	RUN(test_bad_magic_version);
+	RUN(test_truncation);
+	RUN(test_truncated_after_open);
+	RUN(test_crc_mismatch);
+	RUN(test_index_out_of_range);
+	RUN(test_size_mismatch);
+	RUN(test_random_damage);
+	CHECK_MAIN_END();
+}

@@ -1,0 +1,625 @@
+/*
+ * tests/unit/test_exgen.c - the procedural exemplar generator: determinism
+ * by seed, independence of the thread count, the right yarn on top at every
+ * crossing centre, per-block tables against a brute-force recomputation
+ * from the voxels, symmetries, and a few realism properties (twist
+ * direction, fibre orientation along the yarn, empty space above/below).
+ */
+#include "check.h"
+#include "db_internal.h"
+#include "db_write.h"
+#include "exgen.h"
+
+#include <math.h>
+#include <unistd.h>
+
+static char tmpdir[4096];
+
+static const char *tpath(const char *name)
+{
+	static char buf[4][4200];
+	static int slot;
+	char *p = buf[slot++ & 3];
+	snprintf(p, 4200, "%s/%s", tmpdir, name);
+	return p;
+}
+
+static uint8_t *slurp(const char *path, size_t *len)
+{
+	FILE *fp = fopen(path, "rb");
+	uint8_t *b;
+	long n;
+
+	*len = 0;
+	if (!fp)
+		return NULL;
+	fseek(fp, 0, SEEK_END);
+	n = ftell(fp);
+	fseek(fp, 0, SEEK_SET);
+	b = malloc((size_t)n + 1);
+	if (fread(b, 1, (size_t)n, fp) != (size_t)n) {
+		free(b);
+		b = NULL;
+	}
+	fclose(fp);
+	*len = (size_t)n;
+	return b;
+}
+
+/* A whole exemplar volume from the generator, x fastest. */
+typedef struct vol {
+	uint32_t s[3];
+	uint8_t *d, *l;
+	uint16_t *o;
+} vol;
+
+static void vol_gen(const loom__exgen *g, vol *v)
+{
+	loom__exgen_desc gd;
+	size_t n;
+	uint8_t *d, *l;
+	uint16_t *o;
+
+	loom__exgen_describe(g, &gd);
+	memcpy(v->s, gd.size, sizeof v->s);
+	n = (size_t)v->s[0] * v->s[1] * v->s[2];
+	d = malloc(n);
+	l = malloc(n);
+	o = malloc(2 * n);
+	v->d = malloc(n);
+	v->l = malloc(n);
+	v->o = malloc(2 * n);
+	loom__exgen_box(g, 0, 0, 0, v->s[0], v->s[1], v->s[2], d, o, l);
+	for (uint32_t y = 0; y < v->s[1]; y++)
+		for (uint32_t x = 0; x < v->s[0]; x++)
+			for (uint32_t z = 0; z < v->s[2]; z++) {
+				size_t gi = ((size_t)y * v->s[0] + x) * v->s[2] + z;
+				size_t vi = ((size_t)z * v->s[1] + y) * v->s[0] + x;
+				v->d[vi] = d[gi];
+				v->l[vi] = l[gi];
+				v->o[vi] = o[gi];
+			}
+	free(d);
+	free(l);
+	free(o);
+}
+
+static void vol_free(vol *v)
+{
+	free(v->d);
+	free(v->l);
+	free(v->o);
+}
+
+static size_t vi(const vol *v, uint32_t x, uint32_t y, uint32_t z)
+{
+	return ((size_t)z * v->s[1] + y) * v->s[0] + x;
+}
+
+/* Top-surface rule of docs/formats.md: z of the highest voxel with a
+   non-flyaway yarn label and density >= 64, or -1. */
+static int top_z(const vol *v, const loom_db_yarn *yarns, uint32_t x, uint32_t y)
+{
+	for (int z = (int)v->s[2] - 1; z >= 0; z--) {
+		size_t i = vi(v, x, y, (uint32_t)z);
+		uint8_t l = v->l[i];
+		if (l && yarns[l].kind && !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY) &&
+		    v->d[i] >= LOOM__DB_TOP_THRESHOLD)
+			return z;
+	}
+	return -1;
+}
+
+static loom_exgen_params params(const char *preset)
+{
+	loom_exgen_params p;
+	loom_exgen_preset(preset, &p);
+	return p;
+}
+
+static void test_determinism(void)
+{
+	loom_exgen_params p = params("small");
+	loom__exgen *a = NULL, *b = NULL, *c = NULL;
+	loom_diag d = {0};
+	const uint32_t n = 24 * 20 * 48;
+	uint8_t *da = malloc(n), *db = malloc(n), *la = malloc(n), *lb = malloc(n);
+	uint16_t *oa = malloc(2 * n), *ob = malloc(2 * n);
+
+	CHECK_EQ_INT(loom__exgen_new(&p, 4, 0, &a, &d), LOOM_OK);
+	CHECK_EQ_INT(loom__exgen_new(&p, 4, 0, &b, &d), LOOM_OK);
+	p.seed = 2;
+	CHECK_EQ_INT(loom__exgen_new(&p, 4, 0, &c, &d), LOOM_OK);
+	if (!a || !b || !c)
+		goto out;
+	/* same seed: same bytes, also for a box evaluated in another order
+	   (two halves vs one) */
+	loom__exgen_box(a, 30, 10, 0, 24, 20, 48, da, oa, la);
+	loom__exgen_box(b, 30, 10, 0, 24, 20, 48, db, ob, lb);
+	CHECK(memcmp(da, db, n) == 0 && memcmp(la, lb, n) == 0 &&
+	      memcmp(oa, ob, 2 * n) == 0);
+	{
+		/* the top half of the box by itself */
+		uint32_t m = 24 * 20 * 24;
+		uint8_t *dh = malloc(m), *lh = malloc(m);
+		uint16_t *oh = malloc(2 * m);
+		long bad = 0;
+		loom__exgen_box(b, 30, 10, 24, 24, 20, 24, dh, oh, lh);
+		for (uint32_t col = 0; col < 24 * 20; col++)
+			for (uint32_t z = 0; z < 24; z++)
+				if (dh[col * 24 + z] != da[col * 48 + 24 + z] ||
+				    lh[col * 24 + z] != la[col * 48 + 24 + z] ||
+				    oh[col * 24 + z] != oa[col * 48 + 24 + z])
+					bad++;
+		CHECK_EQ_INT(bad, 0);
+		free(dh);
+		free(lh);
+		free(oh);
+	}
+	/* another seed: different voxels */
+	loom__exgen_box(c, 30, 10, 0, 24, 20, 48, db, ob, lb);
+	CHECK(memcmp(da, db, n) != 0);
+out:
+	loom__exgen_free(a);
+	loom__exgen_free(b);
+	loom__exgen_free(c);
+	free(da);
+	free(db);
+	free(la);
+	free(lb);
+	free(oa);
+	free(ob);
+}
+
+static void test_threads(void)
+{
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	uint64_t h[3] = {0, 0, 0};
+	uint8_t *f[3];
+	size_t n[3];
+	const unsigned th[3] = {1, 2, 3};
+	const char *names[3] = {"t1.ldb", "t2.ldb", "t3.ldb"};
+
+	p.n_weaves = 3;
+	p.weaves[0] = "twill:2/3";
+	p.weaves[1] = "satin:1/4";
+	p.weaves[2] = "twill:2/3"; /* a second variant of the same weave */
+	p.brick[0] = p.brick[1] = 16; /* several tasks per exemplar */
+	p.brick[2] = 16;
+	for (int i = 0; i < 3; i++) {
+		p.threads = th[i];
+		CHECK_EQ_INT(loom_exgen_write_db(tpath(names[i]), &p, &h[i], &d), LOOM_OK);
+		f[i] = slurp(tpath(names[i]), &n[i]);
+	}
+	CHECK(h[0] == h[1] && h[1] == h[2] && h[0] != 0);
+	CHECK(f[0] && f[1] && f[2] && n[0] == n[1] && n[1] == n[2] &&
+	      memcmp(f[0], f[1], n[0]) == 0 && memcmp(f[0], f[2], n[0]) == 0);
+	for (int i = 0; i < 3; i++)
+		free(f[i]);
+	/* variant 2 of a weave differs from variant 1 and has its own name */
+	{
+		loom_db *db = NULL;
+		loom_db_exemplar_info e0, e2;
+		CHECK_EQ_INT(loom_db_open(tpath("t1.ldb"), &db, &d), LOOM_OK);
+		if (db) {
+			loom_db_exemplar(db, 0, &e0);
+			loom_db_exemplar(db, 2, &e2);
+			CHECK(strcmp(e0.name, "twill-2-3") == 0);
+			CHECK(strcmp(e2.name, "twill-2-3-2") == 0);
+			CHECK(e0.stored_bytes != e2.stored_bytes);
+			loom_db_close(db);
+		}
+	}
+}
+
+/* At every crossing centre the top-most yarn is the warp exactly where
+   S_u says 1 (all default weaves and a few others). */
+static void test_crossing_centres(void)
+{
+	const char *extra[] = {"plain", "twill:2/2", "basket:2", "twill:2/1:s",
+	                       "herringbone:2/2:period=4", "satin:3/4"};
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	long checked = 0, bad = 0;
+
+	for (int set = 0; set < 2; set++) {
+		if (set == 1) {
+			p.n_weaves = 6;
+			for (int i = 0; i < 6; i++)
+				p.weaves[i] = extra[i];
+		}
+		for (uint32_t k = 0; k < p.n_weaves; k++) {
+			loom__exgen *g = NULL;
+			loom__exgen_desc gd;
+			vol v;
+			if (loom__exgen_new(&p, k, 0, &g, &d) != LOOM_OK) {
+				printf("  %s: %s\n", p.weaves[k], d.message);
+				bad++;
+				continue;
+			}
+			loom__exgen_describe(g, &gd);
+			vol_gen(g, &v);
+			for (uint32_t r = 0; r < gd.rows; r++)
+				for (uint32_t c = 0; c < gd.cols; c++) {
+					uint32_t x = c * p.block[0] + p.block[0] / 2;
+					uint32_t y = r * p.block[1] + p.block[1] / 2;
+					int z = top_z(&v, gd.yarns, x, y);
+					int want = gd.weave[r * gd.cols + c] ? LOOM_YARN_WARP
+					                                     : LOOM_YARN_WEFT;
+					checked++;
+					if (z < 0 || gd.yarns[v.l[vi(&v, x, y, (uint32_t)z)]].kind != want) {
+						if (bad < 5)
+							printf("  %s crossing (%u,%u): top kind %d, want %d\n",
+							       gd.name, r, c,
+							       z < 0 ? 0 : gd.yarns[v.l[vi(&v, x, y, (uint32_t)z)]].kind,
+							       want);
+						bad++;
+					}
+				}
+			vol_free(&v);
+			loom__exgen_free(g);
+		}
+	}
+	printf("  %ld crossings checked\n", checked);
+	CHECK(checked >= 8 * 25 + 30);
+	CHECK_EQ_INT(bad, 0);
+}
+
+static float fill_ref(float *v, uint32_t n, float fallback)
+{
+	/* reference gap fill: for each gap the nearest known samples on both
+	   sides (linear), one side (constant), none (fallback) */
+	float *out = malloc(n * sizeof *out);
+	for (uint32_t i = 0; i < n; i++) {
+		int64_t lo = -1, hi = -1;
+		if (v[i] == v[i]) {
+			out[i] = v[i];
+			continue;
+		}
+		for (int64_t j = i; j >= 0; j--)
+			if (v[j] == v[j]) {
+				lo = j;
+				break;
+			}
+		for (uint32_t j = i; j < n; j++)
+			if (v[j] == v[j]) {
+				hi = j;
+				break;
+			}
+		if (lo < 0 && hi < 0)
+			out[i] = fallback;
+		else if (lo < 0)
+			out[i] = v[hi];
+		else if (hi < 0)
+			out[i] = v[lo];
+		else
+			out[i] = v[lo] + (v[hi] - v[lo]) * (float)((int64_t)i - lo) /
+			                         (float)(hi - lo);
+	}
+	memcpy(v, out, n * sizeof *out);
+	free(out);
+	return 0;
+}
+
+/* Tables of a generated database against a brute-force recomputation
+   from the voxels read back from it. */
+static void test_tables_brute_force(void)
+{
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	loom_db *db = NULL;
+	long bad = 0, gaps = 0;
+	uint32_t b1 = p.block[0], b2 = p.block[1];
+
+	p.n_weaves = 3;
+	p.weaves[0] = "twill:1/4";
+	p.weaves[1] = "satin:3/2";
+	p.weaves[2] = "plain";
+	CHECK_EQ_INT(loom_exgen_write_db(tpath("tab.ldb"), &p, NULL, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("tab.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		return;
+	for (uint32_t k = 0; k < 3; k++) {
+		loom_db_exemplar_info e;
+		vol v;
+		float *h, prof[4][64];
+		uint32_t org[3] = {0, 0, 0};
+		size_t n;
+
+		loom_db_exemplar(db, k, &e);
+		memcpy(v.s, e.size, sizeof v.s);
+		n = (size_t)e.size[0] * e.size[1] * e.size[2];
+		v.d = malloc(n);
+		v.l = malloc(n);
+		v.o = NULL;
+		CHECK_EQ_INT(loom_db_read_box(db, k, org, e.size, v.d, NULL, v.l, &d), LOOM_OK);
+		h = malloc(sizeof(float) * e.size[0] * e.size[1]);
+		for (uint32_t y = 0; y < e.size[1]; y++)
+			for (uint32_t x = 0; x < e.size[0]; x++) {
+				int z = top_z(&v, e.yarns, x, y);
+				h[(size_t)y * e.size[0] + x] = z < 0 ? NAN : (float)z + 1.0f;
+			}
+		for (uint32_t r = 0; r < e.rows; r++)
+			for (uint32_t c = 0; c < e.cols; c++) {
+				loom_db_block_info b;
+				double sum = 0, sx = 0, sy = 0;
+				long nn = 0, nx = 0, ny = 0, ng = 0;
+				float mean;
+				uint32_t x0 = c * b1, y0 = r * b2;
+				int ck;
+				const float *got[4];
+				uint32_t len[4] = {b1, b1, b2, b2};
+
+				CHECK_EQ_INT(loom_db_block(db, k, r, c, &b), LOOM_OK);
+				for (uint32_t y = y0; y < y0 + b2; y++)
+					for (uint32_t x = x0; x < x0 + b1; x++) {
+						float hh = h[(size_t)y * e.size[0] + x];
+						if (hh != hh) {
+							ng++;
+							continue;
+						}
+						sum += hh;
+						nn++;
+						if (x + 1 < x0 + b1 && h[(size_t)y * e.size[0] + x + 1] ==
+						                              h[(size_t)y * e.size[0] + x + 1]) {
+							sx += fabs(h[(size_t)y * e.size[0] + x + 1] - hh);
+							nx++;
+						}
+						if (y + 1 < y0 + b2 && h[(size_t)(y + 1) * e.size[0] + x] ==
+						                              h[(size_t)(y + 1) * e.size[0] + x]) {
+							sy += fabs(h[(size_t)(y + 1) * e.size[0] + x] - hh);
+							ny++;
+						}
+					}
+				gaps += ng;
+				mean = nn ? (float)(sum / nn) : 0.0f;
+				for (uint32_t i = 0; i < b1; i++) {
+					prof[0][i] = h[(size_t)y0 * e.size[0] + x0 + i];
+					prof[1][i] = h[(size_t)(y0 + b2 - 1) * e.size[0] + x0 + i];
+				}
+				for (uint32_t i = 0; i < b2; i++) {
+					prof[2][i] = h[(size_t)(y0 + i) * e.size[0] + x0];
+					prof[3][i] = h[(size_t)(y0 + i) * e.size[0] + x0 + b1 - 1];
+				}
+				got[0] = b.north;
+				got[1] = b.south;
+				got[2] = b.west;
+				got[3] = b.east;
+				for (int s = 0; s < 4; s++) {
+					fill_ref(prof[s], len[s], mean);
+					for (uint32_t i = 0; i < len[s]; i++)
+						if (fabsf(prof[s][i] - got[s][i]) > 1e-4f)
+							bad++;
+				}
+				if (fabs(b.mean_dh_x - (nx ? sx / nx : 0)) > 1e-4 ||
+				    fabs(b.mean_dh_y - (ny ? sy / ny : 0)) > 1e-4 ||
+				    fabs(b.mean_height - mean) > 1e-3 || b.gap_columns != ng)
+					bad++;
+				{
+					uint32_t cx = x0 + b1 / 2, cy = y0 + b2 / 2;
+					int z = top_z(&v, e.yarns, cx, cy);
+					ck = z < 0 ? 0 : e.yarns[v.l[vi(&v, cx, cy, (uint32_t)z)]].kind;
+				}
+				if (b.centre_kind != ck ||
+				    ck != (e.weave[r * e.cols + c] ? LOOM_YARN_WARP : LOOM_YARN_WEFT))
+					bad++;
+				if (b.code != loom__weave_code(e.weave, e.rows, e.cols, r, c))
+					bad++;
+				/* the code's own bit and neighbours, by hand */
+				if (((b.code >> 0) & 1) != e.weave[r * e.cols + c] ||
+				    ((b.code >> 1) & 1) !=
+				            e.weave[((r + e.rows - 1) % e.rows) * e.cols + c] ||
+				    ((b.code >> 4) & 1) != e.weave[r * e.cols + (c + 1) % e.cols])
+					bad++;
+				/* the profiles are real surfaces: within the cloth */
+				if (!(b.mean_height > 5 && b.mean_height < e.size[2] - 5))
+					bad++;
+			}
+		free(h);
+		free(v.d);
+		free(v.l);
+	}
+	printf("  %ld gap columns in the three exemplars\n", gaps);
+	CHECK(gaps > 0); /* the gaps between yarns exercise the gap fill */
+	CHECK_EQ_INT(bad, 0);
+	loom_db_close(db);
+}
+
+static void test_symmetries(void)
+{
+	/* by hand: a 5-end twill or satin in a 5x5 window has exactly the 5
+	   shifts along its diagonal; plain in 4x4 has the 8 shifts with
+	   dx + dy even; a 1x1 window only (0,0) */
+	uint8_t tw[25], pl[16], one[1] = {1};
+	uint16_t sym[2 * 25];
+	uint32_t n;
+	loom_weave_params wp;
+
+	loom_weave_parse("twill:2/3", &wp, NULL);
+	for (int r = 0; r < 5; r++)
+		for (int c = 0; c < 5; c++)
+			tw[r * 5 + c] = (uint8_t)loom_weave_cell(&wp, r, c);
+	n = loom__weave_symmetries(tw, 5, 5, sym);
+	CHECK_EQ_INT(n, 5);
+	for (uint32_t i = 0; i < n; i++) {
+		CHECK(sym[2 * i + 1] == i);                    /* one per row shift */
+		CHECK((sym[2 * i] + 5 - sym[2 * i + 1]) % 5 == 0 ||
+		      (sym[2 * i] + sym[2 * i + 1]) % 5 == 0); /* along a diagonal */
+	}
+	for (int r = 0; r < 4; r++)
+		for (int c = 0; c < 4; c++)
+			pl[r * 4 + c] = (uint8_t)((r + c) % 2 == 0);
+	n = loom__weave_symmetries(pl, 4, 4, sym);
+	CHECK_EQ_INT(n, 8);
+	for (uint32_t i = 0; i < n; i++)
+		CHECK((sym[2 * i] + sym[2 * i + 1]) % 2 == 0);
+	CHECK_EQ_INT(loom__weave_symmetries(one, 1, 1, sym), 1);
+	/* the database's symmetries satisfy the definition and are complete */
+	{
+		loom_db *db = NULL;
+		loom_diag d = {0};
+		CHECK_EQ_INT(loom_db_open(tpath("tab.ldb"), &db, &d), LOOM_OK);
+		if (!db)
+			return;
+		for (uint32_t k = 0; k < 3; k++) {
+			loom_db_exemplar_info e;
+			uint32_t count = 0;
+			loom_db_exemplar(db, k, &e);
+			for (uint32_t dy = 0; dy < e.rows; dy++)
+				for (uint32_t dx = 0; dx < e.cols; dx++) {
+					int ok = 1, listed = 0;
+					for (uint32_t r = 0; r < e.rows; r++)
+						for (uint32_t c = 0; c < e.cols; c++)
+							if (e.weave[((r + dy) % e.rows) * e.cols + (c + dx) % e.cols] !=
+							    e.weave[r * e.cols + c])
+								ok = 0;
+					for (uint32_t i = 0; i < e.n_symmetries; i++)
+						if (e.symmetries[2 * i] == dx && e.symmetries[2 * i + 1] == dy)
+							listed = 1;
+					CHECK_EQ_INT(listed, ok);
+					count += (uint32_t)ok;
+				}
+			CHECK_EQ_INT(e.n_symmetries, count);
+		}
+		loom_db_close(db);
+	}
+}
+
+/* Realism checks: empty space above and below, twist direction per kind,
+   fibre orientation along the yarn, warp and weft different. */
+static void test_realism(void)
+{
+	loom_exgen_params p = params("small");
+	loom__exgen *g = NULL;
+	loom__exgen_desc gd;
+	loom_diag d = {0};
+	vol v;
+	long empty_top = 0, empty_bot = 0, slant[3] = {0, 0, 0}, nslant[3] = {0, 0, 0};
+	long along[3] = {0, 0, 0}, nyarn[3] = {0, 0, 0}, thick[3] = {0, 0, 0};
+	long ncol[3] = {0, 0, 0}, fly = 0;
+
+	p.block[0] = 48; /* finer voxels so that the surface fibres resolve */
+	p.block[1] = 32;
+	p.block[2] = 96;
+	p.voxel_size_um = 12;
+	CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+	if (!g)
+		return;
+	loom__exgen_describe(g, &gd);
+	vol_gen(g, &v);
+	for (uint32_t y = 0; y < v.s[1]; y++)
+		for (uint32_t x = 0; x < v.s[0]; x++) {
+			int z = top_z(&v, gd.yarns, x, y);
+			uint8_t lab[3] = {0, 0, 0};
+			empty_top += v.l[vi(&v, x, y, v.s[2] - 1)] != 0;
+			empty_bot += v.l[vi(&v, x, y, 0)] != 0;
+			if (z >= 0) {
+				size_t i = vi(&v, x, y, (uint32_t)z);
+				int kind = gd.yarns[v.l[i]].kind;
+				float o[3];
+				loom__orient_decode(v.o[i], o);
+				slant[kind] += o[0] * o[1] > 0 ? 1 : -1;
+				nslant[kind]++;
+			}
+			for (uint32_t zz = 0; zz < v.s[2]; zz++) {
+				size_t i = vi(&v, x, y, zz);
+				int kind = gd.yarns[v.l[i]].kind;
+				float o[3];
+				if (!v.l[i])
+					continue;
+				if (gd.yarns[v.l[i]].flags & LOOM_DB_YARN_FLYAWAY) {
+					fly++;
+					continue;
+				}
+				loom__orient_decode(v.o[i], o);
+				along[kind] += fabsf(kind == LOOM_YARN_WARP ? o[1] : o[0]) > 0.8f;
+				nyarn[kind]++;
+				if (!lab[kind]) {
+					lab[kind] = 1;
+					ncol[kind]++;
+				}
+				thick[kind]++;
+			}
+		}
+	/* nothing touches the top or bottom slice */
+	CHECK_EQ_INT(empty_top, 0);
+	CHECK_EQ_INT(empty_bot, 0);
+	/* surface fibres slant "/" on both kinds: Z twist on warps (along y),
+	   S twist on wefts (along x) */
+	printf("  surface slant: warp %+.2f, weft %+.2f\n",
+	       (double)slant[1] / (double)nslant[1], (double)slant[2] / (double)nslant[2]);
+	CHECK((double)slant[1] / (double)nslant[1] > 0.5);
+	CHECK((double)slant[2] / (double)nslant[2] > 0.5);
+	/* most yarn voxels point along their yarn */
+	CHECK((double)along[1] / (double)nyarn[1] > 0.8);
+	CHECK((double)along[2] / (double)nyarn[2] > 0.8);
+	/* wefts are thicker than warps (per covered column) */
+	printf("  mean thickness: warp %.1f, weft %.1f voxels\n",
+	       (double)thick[1] / (double)ncol[1], (double)thick[2] / (double)ncol[2]);
+	CHECK((double)thick[2] / (double)ncol[2] > 1.1 * (double)thick[1] / (double)ncol[1]);
+	CHECK(fly > 0);
+	vol_free(&v);
+	loom__exgen_free(g);
+}
+
+static void test_bad_params(void)
+{
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	loom__exgen *g = NULL;
+
+	p.weaves[0] = "plain";
+	p.rows = p.cols = 5; /* plain repeats every 2: 5 is not a multiple */
+	CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "weave 'plain' repeats every 2x2");
+	p = params("small");
+	p.weaves[0] = "twill:0/3";
+	CHECK_EQ_INT(loom_exgen_write_db(tpath("bad.ldb"), &p, NULL, &d), LOOM_EINVAL);
+	CHECK(access(tpath("bad.ldb"), F_OK) != 0);
+	p = params("small");
+	p.size = 8;
+	CHECK_EQ_INT(loom_exgen_write_db(tpath("bad.ldb"), &p, NULL, &d), LOOM_EINVAL);
+	p = params("small");
+	p.block[2] = 2;
+	CHECK_EQ_INT(loom_exgen_write_db(tpath("bad.ldb"), &p, NULL, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_exgen_preset("huge", &p), LOOM_EINVAL);
+	/* auto window: 4x4 for plain, 6x6 for a 3-end twill, 5x5 for 5-end */
+	p = params("small");
+	p.weaves[0] = "plain";
+	CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+	if (g) {
+		loom__exgen_desc gd;
+		loom__exgen_describe(g, &gd);
+		CHECK(gd.rows == 4 && gd.cols == 4);
+		loom__exgen_free(g);
+	}
+	p.weaves[0] = "twill:2/1";
+	CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+	if (g) {
+		loom__exgen_desc gd;
+		loom__exgen_describe(g, &gd);
+		CHECK(gd.rows == 6 && gd.cols == 6);
+		loom__exgen_free(g);
+	}
+}
+
+int main(void)
+{
+	const char *base = getenv("LOOM_TEST_TMP");
+
+	CHECK_MAIN_BEGIN("test_exgen");
+	snprintf(tmpdir, sizeof tmpdir, "%s/test_exgen.XXXXXX", base ? base : "/tmp");
+	if (!mkdtemp(tmpdir)) {
+		printf("FAIL test_exgen/setup (cannot create %s)\n", tmpdir);
+		return 1;
+	}
+	RUN(test_determinism);
+	RUN(test_threads);
+	RUN(test_crossing_centres);
+	RUN(test_tables_brute_force);
+	RUN(test_symmetries);
+	RUN(test_realism);
+	RUN(test_bad_params);
+	CHECK_MAIN_END();
+}
