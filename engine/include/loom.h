@@ -13,6 +13,10 @@
 
 #include "loom/common.h"
 #include "loom/design.h"
+#include "loom/synth.h"
 #include "loom/io.h"
+#include "loom/db.h"
+#include "loom/fabric.h"
+#include "loom/volio.h"
 
 #endif /* LOOM_H */

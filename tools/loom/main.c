@@ -15,6 +15,8 @@ static const struct command {
 } commands[] = {
 	{"pattern", cmd_pattern, "make, convert, inspect weave patterns (WIF, PBM, PNG)"},
 	{"exemplar", cmd_exemplar, "generate, inspect, verify, export exemplar databases"},
+	{"synth", cmd_synth, "design + exemplar database -> fabric (assignment, edge fix)"},
+	{"info", cmd_info, "describe a fabric file: sizes, parameters, metrics, database"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

@@ -1,0 +1,186 @@
+/*
+ * engine/fabric_internal.h - the fabric as the virtual-texture engine sees
+ * it.  Never installed.
+ *
+ * A fabric (engine/fabric.c; file format io/fabric_io.c, docs/fabric.md)
+ * is immutable once made; everything below only reads it, so it may be
+ * called from any number of threads at once.
+ *
+ * Lookup of output voxel (x, y, z) of the bolt, step by step (DESIGN.md,
+ * "Lookup"); b1, b2, b3 = f->b1, f->b2, f->b3:
+ *
+ *   1. Crossing and local position: I = floor(y / b2), J = floor(x / b1),
+ *      ly = y - I*b2, lx = x - J*b1.
+ *   2. Source: t = loom__fabric_src(f, I, J) (base assignment of
+ *      (I mod M, J mod N), shifted by its group's symmetry; O(1)), then
+ *      blk = loom__fabric_blk(f, t): exemplar blk->exemplar, voxel origin
+ *      (blk->x0, blk->y0) in that exemplar.
+ *   3. Edge fix: loom__fabric_nbhd(f, I, J, &nb) and, once per output
+ *      block (cache it), loom__fabric_dz_block(f, &nb, dz) (b1*b2 floats),
+ *      or loom__fabric_dz_at(f, &nb, lx, ly) for one column.
+ *   4. Source voxel: exemplar blk->exemplar at (blk->x0 + lx, blk->y0 + ly,
+ *      z - dz[ly*b1 + lx]) (round as the engine documents; outside
+ *      [0, b3) is empty).
+ *   5. Yarn type: the voxel's label -> exemplar yarn table -> kind (warp or
+ *      weft); loom__fabric_types(f, I, J, &warp, &weft) gives the type IDs,
+ *      f->design->types[id] the optical data.
+ *
+ * loom__fabric_crossing() does steps 2, 3 (neighbourhood) and 5 (types) at
+ * once.  All are O(1): two integer divisions per crossing coordinate, a
+ * hash, and table reads; no allocation.
+ *
+ * Valid only when f->attached (bound to a database); a detached fabric
+ * (LOOM_FABRIC_OPEN_DETACHED) has base, design and metrics but no lookup.
+ */
+#ifndef LOOM_FABRIC_INTERNAL_H
+#define LOOM_FABRIC_INTERNAL_H
+
+#include "internal.h"
+
+/* Per source block t: where its voxels are. */
+typedef struct loom__fabric_block {
+	uint16_t exemplar;     /* u */
+	uint16_t row, col;     /* block (row, col) of S_u */
+	uint8_t code;          /* neighbourhood code in S_u (LOOM_SYNTH_CODE_*) */
+	uint8_t pad_;
+	uint32_t x0, y0;       /* voxel origin in exemplar u: col*b1, row*b2 */
+} loom__fabric_block;
+
+struct loom_fabric {
+	/* ---- design ---- */
+	loom_design *design;   /* owned; rows x cols repeat */
+
+	/* ---- database identity (as recorded) ---- */
+	char *db_path;         /* as given at synthesis; owned, never NULL */
+	uint64_t db_hash;      /* content hash */
+	uint32_t b1, b2, b3;   /* block size, voxels */
+	float voxel_size_um;
+	uint32_t n_exemplars;
+	uint32_t n_blocks;     /* K */
+
+	/* ---- parameters ---- */
+	loom_fabric_params params;
+
+	/* ---- synthesis results ---- */
+	uint16_t *base;        /* rows*cols source blocks (< K), owned */
+	loom_edgefix *ef;      /* edge-fix tables; NULL only when detached and
+	                          the file did not store them */
+
+	/* ---- metrics ---- */
+	loom_synth_metrics m_repeat;
+	loom_synth_metrics m_bolt;
+	loom_seam_metrics seam;
+	uint64_t win_rows, win_cols; /* bolt metrics window [0,h) x [0,w) */
+	uint64_t *usage;       /* n_exemplars counters, owned */
+
+	/* ---- binding to a database (attached only) ---- */
+	int attached;          /* 1: everything below is valid */
+	const loom_db *db;     /* the database in use (borrowed or db_owned) */
+	loom_db *db_owned;     /* opened by loom_fabric_open, closed at free */
+	loom_synth_set *set;   /* rebuilt from the database's exemplar weaves */
+	loom__fabric_block *blocks; /* K entries */
+	float *heights;        /* K edge-profile records (LOOM_EDGE_RECORD) */
+	loom_edge_profiles prof; /* points at heights */
+	double internal_step;  /* mean |dh| between neighbouring columns inside
+	                          blocks (the database's, for the seam metric) */
+	loom_synth_lookup lk;  /* randomised O(1) source lookup; points into
+	                          set and base */
+};
+
+/* Step 2: source block of absolute crossing (I, J). */
+static inline uint16_t loom__fabric_src(const loom_fabric *f, int64_t I,
+                                        int64_t J)
+{
+	return loom_synth_src(&f->lk, I, J);
+}
+
+/* Step 2: where source block t (< K) lies. */
+static inline const loom__fabric_block *loom__fabric_blk(const loom_fabric *f,
+                                                         uint16_t t)
+{
+	return &f->blocks[t];
+}
+
+/* Index of (I, J) in the repeat's arrays (weave, type maps, base). */
+static inline size_t loom__fabric_cell(const loom_fabric *f, int64_t I,
+                                       int64_t J)
+{
+	return (size_t)loom_synth_floormod(I, f->design->rows) * f->design->cols +
+	       (size_t)loom_synth_floormod(J, f->design->cols);
+}
+
+/* Step 5: yarn-type IDs of the warp and the weft at (I, J). */
+static inline void loom__fabric_types(const loom_fabric *f, int64_t I,
+                                      int64_t J, uint8_t *warp, uint8_t *weft)
+{
+	size_t c = loom__fabric_cell(f, I, J);
+	*warp = f->design->warp_type[c];
+	*weft = f->design->weft_type[c];
+}
+
+/* Step 3: sources of (I, J) and its four neighbours. */
+static inline void loom__fabric_nbhd(const loom_fabric *f, int64_t I,
+                                     int64_t J, loom_synth_nbhd *nb)
+{
+	loom_synth_nbhd_at(&f->lk, I, J, nb);
+}
+
+/* Step 3: the block's dz map, dz[ly*b1 + lx] (b1*b2 floats), and one
+   value of it. */
+static inline void loom__fabric_dz_block(const loom_fabric *f,
+                                         const loom_synth_nbhd *nb, float *dz)
+{
+	loom_edgefix_block(f->ef, nb, dz);
+}
+static inline float loom__fabric_dz_at(const loom_fabric *f,
+                                       const loom_synth_nbhd *nb, uint32_t lx,
+                                       uint32_t ly)
+{
+	return loom_edgefix_at(f->ef, nb, lx, ly);
+}
+
+/* Everything about one crossing at once. */
+typedef struct loom__fabric_xing {
+	const loom__fabric_block *blk; /* source block of (I, J) */
+	loom_synth_nbhd nb;            /* nb.self = its index t */
+	uint8_t warp_over;             /* W(I mod M, J mod N) */
+	uint8_t warp_type, weft_type;
+} loom__fabric_xing;
+
+static inline void loom__fabric_crossing(const loom_fabric *f, int64_t I,
+                                         int64_t J, loom__fabric_xing *x)
+{
+	size_t c = loom__fabric_cell(f, I, J);
+	loom_synth_nbhd_at(&f->lk, I, J, &x->nb);
+	x->blk = &f->blocks[x->nb.self];
+	x->warp_over = f->design->weave[c];
+	x->warp_type = f->design->warp_type[c];
+	x->weft_type = f->design->weft_type[c];
+}
+
+/* ---- between engine/fabric.c and io/fabric_io.c ------------------------ */
+
+/* Largest EDGE section (bytes) the format allows; larger tables are never
+   stored (rebuilt at open instead). */
+#define LOOM__FABRIC_EDGE_MAX (256ull << 20)
+
+/* A zeroed fabric with db_path "" (NULL when out of memory). */
+loom_fabric *loom__fabric_alloc(void);
+
+/* Bind a (detached) fabric to db: check the content hash (unless
+   check_hash is 0: fuzzing) and the geometry, rebuild the exemplar set,
+   block table, profiles and lookup, and the edge-fix tables if the file did
+   not store them.  `name` names the fabric in messages. */
+int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
+                      const char *name, loom_diag *diag);
+
+/* Write the file (io/fabric_io.c). */
+int loom__fabric_write(const loom_fabric *f, const char *path,
+                       uint64_t *bytes, loom_diag *diag);
+
+/* Parse a fabric file into a detached fabric, from a path (mem NULL) or
+   from memory (mem, len; path used in messages only). */
+int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
+                      loom_fabric **out, loom_diag *diag);
+
+#endif /* LOOM_FABRIC_INTERNAL_H */

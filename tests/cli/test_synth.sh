@@ -1,0 +1,152 @@
+# `loom synth` and `loom info` end to end, as a user types them: a WIF
+# from data/, a PBM, an image + mapping file; JSON keys; the pictures are
+# valid PNGs (checked by an independent reader in Python: signature, chunk
+# CRCs, inflated size); exit codes; a fabric refused by another database.
+SUITE=synth
+. "$LOOM_TOP/tests/cli/lib.sh"
+IMG=$DATA/images
+WIF=$LOOM_TOP/data/herringbone-8.wif
+
+expect_ok help_synth "$LOOM" synth --help
+expect_out_contains help_synth_text "--assignment-map"
+expect_ok help_info "$LOOM" info --help
+expect_out_contains help_info_text "--bolt"
+expect_exit synth_no_args 2 "$LOOM" synth
+expect_exit synth_no_output 2 "$LOOM" synth "$WIF"
+expect_exit synth_bad_algo 2 "$LOOM" synth "$WIF" --algo best -o "$T/x.loomf"
+expect_exit synth_bad_rank 2 "$LOOM" synth "$WIF" --rank 0 -o "$T/x.loomf"
+expect_exit synth_bad_group 2 "$LOOM" synth "$WIF" --group -1 -o "$T/x.loomf"
+expect_exit synth_bad_seed 2 "$LOOM" synth "$WIF" --seed x -o "$T/x.loomf"
+expect_exit synth_bad_map_ext 2 "$LOOM" synth "$WIF" --seam-map "$T/s.gif" -o "$T/x.loomf"
+expect_exit synth_unknown_opt 2 "$LOOM" synth "$WIF" --frob -o "$T/x.loomf"
+expect_exit synth_two_designs 2 "$LOOM" synth "$WIF" "$WIF" -o "$T/x.loomf"
+expect_exit synth_missing_design 1 "$LOOM" synth "$T/nope.wif" -o "$T/x.loomf"
+expect_err_contains synth_missing_design_msg "nope.wif"
+expect_exit synth_bad_db 1 "$LOOM" synth "$WIF" --db "$T/nope.ldb" -o "$T/x.loomf"
+expect_err_contains synth_bad_db_msg "nope.ldb"
+if [ -e "$T/x.loomf" ]; then fail no_partial_output "x.loomf exists"; else pass no_partial_output; fi
+expect_exit info_no_args 2 "$LOOM" info
+expect_exit info_bad_bolt 2 "$LOOM" info "$T/x.loomf" --bolt 3
+expect_exit info_missing 1 "$LOOM" info "$T/x.loomf"
+
+# a WIF draft from data/ with the default database (built by make)
+expect_ok synth_wif "$LOOM" synth "$WIF" -o "$T/h8.loomf"
+expect_out_contains synth_wif_summary "correctness 1.000"
+if [ -s "$T/err" ]; then fail synth_quiet_stderr "$(head -c 200 "$T/err")"; else pass synth_quiet_stderr; fi
+expect_ok synth_wif_again "$LOOM" synth "$WIF" --quiet -o "$T/h8b.loomf"
+if [ -s "$T/out" ]; then fail synth_quiet_stdout "$(head -c 200 "$T/out")"; else pass synth_quiet_stdout; fi
+expect_same synth_deterministic "$T/h8.loomf" "$T/h8b.loomf"
+expect_ok synth_other_seed "$LOOM" synth "$WIF" --seed 2 --quiet -o "$T/h8s2.loomf"
+if cmp -s "$T/h8.loomf" "$T/h8s2.loomf"; then fail seed_changes_bytes "same bytes"; else pass seed_changes_bytes; fi
+
+# --json with the keys, and both pictures
+expect_ok synth_json "$LOOM" synth "$WIF" --algo dp --seed 3 --rank 10 --group 4 --json \
+	--assignment-map "$T/assign.png" --seam-map "$T/seam.png" -o "$T/h8j.loomf"
+cp "$T/out" "$T/synth.json"
+if python3 - "$T/synth.json" "$T/h8j.loomf" >"$T/py" 2>&1 <<'EOF'
+import json, os, sys
+j = json.load(open(sys.argv[1]))
+for k in ("crossings", "correctness", "consistency", "continuity", "seam_before",
+          "seam_after", "internal_step", "seam_before_ratio", "seam_after_ratio",
+          "seconds", "fabric_bytes", "usage", "database", "bolt_window"):
+    assert k in j, k
+assert j["crossings"] == j["rows"] * j["cols"] > 0
+assert j["correctness"] == 1, j["correctness"]
+assert 0 < j["consistency"] <= 1 and 0 <= j["continuity"] <= 1
+assert j["seam_after"] < j["seam_before"], (j["seam_before"], j["seam_after"])
+assert abs(j["seam_before_ratio"] - j["seam_before"] / j["internal_step"]) < 1e-6
+assert j["fabric_bytes"] == os.path.getsize(sys.argv[2])
+assert j["algo"] == "dp" and j["seed"] == 3 and j["rank"] == 10 and j["group"] == 4
+assert sum(u["crossings"] for u in j["usage"]) == j["crossings"]
+assert len(j["usage"]) == j["database"]["exemplars"] == 8
+assert j["database"]["block"] == [24, 16, 48]
+assert j["assignment_map"]["rows"] == j["rows"] and j["seam_map"]["max_voxels"] > 0
+sm = j["seam_map"]
+print(j["assignment_map"]["scale"], j["rows"], j["cols"],
+      2 * sm["cols"] * sm["scale"] + 8, sm["rows"] * sm["scale"] + 8 + 12)
+EOF
+then pass synth_json_keys; else fail synth_json_keys "$(head -c 600 "$T/py")"; fi
+set -- $(cat "$T/py")
+ascale=$1; rows=$2; cols=$3; seam_w=$4; seam_h=$5
+
+# pngcheck NAME FILE WIDTH HEIGHT: a valid 8-bit RGB PNG of that size
+pngcheck() {
+	if python3 - "$2" "$3" "$4" >"$T/py" 2>&1 <<'EOF'
+import struct, sys, zlib
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"\x89PNG\r\n\x1a\n", "signature"
+pos, idat, ihdr = 8, b"", None
+while pos < len(data):
+    n, = struct.unpack(">I", data[pos:pos + 4])
+    typ, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + n]
+    crc, = struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])
+    assert zlib.crc32(typ + body) & 0xffffffff == crc, typ
+    if typ == b"IHDR": ihdr = struct.unpack(">IIBBBBB", body)
+    if typ == b"IDAT": idat += body
+    pos += 12 + n
+    if typ == b"IEND": break
+w, h, depth, ctype = ihdr[:4]
+if sys.argv[2] != "-": assert w == int(sys.argv[2]), (w, sys.argv[2])
+if sys.argv[3] != "-": assert h == int(sys.argv[3]), (h, sys.argv[3])
+assert depth == 8 and ctype == 2, (depth, ctype)
+assert len(zlib.decompress(idat)) == h * (1 + 3 * w)
+EOF
+	then pass "$1"; else fail "$1" "$(head -c 400 "$T/py")"; fi
+}
+pngcheck assignment_png "$T/assign.png" $((cols * ascale)) $((rows * ascale))
+pngcheck seam_png "$T/seam.png" "$seam_w" "$seam_h"
+
+# a PBM weave, greedy, and a bad --map use
+expect_ok synth_pbm "$LOOM" synth "$IMG/twill23_5x5.pbm" --algo greedy -o "$T/t.loomf"
+expect_out_contains synth_pbm_summary "5x5 design (25 crossings), greedy"
+expect_ok synth_pbm_maps "$LOOM" synth "$IMG/twill23_plain.pbm" --warp-map "$IMG/ids.pgm" \
+	--edge-tables rebuild -o "$T/tp.loomf"
+expect_out_contains synth_pbm_rebuild "rebuilt at open"
+
+# an image + mapping file (Jacquard)
+expect_ok synth_image "$LOOM" synth "$IMG/motif.ppm" --map "$IMG/motif.map" --json -o "$T/m.loomf"
+if python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['correctness']==1 and j['crossings']==24" "$T/out" 2>"$T/py"
+then pass synth_image_json; else fail synth_image_json "$(head -c 300 "$T/py")"; fi
+expect_exit synth_image_three_levels 1 "$LOOM" synth "$IMG/three_levels.pgm" -o "$T/m2.loomf"
+expect_exit synth_image_bad_map 1 "$LOOM" synth "$IMG/motif.ppm" --map "$IMG/motif_bad.map" -o "$T/m2.loomf"
+
+# loom info: text, JSON, bolts in repeats and in metres
+expect_ok info_text "$LOOM" info "$T/h8.loomf"
+expect_out_contains info_design "192 x 192 crossings"
+expect_out_contains info_repeat "4608 x 3072 x 48 voxels"
+expect_out_contains info_matches "matches"
+expect_ok info_bolt "$LOOM" info "$T/h8.loomf" --bolt 10x2 --json
+if python3 - "$T/out" >"$T/py" 2>&1 <<'EOF'
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["repeat_voxels"] == [192 * 24, 192 * 16, 48]
+b = j["bolt"]
+assert b["voxels"] == [2 * 4608, 10 * 3072, 48], b
+assert b["total_voxels"] == 2 * 4608 * 10 * 3072 * 48
+assert j["database"]["matches"] is True and j["database"]["found"] is True
+assert j["params"]["algo"] == "dp" and j["metrics"]["correctness"] == 1
+EOF
+then pass info_bolt_json; else fail info_bolt_json "$(head -c 400 "$T/py")"; fi
+# 1 m long, 22.1184 cm wide: voxels of 24 um -> 41667 x 9216 columns
+expect_ok info_bolt_units "$LOOM" info "$T/h8.loomf" --bolt 1mx22.1184cm --json
+if python3 -c "
+import json,sys; b=json.load(open(sys.argv[1]))['bolt']
+assert b['voxels'] == [9216, 41667, 48], b['voxels']" "$T/out" 2>"$T/py"
+then pass info_bolt_units_json; else fail info_bolt_units_json "$(head -c 300 "$T/py")"; fi
+
+# a fabric made with one database is refused with another
+expect_ok db_a "$LOOM" exemplar generate --preset tiny --seed 1 --quiet -o "$T/a.ldb"
+expect_ok db_b "$LOOM" exemplar generate --preset tiny --seed 2 --quiet -o "$T/b.ldb"
+expect_ok synth_tiny "$LOOM" synth "$WIF" --db "$T/a.ldb" --quiet -o "$T/ta.loomf"
+expect_ok info_same_db "$LOOM" info "$T/ta.loomf" --db "$T/a.ldb"
+expect_exit info_other_db 1 "$LOOM" info "$T/ta.loomf" --db "$T/b.ldb"
+expect_err_contains info_other_db_msg "content hash"
+# the recorded database changed under the fabric: reported, not fatal
+cp "$T/b.ldb" "$T/a.ldb"
+expect_ok info_changed_db "$LOOM" info "$T/ta.loomf"
+expect_out_contains info_changed_db_text "DIFFERS"
+expect_err_contains info_changed_db_warn "warning"
+# a corrupt fabric
+head -c 500 "$T/h8.loomf" >"$T/cut.loomf"
+expect_exit info_truncated 1 "$LOOM" info "$T/cut.loomf"
+expect_err_contains info_truncated_msg "truncated"

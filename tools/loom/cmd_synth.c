@@ -1,0 +1,574 @@
+/*
+ * tools/loom/cmd_synth.c - `loom synth`: design + exemplar database ->
+ * fabric file (paper 5.3-5.5; docs/fabric.md).
+ *
+ *   loom synth DESIGN [--db DB] [--algo dp|greedy|naive] [--seed N]
+ *              [--rank R] [--group M] [--map MAPFILE] [--warp-map F]
+ *              [--weft-map F] -o FABRIC [--json] [--assignment-map PNG]
+ *              [--seam-map PNG] [--edge-tables auto|store|rebuild] [--quiet]
+ */
+#include "cli.h"
+#include "commands.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <time.h>
+#include <unistd.h>
+
+static const char help[] =
+	"usage: loom synth DESIGN [OPTIONS] -o FABRIC\n"
+	"\n"
+	"Choose, for every crossing of DESIGN, the exemplar block it copies and\n"
+	"compute the edge-fix tables that hide the seams between blocks (paper\n"
+	"sections 5.3-5.5); write the fabric file FABRIC (docs/fabric.md).\n"
+	"\n"
+	"DESIGN is any design loom reads: a WIF draft, a PBM/PNG/PGM weave (dark =\n"
+	"warp over), or a posterized image with --map.\n"
+	"\n"
+	"options:\n"
+	"  -o, --output FABRIC     fabric file to write (.loomf), atomically\n"
+	"  --db DB                 exemplar database (default: $LOOM_DB, then\n"
+	"                          default.ldb in the data directory)\n"
+	"  --algo A                dp (default), greedy or naive\n"
+	"  --seed N                random seed (default 1)\n"
+	"  --rank R                edge-fix rank, 1..128 (default 15)\n"
+	"  --group M               randomisation group side m^, 0..65536 (default 3;\n"
+	"                          0 = no randomisation)\n"
+	"  --map MAPFILE           DESIGN is a posterized image: map its colours to\n"
+	"                          weaves and yarns (docs/designs.md)\n"
+	"  --warp-map FILE         warp-type map, one grey pixel per crossing\n"
+	"  --weft-map FILE         weft-type map\n"
+	"  --edge-tables HOW       auto (default: store the tables when they take at\n"
+	"                          most 1.5 MiB), store, or rebuild (at open)\n"
+	"  --assignment-map PNG    draw which exemplar (hue) and block (brightness)\n"
+	"                          each crossing of the first repeat copies\n"
+	"  --seam-map PNG          draw the seam jumps before (left) and after (right)\n"
+	"                          the edge fix, colour ramp in docs/fabric.md\n"
+	"  --json                  print the result as JSON\n"
+	"  --quiet                 no progress or summary\n"
+	"\n"
+	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
+
+#define MAP_TEXT_MAX (16u << 20)
+#define ASSIGN_MAP_MAX 4096u /* crossings per side drawn */
+#define SEAM_MAP_MIN 64u
+#define SEAM_MAP_MAX 256u
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int ends_with(const char *s, const char *ext)
+{
+	size_t n = strlen(s), e = strlen(ext);
+	return n >= e && strcasecmp(s + n - e, ext) == 0;
+}
+
+static char *read_text(const char *prog, const char *path, size_t *len)
+{
+	FILE *fp = fopen(path, "rb");
+	char *buf;
+	size_t got;
+
+	if (!fp)
+		cli_fail(prog, "%s: cannot open: %s", path, strerror(errno));
+	buf = malloc(MAP_TEXT_MAX + 1);
+	if (!buf)
+		cli_fail(prog, "out of memory");
+	got = fread(buf, 1, MAP_TEXT_MAX + 1, fp);
+	if (ferror(fp) || got > MAP_TEXT_MAX)
+		cli_fail(prog, "%s: %s", path, ferror(fp) ? "read error" : "larger than 16 MiB");
+	fclose(fp);
+	*len = got;
+	return buf;
+}
+
+static loom_design *load_design(const char *prog, const char *in, const char *map,
+                                const char *warp, const char *weft, loom_diag *diag)
+{
+	loom_design *d = NULL;
+	int rc;
+
+	if (map) {
+		loom_image *img = NULL;
+		size_t len;
+		char *text = read_text(prog, map, &len);
+		rc = loom_image_read(in, &img, diag);
+		if (!rc)
+			rc = loom_design_from_image(img, text, len, map, &d, diag);
+		free(text);
+		loom_image_free(img);
+	} else {
+		rc = loom_design_read(in, &d, diag);
+	}
+	if (rc)
+		cli_fail(prog, "%s", diag->message);
+	if ((warp && loom_type_map_read(warp, d, LOOM_MAP_WARP, diag)) ||
+	    (weft && loom_type_map_read(weft, d, LOOM_MAP_WEFT, diag))) {
+		loom_design_free(d);
+		cli_fail(prog, "%s", diag->message);
+	}
+	return d;
+}
+
+/* ---- pictures ---------------------------------------------------------------- */
+
+static void hsv(double h, double s, double v, uint8_t *rgb)
+{
+	double c = v * s, hp = fmod(h, 1.0) * 6.0, x = c * (1 - fabs(fmod(hp, 2.0) - 1));
+	double r = 0, g = 0, b = 0, m = v - c;
+	switch ((int)hp) {
+	case 0: r = c; g = x; break;
+	case 1: r = x; g = c; break;
+	case 2: g = c; b = x; break;
+	case 3: g = x; b = c; break;
+	case 4: r = x; b = c; break;
+	default: r = c; b = x; break;
+	}
+	rgb[0] = (uint8_t)lround(255 * (r + m));
+	rgb[1] = (uint8_t)lround(255 * (g + m));
+	rgb[2] = (uint8_t)lround(255 * (b + m));
+}
+
+static uint32_t scale_for(uint32_t h, uint32_t w, uint32_t target, uint32_t lo,
+                          uint32_t hi)
+{
+	uint32_t m = h > w ? h : w, s = target / (m ? m : 1);
+	return s < lo ? lo : s > hi ? hi : s;
+}
+
+static void fill_cell(loom_image *img, uint32_t x0, uint32_t y0, uint32_t s,
+                      const uint8_t rgb[3])
+{
+	for (uint32_t y = 0; y < s; y++)
+		for (uint32_t x = 0; x < s; x++)
+			memcpy(img->pixels + 3 * ((size_t)(y0 + y) * img->width + x0 + x), rgb, 3);
+}
+
+/* Fig. 4 (right): hue = exemplar, brightness = block of that exemplar. */
+static void assignment_map(const char *prog, const loom_fabric *f, const loom_db *db,
+                           const char *path, uint32_t *drawn, loom_diag *diag)
+{
+	const loom_design *d = loom_fabric_design(f);
+	uint32_t h = d->rows < ASSIGN_MAP_MAX ? d->rows : ASSIGN_MAP_MAX;
+	uint32_t w = d->cols < ASSIGN_MAP_MAX ? d->cols : ASSIGN_MAP_MAX;
+	uint32_t s = scale_for(h, w, 1024, 1, 16), n_ex;
+	loom_fabric_db_identity id;
+	loom_image *img;
+	uint32_t *ncols, *nblk;
+
+	loom_fabric_get_db_identity(f, &id);
+	n_ex = id.n_exemplars;
+	ncols = calloc(n_ex, sizeof *ncols);
+	nblk = calloc(n_ex, sizeof *nblk);
+	if (!ncols || !nblk || loom_image_new(w * s, h * s, 3, &img) != LOOM_OK)
+		cli_fail(prog, "out of memory for the assignment map");
+	for (uint32_t u = 0; u < n_ex; u++) {
+		loom_db_exemplar_info e;
+		loom_db_exemplar(db, u, &e);
+		ncols[u] = e.cols;
+		nblk[u] = e.rows * e.cols;
+	}
+	for (uint32_t i = 0; i < h; i++)
+		for (uint32_t j = 0; j < w; j++) {
+			loom_fabric_source src;
+			uint8_t rgb[3];
+			double v;
+			loom_fabric_source_at(f, i, j, &src);
+			v = 0.30 + 0.70 * (double)(src.row * ncols[src.exemplar] + src.col + 1) /
+			               (double)nblk[src.exemplar];
+			/* golden-ratio hues: neighbouring exemplar indices differ */
+			hsv(fmod(0.61803398875 * src.exemplar, 1.0), 0.80, v, rgb);
+			fill_cell(img, j * s, i * s, s, rgb);
+		}
+	if (loom_image_write(path, img, diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag->message);
+	loom_image_free(img);
+	free(ncols);
+	free(nblk);
+	drawn[0] = h;
+	drawn[1] = w;
+	drawn[2] = s;
+}
+
+/* Colour ramp for t in [0, 1]: black, blue, magenta, orange, pale yellow. */
+static void ramp(double t, uint8_t *rgb)
+{
+	static const double stop[5][3] = {{0, 0, 0}, {40, 40, 200}, {200, 40, 160},
+	                                  {250, 140, 30}, {255, 255, 200}};
+	double x;
+	int k;
+	if (!(t > 0))
+		t = 0;
+	if (t > 1)
+		t = 1;
+	x = t * 4;
+	k = x >= 4 ? 3 : (int)x;
+	x -= k;
+	for (int c = 0; c < 3; c++)
+		rgb[c] = (uint8_t)lround(stop[k][c] + (stop[k + 1][c] - stop[k][c]) * x);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return x < y ? -1 : x > y;
+}
+
+/* 99th percentile of the before jumps (S and E) of n cells. */
+static double p99_before(const double *v, size_t n)
+{
+	double *b = malloc(sizeof(double) * 2 * n), r;
+	if (!b)
+		return 0;
+	for (size_t k = 0; k < n; k++) {
+		b[2 * k] = v[4 * k];
+		b[2 * k + 1] = v[4 * k + 2];
+	}
+	qsort(b, 2 * n, sizeof *b, cmp_double);
+	r = b[(size_t)(0.99 * (double)(2 * n - 1))];
+	free(b);
+	return r;
+}
+
+/* Before | after, each cell: interior = mean of its S and E jumps, bottom row
+   = S jump, right column = E jump; a ramp strip below.  The ramp spans 0 ..
+   the 99th percentile of the before jumps (returned). */
+static double seam_map(const char *prog, const loom_fabric *f, const char *path,
+                       uint32_t *drawn, loom_diag *diag)
+{
+	const loom_design *d = loom_fabric_design(f);
+	/* the bolt around the first repeat: at least 64, at most 256 a side */
+	uint32_t h = d->rows < SEAM_MAP_MIN ? SEAM_MAP_MIN
+	             : d->rows < SEAM_MAP_MAX ? d->rows : SEAM_MAP_MAX;
+	uint32_t w = d->cols < SEAM_MAP_MIN ? SEAM_MAP_MIN
+	             : d->cols < SEAM_MAP_MAX ? d->cols : SEAM_MAP_MAX;
+	uint32_t s = scale_for(h, w, 512, 3, 16), gap = 8, strip = 12;
+	uint32_t pw = w * s, ph = h * s;
+	double *v = malloc(sizeof(double) * 4 * (size_t)h * w), vmax = 0;
+	loom_image *img;
+
+	if (!v || loom_image_new(2 * pw + gap, ph + gap + strip, 3, &img) != LOOM_OK)
+		cli_fail(prog, "out of memory for the seam map");
+	memset(img->pixels, 255, (size_t)img->width * img->height * 3);
+	for (uint32_t i = 0; i < h; i++)
+		for (uint32_t j = 0; j < w; j++) {
+			double *q = v + 4 * ((size_t)i * w + j);
+			loom_fabric_seam_block(f, i, j, q);
+		}
+	vmax = p99_before(v, (size_t)h * w);
+	if (!(vmax > 0))
+		vmax = 1;
+	for (int panel = 0; panel < 2; panel++)
+		for (uint32_t i = 0; i < h; i++)
+			for (uint32_t j = 0; j < w; j++) {
+				const double *q = v + 4 * ((size_t)i * w + j);
+				double sj = q[panel], ej = q[2 + panel];
+				uint32_t x0 = panel * (pw + gap) + j * s, y0 = i * s;
+				uint8_t c[3];
+				ramp(0.5 * (sj + ej) / vmax, c);
+				fill_cell(img, x0, y0, s, c);
+				ramp(sj / vmax, c);
+				for (uint32_t x = 0; x < s; x++)
+					memcpy(img->pixels + 3 * ((size_t)(y0 + s - 1) * img->width + x0 + x), c, 3);
+				ramp(ej / vmax, c);
+				for (uint32_t y = 0; y < s; y++)
+					memcpy(img->pixels + 3 * ((size_t)(y0 + y) * img->width + x0 + s - 1), c, 3);
+			}
+	for (uint32_t x = 0; x < img->width; x++) {
+		uint8_t c[3];
+		ramp((double)x / (img->width - 1), c);
+		for (uint32_t y = ph + gap; y < img->height; y++)
+			memcpy(img->pixels + 3 * ((size_t)y * img->width + x), c, 3);
+	}
+	if (loom_image_write(path, img, diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag->message);
+	loom_image_free(img);
+	free(v);
+	drawn[0] = h;
+	drawn[1] = w;
+	drawn[2] = s;
+	return vmax;
+}
+
+/* ---- output -------------------------------------------------------------------- */
+
+typedef struct run {
+	const char *design_path, *db_path, *out;
+	const loom_fabric *f;
+	const loom_db *db;
+	double seconds, t_synth, t_save;
+	uint64_t bytes;
+	const char *amap, *smap;
+	uint32_t adrawn[3], sdrawn[3];
+	double smax;
+} run;
+
+static void print_json(const run *r)
+{
+	const loom_design *d = loom_fabric_design(r->f);
+	loom_fabric_params p;
+	loom_fabric_db_identity id;
+	loom_fabric_metrics m;
+	uint64_t crossings = (uint64_t)d->rows * d->cols;
+	char hs[32];
+	json_w w;
+
+	loom_fabric_get_params(r->f, &p);
+	loom_fabric_get_db_identity(r->f, &id);
+	loom_fabric_get_metrics(r->f, &m);
+	snprintf(hs, sizeof hs, "%016llx", (unsigned long long)id.content_hash);
+	jw_begin(&w, stdout);
+	jw_str(&w, "design", r->design_path);
+	jw_uint(&w, "rows", d->rows);
+	jw_uint(&w, "cols", d->cols);
+	jw_uint(&w, "crossings", crossings);
+	jw_str(&w, "fabric", r->out);
+	jw_uint(&w, "fabric_bytes", r->bytes);
+	jw_num(&w, "bytes_per_crossing", (double)r->bytes / (double)crossings);
+	jw_num(&w, "seconds", r->seconds);
+	jw_num(&w, "seconds_synth", r->t_synth);
+	jw_num(&w, "seconds_save", r->t_save);
+	jw_str(&w, "algo", loom_fabric_algo_name(p.algo));
+	jw_uint(&w, "seed", p.seed);
+	jw_uint(&w, "group", p.group);
+	jw_uint(&w, "rank", p.rank);
+	jw_uint(&w, "rank_h", p.rank_h);
+	jw_uint(&w, "rank_v", p.rank_v);
+	jw_str(&w, "edge_tables", p.edge_stored ? "stored" : "rebuilt at open");
+	jw_num(&w, "correctness", m.repeat.correctness);
+	jw_num(&w, "consistency", m.repeat.consistency);
+	jw_num(&w, "continuity", m.repeat.continuity);
+	jw_num(&w, "continuity_v", crossings ? (double)m.repeat.continuous_v / crossings : 0);
+	jw_num(&w, "continuity_h", crossings ? (double)m.repeat.continuous_h / crossings : 0);
+	jw_uint(&w, "matches", m.repeat.matches);
+	jw_uint(&w, "best_matches", m.repeat.best_matches);
+	jw_num(&w, "seam_before", m.seam.before_mean);
+	jw_num(&w, "seam_after", m.seam.after_mean);
+	jw_num(&w, "seam_before_max", m.seam.before_max);
+	jw_num(&w, "seam_after_max", m.seam.after_max);
+	jw_num(&w, "seam_corner_before", m.seam.corner_before_mean);
+	jw_num(&w, "seam_corner_after", m.seam.corner_after_mean);
+	jw_num(&w, "internal_step", m.seam.internal_step);
+	jw_num(&w, "seam_before_ratio", m.seam.before_ratio);
+	jw_num(&w, "seam_after_ratio", m.seam.after_ratio);
+	jw_obj(&w, "bolt_window");
+	jw_uint(&w, "rows", m.window_rows);
+	jw_uint(&w, "cols", m.window_cols);
+	jw_num(&w, "correctness", m.bolt.correctness);
+	jw_num(&w, "consistency", m.bolt.consistency);
+	jw_num(&w, "continuity", m.bolt.continuity);
+	jw_uint(&w, "seam_samples", m.seam.samples);
+	jw_close(&w);
+	jw_obj(&w, "database");
+	jw_str(&w, "path", id.path);
+	jw_str(&w, "content_hash", hs);
+	jw_uint(&w, "exemplars", id.n_exemplars);
+	jw_uint(&w, "blocks", id.n_blocks);
+	jw_arr(&w, "block");
+	jw_uint(&w, NULL, id.block[0]);
+	jw_uint(&w, NULL, id.block[1]);
+	jw_uint(&w, NULL, id.block[2]);
+	jw_close(&w);
+	jw_num(&w, "voxel_size_um", id.voxel_size_um);
+	jw_close(&w);
+	jw_arr(&w, "usage");
+	for (uint32_t u = 0; u < m.n_exemplars; u++) {
+		loom_db_exemplar_info e;
+		loom_db_exemplar(r->db, u, &e);
+		jw_obj(&w, NULL);
+		jw_uint(&w, "exemplar", u);
+		jw_str(&w, "name", e.name);
+		jw_uint(&w, "crossings", m.usage[u]);
+		jw_num(&w, "fraction", (double)m.usage[u] / (double)crossings);
+		jw_close(&w);
+	}
+	jw_close(&w);
+	if (r->amap) {
+		jw_obj(&w, "assignment_map");
+		jw_str(&w, "path", r->amap);
+		jw_uint(&w, "rows", r->adrawn[0]);
+		jw_uint(&w, "cols", r->adrawn[1]);
+		jw_uint(&w, "scale", r->adrawn[2]);
+		jw_close(&w);
+	}
+	if (r->smap) {
+		jw_obj(&w, "seam_map");
+		jw_str(&w, "path", r->smap);
+		jw_uint(&w, "rows", r->sdrawn[0]);
+		jw_uint(&w, "cols", r->sdrawn[1]);
+		jw_uint(&w, "scale", r->sdrawn[2]);
+		jw_num(&w, "max_voxels", r->smax);
+		jw_close(&w);
+	}
+	jw_end(&w);
+}
+
+static void print_summary(const run *r)
+{
+	const loom_design *d = loom_fabric_design(r->f);
+	loom_fabric_params p;
+	loom_fabric_db_identity id;
+	loom_fabric_metrics m;
+	uint64_t crossings = (uint64_t)d->rows * d->cols;
+
+	loom_fabric_get_params(r->f, &p);
+	loom_fabric_get_db_identity(r->f, &id);
+	loom_fabric_get_metrics(r->f, &m);
+	printf("%s: %ux%u design (%llu crossings), %s, seed %llu, group %u, rank %u\n",
+	       r->out, d->rows, d->cols, (unsigned long long)crossings,
+	       loom_fabric_algo_name(p.algo), (unsigned long long)p.seed, p.group, p.rank);
+	printf("  database %s (%016llx): %u exemplars, %u blocks of %ux%ux%u voxels\n",
+	       id.path, (unsigned long long)id.content_hash, id.n_exemplars, id.n_blocks,
+	       id.block[0], id.block[1], id.block[2]);
+	printf("  correctness %.3f  consistency %.3f  continuity %.3f (vertical %.3f, "
+	       "horizontal %.3f)\n", m.repeat.correctness, m.repeat.consistency,
+	       m.repeat.continuity, (double)m.repeat.continuous_v / crossings,
+	       (double)m.repeat.continuous_h / crossings);
+	printf("  bolt %llux%llu after randomisation: consistency %.3f, continuity %.3f\n",
+	       (unsigned long long)m.window_rows, (unsigned long long)m.window_cols,
+	       m.bolt.consistency, m.bolt.continuity);
+	printf("  seams %.3f -> %.3f voxels (internal step %.3f: %.2fx -> %.2fx; "
+	       "corners %.3f -> %.3f)\n", m.seam.before_mean, m.seam.after_mean,
+	       m.seam.internal_step, m.seam.before_ratio, m.seam.after_ratio,
+	       m.seam.corner_before_mean, m.seam.corner_after_mean);
+	printf("  usage:");
+	for (uint32_t u = 0; u < m.n_exemplars; u++) {
+		loom_db_exemplar_info e;
+		loom_db_exemplar(r->db, u, &e);
+		printf(" %s %.1f%%", e.name, 100.0 * (double)m.usage[u] / (double)crossings);
+	}
+	printf("\n  %llu bytes (%.3f per crossing), edge tables %s, %.3f s\n",
+	       (unsigned long long)r->bytes, (double)r->bytes / (double)crossings,
+	       p.edge_stored ? "stored" : "rebuilt at open", r->seconds);
+	if (r->amap)
+		printf("  assignment map %s (%ux%u crossings, %u px each)\n", r->amap,
+		       r->adrawn[0], r->adrawn[1], r->adrawn[2]);
+	if (r->smap)
+		printf("  seam map %s (%ux%u crossings, %u px each, ramp 0..%.3f voxels)\n",
+		       r->smap, r->sdrawn[0], r->sdrawn[1], r->sdrawn[2], r->smax);
+}
+
+/* ---- the command ----------------------------------------------------------------- */
+
+int cmd_synth(int argc, char **argv)
+{
+	const char *prog = "loom synth";
+	const char *in = NULL, *out = NULL, *db_opt = NULL, *algo_s = NULL;
+	const char *seed_s = NULL, *rank_s = NULL, *group_s = NULL, *map = NULL;
+	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL, *edge_s = NULL;
+	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
+	int quiet = 0, json = 0, progress;
+	loom_design *d;
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_diag diag;
+	cli_args a;
+	run r;
+	double t0;
+
+	cli_init(&a, argc, argv, prog, help);
+	while (cli_more(&a)) {
+		const char *p;
+		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
+		    cli_value(&a, "--db", &db_opt) || cli_value(&a, "--algo", &algo_s) ||
+		    cli_value(&a, "--seed", &seed_s) || cli_value(&a, "--rank", &rank_s) ||
+		    cli_value(&a, "--group", &group_s) || cli_value(&a, "--map", &map) ||
+		    cli_value(&a, "--warp-map", &warp) || cli_value(&a, "--weft-map", &weft) ||
+		    cli_value(&a, "--assignment-map", &amap) ||
+		    cli_value(&a, "--seam-map", &smap) ||
+		    cli_value(&a, "--edge-tables", &edge_s))
+			continue;
+		if (cli_flag(&a, "--json")) {
+			json = 1;
+			continue;
+		}
+		if (cli_flag(&a, "--quiet")) {
+			quiet = 1;
+			continue;
+		}
+		if ((p = cli_positional(&a)) != NULL) {
+			if (in)
+				cli_usage(&a, "more than one DESIGN ('%s' and '%s')", in, p);
+			in = p;
+			continue;
+		}
+		cli_unknown(&a);
+	}
+	if (!in)
+		cli_usage(&a, "missing DESIGN");
+	if (!out)
+		cli_usage(&a, "missing -o FABRIC");
+	if (algo_s && loom_fabric_algo_parse(algo_s, &o.algo) != LOOM_OK)
+		cli_usage(&a, "bad --algo '%s' (expected dp, greedy or naive)", algo_s);
+	if (seed_s && cli_parse_u64(seed_s, &o.seed))
+		cli_usage(&a, "bad --seed '%s'", seed_s);
+	if (rank_s && (cli_parse_u32(rank_s, &o.rank) || o.rank < 1 ||
+	               o.rank > LOOM_EDGEFIX_MAX_RANK))
+		cli_usage(&a, "bad --rank '%s' (expected 1..%u)", rank_s, LOOM_EDGEFIX_MAX_RANK);
+	if (group_s && (cli_parse_u32(group_s, &o.group) || o.group > 65536))
+		cli_usage(&a, "bad --group '%s' (expected 0..65536)", group_s);
+	if (edge_s) {
+		if (strcmp(edge_s, "auto") == 0)
+			o.edge_storage = LOOM_FABRIC_EDGE_AUTO;
+		else if (strcmp(edge_s, "store") == 0)
+			o.edge_storage = LOOM_FABRIC_EDGE_STORE;
+		else if (strcmp(edge_s, "rebuild") == 0)
+			o.edge_storage = LOOM_FABRIC_EDGE_REBUILD;
+		else
+			cli_usage(&a, "bad --edge-tables '%s' (expected auto, store or rebuild)",
+			          edge_s);
+	}
+	if ((amap && !ends_with(amap, ".png") && !ends_with(amap, ".ppm")) ||
+	    (smap && !ends_with(smap, ".png") && !ends_with(smap, ".ppm")))
+		cli_usage(&a, "maps are written as .png (or .ppm) files");
+	progress = !quiet && !json && isatty(2);
+	cli_diag_init(&diag, &quiet);
+
+	d = load_design(prog, in, map, warp, weft, &diag);
+	memset(&r, 0, sizeof r);
+	r.db_path = cli_db_require(db_opt, prog);
+	if (loom_db_open(r.db_path, &db, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	if (progress)
+		fprintf(stderr, "%s: %ux%u crossings: assigning, edge-fix tables...", prog,
+		        d->rows, d->cols);
+	t0 = now_s();
+	if (loom_fabric_synthesize(d, db, r.db_path, &o, &f, &diag) != LOOM_OK)
+		cli_fail(prog, "%s%s", progress ? "\n" : "", diag.message);
+	r.t_synth = now_s() - t0;
+	loom_design_free(d);
+	if (progress)
+		fprintf(stderr, " writing...");
+	if (loom_fabric_save(f, out, &r.bytes, &diag) != LOOM_OK)
+		cli_fail(prog, "%s%s", progress ? "\n" : "", diag.message);
+	r.seconds = now_s() - t0;
+	r.t_save = r.seconds - r.t_synth;
+	if (progress)
+		fprintf(stderr, " done (%.2f s)\n", r.seconds);
+	r.design_path = in;
+	r.out = out;
+	r.f = f;
+	r.db = db;
+	if (amap) {
+		assignment_map(prog, f, db, amap, r.adrawn, &diag);
+		r.amap = amap;
+	}
+	if (smap) {
+		r.smax = seam_map(prog, f, smap, r.sdrawn, &diag);
+		r.smap = smap;
+	}
+	if (json)
+		print_json(&r);
+	else if (!quiet)
+		print_summary(&r);
+	loom_fabric_free(f);
+	loom_db_close(db);
+	return 0;
+}
