@@ -17,6 +17,7 @@
 #include "loom/io.h"
 #include "loom/db.h"
 #include "loom/fabric.h"
+#include "loom/texture.h"
 #include "loom/volio.h"
 
 #endif /* LOOM_H */

@@ -7,5 +7,6 @@ int cmd_demo(int argc, char **argv);     /* cmd_demo.c */
 int cmd_exemplar(int argc, char **argv); /* cmd_exemplar.c */
 int cmd_synth(int argc, char **argv);    /* cmd_synth.c */
 int cmd_info(int argc, char **argv);     /* cmd_info.c */
+int cmd_sample(int argc, char **argv);   /* cmd_sample.c */
 
 #endif

@@ -17,6 +17,7 @@ static const struct command {
 	{"exemplar", cmd_exemplar, "generate, inspect, verify, export exemplar databases"},
 	{"synth", cmd_synth, "design + exemplar database -> fabric (assignment, edge fix)"},
 	{"info", cmd_info, "describe a fabric file: sizes, parameters, metrics, database"},
+	{"sample", cmd_sample, "look voxels of a fabric up: one position, or random lookups timed"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

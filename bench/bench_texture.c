@@ -1,0 +1,649 @@
+/*
+ * bench/bench_texture.c - virtual-texture figures (docs/engine.md), each
+ * next to a baseline measured in the same run:
+ *
+ *   1. warm lookups in a window of the bolt, nearest filter, per core:
+ *      coherent (ray marches) and random, loom_texture_voxel against a
+ *      dense in-memory array of the same voxels (materialised from the
+ *      texture) looked up the same way (a non-inlined call per voxel that
+ *      fills the same loom_texel: density, orientation decode, kind, type,
+ *      albedo).  Checksums of both must agree.
+ *   2. region reads (64 x 64 x b3 tiles, x fastest, all five channels and
+ *      density alone) in voxels/s against memcpy of the same bytes and
+ *      against copying the tile out of the dense array.
+ *   3. from cold, per budget (8 MiB .. 1 GiB): coherent and random lookups
+ *      over a whole design repeat, rates per core and hit rates.
+ *   4. peak resident memory (VmHWM) of `loom sample --random` on a
+ *      paper-scale fabric at budgets 16, 64 and 256 MiB, one process each.
+ *
+ * Data: the paper preset database ($LOOM_PAPER_DB, else
+ * $BUILD/bench/paper.ldb, generated when missing: ~10-20 s) and a
+ * 900 x 1500 Jacquard-like design (twill 2/3 and satin 4/1 over a blocky
+ * random mask) synthesised with the default options.
+ * Rates are per core: lookups over the thread's CPU seconds, best of REPS
+ * (the machine is shared).  BENCH_TEXTURE_SCALE=0.2 shortens every run.
+ * Output: tables on stdout and one JSON line per figure ("{...}").
+ *
+ *   build/bench/bench_texture [PARTS]    PARTS: digits of the parts to run
+ *                                        (default 1234)
+ */
+#include "loom.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#define MIB ((size_t)1 << 20)
+#define REPS 3
+
+static double g_scale = 1.0;
+static uint32_t B1, B2, B3;
+
+/* ------------------------------------------------------------- helpers */
+
+static uint64_t mix(uint64_t x)
+{
+	x += 0x9e3779b97f4a7c15ull;
+	x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+	x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+	return x ^ (x >> 31);
+}
+
+static double unit(uint64_t *s) /* [0, 1) */
+{
+	*s = mix(*s);
+	return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double cpu_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Twill 2/3 and satin 4/1 over a blocky random mask; warp types 0/1 by
+   block, weft type 2. */
+static loom_design *jacquard(uint32_t rows, uint32_t cols)
+{
+	loom_weave_params a, b;
+	loom_design *d = NULL;
+
+	loom_weave_parse("twill:2/3", &a, NULL);
+	loom_weave_parse("satin:4/1", &b, NULL);
+	if (loom_design_make(&a, rows, cols, &d, NULL) != LOOM_OK ||
+	    loom_design_set_types(d, 3) != LOOM_OK)
+		return NULL;
+	for (uint32_t i = 0; i < rows; i++)
+		for (uint32_t j = 0; j < cols; j++) {
+			uint64_t h = mix(((uint64_t)(i / 48) << 32) | (j / 64));
+			size_t c = (size_t)i * cols + j;
+			if (h & 1)
+				d->weave[c] = (uint8_t)loom_weave_cell(&b, i, j);
+			d->warp_type[c] = (uint8_t)(h >> 1 & 1);
+			d->weft_type[c] = 2;
+		}
+	return d;
+}
+
+/* ------------------------------------------------------ the dense array */
+
+typedef struct dvox {
+	uint16_t o;
+	uint8_t d, kind, type, label;
+} dvox;
+
+static struct {
+	dvox *v;
+	int64_t lo[3];
+	size_t n[3];
+	float dens[256];
+	float albedo[256][3];
+	float align[256];
+} D;
+
+/* Orientation code -> unit direction, z >= 0 (docs/formats.md, "Voxel
+   encodings"), inline as in the library's lookups. */
+static inline void orient_decode(uint16_t code, float v[3])
+{
+	float s = (float)(code & 0xff) / 127.5f - 1.0f;
+	float t = (float)(code >> 8) / 127.5f - 1.0f;
+	float px = 0.5f * (s + t), py = 0.5f * (s - t);
+	float pz = 1.0f - fabsf(px) - fabsf(py), n;
+	if (pz < 0)
+		pz = 0;
+	n = 1.0f / sqrtf(px * px + py * py + pz * pz);
+	v[0] = px * n, v[1] = py * n, v[2] = pz * n;
+}
+
+/* One lookup of the dense array, filling the same texel as the texture.
+   Not inlined: a call per voxel, like the library's. */
+__attribute__((noinline)) static void dense_lookup(int64_t x, int64_t y, int64_t z,
+                                                   loom_texel *out)
+{
+	uint64_t ix = (uint64_t)(x - D.lo[0]), iy = (uint64_t)(y - D.lo[1]),
+	         iz = (uint64_t)(z - D.lo[2]);
+	const dvox *v;
+
+	memset(out, 0, sizeof *out);
+	if (ix >= D.n[0] || iy >= D.n[1] || iz >= D.n[2])
+		return;
+	v = &D.v[(iz * D.n[1] + iy) * D.n[0] + ix];
+	if (v->d) {
+		out->density = D.dens[v->d];
+		orient_decode(v->o, out->orientation);
+	}
+	out->label = v->label;
+	out->kind = v->kind;
+	if (v->kind) {
+		out->type = v->type;
+		memcpy(out->albedo, D.albedo[v->type], sizeof out->albedo);
+		out->alignment = D.align[v->type];
+	}
+}
+
+static int dense_build(loom_texture *t, const loom_design *d, const int64_t lo[3],
+                       const int64_t hi[3])
+{
+	size_t n;
+	loom_texture_region r;
+	uint8_t *dn, *kd, *ty, *lb;
+	uint16_t *or;
+	int rc;
+
+	for (int a = 0; a < 3; a++) {
+		D.lo[a] = lo[a];
+		D.n[a] = (size_t)(hi[a] - lo[a]);
+	}
+	n = D.n[0] * D.n[1] * D.n[2];
+	D.v = malloc(n * sizeof *D.v);
+	dn = malloc(n), kd = malloc(n), ty = malloc(n), lb = malloc(n);
+	or = malloc(2 * n);
+	if (!D.v || !dn || !kd || !ty || !lb || !or)
+		return -1;
+	r.density = dn, r.orientation = or, r.kind = kd, r.type = ty, r.label = lb;
+	rc = loom_texture_read_region(t, lo, hi, &r);
+	for (size_t i = 0; i < n; i++) {
+		D.v[i].d = dn[i];
+		D.v[i].o = or[i];
+		D.v[i].kind = kd[i];
+		D.v[i].type = ty[i];
+		D.v[i].label = lb[i];
+	}
+	for (int k = 0; k < 256; k++)
+		D.dens[k] = (float)k / 255.0f;
+	for (uint32_t k = 0; k < d->n_types; k++) {
+		memcpy(D.albedo[k], d->types[k].albedo, sizeof D.albedo[k]);
+		D.align[k] = d->types[k].alignment;
+	}
+	free(dn), free(kd), free(ty), free(lb), free(or);
+	return rc;
+}
+
+/* ------------------------------------------------------------- streams */
+
+enum { S_COHERENT, S_RANDOM, S_REGION };
+static const char *const stream_name[] = {"coherent", "random", "region"};
+
+/* Parameters of a stream: positions inside [lo, hi). */
+struct stream {
+	int kind;
+	int64_t lo[3], hi[3];
+	uint64_t seed;
+	uint64_t n;               /* lookups */
+};
+
+/* Run a stream through lookup fn (texture when t, else the dense array);
+   returns the density checksum, *cpu the thread CPU seconds. */
+static double run_stream(const struct stream *s, loom_texture *t, double *cpu,
+                         uint64_t *errors)
+{
+	uint64_t st = s->seed, done = 0;
+	double sum = 0, c0 = cpu_s();
+	double ext[3];
+
+	for (int a = 0; a < 3; a++)
+		ext[a] = (double)(s->hi[a] - s->lo[a]);
+	*errors = 0;
+	while (done < s->n) {
+		if (s->kind == S_RANDOM) {
+			loom_texel tx;
+			int64_t x = s->lo[0] + (int64_t)(unit(&st) * ext[0]);
+			int64_t y = s->lo[1] + (int64_t)(unit(&st) * ext[1]);
+			int64_t z = s->lo[2] + (int64_t)(unit(&st) * ext[2]);
+			if (t)
+				*errors += loom_texture_voxel(t, x, y, z, &tx) != LOOM_OK;
+			else
+				dense_lookup(x, y, z, &tx);
+			sum += tx.density + tx.type;
+			done++;
+		} else {
+			/* a ray: random start, random direction (mostly across the
+			   cloth), 0.7-voxel steps, up to 256 steps inside the box */
+			double p[3], dir[3], len = 0;
+			for (int a = 0; a < 3; a++) {
+				p[a] = (double)s->lo[a] + unit(&st) * ext[a];
+				dir[a] = 2 * unit(&st) - 1;
+				len += dir[a] * dir[a];
+			}
+			len = 0.7 / sqrt(len);
+			for (int a = 0; a < 3; a++)
+				dir[a] *= len;
+			for (int k = 0; k < 256 && done < s->n; k++) {
+				loom_texel tx;
+				int64_t q[3];
+				int in = 1;
+				for (int a = 0; a < 3; a++) {
+					q[a] = (int64_t)floor(p[a]);
+					in &= q[a] >= s->lo[a] && q[a] < s->hi[a];
+					p[a] += dir[a];
+				}
+				if (!in)
+					break;
+				if (t)
+					*errors += loom_texture_voxel(t, q[0], q[1], q[2], &tx) != LOOM_OK;
+				else
+					dense_lookup(q[0], q[1], q[2], &tx);
+				sum += tx.density + tx.type;
+				done++;
+			}
+		}
+	}
+	*cpu = cpu_s() - c0;
+	return sum;
+}
+
+/* ------------------------------------------------------ 1. warm lookups */
+
+struct tjob {
+	struct stream s;
+	loom_texture *t;
+	double cpu, sum;
+	uint64_t errors;
+};
+
+static void *tjob_run(void *arg)
+{
+	struct tjob *j = arg;
+	j->sum = run_stream(&j->s, j->t, &j->cpu, &j->errors);
+	return NULL;
+}
+
+static void warm_lookups(loom_texture *t, const int64_t lo[3], const int64_t hi[3])
+{
+	printf("\n1. warm lookups, window %lldx%lldx%lld voxels, nearest, per core "
+	       "(M lookups/s, best of %d)\n", (long long)(hi[0] - lo[0]),
+	       (long long)(hi[1] - lo[1]), (long long)(hi[2] - lo[2]), REPS);
+	printf("%-9s %7s %9s %9s %7s %s\n", "stream", "threads", "dense", "texture", "ratio",
+	       "checksums");
+	for (int k = 0; k < 2; k++)
+		for (unsigned nt = 1; nt <= 2; nt++) {
+			double best_d = 0, best_t = 0, sum_d = 0, sum_t = 0;
+			uint64_t errors = 0;
+			for (int rep = 0; rep < REPS; rep++) {
+				struct tjob j[2];
+				pthread_t th[2];
+				for (int pass = 0; pass < 2; pass++) { /* dense, texture */
+					double rate = 0;
+					for (unsigned i = 0; i < nt; i++) {
+						j[i].s.kind = k;
+						memcpy(j[i].s.lo, lo, sizeof j[i].s.lo);
+						memcpy(j[i].s.hi, hi, sizeof j[i].s.hi);
+						j[i].s.seed = 1000 * rep + 17 * i + 1;
+						j[i].s.n = (uint64_t)(g_scale * (k == S_COHERENT ? 4e6 : 2e6));
+						j[i].t = pass ? t : NULL;
+						pthread_create(&th[i], NULL, tjob_run, &j[i]);
+					}
+					for (unsigned i = 0; i < nt; i++) {
+						pthread_join(th[i], NULL);
+						rate += (double)j[i].s.n / j[i].cpu / nt;
+						if (pass)
+							sum_t += j[i].sum, errors += j[i].errors;
+						else
+							sum_d += j[i].sum;
+					}
+					if (pass && rate > best_t)
+						best_t = rate;
+					if (!pass && rate > best_d)
+						best_d = rate;
+				}
+			}
+			printf("%-9s %7u %9.2f %9.2f %7.3f %s%s\n", stream_name[k], nt, best_d / 1e6,
+			       best_t / 1e6, best_t / best_d, sum_d == sum_t ? "equal" : "DIFFER",
+			       errors ? " (errors!)" : "");
+			printf("{\"bench\":\"texture_warm\",\"stream\":\"%s\",\"threads\":%u,"
+			       "\"dense_per_core\":%.0f,\"texture_per_core\":%.0f,\"ratio\":%.4f,"
+			       "\"checksums_equal\":%s}\n", stream_name[k], nt, best_d, best_t,
+			       best_t / best_d, sum_d == sum_t ? "true" : "false");
+		}
+}
+
+/* ------------------------------------------------------- 2. region reads */
+
+/* Copy a tile of the dense array into x-fastest channel buffers. */
+static void dense_tile(const int64_t a[3], size_t tile, size_t nz, const loom_texture_region *r)
+{
+	for (size_t z = 0; z < nz; z++)
+		for (size_t y = 0; y < tile; y++) {
+			const dvox *v = &D.v[((size_t)(a[2] - D.lo[2]) + z) * D.n[0] * D.n[1] +
+			                     ((size_t)(a[1] - D.lo[1]) + y) * D.n[0] +
+			                     (size_t)(a[0] - D.lo[0])];
+			size_t o = (z * tile + y) * tile;
+			for (size_t x = 0; x < tile; x++) {
+				r->density[o + x] = v[x].d;
+				if (r->orientation) {
+					r->orientation[o + x] = v[x].o;
+					r->kind[o + x] = v[x].kind;
+					r->type[o + x] = v[x].type;
+					r->label[o + x] = v[x].label;
+				}
+			}
+		}
+}
+
+/* Point r's channels at buf (n voxels, bpv bytes each). */
+static void region_at(loom_texture_region *r, uint8_t *buf, size_t n, int dens_only)
+{
+	r->density = buf;
+	if (!dens_only) {
+		r->orientation = (uint16_t *)(buf + n);
+		r->kind = buf + 3 * n;
+		r->type = buf + 4 * n;
+		r->label = buf + 5 * n;
+	}
+}
+
+static void region_reads(loom_texture *t, const int64_t lo[3], const int64_t hi[3])
+{
+	const size_t tile = 64, ring_bytes = (size_t)768 << 20;
+	size_t nz = (size_t)(hi[2] - lo[2]), n = tile * tile * nz;
+	uint8_t *buf = malloc(6 * n), *src = malloc(6 * n + 64), *ring = malloc(ring_bytes);
+
+	if (!buf || !src || !ring) {
+		printf("\n2. region reads: skipped (out of memory)\n");
+		free(buf), free(src), free(ring);
+		return;
+	}
+	printf("\n2. region reads, %zux%zux%zu tiles, M voxels/s per core (best of %d).\n"
+	       "   memcpy: the same number of output bytes.  hot: every tile into the same\n"
+	       "   buffer (it stays in cache); fresh: tiles into successive parts of a\n"
+	       "   768 MiB ring (beyond the caches, as an export writes them)\n", tile, tile,
+	       nz, REPS);
+	printf("%-9s %-9s %4s | %9s %9s %6s | %9s %9s %6s | %9s %6s\n", "channels", "layout",
+	       "B/v", "memcpy", "texture", "ratio", "memcpy", "texture", "ratio", "dense", "t/d");
+	printf("%-24s | %-26s | %-26s |\n", "", "hot", "fresh");
+	memset(src, 1, 6 * n + 64);
+	memset(buf, 0, 6 * n);
+	memset(ring, 0, ring_bytes); /* resident before timing */
+	for (int cfg = 0; cfg < 4; cfg++) {
+		int dens_only = cfg & 1, zf = cfg >> 1;
+		size_t bpv = dens_only ? 1 : 6, tb = bpv * n, slots = ring_bytes / tb;
+		double best[5] = {0, 0, 0, 0, 0}; /* memcpy hot, tex hot, memcpy fresh,
+		                                     tex fresh, dense */
+		uint64_t next = 0;
+		for (int rep = 0; rep < REPS; rep++) {
+			int tiles = (int)(40 * g_scale) + 1;
+			for (int m = 0; m < 5; m++) {
+				double c0 = cpu_s();
+				uint64_t s = (uint64_t)rep * 77 + 5;
+				if (m == 4 && zf)
+					continue; /* the dense array is x fastest */
+				for (int k = 0; k < tiles; k++) {
+					int64_t a[3], b[3];
+					uint8_t *dst = m == 2 || m == 3 ? ring + (next++ % slots) * tb : buf;
+					loom_texture_region r = {0};
+					r.layout = zf ? LOOM_REGION_Z_FASTEST : LOOM_REGION_X_FASTEST;
+					region_at(&r, dst, n, dens_only);
+					a[0] = lo[0] + (int64_t)(unit(&s) * (double)((size_t)(hi[0] - lo[0]) - tile));
+					a[1] = lo[1] + (int64_t)(unit(&s) * (double)((size_t)(hi[1] - lo[1]) - tile));
+					a[2] = lo[2];
+					b[0] = a[0] + (int64_t)tile, b[1] = a[1] + (int64_t)tile, b[2] = hi[2];
+					if (m == 0 || m == 2)
+						memcpy(dst, src + k % 61, tb);
+					else if (m == 4)
+						dense_tile(a, tile, nz, &r);
+					else
+						loom_texture_read_region(t, a, b, &r);
+				}
+				{
+					double rate = (double)tiles * (double)n / (cpu_s() - c0);
+					if (rate > best[m])
+						best[m] = rate;
+				}
+			}
+		}
+		printf("%-9s %-9s %4zu | %8.0fM %8.0fM %6.3f | %8.0fM %8.0fM %6.3f | ",
+		       dens_only ? "density" : "all five", zf ? "z-fastest" : "x-fastest", bpv,
+		       best[0] / 1e6, best[1] / 1e6, best[1] / best[0], best[2] / 1e6,
+		       best[3] / 1e6, best[3] / best[2]);
+		if (zf)
+			printf("%9s %6s\n", "-", "-");
+		else
+			printf("%8.0fM %6.3f\n", best[4] / 1e6, best[1] / best[4]);
+		printf("{\"bench\":\"texture_region\",\"channels\":\"%s\",\"layout\":\"%s\","
+		       "\"bytes_per_voxel\":%zu,\"memcpy_hot\":%.0f,\"texture_hot\":%.0f,"
+		       "\"ratio_hot\":%.4f,\"memcpy_fresh\":%.0f,\"texture_fresh\":%.0f,"
+		       "\"ratio_fresh\":%.4f,\"dense\":%.0f}\n", dens_only ? "density" : "all",
+		       zf ? "z" : "x", bpv, best[0], best[1], best[1] / best[0], best[2], best[3],
+		       best[3] / best[2], best[4]);
+	}
+	free(buf);
+	free(src);
+	free(ring);
+}
+
+/* --------------------------------------------------------- 3. budgets */
+
+static void budgets(const loom_fabric *f, loom_db *db)
+{
+	static const size_t mib[] = {8, 16, 32, 64, 128, 256, 512, 1024};
+	uint64_t rep[3];
+
+	loom_fabric_repeat_voxels(f, rep);
+	printf("\n3. from cold, per budget: over one repeat (%llux%llux%llu), 1 thread, per\n"
+	       "   core: ray marches, random voxels, region reads (32x32xb3 tiles, z fastest,\n"
+	       "   all channels; lookups = voxels); decomp%%: time reading + inflating\n"
+	       "   bricks over the wall time\n", (unsigned long long)rep[0], (unsigned long long)rep[1],
+	       (unsigned long long)rep[2]);
+	printf("%8s %-9s %9s %10s %8s %9s %9s %8s %8s\n", "budget", "stream", "lookups",
+	       "lookups/s", "hit", "misses", "evict", "decomp%", "peakMiB");
+	for (size_t b = 0; b < sizeof mib / sizeof mib[0]; b++)
+		for (int k = 0; k < 3; k++) {
+			loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+			loom_texture *t = NULL;
+			loom_texture_stats st;
+			struct stream s;
+			double cpu, wall0 = now_s(), limit = 2.0 * g_scale;
+			uint64_t errors, total = 0;
+			double cpu_total = 0;
+			o.budget_bytes = mib[b] * MIB;
+			o.max_threads = 1;
+			if (loom_texture_open(f, db, &o, &t, NULL) != LOOM_OK)
+				continue;
+			s.kind = k;
+			s.lo[0] = s.lo[1] = s.lo[2] = 0;
+			for (int a = 0; a < 3; a++)
+				s.hi[a] = (int64_t)rep[a];
+			/* time-bounded: chunks until `limit` seconds */
+			for (int c = 0; now_s() - wall0 < limit; c++) {
+				s.seed = 1 + (uint64_t)c;
+				if (k == S_REGION) { /* 8 tiles of 32 x 32 x b3, z fastest */
+					static uint8_t buf[6 * 32 * 32 * 4096];
+					size_t n = 32 * 32 * (size_t)rep[2];
+					loom_texture_region r = {0};
+					double c0 = cpu_s();
+					r.layout = LOOM_REGION_Z_FASTEST;
+					region_at(&r, buf, n, 0);
+					for (int q = 0; q < 8; q++) {
+						int64_t a[3], e[3];
+						a[0] = (int64_t)(unit(&s.seed) * (double)(rep[0] - 32));
+						a[1] = (int64_t)(unit(&s.seed) * (double)(rep[1] - 32));
+						a[2] = 0;
+						e[0] = a[0] + 32, e[1] = a[1] + 32, e[2] = (int64_t)rep[2];
+						loom_texture_read_region(t, a, e, &r);
+					}
+					total += 8 * n;
+					cpu_total += cpu_s() - c0;
+					continue;
+				}
+				s.n = k == S_COHERENT ? 200000 : 20000;
+				run_stream(&s, t, &cpu, &errors);
+				total += s.n;
+				cpu_total += cpu;
+			}
+			loom_texture_get_stats(t, &st);
+			{
+				double hr = st.hits + st.misses ? (double)st.hits / (double)(st.hits + st.misses) : 1;
+				double wall = now_s() - wall0;
+				double dec = wall > 0 ? (double)st.decompress_ns * 1e-9 / wall : 0;
+				printf("%6zuMi %-9s %9llu %10.0f %8.4f %9llu %9llu %7.1f%% %8.1f\n", mib[b],
+				       stream_name[k], (unsigned long long)total, (double)total / cpu_total,
+				       hr, (unsigned long long)st.misses, (unsigned long long)st.evictions,
+				       100 * dec, (double)st.peak_bytes / MIB);
+				printf("{\"bench\":\"texture_budget\",\"budget_mib\":%zu,\"stream\":\"%s\","
+				       "\"lookups\":%llu,\"lookups_per_s_per_core\":%.0f,\"hit_rate\":%.5f,"
+				       "\"misses\":%llu,\"evictions\":%llu,\"decompress_share\":%.4f,"
+				       "\"peak_bytes\":%llu}\n", mib[b], stream_name[k],
+				       (unsigned long long)total, (double)total / cpu_total, hr,
+				       (unsigned long long)st.misses, (unsigned long long)st.evictions, dec,
+				       (unsigned long long)st.peak_bytes);
+			}
+			loom_texture_close(t);
+		}
+}
+
+/* ---------------------------------------------------------- 4. peak RSS */
+
+static void peak_rss(const char *loom, const char *fabric, const char *db)
+{
+	static const int mib[] = {16, 64, 256};
+	printf("\n4. peak RSS of `loom sample FABRIC --random N` (one process per budget, "
+	       "900x1500 paper-scale fabric)\n");
+	printf("%8s %9s %12s %12s %12s %10s\n", "budget", "lookups", "peak cache", "peak RSS",
+	       "RSS-budget", "target");
+	for (int k = 0; k < 4; k++) {
+		char cmd[16384], line[512];
+		unsigned long long rss = 0, cache = 0, n = k == 0 ? 1 : (unsigned long long)(60000 * g_scale) + 1000;
+		int b = k == 0 ? 16 : mib[k - 1];
+		FILE *p;
+		/* k == 0: a single lookup, the fixed part (binary, fabric, db index) */
+		snprintf(cmd, sizeof cmd, "'%s' sample '%s' --db '%s' --random %llu --seed 7 "
+		         "--budget %d --json --quiet", loom, fabric, db, n, b);
+		p = popen(cmd, "r");
+		if (!p)
+			continue;
+		while (fgets(line, sizeof line, p)) {
+			sscanf(line, " \"peak_rss_bytes\": %llu", &rss);
+			sscanf(line, " \"peak_cache_bytes\": %llu", &cache);
+		}
+		pclose(p);
+		printf("%6dMi %9llu %10.1fMi %10.1fMi %10.1fMi %10s\n", b, n, (double)cache / MIB,
+		       (double)rss / MIB, ((double)rss - (double)b * MIB) / MIB,
+		       k == 0 ? "(1 lookup)" : rss <= (unsigned long long)(b + 16) * MIB ? "met" : "MISSED");
+		printf("{\"bench\":\"texture_rss\",\"budget_mib\":%d,\"lookups\":%llu,"
+		       "\"peak_cache_bytes\":%llu,\"peak_rss_bytes\":%llu}\n", b, n, cache, rss);
+	}
+}
+
+/* ---------------------------------------------------------------- main */
+
+int main(int argc, char **argv)
+{
+	const char *parts = argc > 1 ? argv[1] : "1234";
+	const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
+	const char *paper = getenv("LOOM_PAPER_DB");
+	const char *sc = getenv("BENCH_TEXTURE_SCALE");
+	char dbp[4200], fabp[4200], loomp[4200];
+	loom_db *db = NULL;
+	loom_design *d;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_diag diag = {0};
+	loom_db_info info;
+	struct stat st;
+	double t0;
+
+	if (sc)
+		g_scale = atof(sc) > 0 ? atof(sc) : 1.0;
+	snprintf(loomp, sizeof loomp, "%s/loom", build);
+	if (paper && *paper)
+		snprintf(dbp, sizeof dbp, "%s", paper);
+	else
+		snprintf(dbp, sizeof dbp, "%s/bench/paper.ldb", build);
+	if (stat(dbp, &st) != 0) {
+		loom_exgen_params p;
+		printf("generating the paper preset database %s (once, ~10-20 s)\n", dbp);
+		fflush(stdout);
+		loom_exgen_preset("paper", &p);
+		if (loom_exgen_write_db(dbp, &p, NULL, &diag) != LOOM_OK) {
+			printf("bench_texture: %s\n", diag.message);
+			return 0;
+		}
+	}
+	if (loom_db_open(dbp, &db, &diag) != LOOM_OK) {
+		printf("bench_texture: %s\n", diag.message);
+		return 0;
+	}
+	loom_db_get_info(db, &info);
+	B1 = info.block[0], B2 = info.block[1], B3 = info.block[2];
+	d = jacquard(900, 1500);
+	t0 = now_s();
+	if (!d || loom_fabric_synthesize(d, db, dbp, NULL, &f, &diag) != LOOM_OK) {
+		printf("bench_texture: synthesis: %s\n", diag.message);
+		return 0;
+	}
+	printf("paper-scale fabric: 900x1500 crossings, blocks %ux%ux%u, bricks %ux%ux%u "
+	       "(%llu bytes); synthesis %.2f s\n", B1, B2, B3, info.brick[0], info.brick[1],
+	       info.brick[2], (unsigned long long)info.brick[0] * info.brick[1] * info.brick[2] * 4,
+	       now_s() - t0);
+
+	{
+		/* a window of 2 x 3 crossings away from the origin, the whole
+		   thickness; the texture warm (its bricks all cached) */
+		int64_t lo[3] = {7 * (int64_t)B1 + 30, 11 * (int64_t)B2 + 20, 0};
+		int64_t hi[3] = {lo[0] + 192, lo[1] + 192, B3};
+		o.budget_bytes = 512 * MIB;
+		o.max_threads = 2;
+		if (loom_texture_open(f, db, &o, &t, &diag) != LOOM_OK) {
+			printf("bench_texture: %s\n", diag.message);
+			return 0;
+		}
+		if (dense_build(t, d, lo, hi) != 0) {
+			printf("bench_texture: cannot materialise the window\n");
+			return 0;
+		}
+		if (strchr(parts, '1'))
+			warm_lookups(t, lo, hi);
+		if (strchr(parts, '2'))
+			region_reads(t, lo, hi);
+		loom_texture_close(t);
+		free(D.v);
+	}
+	if (strchr(parts, '3'))
+		budgets(f, db);
+	snprintf(fabp, sizeof fabp, "%s/bench/texture-paper.lfab", build);
+	if (!strchr(parts, '4'))
+		;
+	else if (loom_fabric_save(f, fabp, NULL, &diag) == LOOM_OK && stat(loomp, &st) == 0)
+		peak_rss(loomp, fabp, dbp);
+	else
+		printf("\n4. peak RSS: skipped (%s)\n", diag.message[0] ? diag.message : "no loom binary");
+	loom_fabric_free(f);
+	loom_design_free(d);
+	loom_db_close(db);
+	return 0;
+}

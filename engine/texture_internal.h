@@ -1,0 +1,33 @@
+/*
+ * engine/texture_internal.h - pieces of the virtual-texture engine
+ * (engine/texture.c) that the unit tests check on their own.  Never
+ * installed.
+ */
+#ifndef LOOM_TEXTURE_INTERNAL_H
+#define LOOM_TEXTURE_INTERNAL_H
+
+#include "internal.h"
+
+/*
+ * Blend n fibre directions (unit lines: v and -v are the same fibre) with
+ * weights w[k] >= 0 (zero-weight entries are ignored): the reference is
+ * the direction of largest weight (the first on ties); every other
+ * direction is flipped to point the same way as the reference (v . ref >= 0)
+ * before the weighted sum, which is normalised and folded to z >= 0 (on
+ * z == 0: y > 0, or y == 0 and x >= 0).  All weights zero or a zero sum:
+ * out = (0, 0, 0).  Deterministic (fixed order, float arithmetic).
+ */
+void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
+                        float out[3]);
+
+/* Rounding of an edge-fix offset to whole voxels (nearest, halves away
+   from zero, clamped to +-4096; not-a-number gives 0). */
+int loom__dz_round(float dz);
+
+/* The edge-fix offset (unrounded) the engine computes for column (lx, ly)
+   of crossing (I, J): the same arithmetic as loom_edgefix_block, which
+   the tests check bit for bit.  0 for NULL or a column out of range. */
+float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
+                       uint32_t ly);
+
+#endif /* LOOM_TEXTURE_INTERNAL_H */

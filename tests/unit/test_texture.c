@@ -1,0 +1,1299 @@
+/*
+ * tests/unit/test_texture.c - the virtual texture (loom/texture.h) against a
+ * brute-force materialisation built from first principles in this file:
+ * the base assignment and randomisation from the synth API
+ * (loom_synth_assign, loom_synth_src), the edge-fix offsets from
+ * loom_edgefix_build + loom_edgefix_block, the source voxels from
+ * loom_db_read_box, yarn kinds from the exemplar yarn tables and types and
+ * albedo from the design.  Nothing of engine/texture.c is reused except
+ * where a test says so.
+ */
+#include "check.h"
+#include "loom.h"
+#include "texture_internal.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static char tmpdir[4096];
+static char db_path[4200], db2_path[4200], db_np2_path[4200];
+
+static uint64_t mix(uint64_t x)
+{
+	x += 0x9e3779b97f4a7c15ull;
+	x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+	x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+	return x ^ (x >> 31);
+}
+
+static uint64_t rng_state;
+static uint64_t rnd(void)
+{
+	return mix(rng_state++);
+}
+static int64_t rnd_range(int64_t lo, int64_t hi) /* [lo, hi) */
+{
+	return lo + (int64_t)(rnd() % (uint64_t)(hi - lo));
+}
+
+/* ------------------------------------------------------------- fixture */
+
+static int make_db_block(const char *path, const char *preset, const uint32_t brick[3],
+                         uint64_t seed, const uint32_t block[3])
+{
+	loom_exgen_params p;
+	loom_diag d = {0};
+	int rc = loom_exgen_preset(preset, &p);
+	if (rc)
+		return rc;
+	p.seed = seed;
+	p.threads = 2;
+	if (brick)
+		memcpy(p.brick, brick, sizeof p.brick);
+	if (block) { /* wide blocks, two weaves: a small file */
+		memcpy(p.block, block, sizeof p.block);
+		p.n_weaves = 2;
+	}
+	rc = loom_exgen_write_db(path, &p, NULL, &d);
+	if (rc)
+		printf("  exgen: %s\n", d.message);
+	return rc;
+}
+
+static int make_db(const char *path, const char *preset, const uint32_t brick[3],
+                   uint64_t seed)
+{
+	return make_db_block(path, preset, brick, seed, NULL);
+}
+
+/* A random M x N design with three yarn types of distinct colours. */
+static loom_design *random_design(uint32_t M, uint32_t N, uint64_t seed)
+{
+	loom_design *d = NULL;
+	if (loom_design_new(M, N, &d) || loom_design_set_types(d, 3))
+		return NULL;
+	for (size_t i = 0; i < (size_t)M * N; i++) {
+		uint64_t h = mix(seed * 1000003u + i);
+		d->weave[i] = h & 1;
+		d->warp_type[i] = (uint8_t)(h >> 8 & 1);       /* 0 or 1 */
+		d->weft_type[i] = (uint8_t)(1 + (h >> 16 & 1)); /* 1 or 2 */
+	}
+	for (uint32_t k = 0; k < 3; k++) {
+		d->types[k].albedo[0] = 0.1f + 0.3f * k;
+		d->types[k].albedo[1] = 0.9f - 0.2f * k;
+		d->types[k].albedo[2] = 0.05f * (k + 1);
+		d->types[k].alignment = 0.1f * (k + 1);
+	}
+	return d;
+}
+
+static loom_fabric *synth(const loom_design *d, loom_db *db)
+{
+	loom_fabric *f = NULL;
+	loom_diag dg = {0};
+	if (loom_fabric_synthesize(d, db, db_path, NULL, &f, &dg)) {
+		printf("  synthesize: %s\n", dg.message);
+		return NULL;
+	}
+	return f;
+}
+
+static loom_texture *open_tex(const loom_fabric *f, const loom_db *db, size_t budget,
+                              unsigned threads)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t = NULL;
+	loom_diag d = {0};
+	o.budget_bytes = budget;
+	o.max_threads = threads;
+	if (loom_texture_open(f, db, &o, &t, &d))
+		printf("  texture open: %s\n", d.message);
+	return t;
+}
+
+/* The smallest budget that opens (from the EBUDGET message). */
+static size_t min_budget(const loom_fabric *f, const loom_db *db, unsigned threads)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t = NULL;
+	loom_diag d = {0};
+	const char *p;
+	o.budget_bytes = 1;
+	o.max_threads = threads;
+	if (loom_texture_open(f, db, &o, &t, &d) != LOOM_EBUDGET) {
+		loom_texture_close(t);
+		return 0;
+	}
+	p = strstr(d.message, "needs at least ");
+	return p ? (size_t)strtoull(p + 15, NULL, 10) : 0;
+}
+
+/* ------------------------------------------------------------ reference */
+
+typedef struct ref {
+	const loom_db *db;
+	const loom_design *d;
+	uint32_t b1, b2, b3, n_ex;
+	loom_synth_set *set;
+	uint16_t *base;
+	loom_synth_lookup lk;
+	loom_edgefix *ef;
+	float *heights;
+	loom_db_exemplar_info *ex;
+	uint8_t **dens, **lab;
+	uint16_t **ori;
+	int64_t cI, cJ;      /* crossing of dz */
+	float *dz;
+	uint64_t n_dz_blocks;
+} ref;
+
+static int ref_init(ref *r, const loom_fabric *f, const loom_db *db)
+{
+	loom_fabric_params fp;
+	loom_synth_options so = LOOM_SYNTH_OPTIONS_INIT;
+	loom_synth_exemplar *se;
+	loom_edge_profiles prof;
+	loom_db_info info;
+	uint32_t K, rec;
+
+	memset(r, 0, sizeof *r);
+	r->db = db;
+	r->d = loom_fabric_design(f);
+	loom_db_get_info(db, &info);
+	r->b1 = info.block[0];
+	r->b2 = info.block[1];
+	r->b3 = info.block[2];
+	r->n_ex = info.n_exemplars;
+	r->ex = calloc(r->n_ex, sizeof *r->ex);
+	se = calloc(r->n_ex, sizeof *se);
+	r->dens = calloc(r->n_ex, sizeof *r->dens);
+	r->lab = calloc(r->n_ex, sizeof *r->lab);
+	r->ori = calloc(r->n_ex, sizeof *r->ori);
+	for (uint32_t u = 0; u < r->n_ex; u++) {
+		uint32_t o[3] = {0, 0, 0};
+		size_t n;
+		loom_db_exemplar(db, u, &r->ex[u]);
+		se[u].rows = r->ex[u].rows;
+		se[u].cols = r->ex[u].cols;
+		se[u].weave = r->ex[u].weave;
+		se[u].periodic = 0;
+		n = (size_t)r->ex[u].size[0] * r->ex[u].size[1] * r->ex[u].size[2];
+		r->dens[u] = malloc(n);
+		r->lab[u] = malloc(n);
+		r->ori[u] = malloc(2 * n);
+		if (loom_db_read_box(db, u, o, r->ex[u].size, r->dens[u], r->ori[u], r->lab[u],
+		                     NULL))
+			return -1;
+	}
+	if (loom_synth_set_new(se, r->n_ex, &r->set, NULL))
+		return -1;
+	free(se);
+	loom_fabric_get_params(f, &fp);
+	so.algo = fp.algo;
+	so.seed = fp.seed;
+	so.group = fp.group;
+	so.flags = fp.flags;
+	r->base = malloc(sizeof *r->base * r->d->rows * r->d->cols);
+	if (loom_synth_assign(r->set, r->d, &so, r->base, NULL) ||
+	    loom_synth_lookup_init(&r->lk, r->set, r->base, r->d->rows, r->d->cols, &so))
+		return -1;
+	K = loom_synth_set_blocks(r->set);
+	rec = LOOM_EDGE_RECORD(r->b1, r->b2);
+	r->heights = malloc(sizeof(float) * rec * K);
+	for (uint32_t t = 0; t < K; t++) {
+		loom_synth_block sb;
+		loom_db_block_info bi;
+		float *h = r->heights + (size_t)t * rec;
+		loom_synth_block_info(r->set, t, &sb);
+		loom_db_block(db, sb.exemplar, sb.row, sb.col, &bi);
+		memcpy(h + LOOM_EDGE_N(r->b1, r->b2), bi.north, 4 * r->b1);
+		memcpy(h + LOOM_EDGE_S(r->b1, r->b2), bi.south, 4 * r->b1);
+		memcpy(h + LOOM_EDGE_W(r->b1, r->b2), bi.west, 4 * r->b2);
+		memcpy(h + LOOM_EDGE_E(r->b1, r->b2), bi.east, 4 * r->b2);
+	}
+	prof.b1 = r->b1;
+	prof.b2 = r->b2;
+	prof.n_blocks = K;
+	prof.heights = r->heights;
+	if (loom_edgefix_build(&prof, fp.rank, &r->ef, NULL))
+		return -1;
+	r->dz = malloc(sizeof(float) * r->b1 * r->b2);
+	r->cI = INT64_MIN;
+	return 0;
+}
+
+static void ref_free(ref *r)
+{
+	for (uint32_t u = 0; u < r->n_ex; u++) {
+		free(r->dens[u]);
+		free(r->lab[u]);
+		free(r->ori[u]);
+	}
+	free(r->dens);
+	free(r->lab);
+	free(r->ori);
+	free(r->ex);
+	free(r->base);
+	free(r->heights);
+	free(r->dz);
+	loom_edgefix_free(r->ef);
+	loom_synth_set_free(r->set);
+}
+
+static int64_t floor_div(int64_t a, int64_t b)
+{
+	int64_t q = a / b;
+	return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
+/* Expected raw voxel: density byte, orientation code, label; kind, type. */
+typedef struct rv {
+	uint8_t d, l, k, ty;
+	uint16_t o;
+} rv;
+
+static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
+{
+	rv v = {0, 0, 0, 0, 0};
+	int64_t I, J, zs;
+	uint32_t lx, ly, sx, sy;
+	loom_synth_block sb;
+	const loom_db_exemplar_info *e;
+	size_t i, cell;
+	uint16_t t;
+	long dzi;
+
+	if (z < 0 || z >= r->b3)
+		return v;
+	I = floor_div(y, r->b2);
+	J = floor_div(x, r->b1);
+	lx = (uint32_t)(x - J * r->b1);
+	ly = (uint32_t)(y - I * r->b2);
+	if (I != r->cI || J != r->cJ) {
+		loom_synth_nbhd nb;
+		loom_synth_nbhd_at(&r->lk, I, J, &nb);
+		loom_edgefix_block(r->ef, &nb, r->dz);
+		r->cI = I;
+		r->cJ = J;
+		r->n_dz_blocks++;
+	}
+	dzi = lroundf(r->dz[ly * r->b1 + lx]); /* documented rounding */
+	zs = z - dzi;
+	if (zs < 0 || zs >= r->b3)
+		return v;
+	t = loom_synth_src(&r->lk, I, J);
+	loom_synth_block_info(r->set, t, &sb);
+	e = &r->ex[sb.exemplar];
+	sx = sb.col * r->b1 + lx;
+	sy = sb.row * r->b2 + ly;
+	i = ((size_t)zs * e->size[1] + sy) * e->size[0] + sx;
+	v.d = r->dens[sb.exemplar][i];
+	v.o = r->ori[sb.exemplar][i];
+	v.l = r->lab[sb.exemplar][i];
+	v.k = v.l <= e->n_yarns ? e->yarns[v.l].kind : 0;
+	cell = (size_t)(((I % r->d->rows) + r->d->rows) % r->d->rows) * r->d->cols +
+	       (size_t)(((J % r->d->cols) + r->d->cols) % r->d->cols);
+	v.ty = v.k == LOOM_YARN_WARP ? r->d->warp_type[cell] :
+	       v.k == LOOM_YARN_WEFT ? r->d->weft_type[cell] : 0;
+	return v;
+}
+
+static loom_texel ref_texel(ref *r, int64_t x, int64_t y, int64_t z)
+{
+	rv v = ref_raw(r, x, y, z);
+	loom_texel t;
+	memset(&t, 0, sizeof t);
+	if (v.d) {
+		t.density = v.d / 255.0f;
+		loom_orientation_decode(v.o, t.orientation);
+	}
+	t.label = v.l;
+	t.kind = v.k;
+	if (v.k) {
+		t.type = v.ty;
+		memcpy(t.albedo, r->d->types[v.ty].albedo, sizeof t.albedo);
+		t.alignment = r->d->types[v.ty].alignment;
+	}
+	return t;
+}
+
+static int texel_eq(const loom_texel *a, const loom_texel *b)
+{
+	return a->density == b->density && a->orientation[0] == b->orientation[0] &&
+	       a->orientation[1] == b->orientation[1] &&
+	       a->orientation[2] == b->orientation[2] && a->albedo[0] == b->albedo[0] &&
+	       a->albedo[1] == b->albedo[1] && a->albedo[2] == b->albedo[2] &&
+	       a->alignment == b->alignment && a->kind == b->kind && a->type == b->type &&
+	       a->label == b->label;
+}
+
+/* ------------------------------------------------------------- globals */
+
+static loom_db *g_db;
+static loom_design *g_design;
+static loom_fabric *g_fab;
+static ref g_ref;
+static int g_ok;
+
+/* Compare every voxel of a box (x fastest, or a random order) through
+   loom_texture_voxel; returns mismatches. */
+static uint64_t check_box(loom_texture *t, ref *r, const int64_t lo[3],
+                          const int64_t hi[3], int shuffled, uint64_t *nonempty)
+{
+	uint64_t bad = 0, n = (uint64_t)(hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+	for (uint64_t k = 0; k < n; k++) {
+		uint64_t i = shuffled ? rnd() % n : k;
+		int64_t x = lo[0] + (int64_t)(i % (uint64_t)(hi[0] - lo[0]));
+		int64_t y = lo[1] + (int64_t)(i / (uint64_t)(hi[0] - lo[0]) % (uint64_t)(hi[1] - lo[1]));
+		int64_t z = lo[2] + (int64_t)(i / (uint64_t)(hi[0] - lo[0]) / (uint64_t)(hi[1] - lo[1]));
+		loom_texel a, b = ref_texel(r, x, y, z);
+		int rc = loom_texture_voxel(t, x, y, z, &a);
+		if (rc != LOOM_OK || !texel_eq(&a, &b)) {
+			if (bad < 3)
+				printf("  voxel (%lld,%lld,%lld): rc %d density %g/%g kind %d/%d "
+				       "type %d/%d label %d/%d orient %g,%g,%g/%g,%g,%g albedo %g/%g\n",
+				       (long long)x, (long long)y, (long long)z, rc, a.density,
+				       b.density, a.kind, b.kind, a.type, b.type, a.label, b.label,
+				       a.orientation[0], a.orientation[1], a.orientation[2],
+				       b.orientation[0], b.orientation[1], b.orientation[2],
+				       a.albedo[0], b.albedo[0]);
+			bad++;
+		}
+		if (nonempty && b.density > 0)
+			(*nonempty)++;
+	}
+	return bad;
+}
+
+/* ---------------------------------------------------------------- tests */
+
+static void setup(void)
+{
+	const uint32_t brick[3] = {4, 4, 8};
+	const uint32_t brick_np2[3] = {3, 5, 7};
+	const char *base = getenv("LOOM_TEST_TMP");
+
+	snprintf(tmpdir, sizeof tmpdir, "%s/test_texture.XXXXXX", base ? base : "/tmp");
+	if (!mkdtemp(tmpdir)) {
+		printf("  mkdtemp: %s\n", strerror(errno));
+		return;
+	}
+	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
+	snprintf(db2_path, sizeof db2_path, "%s/tiny2.ldb", tmpdir);
+	snprintf(db_np2_path, sizeof db_np2_path, "%s/np2.ldb", tmpdir);
+	CHECK_EQ_INT(make_db(db_path, "tiny", brick, 1), LOOM_OK);
+	CHECK_EQ_INT(make_db(db2_path, "tiny", brick, 2), LOOM_OK);
+	CHECK_EQ_INT(make_db(db_np2_path, "tiny", brick_np2, 1), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(db_path, &g_db, NULL), LOOM_OK);
+	g_design = random_design(7, 9, 3);
+	CHECK(g_design != NULL);
+	if (!g_db || !g_design)
+		return;
+	g_fab = synth(g_design, g_db);
+	CHECK(g_fab != NULL);
+	if (!g_fab)
+		return;
+	CHECK_EQ_INT(ref_init(&g_ref, g_fab, g_db), 0);
+	g_ok = check_fail_count == 0;
+}
+
+static void bad_arguments(void)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t = (loom_texture *)1;
+	loom_db *db2 = NULL;
+	loom_diag d = {0};
+	loom_texel tx;
+	int64_t lo[3] = {0, 0, 0}, hi[3] = {2, 2, 2};
+	loom_texture_region reg = {0};
+	double p[3] = {1, 2, 3};
+	uint8_t buf[8];
+
+	if (!g_ok)
+		return;
+	CHECK_EQ_INT(loom_texture_open(g_fab, g_db, NULL, NULL, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_open(NULL, g_db, NULL, &t, &d), LOOM_EINVAL);
+	CHECK(t == NULL);
+	o.size = 4;
+	CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &t, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "options.size");
+	o.size = sizeof o;
+	o.max_threads = LOOM_TEXTURE_MAX_THREADS + 1;
+	CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &t, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "max_threads");
+	/* another database (other seed): identity mismatch */
+	CHECK_EQ_INT(loom_db_open(db2_path, &db2, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_texture_open(g_fab, db2, NULL, &t, &d), LOOM_EMISMATCH);
+	CHECK_STR_CONTAINS(d.message, "content hash");
+	CHECK(t == NULL);
+	loom_db_close(db2);
+	/* a detached fabric cannot be looked up */
+	{
+		char fpath[4300];
+		loom_fabric *det = NULL;
+		snprintf(fpath, sizeof fpath, "%s/f.lfab", tmpdir);
+		if (loom_fabric_save(g_fab, fpath, NULL, NULL) == LOOM_OK &&
+		    loom_fabric_open(fpath, NULL, LOOM_FABRIC_OPEN_DETACHED, &det, NULL) ==
+		            LOOM_OK) {
+			CHECK_EQ_INT(loom_texture_open(det, g_db, NULL, &t, &d), LOOM_EUNUSABLE);
+			CHECK_STR_CONTAINS(d.message, "detached");
+			loom_fabric_free(det);
+		} else {
+			printf("  (fabric save/open unavailable: detached case skipped)\n");
+		}
+	}
+	/* db NULL: the fabric's own database */
+	CHECK_EQ_INT(loom_texture_open(g_fab, NULL, NULL, &t, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_texture_voxel(NULL, 0, 0, 0, &tx), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_voxel(t, 0, 0, 0, NULL), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_voxel(t, (int64_t)1 << 62, 0, 0, &tx), LOOM_ERANGE);
+	CHECK_EQ_INT(loom_texture_voxel(t, 0, INT64_MIN, 0, &tx), LOOM_ERANGE);
+	CHECK_EQ_INT(loom_texture_voxel(t, 0, 0, INT64_MAX, &tx), LOOM_ERANGE);
+	CHECK(tx.density == 0 && tx.kind == 0);
+	CHECK_EQ_INT(loom_texture_voxel(t, 0, 0, -1, &tx), LOOM_OK); /* empty */
+	CHECK(tx.density == 0 && tx.kind == 0 && tx.orientation[0] == 0);
+	CHECK_EQ_INT(loom_texture_sample(t, p, 7, &tx), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_sample(t, NULL, 0, &tx), LOOM_EINVAL);
+	p[1] = NAN;
+	CHECK_EQ_INT(loom_texture_sample(t, p, 0, &tx), LOOM_EINVAL);
+	p[1] = 1e300;
+	CHECK_EQ_INT(loom_texture_sample(t, p, 1, &tx), LOOM_ERANGE);
+	CHECK_EQ_INT(loom_texture_sample_batch(t, 1, NULL, p, p, 0,
+	                                       &(loom_texture_channels){0}), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_sample_batch(t, 0, NULL, NULL, NULL, 0,
+	                                       &(loom_texture_channels){0}), LOOM_OK);
+	CHECK_EQ_INT(loom_texture_sample_batch(t, 0, NULL, NULL, NULL, 0, NULL), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, NULL), LOOM_EINVAL);
+	reg.layout = 2;
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_EINVAL);
+	reg.layout = LOOM_REGION_Z_FASTEST;
+	CHECK_EQ_INT(loom_texture_read_region(NULL, lo, hi, &reg), LOOM_EINVAL);
+	hi[1] = -1;
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_EINVAL);
+	hi[1] = 0; /* empty box */
+	reg.density = buf;
+	memset(buf, 0xAA, sizeof buf);
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_OK);
+	CHECK(buf[0] == 0xAA);
+	hi[1] = (int64_t)1 << 62;
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_ERANGE);
+	lo[0] = -((int64_t)1 << 61);
+	hi[0] = (int64_t)1 << 61;
+	hi[1] = (int64_t)1 << 61;
+	CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_ERANGE); /* size */
+	CHECK_EQ_INT(loom_texture_get_stats(t, NULL), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(loom_texture_errmsg(NULL), "NULL");
+	CHECK_EQ_INT((int)strlen(loom_texture_errmsg(t)), 0);
+	loom_texture_thread_done(NULL);
+	loom_texture_thread_done(t);
+	loom_texture_thread_done(t); /* no state: no-op */
+	CHECK_EQ_INT(loom_texture_voxel(t, 0, 0, 3, &tx), LOOM_OK); /* new state */
+	loom_texture_close(t);
+	loom_texture_close(NULL);
+}
+
+static void budget_too_small(void)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t = NULL;
+	loom_texture_stats st;
+	loom_diag d = {0};
+	size_t need;
+
+	if (!g_ok)
+		return;
+	o.budget_bytes = 100;
+	CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &t, &d), LOOM_EBUDGET);
+	CHECK_STR_CONTAINS(d.message, "needs at least");
+	CHECK(t == NULL);
+	for (unsigned threads = 1; threads <= 16; threads *= 4) {
+		need = min_budget(g_fab, g_db, threads);
+		CHECK(need > 0);
+		o.max_threads = threads;
+		o.budget_bytes = need - 1;
+		CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &t, &d), LOOM_EBUDGET);
+		o.budget_bytes = need;
+		CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &t, &d), LOOM_OK);
+		if (!t)
+			continue;
+		CHECK_EQ_INT(loom_texture_get_stats(t, &st), LOOM_OK);
+		CHECK(st.budget_bytes == need);
+		CHECK_EQ_INT(st.max_threads, threads);
+		/* T + 1 cache threads, each with one reserved frame, + 1 */
+		CHECK(st.cache_frames >= threads + 2);
+		CHECK(st.cache_frames <= 2 * (threads + 2));
+		printf("  %u threads: minimum budget %zu bytes, %u frames of %llu bytes, "
+		       "fixed %llu\n", threads, need, st.cache_frames,
+		       (unsigned long long)st.brick_bytes, (unsigned long long)st.fixed_bytes);
+		loom_texture_close(t);
+		t = NULL;
+	}
+}
+
+static void orient_blend_no_cancel(void)
+{
+	float w[3] = {0.5f, 0.5f, 0}, v[3][3], out[3], naive[3];
+	float n = sqrtf(1.0f + 0.05f * 0.05f);
+
+	/* two lines nearly along x, tilted opposite ways: as stored (z >= 0)
+	   they point in opposite x directions, so a plain average cancels */
+	v[0][0] = 1 / n, v[0][1] = 0, v[0][2] = 0.05f / n;
+	v[1][0] = -1 / n, v[1][1] = 0, v[1][2] = 0.05f / n;
+	v[2][0] = 0, v[2][1] = 0, v[2][2] = 1;
+	for (int a = 0; a < 3; a++)
+		naive[a] = 0.5f * (v[0][a] + v[1][a]);
+	CHECK(fabsf(naive[0]) < 1e-6f && naive[2] > 0); /* naive: vertical */
+	loom__orient_blend(3, w, (const float(*)[3])v, out);
+	CHECK(fabsf(out[0]) > 0.9999f); /* blend: along x */
+	CHECK(fabsf(out[2]) < 1e-6f);
+	CHECK(out[0] > 0); /* folded: z == 0, y == 0 -> x >= 0 */
+	/* v and -v with different weights: the line itself */
+	w[0] = 0.2f, w[1] = 0.8f;
+	v[1][0] = -v[0][0], v[1][1] = -v[0][1], v[1][2] = -v[0][2];
+	loom__orient_blend(2, w, (const float(*)[3])v, out);
+	for (int a = 0; a < 3; a++)
+		CHECK(fabsf(out[a] - v[0][a]) < 1e-6f);
+	/* zero weights -> zeros; one entry -> itself (folded) */
+	w[0] = w[1] = 0;
+	loom__orient_blend(2, w, (const float(*)[3])v, out);
+	CHECK(out[0] == 0 && out[1] == 0 && out[2] == 0);
+	w[1] = 1;
+	loom__orient_blend(2, w, (const float(*)[3])v, out);
+	CHECK(fabsf(out[0] - v[0][0]) < 1e-6f && out[2] > 0);
+	/* perpendicular lines, equal weight: the bisector, unit length */
+	w[0] = w[1] = 1;
+	v[0][0] = 1, v[0][1] = 0, v[0][2] = 0;
+	v[1][0] = 0, v[1][1] = 1, v[1][2] = 0;
+	loom__orient_blend(2, w, (const float(*)[3])v, out);
+	CHECK(fabsf(out[0] - 0.70710678f) < 1e-6f && fabsf(out[1] - 0.70710678f) < 1e-6f);
+	/* rounding rule of dz */
+	CHECK_EQ_INT(loom__dz_round(0.5f), 1);
+	CHECK_EQ_INT(loom__dz_round(-0.5f), -1);
+	CHECK_EQ_INT(loom__dz_round(0.49999997f), 0);
+	CHECK_EQ_INT(loom__dz_round(-2.6f), -3);
+	CHECK_EQ_INT(loom__dz_round(1e9f), 4096);
+	CHECK_EQ_INT(loom__dz_round(NAN), 0);
+}
+
+/* The fabric's own dz equals the reference built from the database
+   (so the reference is the fabric's, not a lookalike). */
+static void reference_matches_fabric(void)
+{
+	float *a, *b;
+	size_t n;
+	uint64_t bad = 0;
+
+	if (!g_ok)
+		return;
+	n = (size_t)g_ref.b1 * g_ref.b2;
+	a = malloc(4 * n);
+	b = malloc(4 * n);
+	for (int64_t I = -3; I < 10; I++)
+		for (int64_t J = -3; J < 12; J++) {
+			loom_synth_nbhd nb;
+			loom_fabric_source src;
+			loom_synth_nbhd_at(&g_ref.lk, I, J, &nb);
+			loom_edgefix_block(g_ref.ef, &nb, a);
+			CHECK_EQ_INT(loom_fabric_dz(g_fab, I, J, b), LOOM_OK);
+			bad += memcmp(a, b, 4 * n) != 0;
+			CHECK_EQ_INT(loom_fabric_source_at(g_fab, I, J, &src), LOOM_OK);
+			bad += src.block != nb.self;
+		}
+	CHECK_EQ_INT(bad, 0);
+	/* the engine's own evaluation of the offsets: bit for bit the edge-fix
+	   module's, before rounding (so rounding never differs) */
+	{
+		loom_texture *t = open_tex(g_fab, g_db, 4u << 20, 1);
+		uint64_t diff = 0, nonzero = 0;
+		for (int64_t I = -40; t && I < 40; I += 3)
+			for (int64_t J = -50; J < 50; J += 7) {
+				loom_synth_nbhd nb;
+				loom_synth_nbhd_at(&g_ref.lk, I, J, &nb);
+				loom_edgefix_block(g_ref.ef, &nb, a);
+				for (uint32_t ly = 0; ly < g_ref.b2; ly++)
+					for (uint32_t lx = 0; lx < g_ref.b1; lx++) {
+						float v = loom__texture_dz(t, I, J, lx, ly);
+						float w = a[ly * g_ref.b1 + lx];
+						diff += memcmp(&v, &w, sizeof v) != 0;
+						nonzero += lroundf(w) != 0;
+					}
+			}
+		CHECK_EQ_INT(diff, 0);
+		CHECK(nonzero > 100); /* the offsets are not all zero */
+		printf("  %llu columns with a non-zero whole-voxel offset\n",
+		       (unsigned long long)nonzero);
+		loom_texture_close(t);
+	}
+	free(a);
+	free(b);
+}
+
+static void brute_force_voxels(void)
+{
+	loom_texture *t;
+	loom_texture_stats st;
+	uint64_t bad, nonempty = 0;
+	int64_t M, N, b1, b2, b3;
+
+	if (!g_ok)
+		return;
+	M = g_design->rows, N = g_design->cols;
+	b1 = g_ref.b1, b2 = g_ref.b2, b3 = g_ref.b3;
+	t = open_tex(g_fab, g_db, 8u << 20, 2);
+	if (!t)
+		return;
+	{
+		/* two repeats and a margin, negative coordinates included, z beyond
+		   both faces, in order */
+		int64_t lo[3] = {-2 * b1 - 3, -2 * b2 - 1, -3};
+		int64_t hi[3] = {(N + 2) * b1, (M + 2) * b2 + 2, b3 + 3};
+		bad = check_box(t, &g_ref, lo, hi, 0, &nonempty);
+		CHECK_EQ_INT(bad, 0);
+		CHECK(nonempty > 1000); /* not a vacuous comparison */
+		printf("  %lld x %lld x %lld voxels, %llu non-empty, %llu dz blocks\n",
+		       (long long)(hi[0] - lo[0]), (long long)(hi[1] - lo[1]),
+		       (long long)(hi[2] - lo[2]), (unsigned long long)nonempty,
+		       (unsigned long long)g_ref.n_dz_blocks);
+		/* and in random order */
+		bad = check_box(t, &g_ref, lo, hi, 1, NULL);
+		CHECK_EQ_INT(bad, 0);
+	}
+	{
+		/* far away on the bolt: 64-bit coordinates, other random groups */
+		int64_t lo[3] = {1000000000007ll, -700000000001ll, 0};
+		int64_t hi[3] = {lo[0] + 5 * b1, lo[1] + 4 * b2, b3};
+		bad = check_box(t, &g_ref, lo, hi, 0, NULL);
+		CHECK_EQ_INT(bad, 0);
+		lo[0] = -((int64_t)1 << 61) - 5, lo[1] = ((int64_t)1 << 61) + 3;
+		hi[0] = lo[0] + 3 * b1, hi[1] = lo[1] + 3 * b2;
+		bad = check_box(t, &g_ref, lo, hi, 1, NULL);
+		CHECK_EQ_INT(bad, 0);
+	}
+	CHECK_EQ_INT(loom_texture_get_stats(t, &st), LOOM_OK);
+	CHECK(st.lookups > 0 && st.brick_requests > 0);
+	CHECK_EQ_INT(st.hits + st.misses + st.empty_bricks, st.brick_requests);
+	CHECK_EQ_INT(st.errors, 0);
+	CHECK(st.bytes_decompressed == st.misses * st.brick_bytes);
+	CHECK(st.peak_bytes <= st.budget_bytes);
+	CHECK(st.bytes_in_use <= st.peak_bytes);
+	printf("  lookups %llu, requests %llu, hits %llu, misses %llu, empty %llu, "
+	       "crossings %llu, dz %llu\n", (unsigned long long)st.lookups,
+	       (unsigned long long)st.brick_requests, (unsigned long long)st.hits,
+	       (unsigned long long)st.misses, (unsigned long long)st.empty_bricks,
+	       (unsigned long long)st.crossings, (unsigned long long)st.dz_columns);
+	loom_texture_close(t);
+}
+
+/* Non-power-of-two brick shape (3x5x7): the division path. */
+static void odd_brick_shape(void)
+{
+	loom_db *db = NULL;
+	loom_fabric *f;
+	ref r;
+	loom_texture *t;
+
+	if (!g_ok)
+		return;
+	CHECK_EQ_INT(loom_db_open(db_np2_path, &db, NULL), LOOM_OK);
+	if (!db)
+		return;
+	f = synth(g_design, db);
+	if (f && ref_init(&r, f, db) == 0) {
+		int64_t lo[3] = {-20, -13, -2};
+		int64_t hi[3] = {60, 40, (int64_t)r.b3 + 2};
+		t = open_tex(f, db, min_budget(f, db, 1), 1);
+		CHECK(t != NULL);
+		if (t) {
+			CHECK_EQ_INT(check_box(t, &r, lo, hi, 1, NULL), 0);
+			loom_texture_close(t);
+		}
+		ref_free(&r);
+	}
+	loom_fabric_free(f);
+	loom_db_close(db);
+}
+
+/* Region reads equal point lookups (and so the reference). */
+static void region_equals_points(void)
+{
+	loom_texture *t, *tp;
+	uint64_t bad = 0;
+
+	if (!g_ok)
+		return;
+	t = open_tex(g_fab, g_db, 4u << 20, 2);
+	tp = open_tex(g_fab, g_db, 4u << 20, 2);
+	if (!t || !tp)
+		goto done;
+	for (int it = 0; it < 40; it++) {
+		int64_t lo[3], hi[3];
+		size_t n;
+		loom_texture_region reg = {0};
+		uint8_t *dn, *kd, *ty, *lb;
+		uint16_t *or;
+		int rc, skip = it % 6;
+		lo[0] = rnd_range(-200, 200);
+		lo[1] = rnd_range(-150, 150);
+		lo[2] = rnd_range(-6, (int64_t)g_ref.b3 + 2);
+		hi[0] = lo[0] + rnd_range(1, 80);  /* up to 10 crossings: several */
+		hi[1] = lo[1] + rnd_range(1, 30);  /* gather chunks of 32 columns */
+		hi[2] = lo[2] + rnd_range(1, 25);
+		if (it == 0) { /* the whole thickness and more */
+			lo[2] = -5;
+			hi[2] = g_ref.b3 + 5;
+		}
+		if (it == 1) { /* far away */
+			lo[0] += 123456789012345ll;
+			hi[0] += 123456789012345ll;
+			lo[1] -= 98765432109ll;
+			hi[1] -= 98765432109ll;
+		}
+		n = (size_t)(hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+		dn = malloc(n), kd = malloc(n), ty = malloc(n), lb = malloc(n);
+		or = malloc(2 * n);
+		memset(dn, 0xAB, n);
+		memset(ty, 0xAB, n);
+		reg.density = skip == 1 ? NULL : dn;
+		reg.orientation = skip == 2 ? NULL : or;
+		reg.kind = skip == 3 ? NULL : kd;
+		reg.type = skip == 4 ? NULL : ty;
+		reg.label = skip == 5 ? NULL : lb;
+		reg.layout = it % 4 < 2 ? LOOM_REGION_X_FASTEST : LOOM_REGION_Z_FASTEST;
+		rc = loom_texture_read_region(t, lo, hi, &reg);
+		CHECK_EQ_INT(rc, LOOM_OK);
+		for (size_t i = 0; i < n; i++) {
+			size_t nx = (size_t)(hi[0] - lo[0]), ny = (size_t)(hi[1] - lo[1]);
+			size_t nz = (size_t)(hi[2] - lo[2]);
+			int64_t x, y, z;
+			if (reg.layout == LOOM_REGION_X_FASTEST) {
+				x = lo[0] + (int64_t)(i % nx);
+				y = lo[1] + (int64_t)(i / nx % ny);
+				z = lo[2] + (int64_t)(i / nx / ny);
+			} else {
+				z = lo[2] + (int64_t)(i % nz);
+				x = lo[0] + (int64_t)(i / nz % nx);
+				y = lo[1] + (int64_t)(i / nz / nx);
+			}
+			loom_texel p;
+			rv e = ref_raw(&g_ref, x, y, z);
+			loom_texture_voxel(tp, x, y, z, &p);
+			if (reg.density && (dn[i] != e.d || fabsf(dn[i] / 255.0f - p.density) > 0))
+				bad++;
+			if (reg.orientation && or[i] != e.o)
+				bad++;
+			if (reg.kind && (kd[i] != e.k || kd[i] != p.kind))
+				bad++;
+			if (reg.type && (ty[i] != e.ty || ty[i] != p.type))
+				bad++;
+			if (reg.label && (lb[i] != e.l || lb[i] != p.label))
+				bad++;
+		}
+		if (!reg.density) /* untouched */
+			CHECK(dn[0] == 0xAB && dn[n - 1] == 0xAB);
+		if (!reg.type)
+			CHECK(ty[0] == 0xAB);
+		free(dn), free(kd), free(ty), free(lb), free(or);
+	}
+	CHECK_EQ_INT(bad, 0);
+done:
+	loom_texture_close(t);
+	loom_texture_close(tp);
+}
+
+/* A few bricks: still every voxel right; evictions happen; peak within the
+   budget; and identical region bytes at every budget. */
+static void tiny_budgets_deterministic(void)
+{
+	int64_t lo[3] = {-17, -11, -2}, hi[3] = {83, 61, 0};
+	size_t n, budgets[4];
+	uint8_t *ref_bytes = NULL;
+
+	if (!g_ok)
+		return;
+	hi[2] = g_ref.b3 + 1;
+	n = (size_t)(hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+	budgets[0] = min_budget(g_fab, g_db, 1);
+	budgets[1] = budgets[0] + 3000;
+	budgets[2] = min_budget(g_fab, g_db, 4) + 20000;
+	budgets[3] = 64u << 20;
+	for (int b = 0; b < 4; b++) {
+		loom_texture *t = open_tex(g_fab, g_db, budgets[b], b < 2 ? 1 : 4);
+		loom_texture_stats st;
+		loom_texture_region reg = {0};
+		uint8_t *buf;
+		if (!t)
+			continue;
+		buf = malloc(6 * n);
+		reg.density = buf;
+		reg.orientation = (uint16_t *)(buf + 2 * n);
+		reg.kind = buf + 4 * n;
+		reg.type = buf + n;
+		reg.label = buf + 5 * n;
+		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_OK);
+		if (b < 2) /* point lookups in random order, all right */
+			CHECK_EQ_INT(check_box(t, &g_ref, lo, hi, 1, NULL), 0);
+		loom_texture_get_stats(t, &st);
+		printf("  budget %zu: %u frames, misses %llu, evictions %llu, peak %llu\n",
+		       budgets[b], st.cache_frames, (unsigned long long)st.misses,
+		       (unsigned long long)st.evictions, (unsigned long long)st.peak_bytes);
+		CHECK(st.peak_bytes <= budgets[b]);
+		if (b == 0) {
+			CHECK(st.cache_frames <= 8);
+			CHECK(st.evictions > 1000);
+		}
+		if (!ref_bytes)
+			ref_bytes = buf;
+		else {
+			CHECK(memcmp(ref_bytes, buf, 6 * n) == 0);
+			free(buf);
+		}
+		loom_texture_close(t);
+	}
+	free(ref_bytes);
+}
+
+/* Blocks 70 voxels wide: region reads gather and transpose whole 16-column
+   blocks and 64-column chunks (the tiny preset's 8-voxel blocks never
+   fill one); both layouts against the reference. */
+static void wide_blocks_region(void)
+{
+	const uint32_t block[3] = {70, 5, 20}, brick[3] = {16, 4, 16};
+	char path[4300];
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	ref r;
+	uint64_t bad = 0;
+
+	if (!g_ok)
+		return;
+	snprintf(path, sizeof path, "%s/wide.ldb", tmpdir);
+	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 5, block), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(path, &db, NULL), LOOM_OK);
+	if (!db)
+		return;
+	f = synth(g_design, db);
+	if (!f || ref_init(&r, f, db) != 0) {
+		CHECK(0);
+		goto done;
+	}
+	t = open_tex(f, db, 8u << 20, 1);
+	for (int it = 0; t && it < 12; it++) {
+		int64_t lo[3], hi[3];
+		size_t nx, ny, nz, n;
+		uint8_t *buf;
+		loom_texture_region reg = {0};
+		lo[0] = rnd_range(-300, 300);
+		lo[1] = rnd_range(-40, 40);
+		lo[2] = rnd_range(-3, 3);
+		hi[0] = lo[0] + rnd_range(60, 220);
+		hi[1] = lo[1] + rnd_range(1, 12);
+		hi[2] = lo[2] + rnd_range(14, 26);
+		nx = (size_t)(hi[0] - lo[0]), ny = (size_t)(hi[1] - lo[1]), nz = (size_t)(hi[2] - lo[2]);
+		n = nx * ny * nz;
+		buf = malloc(6 * n);
+		reg.density = buf;
+		reg.orientation = (uint16_t *)(buf + n);
+		reg.kind = buf + 3 * n;
+		reg.type = buf + 4 * n;
+		reg.label = buf + 5 * n;
+		reg.layout = it & 1;
+		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_OK);
+		for (size_t i = 0; i < n; i++) {
+			int64_t x, y, z;
+			rv e;
+			if (reg.layout == LOOM_REGION_X_FASTEST) {
+				x = lo[0] + (int64_t)(i % nx);
+				y = lo[1] + (int64_t)(i / nx % ny);
+				z = lo[2] + (int64_t)(i / nx / ny);
+			} else {
+				z = lo[2] + (int64_t)(i % nz);
+				x = lo[0] + (int64_t)(i / nz % nx);
+				y = lo[1] + (int64_t)(i / nz / nx);
+			}
+			e = ref_raw(&r, x, y, z);
+			bad += buf[i] != e.d || reg.orientation[i] != e.o || reg.kind[i] != e.k ||
+			       reg.type[i] != e.ty || reg.label[i] != e.l;
+		}
+		free(buf);
+	}
+	CHECK_EQ_INT(bad, 0);
+	loom_texture_close(t);
+	ref_free(&r);
+done:
+	loom_fabric_free(f);
+	loom_db_close(db);
+}
+
+/* Trilinear density and orientation from the 8 reference voxels; the
+   nearest kind/type; nearest filter = floor. */
+static void filtered_lookups(void)
+{
+	loom_texture *t = open_tex(g_fab, g_db, 8u << 20, 2);
+	uint64_t bad = 0, blended = 0;
+
+	if (!t)
+		return;
+	for (int it = 0; it < 20000; it++) {
+		double p[3];
+		loom_texel a, e;
+		double u[3], f[3];
+		int64_t i0[3];
+		float w[8], wd[8], v[8][3], dens = 0, ori[3];
+		int near;
+		p[0] = rnd_range(-300, 300) + (double)(rnd() % 1000) / 1000.0;
+		p[1] = rnd_range(-200, 200) + (double)(rnd() % 1000) / 1000.0;
+		p[2] = rnd_range(-1, g_ref.b3 + 1) + (double)(rnd() % 1000) / 1000.0;
+		if (it % 7 == 0) /* voxel centres: the voxel itself */
+			p[0] = floor(p[0]) + 0.5, p[1] = floor(p[1]) + 0.5, p[2] = floor(p[2]) + 0.5;
+		CHECK_EQ_INT(loom_texture_sample(t, p, LOOM_FILTER_NEAREST, &a), LOOM_OK);
+		e = ref_texel(&g_ref, (int64_t)floor(p[0]), (int64_t)floor(p[1]),
+		              (int64_t)floor(p[2]));
+		bad += !texel_eq(&a, &e);
+		CHECK_EQ_INT(loom_texture_sample(t, p, LOOM_FILTER_TRILINEAR, &a), LOOM_OK);
+		for (int k = 0; k < 3; k++) {
+			u[k] = p[k] - 0.5;
+			i0[k] = (int64_t)floor(u[k]);
+			f[k] = u[k] - (double)i0[k];
+		}
+		for (int c = 0; c < 8; c++) {
+			int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+			loom_texel q = ref_texel(&g_ref, i0[0] + dx, i0[1] + dy, i0[2] + dz);
+			w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+			               (dz ? f[2] : 1 - f[2]));
+			dens += w[c] * q.density;
+			wd[c] = w[c] * q.density;
+			memcpy(v[c], q.orientation, sizeof v[c]);
+		}
+		/* the documented blend, written out: reference = largest w*d */
+		{
+			int r = -1;
+			float s[3] = {0, 0, 0}, len;
+			for (int c = 0; c < 8; c++)
+				if (wd[c] > 0 && (r < 0 || wd[c] > wd[r]))
+					r = c;
+			ori[0] = ori[1] = ori[2] = 0;
+			if (r >= 0) {
+				for (int c = 0; c < 8; c++) {
+					float d = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
+					float sg = d < 0 ? -wd[c] : wd[c];
+					if (!(wd[c] > 0))
+						continue;
+					for (int k = 0; k < 3; k++)
+						s[k] += sg * v[c][k];
+				}
+				len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+				if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
+					len = -len;
+				if (len != 0)
+					for (int k = 0; k < 3; k++)
+						ori[k] = s[k] / len;
+				blended++;
+			}
+		}
+		if (fabsf(a.density - dens) > 1e-6f)
+			bad++;
+		for (int k = 0; k < 3; k++)
+			if (fabsf(a.orientation[k] - ori[k]) > 1e-5f)
+				bad++;
+		near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+		e = ref_texel(&g_ref, i0[0] + (near >> 1 & 1), i0[1] + (near >> 2 & 1),
+		              i0[2] + (near & 1));
+		if (a.kind != e.kind || a.type != e.type || a.label != e.label ||
+		    a.albedo[0] != e.albedo[0])
+			bad++;
+		/* the voxel containing p is that corner */
+		if (e.label != ref_texel(&g_ref, (int64_t)floor(p[0]), (int64_t)floor(p[1]),
+		                         (int64_t)floor(p[2])).label)
+			bad++;
+		if (it % 7 == 0) {
+			loom_texel c = ref_texel(&g_ref, (int64_t)floor(p[0]), (int64_t)floor(p[1]),
+			                         (int64_t)floor(p[2]));
+			if (fabsf(a.density - c.density) > 1e-6f)
+				bad++;
+		}
+	}
+	CHECK_EQ_INT(bad, 0);
+	CHECK(blended > 5000);
+	loom_texture_close(t);
+}
+
+/* Batch = one sample per point; NULL channels untouched. */
+static void batch_lookups(void)
+{
+	enum { n = 3000 };
+	loom_texture *t = open_tex(g_fab, g_db, 8u << 20, 2);
+	double *x = malloc(8 * n), *y = malloc(8 * n), *z = malloc(8 * n);
+	float *dens = malloc(4 * n), *ori = malloc(12 * n), *alb = malloc(12 * n);
+	uint8_t *kind = malloc(n), *type = malloc(n);
+	uint64_t bad = 0;
+
+	if (!t)
+		goto done;
+	for (int i = 0; i < n; i++) {
+		x[i] = (double)rnd_range(-500, 500) + 0.37 * (i % 3);
+		y[i] = (double)rnd_range(-500, 500) + 0.11 * (i % 5);
+		z[i] = (double)rnd_range(-2, g_ref.b3 + 2) + 0.5;
+	}
+	for (int filter = 0; filter < 2; filter++) {
+		loom_texture_channels ch = {dens, ori, kind, type, alb};
+		memset(type, 0xEE, n);
+		if (filter)
+			ch.type = NULL;
+		CHECK_EQ_INT(loom_texture_sample_batch(t, n, x, y, z, filter, &ch), LOOM_OK);
+		for (int i = 0; i < n; i++) {
+			double p[3] = {x[i], y[i], z[i]};
+			loom_texel a;
+			loom_texture_sample(t, p, filter, &a);
+			if (dens[i] != a.density || memcmp(ori + 3 * i, a.orientation, 12) ||
+			    kind[i] != a.kind || memcmp(alb + 3 * i, a.albedo, 12))
+				bad++;
+			if (filter ? type[i] != 0xEE : type[i] != a.type)
+				bad++;
+		}
+	}
+	/* a bad position fails alone */
+	x[5] = NAN;
+	{
+		loom_texture_channels ch = {dens, NULL, kind, NULL, NULL};
+		CHECK_EQ_INT(loom_texture_sample_batch(t, 10, x, y, z, 0, &ch), LOOM_EINVAL);
+		CHECK(dens[5] == 0 && kind[5] == 0);
+	}
+	CHECK_EQ_INT(bad, 0);
+done:
+	loom_texture_close(t);
+	free(x), free(y), free(z), free(dens), free(ori), free(alb), free(kind), free(type);
+}
+
+/* Flip a byte of a stored brick in a copy of the database: the lookups
+   that need that brick fail with LOOM_ECORRUPT naming it; all other voxels
+   stay right; the failure repeats (retry) and the texture stays usable. */
+static void corrupt_brick(void)
+{
+	char path[4300];
+	loom_db *bad_db = NULL;
+	loom_db_info info;
+	loom_texture *t = NULL;
+	uint8_t *data = NULL;
+	size_t len;
+	FILE *fp;
+	uint64_t wrong = 0, failed = 0, failed_again = 0;
+	int64_t lo[3] = {-30, -20, 0}, hi[3];
+
+	if (!g_ok)
+		return;
+	snprintf(path, sizeof path, "%s/corrupt.ldb", tmpdir);
+	loom_db_get_info(g_db, &info);
+	fp = fopen(db_path, "rb");
+	if (!fp)
+		return;
+	fseek(fp, 0, SEEK_END);
+	len = (size_t)ftell(fp);
+	rewind(fp);
+	data = malloc(len);
+	CHECK(fread(data, 1, len, fp) == len);
+	fclose(fp);
+	/* bricks lie back to back from byte 128; hit several */
+	for (int k = 1; k <= 3; k++)
+		data[128 + info.stored_bytes * k / 4] ^= 0x5A;
+	fp = fopen(path, "wb");
+	CHECK(fwrite(data, 1, len, fp) == len);
+	fclose(fp);
+	free(data);
+	CHECK_EQ_INT(loom_db_open(path, &bad_db, NULL), LOOM_OK); /* index intact */
+	if (!bad_db)
+		return;
+	t = open_tex(g_fab, bad_db, 1u << 20, 2);
+	if (!t)
+		goto done;
+	hi[0] = (int64_t)g_design->cols * g_ref.b1 * 2;
+	hi[1] = (int64_t)g_design->rows * g_ref.b2 * 2;
+	hi[2] = g_ref.b3;
+	for (int pass = 0; pass < 2; pass++)
+		for (int64_t z = lo[2]; z < hi[2]; z++)
+			for (int64_t y = lo[1]; y < hi[1]; y++)
+				for (int64_t x = lo[0]; x < hi[0]; x++) {
+					loom_texel a, e;
+					int rc = loom_texture_voxel(t, x, y, z, &a);
+					if (rc != LOOM_OK) {
+						CHECK_EQ_INT(rc, LOOM_ECORRUPT);
+						if (pass == 0 && failed == 0) {
+							const char *m = loom_texture_errmsg(t);
+							printf("  %s\n", m);
+							CHECK_STR_CONTAINS(m, "corrupt.ldb: brick ");
+							CHECK_STR_CONTAINS(m, "exemplar");
+						}
+						CHECK(a.density == 0 && a.kind == 0);
+						if (pass == 0)
+							failed++;
+						else
+							failed_again++;
+						continue;
+					}
+					e = ref_texel(&g_ref, x, y, z);
+					wrong += !texel_eq(&a, &e);
+				}
+	CHECK(failed > 0);
+	CHECK_EQ_INT(failed_again, failed); /* retried, same result */
+	CHECK_EQ_INT(wrong, 0);
+	{
+		loom_texture_stats st;
+		loom_texture_region reg = {0};
+		uint8_t *buf = malloc((size_t)(hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]));
+		reg.density = buf;
+		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_ECORRUPT);
+		free(buf);
+		loom_texture_get_stats(t, &st);
+		CHECK(st.errors >= 2 * failed); /* each failed voxel retried the read */
+		printf("  %llu voxels failed (twice), %llu read errors, others right\n",
+		       (unsigned long long)failed, (unsigned long long)st.errors);
+	}
+done:
+	loom_texture_close(t);
+	loom_db_close(bad_db);
+}
+
+/* At each crossing centre, the top-most yarn voxel (density >= the
+   database's top threshold, not a flyaway) is warp exactly where W says
+   warp over. */
+static uint64_t warp_on_top(const loom_design *d, loom_db *db, uint32_t max_side,
+                            uint64_t *checked)
+{
+	loom_fabric *f = synth(d, db);
+	loom_texture *t;
+	loom_db_info info;
+	uint64_t bad = 0;
+	uint32_t rows, cols;
+
+	*checked = 0;
+	if (!f)
+		return 1;
+	t = open_tex(f, db, 16u << 20, 1);
+	loom_db_get_info(db, &info);
+	rows = d->rows < max_side ? d->rows : max_side;
+	cols = d->cols < max_side ? d->cols : max_side;
+	for (int rep = 0; rep < 2 && t; rep++) {
+		int64_t I0 = rep ? 100003 * (int64_t)d->rows : 0;  /* another group */
+		int64_t J0 = rep ? -7919 * (int64_t)d->cols : 0;
+		for (int64_t I = I0; I < I0 + rows; I++)
+			for (int64_t J = J0; J < J0 + cols; J++) {
+				int64_t x = J * info.block[0] + info.block[0] / 2;
+				int64_t y = I * info.block[1] + info.block[1] / 2;
+				int top = 0;
+				for (int64_t z = info.block[2] - 1; z >= 0 && !top; z--) {
+					loom_texel a;
+					loom_db_exemplar_info e;
+					if (loom_texture_voxel(t, x, y, z, &a) != LOOM_OK)
+						bad++;
+					if (a.kind == 0 || a.density * 255.0f + 0.5f < info.top_threshold)
+						continue;
+					/* flyaway fibres do not count: check the label's flags
+					   in any exemplar (labels are per exemplar; the source
+					   exemplar is the fabric's) */
+					{
+						loom_fabric_source src;
+						loom_fabric_source_at(f, I, J, &src);
+						loom_db_exemplar(db, src.exemplar, &e);
+						if (e.yarns[a.label].flags & LOOM_DB_YARN_FLYAWAY)
+							continue;
+					}
+					top = a.kind;
+				}
+				{
+					uint8_t w = loom_design_at(d, (uint32_t)(((I % d->rows) + d->rows) % d->rows),
+					                           (uint32_t)(((J % d->cols) + d->cols) % d->cols));
+					if (top != (w ? LOOM_YARN_WARP : LOOM_YARN_WEFT)) {
+						if (bad < 3)
+							printf("  crossing (%lld,%lld): W %d, top kind %d\n",
+							       (long long)I, (long long)J, w, top);
+						bad++;
+					}
+				}
+				(*checked)++;
+			}
+	}
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	return bad;
+}
+
+static void warp_on_top_real_designs(void)
+{
+	static const char map[] =
+		"yarn red  #a01010 alignment=0.3\n"
+		"yarn gold #d4a017 alignment=0.15\n"
+		"colour #d4a017 twill:1/7 warp=red weft=gold\n"
+		"colour #a01010 satin:7/1 warp=red weft=gold\n";
+	const char *top = getenv("LOOM_TOP");
+	const char *wifs[2] = {"data/herringbone-8.wif", "data/overshot-sampler.wif"};
+	loom_image *img = NULL;
+	loom_design *d = NULL;
+	uint64_t checked;
+	char path[4300];
+
+	if (!g_ok)
+		return;
+	for (int k = 0; k < 2; k++) {
+		snprintf(path, sizeof path, "%s/%s", top ? top : ".", wifs[k]);
+		CHECK_EQ_INT(loom_wif_read(path, &d, NULL), LOOM_OK);
+		if (!d)
+			continue;
+		CHECK_EQ_INT(warp_on_top(d, g_db, 48, &checked), 0);
+		printf("  %s: %u x %u, %llu crossing centres checked\n", wifs[k], d->rows,
+		       d->cols, (unsigned long long)checked);
+		loom_design_free(d);
+		d = NULL;
+	}
+	/* a generated Jacquard: a two-colour picture through a mapping file */
+	CHECK_EQ_INT(loom_image_new(40, 40, 3, &img), LOOM_OK);
+	if (!img)
+		return;
+	for (uint32_t y = 0; y < 40; y++)
+		for (uint32_t x = 0; x < 40; x++) {
+			int r = abs((int)x - 20) + abs((int)y - 20);
+			int gold = r < 10 || (r >= 15 && r < 18);
+			uint8_t *px = img->pixels + 3 * ((size_t)y * 40 + x);
+			px[0] = gold ? 0xd4 : 0xa0;
+			px[1] = gold ? 0xa0 : 0x10;
+			px[2] = gold ? 0x17 : 0x10;
+		}
+	CHECK_EQ_INT(loom_design_from_image(img, map, sizeof map - 1, "t.map", &d, NULL),
+	             LOOM_OK);
+	loom_image_free(img);
+	if (!d)
+		return;
+	CHECK_EQ_INT(warp_on_top(d, g_db, 40, &checked), 0);
+	printf("  jacquard: %u x %u, %llu crossing centres checked\n", d->rows, d->cols,
+	       (unsigned long long)checked);
+	loom_design_free(d);
+}
+
+int main(void)
+{
+	CHECK_MAIN_BEGIN("test_texture");
+	rng_state = check_seed();
+	RUN(setup);
+	RUN(bad_arguments);
+	RUN(budget_too_small);
+	RUN(orient_blend_no_cancel);
+	RUN(reference_matches_fabric);
+	RUN(brute_force_voxels);
+	RUN(odd_brick_shape);
+	RUN(region_equals_points);
+	RUN(tiny_budgets_deterministic);
+	RUN(wide_blocks_region);
+	RUN(filtered_lookups);
+	RUN(batch_lookups);
+	RUN(corrupt_brick);
+	RUN(warp_on_top_real_designs);
+	if (g_ok)
+		ref_free(&g_ref);
+	loom_fabric_free(g_fab);
+	loom_design_free(g_design);
+	loom_db_close(g_db);
+	CHECK_MAIN_END();
+}
