@@ -19,5 +19,6 @@
 #include "loom/fabric.h"
 #include "loom/texture.h"
 #include "loom/volio.h"
+#include "loom/scan.h"
 
 #endif /* LOOM_H */
