@@ -20,5 +20,6 @@
 #include "loom/texture.h"
 #include "loom/volio.h"
 #include "loom/scan.h"
+#include "loom/render.h"
 
 #endif /* LOOM_H */

@@ -1,0 +1,371 @@
+/*
+ * loom/render.h - rendering the cloth volume (paper section 7): the
+ * microflake phase function (Jakob et al. 2010, fibre distribution of Zhao
+ * et al. 2011), a volume path tracer over an abstract voxel source, shell
+ * mapping of the flat volume onto a mesh (Porumbescu et al. 2005), and the
+ * Wavefront OBJ meshes it maps onto.  Include <loom.h>, not this file.
+ * docs/rendering.md explains the model, the estimators and the figures.
+ *
+ * Conventions.
+ *  - Voxel space: x across the ends, y along the warps, z up through the
+ *    cloth (DESIGN.md).  Voxel (i, j, k) covers [i, i+1) x [j, j+1) x
+ *    [k, k+1); coordinates are continuous doubles.
+ *  - Directions are unit double[3] unless said otherwise.  A fibre
+ *    orientation is a line direction: v and -v mean the same.
+ *  - Images are float RGB, row 0 at the top, linear radiance.
+ *  - Nothing here keeps global mutable state; the microflake tables are
+ *    built once (pthread_once) and only read afterwards.
+ */
+#ifndef LOOM_RENDER_H
+#define LOOM_RENDER_H
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ======================================================================
+ * Microflake phase function (fibre distribution)
+ * ======================================================================
+ *
+ * Flake normals m are distributed around the plane normal to the fibre
+ * direction w:   D(m) = C(s) exp(-(m.w)^2 / (2 s^2)),  integral over the
+ * sphere = 1.  s ("sigma", loom_yarn_type.alignment) is the roughness:
+ * small s = flakes tightly normal to the fibre = glossy, hair-like fibres.
+ *
+ * Projected area  sigma(omega) = integral |omega.m| D(m) dm;  the code uses
+ * A(omega) = 2 sigma(omega), which is 1 for an isotropic medium, so that
+ * extinction is  mu_t(omega) = density * density_scale * A(omega).
+ * A depends only on |omega.w| and s; it is smallest along the fibre and
+ * largest across it (4/pi as s -> 0).
+ *
+ * Phase function of specular flakes (both directions point away from the
+ * scattering point; wi towards where the path came from, wo the new one):
+ *     f(wi -> wo) = D(h) / (2 sigma(wi)),   h = (wi + wo) / |wi + wo|
+ * (each flake side reflects D(h) / (4 sigma); flakes are two-sided, D is
+ * even), and the integral over wo is 1.
+ */
+#define LOOM_MF_SIGMA_MIN 0.005 /* s below this is clamped */
+#define LOOM_MF_SIGMA_MAX 1.0   /* s above this is clamped */
+
+/* D(m) for cos_theta = m.w; exact (closed-form normalisation).  s is
+   clamped to [LOOM_MF_SIGMA_MIN, LOOM_MF_SIGMA_MAX].  Thread-safe. */
+LOOM_API double loom_microflake_D(double s, double cos_theta);
+
+/* A(omega) = 2 sigma(omega) for cos_w = omega.w (sign ignored), from the
+   tables (bilinear in log s and the angle; relative error below 1e-3).
+   Thread-safe. */
+LOOM_API double loom_microflake_area(double s, double cos_w);
+
+/* The same by direct quadrature (slow; for tests and tables). */
+LOOM_API double loom_microflake_area_exact(double s, double cos_w);
+
+/* Largest A over every s and direction (the majorant factor, about 4/pi). */
+LOOM_API double loom_microflake_area_max(void);
+
+/* Phase function value f(wi -> wo) (per steradian) for fibre direction w
+   (need not be unit; a zero w means isotropic: 1/(4 pi)).  Thread-safe. */
+LOOM_API double loom_microflake_eval(double s, const double w[3],
+                                     const double wi[3], const double wo[3]);
+
+/*
+ * Sample wo with density f(wi -> wo): a flake normal is drawn with density
+ * proportional to |wi.m| D(m) by rejection from a proposal that bounds it
+ * (mixture of |m.w| D and |cos phi| D, both sampled exactly), then wi is
+ * mirrored about it.  Unbiased; expected proposals per sample <= about 1.5.
+ * rng is a 64-bit state advanced by splitmix64 (any value to start).
+ * The sample's weight f/pdf is exactly 1.  Thread-safe.
+ */
+LOOM_API void loom_microflake_sample(double s, const double w[3],
+                                     const double wi[3], uint64_t *rng,
+                                     double wo[3]);
+
+/* Uniform double in [0, 1) from the splitmix64 stream *rng. */
+LOOM_API double loom_rng_uniform(uint64_t *rng);
+
+/* ======================================================================
+ * Volume source (what the renderer looks up)
+ * ====================================================================== */
+
+/* One looked-up voxel. */
+typedef struct loom_medium_sample {
+	float density;    /* in [0, source max_density]; 0 = empty */
+	float orient[3];  /* fibre direction in voxel axes (a line); need not be
+	                     unit; all zero = no fibre (isotropic scattering) */
+	float albedo[3];  /* single-scattering albedo, linear RGB in [0, 1] */
+	float alignment;  /* microflake s of this voxel (the yarn type's
+	                     alignment); <= 0 = the render options' default */
+} loom_medium_sample;
+
+/*
+ * Lookup callback: fill *out for voxel-space point p (nearest or trilinear,
+ * the source's choice).  Called from several render threads at once: it
+ * must be thread-safe (ctx is the source's ctx, or the thread's own state
+ * when the source has a thread_init hook).  Only called for p inside the slab
+ * [0,nx) x [0,ny) x [0,nz) (any x, y when unbounded).  Return 0, or a
+ * loom_result code to abort the render with it.
+ */
+typedef int (*loom_lookup_fn)(void *ctx, const double p[3],
+                              loom_medium_sample *out);
+
+typedef struct loom_volume_source {
+	size_t size;          /* sizeof(loom_volume_source) */
+	int64_t nx, ny;       /* extent along x, y in voxels; 0 = unbounded */
+	int64_t nz;           /* thickness along z (b3) in voxels, > 0 */
+	double voxel_mm;      /* voxel edge in mm (0.005 at the paper's scale);
+	                         informational, docs and callers use it */
+	float max_density;    /* upper bound of density anywhere; 0 = 1.0.  A
+	                         lookup above it is clamped (and biased) */
+	loom_lookup_fn lookup;
+	void *ctx;            /* passed to lookup (and the thread hooks) */
+	void *(*thread_init)(void *ctx);
+	                      /* optional: called once in each render thread
+	                         before its first lookup; the pointer it returns
+	                         is what that thread's lookups get as ctx (e.g.
+	                         a per-thread decompressor or cache handle).
+	                         NULL = failure: the render stops, LOOM_ENOMEM */
+	void (*thread_done)(void *ctx, void *thread_ctx);
+	                      /* optional: called when that thread ends */
+} loom_volume_source;
+
+#define LOOM_VOLUME_SOURCE_INIT \
+	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL}
+
+/* ======================================================================
+ * Meshes (Wavefront OBJ)
+ * ====================================================================== */
+
+#define LOOM_MESH_NONE 0xFFFFFFFFu /* no texcoord / normal at a corner */
+#define LOOM_OBJ_MAX_ELEMENTS 50000000u /* largest count of v, vt, vn or
+                                           triangles accepted */
+
+/*
+ * A triangle mesh with per-corner indices (OBJ style).  Transparent plain
+ * data; free with loom_mesh_free.  tri_vt / tri_vn are NULL when no face
+ * has texture coordinates / normals; otherwise a corner without one holds
+ * LOOM_MESH_NONE.  Every index is in range (the reader checks).
+ */
+typedef struct loom_mesh {
+	uint32_t n_positions;  /* v lines */
+	uint32_t n_texcoords;  /* vt lines */
+	uint32_t n_normals;    /* vn lines */
+	uint32_t n_triangles;  /* after fan triangulation of polygons */
+	float *positions;      /* 3 * n_positions */
+	float *texcoords;      /* 2 * n_texcoords (u, v; a third vt value is
+	                          dropped) */
+	float *normals;        /* 3 * n_normals, as written (not normalised) */
+	uint32_t *tri_v;       /* 3 * n_triangles, 0-based position indices */
+	uint32_t *tri_vt;      /* 3 * n_triangles or NULL */
+	uint32_t *tri_vn;      /* 3 * n_triangles or NULL */
+} loom_mesh;
+
+/*
+ * Parse OBJ text (len bytes, need not be NUL-terminated; `name` is used in
+ * messages as "name:line: ...").  Understood: v (x y z, optional w and
+ * vertex colours ignored), vt (u [v [w]]), vn, f with v, v/vt, v//vn and
+ * v/vt/vn corners (1-based or negative = relative), polygons fan-
+ * triangulated.  Ignored: comments, o, g, s, usemtl, mtllib, l, p; other
+ * statements are ignored with one warning for the file (count and first
+ * line).  Indices must refer to elements defined earlier.  Errors
+ * (LOOM_EFORMAT):
+ * bad or non-finite numbers, too few values, index 0 or out of range, a
+ * face with < 3 corners or mixing corner forms; LOOM_ERANGE past
+ * LOOM_OBJ_MAX_ELEMENTS; LOOM_ENOMEM.  *out is NULL on failure.
+ */
+LOOM_API int loom_obj_parse(const char *text, size_t len, const char *name,
+                            loom_mesh **out, loom_diag *diag);
+/* Read and parse an OBJ file (at most 1 GiB). */
+LOOM_API int loom_obj_read(const char *path, loom_mesh **out, loom_diag *diag);
+/* Free a mesh; NULL is a no-op. */
+LOOM_API void loom_mesh_free(loom_mesh *m);
+
+/* ======================================================================
+ * Shell mapping (Porumbescu et al. 2005, as Zhao et al. 2011 use it)
+ * ======================================================================
+ *
+ * The flat volume is mapped into a thin shell over a mesh with UVs:
+ *   voxel x = (u - uv_origin[0]) * voxels_per_uv
+ *   voxel y = (v - uv_origin[1]) * voxels_per_uv
+ *   voxel z = (h - offset) / thickness * nz
+ * where h is the height along the interpolated vertex normal.  Each
+ * triangle (P_i, N_i, uv_i) becomes a prism; its point at barycentrics b
+ * and height h is  X(b, h) = sum_i b_i (P_i + h N_i).  Slices of constant
+ * h are flat triangles, so the inner (h = offset) and outer (h = offset +
+ * thickness) surfaces are triangle meshes; side walls at mesh borders are
+ * approximated by two triangles each.  world -> voxel inverts X by Newton
+ * (a few steps) in the prism found by an Embree closest-triangle query.
+ */
+typedef struct loom_shell loom_shell;
+
+#define LOOM_SHELL_COMPUTE_NORMALS 1u /* ignore file normals; use area-
+                                         weighted vertex normals */
+
+typedef struct loom_shell_params {
+	size_t size;            /* sizeof(loom_shell_params) */
+	double thickness;       /* world length of the shell along normals, > 0 */
+	double offset;          /* height of the inner surface (0: on the mesh;
+	                           -thickness/2: cloth centred on the mesh) */
+	double voxels_per_uv;   /* voxels along x (and y) per UV unit, > 0 */
+	double uv_origin[2];    /* UV that maps to voxel x = y = 0 */
+	int64_t nz;             /* voxels across the thickness (the source's nz) */
+	uint32_t flags;         /* LOOM_SHELL_* */
+} loom_shell_params;
+
+#define LOOM_SHELL_PARAMS_INIT \
+	{sizeof(loom_shell_params), 0.0, 0.0, 0.0, {0.0, 0.0}, 0, 0u}
+
+/*
+ * Build the shell of mesh m (copied; m may be freed afterwards): vertex
+ * normals, prisms, three Embree scenes (base triangles for closest-point
+ * queries, shell boundary for rays, UV triangles for voxel -> world).
+ * Triangles degenerate in space or UV are skipped (counted in a warning).
+ * Returns LOOM_OK; LOOM_EINVAL (NULL, bad params, no texture coordinates,
+ * no usable triangle) with the reason in diag; LOOM_ENOMEM; LOOM_EIO when
+ * Embree fails (its message in diag).  The shell is immutable: every
+ * query below may run from many threads at once.
+ */
+LOOM_API int loom_shell_new(const loom_mesh *m, const loom_shell_params *p,
+                            loom_shell **out, loom_diag *diag);
+/* Free a shell; NULL is a no-op. */
+LOOM_API void loom_shell_free(loom_shell *s);
+
+/*
+ * Map world point w to voxel coordinates v.  tri (may be NULL) receives the
+ * prism's triangle index (into the mesh's triangles).  Returns LOOM_OK,
+ * LOOM_ENOTFOUND when w is outside the shell (v untouched), LOOM_EUNUSABLE
+ * after an Embree error, LOOM_EINVAL for NULL.  Thread-safe.
+ */
+LOOM_API int loom_shell_world_to_voxel(const loom_shell *s, const double w[3],
+                                       double v[3], uint32_t *tri);
+
+/* The inverse: voxel coordinates (z in [0, nz]) to a world point.  The
+   triangle is found by UV point location.  LOOM_ENOTFOUND when (x, y) is
+   outside the mesh's UV domain.  Thread-safe. */
+LOOM_API int loom_shell_voxel_to_world(const loom_shell *s, const double v[3],
+                                       double w[3], uint32_t *tri);
+
+/* Axis-aligned bounds of the shell (world).  Thread-safe. */
+LOOM_API void loom_shell_bounds(const loom_shell *s, double lo[3], double hi[3]);
+
+/* World length of one voxel across the shell: thickness / nz. */
+LOOM_API double loom_shell_voxel_length(const loom_shell *s);
+
+/* Triangles used (degenerate ones skipped). */
+LOOM_API uint32_t loom_shell_triangle_count(const loom_shell *s);
+
+/* ======================================================================
+ * Volume path tracer
+ * ====================================================================== */
+
+enum loom_camera_kind {
+	LOOM_CAMERA_ORTHO = 0,   /* parallel rays along eye -> target */
+	LOOM_CAMERA_PINHOLE = 1  /* perspective from eye */
+};
+
+typedef struct loom_camera {
+	int kind;               /* enum loom_camera_kind */
+	double eye[3];          /* pinhole: centre of projection; ortho: centre
+	                           of the image plane (rays start there) */
+	double target[3];       /* point looked at */
+	double up[3];           /* up hint (not parallel to target - eye) */
+	double fov_y_deg;       /* pinhole: vertical field of view, (0, 180) */
+	double ortho_size[2];   /* ortho: width and height of the view (world) */
+} loom_camera;
+
+/*
+ * An orthographic camera looking straight down (-z) on the window
+ * [x0, x1] x [y0, y1] of the slab of src (voxel space; image right = +x,
+ * image up = +y), from above the slab.  Returns LOOM_EINVAL for an empty
+ * window or NULL.
+ */
+LOOM_API int loom_camera_top(const loom_volume_source *src, double x0,
+                             double y0, double x1, double y1, loom_camera *cam);
+
+enum loom_light_kind {
+	LOOM_LIGHT_NONE = 0,
+	LOOM_LIGHT_DISTANT = 1,  /* parallel light from direction `dir` */
+	LOOM_LIGHT_POINT = 2     /* isotropic point at `pos` */
+};
+
+typedef struct loom_light {
+	int kind;          /* enum loom_light_kind */
+	double dir[3];     /* distant: direction TOWARDS the light (any length) */
+	double pos[3];     /* point: position (world) */
+	float rgb[3];      /* distant: irradiance on a plane facing the light;
+	                      point: intensity (irradiance at distance 1) */
+} loom_light;
+
+typedef struct loom_render_options {
+	size_t size;            /* sizeof(loom_render_options) */
+	uint32_t width, height; /* pixels, 1 .. 65536 each */
+	uint32_t spp;           /* samples per pixel, >= 1 */
+	uint32_t max_depth;     /* scattering events per path, >= 1 */
+	uint32_t rr_depth;      /* Russian roulette from this many events */
+	uint64_t seed;          /* same seed => same bytes, any thread count */
+	uint32_t threads;       /* worker threads; 0 = online CPUs */
+	uint32_t tile;          /* tile side in pixels; 0 = 16 */
+	double density_scale;   /* extinction per voxel length at density 1
+	                           for A = 1 (isotropic) */
+	double alignment;       /* default microflake s (voxels whose
+	                           alignment <= 0) */
+	loom_camera camera;
+	loom_light light;
+	float env[3];           /* constant environment radiance (every
+	                           direction; also the background) */
+	const loom_shell *shell;/* NULL: the slab in voxel space is the scene;
+	                           else the shell (world = mesh space), whose
+	                           nz must equal the source's */
+	double world_per_voxel; /* shell: world length of a voxel for
+	                           extinction; 0 = loom_shell_voxel_length() */
+	void (*progress)(void *user, uint64_t tiles_done, uint64_t tiles_total);
+	                        /* optional; called from worker threads, one at
+	                           a time */
+	void *progress_user;
+} loom_render_options;
+
+#define LOOM_RENDER_OPTIONS_INIT                                              \
+	{sizeof(loom_render_options), 256, 256, 16, 64, 4, 1, 0, 16, 1.0, 0.3,    \
+	 {LOOM_CAMERA_ORTHO, {0, 0, 1}, {0, 0, 0}, {0, 1, 0}, 40.0, {1, 1}},      \
+	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}},     \
+	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL}
+
+typedef struct loom_render_stats {
+	uint64_t paths;          /* camera samples (width * height * spp) */
+	uint64_t rays;           /* rays traced: camera, scattered and shadow */
+	uint64_t lookups;        /* source lookups (tentative collisions) */
+	uint64_t scatterings;    /* real collisions */
+	uint64_t shell_queries;  /* Embree closest-point queries (shell only) */
+	double seconds;          /* wall-clock time of loom_render */
+} loom_render_stats;
+
+/*
+ * Render src into rgb (caller-allocated, width * height * 3 floats, row 0
+ * at the top).  Unidirectional volume path tracing: delta (Woodcock)
+ * tracking against the majorant max_density * density_scale * A_max, next-
+ * event estimation of the light with ratio-tracking transmittance, the
+ * environment on escape, Russian roulette after rr_depth events.  Pixels
+ * are computed in tiles by `threads` pthreads; each (pixel, sample) has its
+ * own random stream, so the bytes depend only on the inputs and the seed.
+ * Memory: O(threads), nothing proportional to the volume or image.
+ * stats may be NULL.  Returns LOOM_OK; LOOM_EINVAL (NULL, bad options or
+ * camera, source without lookup) with the reason in diag; LOOM_EMISMATCH
+ * (shell nz != source nz); LOOM_ENOMEM; a lookup's own error code (rgb is
+ * then incomplete).  Thread-safe (re-entrant) for distinct rgb buffers.
+ */
+LOOM_API int loom_render(const loom_volume_source *src,
+                         const loom_render_options *opt, float *rgb,
+                         loom_render_stats *stats, loom_diag *diag);
+
+/*
+ * Tone-map n_pixels linear RGB floats to 8-bit sRGB: value * 2^exposure,
+ * clamped to [0, 1], sRGB transfer curve, rounded.  out holds
+ * 3 * n_pixels bytes.  NaN becomes 0.  Thread-safe.
+ */
+LOOM_API void loom_render_to_srgb8(const float *rgb, size_t n_pixels,
+                                   double exposure, uint8_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* LOOM_RENDER_H */

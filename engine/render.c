@@ -1,0 +1,746 @@
+/*
+ * engine/render.c - a small unidirectional volume path tracer for the cloth
+ * volume (the paper renders with Mitsuba's volume path tracer and the
+ * microflake model, section 7).  docs/rendering.md is the user's view.
+ *
+ * Scene.  Either the slab [0,nx) x [0,ny) x [0,nz) of the voxel source in
+ * voxel units (scene space = voxel space; nx or ny 0 = unbounded), or a
+ * shell over a mesh (scene space = world space, engine/shell.c maps points
+ * to voxels).  Outside the medium there is nothing but a constant
+ * environment; one delta light (distant or point) is sampled explicitly.
+ *
+ * Medium.  At scene point x seen along unit direction d:
+ *     mu_t(x, d) = density * density_scale * A(d . w; s) / len_voxel
+ * (A = 2 sigma of loom_microflake_area, 1 for voxels without a fibre
+ * direction; len_voxel = 1 for the slab, world_per_voxel for shells) and
+ * scattering albedo * mu_t with the microflake phase function.
+ *
+ * Estimators.
+ *   Free flight: delta (Woodcock) tracking against the constant majorant
+ *     mu_bar = max_density * density_scale * A_max / len_voxel: tentative
+ *     collisions at rate mu_bar, each real with probability mu_t / mu_bar.
+ *   Light: next-event estimation at every real collision; transmittance by
+ *     ratio tracking (product of 1 - mu_t / mu_bar over tentative points),
+ *     with unbiased Russian roulette once it falls below 0.1.
+ *   Path: throughput *= albedo at a real collision; the phase function is
+ *     sampled exactly (weight 1); the environment is added when the path
+ *     escapes; Russian roulette on the throughput after rr_depth events;
+ *     at most max_depth events.
+ * Segments.  Tracking runs over the parts of the ray inside the medium:
+ * one box clip for the slab; for a shell, the pieces between consecutive
+ * boundary crossings whose end crossing is an exit (the crossing's outward
+ * normal decides), so no inside/outside state has to be carried.
+ *
+ * Parallelism and determinism.  The image is cut into tiles handed out by
+ * an atomic counter to `threads` pthreads.  Sample j of pixel i draws from
+ * its own splitmix64 stream seeded by hash(seed, i, j) and pixels are
+ * averaged in sample order, so the bytes do not depend on the thread count
+ * or the tile order.  Worker threads set flush-to-zero and denormals-are-
+ * zero (Embree's advice; also keeps delta tracking fast in thin media).
+ */
+#include "render_internal.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+#endif
+
+#define MAX_THREADS 256
+#define MAX_TENTATIVE (1u << 22) /* tentative collisions per path, a guard
+                                    against endless grazing rays */
+
+typedef struct rctx {
+	const loom_volume_source *src;
+	const loom_render_options *o;
+	const loom_shell *shell;
+	double dmax;             /* density bound */
+	double len_voxel;        /* scene length of one voxel */
+	double mu_bar;           /* majorant per scene length */
+	double kscale;           /* density -> mu_t factor per scene length / A */
+	double bnd[3];           /* slab extent (INFINITY = unbounded) */
+	/* camera */
+	double eye[3], fwd[3], right[3], up[3], tan_x, tan_y;
+	/* light */
+	double ldir[3];
+	/* work */
+	uint32_t tile, tiles_x, tiles_y;
+	uint64_t n_tiles, tiles_done;
+	atomic_uint_fast64_t next_tile;
+	atomic_int error;
+	pthread_mutex_t lock;
+	float *rgb;
+} rctx;
+
+typedef struct tstate {
+	_Alignas(64) rctx *c;     /* own cache lines: no false sharing */
+	void *lctx;               /* ctx for lookups made by this thread */
+	uint64_t rng;
+	uint32_t hint;            /* shell prism of the last lookup */
+	uint64_t tentative;       /* per path, for the guard */
+	loom_render_stats st;
+} tstate;
+
+typedef struct medium {
+	double mu;                /* extinction along the queried direction */
+	double albedo[3];
+	double w[3];              /* unit fibre direction (scene); zero = none */
+	double s;                 /* microflake roughness */
+} medium;
+
+/* ---- medium lookups ---------------------------------------------------- */
+
+static double clamp_in(double v, double n)
+{
+	if (v < 0)
+		return 0;
+	if (v >= n)
+		return nextafter(n, 0);
+	return v;
+}
+
+/* Evaluate the medium at scene point x for direction d.  Returns 0, or the
+   lookup's error code. */
+static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
+{
+	rctx *c = t->c;
+	loom_medium_sample ms;
+	double v[3], jac[9], w[3], dens;
+	int rc, have_jac = 0;
+
+	m->mu = 0;
+	if (c->shell) {
+		if (!loom__shell_map(c->shell, x, &t->hint, v, jac, &t->st.shell_queries))
+			return 0;
+		have_jac = 1;
+		for (int j = 0; j < 2; j++) /* outside a bounded source: empty */
+			if (!isinf(c->bnd[j]) && (v[j] < 0 || v[j] >= c->bnd[j]))
+				return 0;
+		v[2] = clamp_in(v[2], c->bnd[2]);
+	} else {
+		v[0] = isinf(c->bnd[0]) ? x[0] : clamp_in(x[0], c->bnd[0]);
+		v[1] = isinf(c->bnd[1]) ? x[1] : clamp_in(x[1], c->bnd[1]);
+		v[2] = clamp_in(x[2], c->bnd[2]);
+	}
+	memset(&ms, 0, sizeof ms);
+	t->st.lookups++;
+	rc = c->src->lookup(t->lctx, v, &ms);
+	if (rc)
+		return rc;
+	dens = ms.density;
+	if (!(dens > 0))
+		return 0;
+	if (dens > c->dmax)
+		dens = c->dmax;
+	for (int j = 0; j < 3; j++) {
+		double a = ms.albedo[j];
+		m->albedo[j] = a > 0 ? (a < 1 ? a : 1) : 0;
+	}
+	m->s = ms.alignment > 0 ? ms.alignment : c->o->alignment;
+	if (have_jac) {
+		for (int j = 0; j < 3; j++)
+			w[j] = jac[3 * j] * ms.orient[0] + jac[3 * j + 1] * ms.orient[1] +
+			       jac[3 * j + 2] * ms.orient[2];
+	} else {
+		w[0] = ms.orient[0];
+		w[1] = ms.orient[1];
+		w[2] = ms.orient[2];
+	}
+	if (isfinite(w[0] + w[1] + w[2]) && loom__normalize3(w) > 1e-12) {
+		memcpy(m->w, w, sizeof w);
+		m->mu = dens * c->kscale * loom_microflake_area(m->s, loom__dot3(d, w));
+	} else {
+		memset(m->w, 0, sizeof m->w);
+		m->mu = dens * c->kscale;
+	}
+	return 0;
+}
+
+/* ---- segments of a ray inside the medium ------------------------------- */
+
+/* Slab: clip (o, d) to the box; returns 1 with [*a, *b] within [0, tmax]. */
+static int slab_clip(const rctx *c, const double o[3], const double d[3],
+                     double tmax, double *a, double *b)
+{
+	double t0 = 0, t1 = tmax;
+	for (int j = 0; j < 3; j++) {
+		double lo, hi;
+		if (isinf(c->bnd[j]))
+			continue;
+		if (d[j] == 0) {
+			if (o[j] < 0 || o[j] >= c->bnd[j])
+				return 0;
+			continue;
+		}
+		lo = (0 - o[j]) / d[j];
+		hi = (c->bnd[j] - o[j]) / d[j];
+		if (lo > hi) {
+			double tmp = lo;
+			lo = hi;
+			hi = tmp;
+		}
+		if (lo > t0)
+			t0 = lo;
+		if (hi < t1)
+			t1 = hi;
+	}
+	*a = t0;
+	*b = t1;
+	return t0 < t1;
+}
+
+/*
+ * Next inside segment [*a, *b] of the ray beyond *cur (and before tmax).
+ * Returns 1 and advances *cur, or 0 when there is none.
+ */
+static int next_segment(tstate *t, const double o[3], const double d[3],
+                        double tmax, double *cur, double *a, double *b)
+{
+	rctx *c = t->c;
+
+	if (!c->shell) {
+		if (*cur > 0 || !slab_clip(c, o, d, tmax, a, b)) {
+			*cur = tmax;
+			return 0;
+		}
+		*cur = tmax;
+		return 1;
+	}
+	for (;;) {
+		double th;
+		int exiting;
+		if (!(*cur < tmax))
+			return 0;
+		if (!loom__shell_hit(c->shell, o, d, *cur > 0 ? *cur + loom__shell_eps(c->shell) : 0.0,
+		                     INFINITY, &th, &exiting)) {
+			*cur = tmax;
+			return 0;
+		}
+		if (exiting) {
+			*a = *cur;
+			*b = th < tmax ? th : tmax;
+			*cur = th;
+			if (*a < *b)
+				return 1;
+		} else {
+			*cur = th;
+		}
+	}
+}
+
+/* ---- tracking ---------------------------------------------------------- */
+
+/*
+ * Delta tracking from o along d up to tmax.  Returns 1 at a real collision
+ * (position in pos, medium in *m), 0 when the ray leaves, or a negative
+ * lookup error (-code).
+ */
+static int track(tstate *t, const double o[3], const double d[3], double tmax,
+                 double pos[3], medium *m)
+{
+	rctx *c = t->c;
+	double cur = 0, a, b;
+
+	if (!(c->mu_bar > 0))
+		return 0;
+	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
+		double tt = a;
+		for (;;) {
+			int rc;
+			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
+			if (tt >= b)
+				break;
+			if (++t->tentative > MAX_TENTATIVE)
+				return 0;
+			for (int j = 0; j < 3; j++)
+				pos[j] = o[j] + tt * d[j];
+			if ((rc = medium_at(t, pos, d, m)))
+				return -rc;
+			if (loom__rand01(&t->rng) * c->mu_bar < m->mu)
+				return 1;
+		}
+	}
+	return 0;
+}
+
+/* Ratio-tracking transmittance along (o, d) over [0, tmax]; returns 0 or a
+   negative lookup error. */
+static int transmittance(tstate *t, const double o[3], const double d[3],
+                         double tmax, double *T)
+{
+	rctx *c = t->c;
+	double cur = 0, a, b, tr = 1.0, p[3];
+	medium m;
+
+	*T = 1.0;
+	if (!(c->mu_bar > 0))
+		return 0;
+	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
+		double tt = a;
+		for (;;) {
+			int rc;
+			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
+			if (tt >= b)
+				break;
+			if (++t->tentative > MAX_TENTATIVE) {
+				*T = 0;
+				return 0;
+			}
+			for (int j = 0; j < 3; j++)
+				p[j] = o[j] + tt * d[j];
+			if ((rc = medium_at(t, p, d, &m)))
+				return -rc;
+			tr *= 1.0 - m.mu / c->mu_bar;
+			if (tr < 0.1) { /* Russian roulette, unbiased */
+				if (loom__rand01(&t->rng) < 0.5) {
+					*T = 0;
+					return 0;
+				}
+				tr *= 2.0;
+			}
+		}
+	}
+	*T = tr;
+	return 0;
+}
+
+/* ---- one path ---------------------------------------------------------- */
+
+static int camera_ray(const rctx *c, double sx, double sy, double o[3], double d[3])
+{
+	const loom_camera *cam = &c->o->camera;
+	if (cam->kind == LOOM_CAMERA_ORTHO) {
+		double ox = (sx - 0.5) * cam->ortho_size[0];
+		double oy = (0.5 - sy) * cam->ortho_size[1];
+		for (int j = 0; j < 3; j++) {
+			o[j] = c->eye[j] + ox * c->right[j] + oy * c->up[j];
+			d[j] = c->fwd[j];
+		}
+	} else {
+		for (int j = 0; j < 3; j++) {
+			o[j] = c->eye[j];
+			d[j] = c->fwd[j] + (2 * sx - 1) * c->tan_x * c->right[j] +
+			       (1 - 2 * sy) * c->tan_y * c->up[j];
+		}
+		loom__normalize3(d);
+	}
+	return 0;
+}
+
+/* Radiance of one camera sample; returns 0 or a lookup error code. */
+static int trace_path(tstate *t, double sx, double sy, double L[3])
+{
+	rctx *c = t->c;
+	const loom_render_options *o = c->o;
+	double org[3], dir[3], pos[3], beta[3] = {1, 1, 1};
+	uint32_t depth = 0;
+	medium m;
+
+	L[0] = L[1] = L[2] = 0;
+	t->tentative = 0;
+	t->hint = LOOM_MESH_NONE;
+	camera_ray(c, sx, sy, org, dir);
+	t->st.paths++;
+	for (;;) {
+		int r;
+		double wi[3], wo[3];
+
+		t->st.rays++;
+		r = track(t, org, dir, INFINITY, pos, &m);
+		if (r < 0)
+			return -r;
+		if (r == 0) {
+			for (int j = 0; j < 3; j++)
+				L[j] += beta[j] * o->env[j];
+			return 0;
+		}
+		depth++;
+		t->st.scatterings++;
+		for (int j = 0; j < 3; j++) {
+			beta[j] *= m.albedo[j];
+			wi[j] = -dir[j];
+		}
+		if (beta[0] == 0 && beta[1] == 0 && beta[2] == 0)
+			return 0;
+		/* Next-event estimation of the light. */
+		if (o->light.kind != LOOM_LIGHT_NONE) {
+			double wl[3], dist = INFINITY, scale = 1.0, T, f;
+			int rc;
+			if (o->light.kind == LOOM_LIGHT_DISTANT) {
+				memcpy(wl, c->ldir, sizeof wl);
+			} else {
+				for (int j = 0; j < 3; j++)
+					wl[j] = o->light.pos[j] - pos[j];
+				dist = loom__normalize3(wl);
+				scale = dist > 0 ? 1.0 / (dist * dist) : 0.0;
+			}
+			f = loom_microflake_eval(m.s, m.w, wi, wl);
+			if (scale > 0 && f > 0) {
+				t->st.rays++;
+				if ((rc = transmittance(t, pos, wl, dist, &T)))
+					return -rc;
+				for (int j = 0; j < 3; j++)
+					L[j] += beta[j] * o->light.rgb[j] * scale * T * f;
+			}
+		}
+		if (depth >= o->max_depth)
+			return 0;
+		if (depth >= o->rr_depth) {
+			double q = fmax(beta[0], fmax(beta[1], beta[2]));
+			if (q < 1.0) {
+				if (loom__rand01(&t->rng) >= q)
+					return 0;
+				for (int j = 0; j < 3; j++)
+					beta[j] /= q;
+			}
+		}
+		loom_microflake_sample(m.s, m.w, wi, &t->rng, wo);
+		memcpy(org, pos, sizeof org);
+		memcpy(dir, wo, sizeof dir);
+	}
+}
+
+/* ---- workers ----------------------------------------------------------- */
+
+static uint64_t hash64(uint64_t x)
+{
+	x ^= x >> 33;
+	x *= 0xff51afd7ed558ccdull;
+	x ^= x >> 33;
+	x *= 0xc4ceb9fe1a85ec53ull;
+	x ^= x >> 33;
+	return x;
+}
+
+static int render_tile(tstate *t, uint64_t tile)
+{
+	rctx *c = t->c;
+	const loom_render_options *o = c->o;
+	uint32_t tx = (uint32_t)(tile % c->tiles_x), ty = (uint32_t)(tile / c->tiles_x);
+	uint32_t x0 = tx * c->tile, y0 = ty * c->tile;
+	uint32_t x1 = x0 + c->tile < o->width ? x0 + c->tile : o->width;
+	uint32_t y1 = y0 + c->tile < o->height ? y0 + c->tile : o->height;
+
+	for (uint32_t y = y0; y < y1; y++) {
+		if (atomic_load(&c->error))
+			return 0;
+		for (uint32_t x = x0; x < x1; x++) {
+			uint64_t pix = (uint64_t)y * o->width + x;
+			double acc[3] = {0, 0, 0};
+			for (uint32_t k = 0; k < o->spp; k++) {
+				double L[3], jx, jy;
+				int rc;
+				t->rng = hash64(o->seed ^ hash64(pix * 0x9e3779b97f4a7c15ull + k + 1));
+				jx = loom__rand01(&t->rng);
+				jy = loom__rand01(&t->rng);
+				rc = trace_path(t, (x + jx) / o->width, (y + jy) / o->height, L);
+				if (rc) {
+					int expected = 0;
+					atomic_compare_exchange_strong(&c->error, &expected, rc);
+					return rc;
+				}
+				for (int j = 0; j < 3; j++)
+					acc[j] += isfinite(L[j]) ? L[j] : 0.0;
+			}
+			for (int j = 0; j < 3; j++)
+				c->rgb[3 * pix + j] = (float)(acc[j] / o->spp);
+		}
+	}
+	return 0;
+}
+
+static void *worker(void *arg)
+{
+	tstate *t = arg;
+	rctx *c = t->c;
+
+#if defined(__x86_64__) || defined(__i386__)
+	_mm_setcsr(_mm_getcsr() | 0x8040); /* FTZ | DAZ */
+#endif
+	t->lctx = c->src->ctx;
+	if (c->src->thread_init) {
+		t->lctx = c->src->thread_init(c->src->ctx);
+		if (!t->lctx) {
+			int expected = 0;
+			atomic_compare_exchange_strong(&c->error, &expected, LOOM_ENOMEM);
+			return NULL;
+		}
+	}
+	for (;;) {
+		uint64_t tile = atomic_fetch_add(&c->next_tile, 1);
+		if (tile >= c->n_tiles || atomic_load(&c->error))
+			break;
+		if (render_tile(t, tile))
+			break;
+		if (c->o->progress) {
+			pthread_mutex_lock(&c->lock);
+			c->tiles_done++;
+			c->o->progress(c->o->progress_user, c->tiles_done, c->n_tiles);
+			pthread_mutex_unlock(&c->lock);
+		}
+	}
+	if (c->src->thread_init && c->src->thread_done)
+		c->src->thread_done(c->src->ctx, t->lctx);
+	return NULL;
+}
+
+/* ---- setup ------------------------------------------------------------- */
+
+static int finite3(const double v[3])
+{
+	return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]);
+}
+
+static int setup_camera(rctx *c, loom_diag *diag)
+{
+	const loom_camera *cam = &c->o->camera;
+	double f[3], r[3], u[3];
+
+	if (cam->kind != LOOM_CAMERA_ORTHO && cam->kind != LOOM_CAMERA_PINHOLE)
+		return loom__fail(diag, LOOM_EINVAL, "render: unknown camera kind %d",
+		                  cam->kind);
+	if (!finite3(cam->eye) || !finite3(cam->target) || !finite3(cam->up))
+		return loom__fail(diag, LOOM_EINVAL, "render: camera vectors must be finite");
+	for (int j = 0; j < 3; j++)
+		f[j] = cam->target[j] - cam->eye[j];
+	if (loom__normalize3(f) <= 0)
+		return loom__fail(diag, LOOM_EINVAL, "render: camera target equals eye");
+	loom__cross3(f, cam->up, r);
+	if (loom__normalize3(r) < 1e-9)
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: camera up is zero or parallel to the view direction");
+	loom__cross3(r, f, u);
+	memcpy(c->eye, cam->eye, sizeof c->eye);
+	memcpy(c->fwd, f, sizeof f);
+	memcpy(c->right, r, sizeof r);
+	memcpy(c->up, u, sizeof u);
+	if (cam->kind == LOOM_CAMERA_PINHOLE) {
+		if (!(cam->fov_y_deg > 0 && cam->fov_y_deg < 180))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: fov_y_deg must be in (0, 180), got %g",
+			                  cam->fov_y_deg);
+		c->tan_y = tan(cam->fov_y_deg * M_PI / 360.0);
+		c->tan_x = c->tan_y * c->o->width / c->o->height;
+	} else if (!(cam->ortho_size[0] > 0 && cam->ortho_size[1] > 0 &&
+	             isfinite(cam->ortho_size[0]) && isfinite(cam->ortho_size[1]))) {
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: ortho_size must be > 0, got %g x %g",
+		                  cam->ortho_size[0], cam->ortho_size[1]);
+	}
+	return LOOM_OK;
+}
+
+static int check_options(const loom_volume_source *src, const loom_render_options *o,
+                         loom_diag *diag)
+{
+	if (src->size < sizeof(loom_volume_source))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: source size %zu, expected %zu (use "
+		                  "LOOM_VOLUME_SOURCE_INIT)", src->size,
+		                  sizeof(loom_volume_source));
+	if (o->size < sizeof(loom_render_options))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: options size %zu, expected %zu (use "
+		                  "LOOM_RENDER_OPTIONS_INIT)", o->size,
+		                  sizeof(loom_render_options));
+	if (!src->lookup)
+		return loom__fail(diag, LOOM_EINVAL, "render: the source has no lookup");
+	if (src->nz <= 0 || src->nx < 0 || src->ny < 0)
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: source extent %lld x %lld x %lld: nz must be "
+		                  "> 0, nx and ny >= 0 (0 = unbounded)",
+		                  (long long)src->nx, (long long)src->ny, (long long)src->nz);
+	if (!(src->max_density >= 0) || !isfinite(src->max_density))
+		return loom__fail(diag, LOOM_EINVAL, "render: max_density must be >= 0");
+	if (o->width < 1 || o->height < 1 || o->width > 65536 || o->height > 65536)
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: image %u x %u, each side must be 1..65536",
+		                  o->width, o->height);
+	if (o->spp < 1 || o->max_depth < 1)
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: spp (%u) and max_depth (%u) must be >= 1",
+		                  o->spp, o->max_depth);
+	if (!(o->density_scale >= 0) || !isfinite(o->density_scale))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: density_scale must be finite and >= 0, got %g",
+		                  o->density_scale);
+	if (!(o->alignment > 0) || !isfinite(o->alignment))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: alignment must be > 0, got %g", o->alignment);
+	for (int j = 0; j < 3; j++)
+		if (!(o->env[j] >= 0) || !isfinite(o->env[j]) ||
+		    !(o->light.rgb[j] >= 0) || !isfinite(o->light.rgb[j]))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: env and light colours must be finite and >= 0");
+	if (o->light.kind != LOOM_LIGHT_NONE && o->light.kind != LOOM_LIGHT_DISTANT &&
+	    o->light.kind != LOOM_LIGHT_POINT)
+		return loom__fail(diag, LOOM_EINVAL, "render: unknown light kind %d",
+		                  o->light.kind);
+	if (o->light.kind == LOOM_LIGHT_POINT && !finite3(o->light.pos))
+		return loom__fail(diag, LOOM_EINVAL, "render: point light position must be finite");
+	if (!(o->world_per_voxel >= 0) || !isfinite(o->world_per_voxel))
+		return loom__fail(diag, LOOM_EINVAL, "render: world_per_voxel must be >= 0");
+	return LOOM_OK;
+}
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+LOOM_API int loom_render(const loom_volume_source *src,
+                         const loom_render_options *o, float *rgb,
+                         loom_render_stats *stats, loom_diag *diag)
+{
+	rctx c;
+	tstate *ts;
+	pthread_t *th;
+	uint32_t nthreads, started = 0;
+	double t0 = now_s();
+	int rc;
+
+	if (stats)
+		memset(stats, 0, sizeof *stats);
+	if (!src || !o || !rgb)
+		return loom__fail(diag, LOOM_EINVAL, "loom_render: NULL argument");
+	if ((rc = check_options(src, o, diag)))
+		return rc;
+	memset(&c, 0, sizeof c);
+	c.src = src;
+	c.o = o;
+	c.shell = o->shell;
+	c.rgb = rgb;
+	c.len_voxel = 1.0;
+	if ((rc = setup_camera(&c, diag)))
+		return rc;
+	if (c.shell) {
+		if (loom__shell_failed(c.shell))
+			return loom__fail(diag, LOOM_EUNUSABLE, "render: the shell hit an Embree error");
+		if (loom__shell_nz(c.shell) != src->nz)
+			return loom__fail(diag, LOOM_EMISMATCH,
+			                  "render: the shell was built for nz = %lld, the "
+			                  "source has nz = %lld",
+			                  (long long)loom__shell_nz(c.shell), (long long)src->nz);
+		c.len_voxel = o->world_per_voxel > 0 ? o->world_per_voxel
+		                                     : loom_shell_voxel_length(c.shell);
+	}
+	c.bnd[0] = src->nx > 0 ? (double)src->nx : INFINITY;
+	c.bnd[1] = src->ny > 0 ? (double)src->ny : INFINITY;
+	c.bnd[2] = (double)src->nz;
+	c.dmax = src->max_density > 0 ? src->max_density : 1.0;
+	c.kscale = o->density_scale / c.len_voxel;
+	c.mu_bar = c.dmax * c.kscale * loom_microflake_area_max();
+	if (o->light.kind == LOOM_LIGHT_DISTANT) {
+		memcpy(c.ldir, o->light.dir, sizeof c.ldir);
+		if (!finite3(c.ldir) || loom__normalize3(c.ldir) <= 0)
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: distant light direction must be finite and non-zero");
+	}
+	c.tile = o->tile ? o->tile : 16;
+	c.tiles_x = (o->width + c.tile - 1) / c.tile;
+	c.tiles_y = (o->height + c.tile - 1) / c.tile;
+	c.n_tiles = (uint64_t)c.tiles_x * c.tiles_y;
+	atomic_init(&c.next_tile, 0);
+	atomic_init(&c.error, 0);
+
+	nthreads = o->threads;
+	if (nthreads == 0) {
+		long n = sysconf(_SC_NPROCESSORS_ONLN);
+		nthreads = n > 0 ? (uint32_t)n : 1;
+	}
+	if (nthreads > MAX_THREADS)
+		nthreads = MAX_THREADS;
+	if (nthreads > c.n_tiles)
+		nthreads = (uint32_t)c.n_tiles;
+	ts = aligned_alloc(64, nthreads * sizeof *ts);
+	th = calloc(nthreads, sizeof *th);
+	if (ts)
+		memset(ts, 0, nthreads * sizeof *ts);
+	if (!ts || !th) {
+		free(ts);
+		free(th);
+		return loom__fail(diag, LOOM_ENOMEM, "render: out of memory");
+	}
+	pthread_mutex_init(&c.lock, NULL);
+	(void)loom_microflake_area_max(); /* build the tables before threads */
+	for (uint32_t i = 0; i < nthreads; i++) {
+		ts[i].c = &c;
+		if (pthread_create(&th[i], NULL, worker, &ts[i]) != 0)
+			break;
+		started++;
+	}
+	for (uint32_t i = 0; i < started; i++)
+		pthread_join(th[i], NULL);
+	pthread_mutex_destroy(&c.lock);
+	if (started == 0) {
+		free(ts);
+		free(th);
+		return loom__fail(diag, LOOM_ENOMEM, "render: cannot start a thread");
+	}
+	if (stats) {
+		for (uint32_t i = 0; i < started; i++) {
+			stats->paths += ts[i].st.paths;
+			stats->rays += ts[i].st.rays;
+			stats->lookups += ts[i].st.lookups;
+			stats->scatterings += ts[i].st.scatterings;
+			stats->shell_queries += ts[i].st.shell_queries;
+		}
+		stats->seconds = now_s() - t0;
+	}
+	free(ts);
+	free(th);
+	rc = atomic_load(&c.error);
+	if (rc) {
+		int code = rc > 0 && rc < LOOM_RESULT_COUNT_ ? rc : LOOM_EIO;
+		return loom__fail(diag, code, "render: the source's lookup (or "
+		                  "thread_init) failed with code %d (%s)", rc,
+		                  loom_strerror(rc));
+	}
+	if (c.shell && loom__shell_failed(c.shell))
+		return loom__fail(diag, LOOM_EUNUSABLE, "render: Embree reported an error");
+	return LOOM_OK;
+}
+
+LOOM_API int loom_camera_top(const loom_volume_source *src, double x0,
+                             double y0, double x1, double y1, loom_camera *cam)
+{
+	if (!src || !cam || !(x1 > x0) || !(y1 > y0) || !isfinite(x0 + x1 + y0 + y1))
+		return LOOM_EINVAL;
+	memset(cam, 0, sizeof *cam);
+	cam->kind = LOOM_CAMERA_ORTHO;
+	cam->eye[0] = cam->target[0] = 0.5 * (x0 + x1);
+	cam->eye[1] = cam->target[1] = 0.5 * (y0 + y1);
+	cam->eye[2] = (double)src->nz + 1.0;
+	cam->target[2] = 0.0;
+	cam->up[1] = 1.0;
+	cam->fov_y_deg = 40.0;
+	cam->ortho_size[0] = x1 - x0;
+	cam->ortho_size[1] = y1 - y0;
+	return LOOM_OK;
+}
+
+static uint8_t srgb8(double v)
+{
+	if (!(v > 0))
+		return 0;
+	if (v >= 1)
+		return 255;
+	v = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+	return (uint8_t)(v * 255.0 + 0.5);
+}
+
+LOOM_API void loom_render_to_srgb8(const float *rgb, size_t n_pixels,
+                                   double exposure, uint8_t *out)
+{
+	double k = pow(2.0, exposure);
+	if (!rgb || !out)
+		return;
+	for (size_t i = 0; i < 3 * n_pixels; i++)
+		out[i] = srgb8(rgb[i] * k);
+}

@@ -1,0 +1,86 @@
+/*
+ * engine/render_internal.h - what render.c, shell.c and microflake.c share
+ * inside libloom (never installed).  loom/render.h is the public side.
+ */
+#ifndef LOOM_RENDER_INTERNAL_H
+#define LOOM_RENDER_INTERNAL_H
+
+#include "internal.h"
+
+#include <math.h>
+
+/* splitmix64 step: advance *state and return the next 64 random bits. */
+static inline uint64_t loom__splitmix64(uint64_t *state)
+{
+	uint64_t z = (*state += 0x9e3779b97f4a7c15ull);
+	z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+	z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+	return z ^ (z >> 31);
+}
+
+/* Uniform in [0, 1) with 53 random bits. */
+static inline double loom__rand01(uint64_t *state)
+{
+	return (double)(loom__splitmix64(state) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* ---- small vector helpers (double[3]) ---------------------------------- */
+static inline double loom__dot3(const double a[3], const double b[3])
+{
+	return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static inline void loom__cross3(const double a[3], const double b[3], double o[3])
+{
+	double x = a[1] * b[2] - a[2] * b[1];
+	double y = a[2] * b[0] - a[0] * b[2];
+	double z = a[0] * b[1] - a[1] * b[0];
+	o[0] = x;
+	o[1] = y;
+	o[2] = z;
+}
+
+/* Normalise in place; returns the old length (0: v untouched). */
+static inline double loom__normalize3(double v[3])
+{
+	double l = sqrt(loom__dot3(v, v));
+	if (l > 0) {
+		v[0] /= l;
+		v[1] /= l;
+		v[2] /= l;
+	}
+	return l;
+}
+
+/*
+ * Shell internals used by the tracer.
+ *
+ * loom__shell_map: world point -> voxel point, trying the prism *hint first
+ * (updated to the prism found; start with LOOM_MESH_NONE).  When jac is not
+ * NULL it receives d(world)/d(voxel) as a row-major 3x3 matrix (columns:
+ * world vector of one voxel step along x, y, z), used to carry fibre
+ * directions into world space.  *n_queries is incremented per Embree
+ * closest-point query.  Returns 1 when inside the shell, else 0.
+ */
+int loom__shell_map(const loom_shell *s, const double w[3], uint32_t *hint,
+                    double v[3], double jac[9], uint64_t *n_queries);
+
+/*
+ * First crossing of the ray o + t d (d unit) with the shell boundary for
+ * t in (tnear, tfar).  Returns 1 and sets *t and *exiting (1 when the ray
+ * leaves the shell there, i.e. the segment before the hit is inside), or 0
+ * when nothing is hit.
+ */
+int loom__shell_hit(const loom_shell *s, const double o[3], const double d[3],
+                    double tnear, double tfar, double *t, int *exiting);
+
+/* World-length epsilon for restarting rays at shell crossings. */
+double loom__shell_eps(const loom_shell *s);
+
+/* The shell's nz (voxels across the thickness). */
+int64_t loom__shell_nz(const loom_shell *s);
+
+/* Nonzero after Embree reported an error on the shell's device. */
+int loom__shell_failed(const loom_shell *s);
+
+#endif /* LOOM_RENDER_INTERNAL_H */
