@@ -71,7 +71,7 @@ static loom_design *jacquard(uint32_t rows, uint32_t cols)
 }
 
 /* Stored bytes of the design-sized sections (WEAV WARP WEFT BASE) and of
-   the rest, from the file's section headers (docs/fabric.md). */
+   the rest, from the file's section headers (docs/formats.md). */
 static void split_sizes(const char *path, uint64_t *per_design, uint64_t *fixed,
                         uint64_t sec[8])
 {

@@ -1,19 +1,24 @@
 /*
  * bench/bench_scan.c - exemplar creation from scans (paper section 6):
- * wall time of every pipeline step, orientation estimation included, on
- * synthetic scans of growing size, 2 threads; peak resident memory; and
- * whether the result is right (weave, rotation, crop against the truth).
- * Figures, never pass/fail.
+ * wall and CPU time of every pipeline step and of the whole pipeline, with
+ * the orientation estimated (structure tensor) and given (the sheet's true
+ * tangents), 2 threads; peak resident memory (getrusage ru_maxrss of a
+ * child process per run) against the input size; and whether the result is
+ * right (weave, rotation, crop against the truth).  Figures, never
+ * pass/fail.
  *
- *   build/bench/bench_scan [--quick] [--max N] [--sweep]
+ *   build/bench/bench_scan [--quick] [--max N] [--size N] [--estimated-only]
+ *                          [--sweep]
  *
  * Sizes: N x N x 0.3 N for N = 250, 500, 1000 (the paper's scans are
- * 1000 x 1000 x 300).  --quick: N = 250 only; --max N: largest N.  The
- * 1000 run peaks at about 5.5 GB (density 1.2 GB, estimated orientation
- * 3.4 GB reused for the output, the output's density and labels 1 GB); it
- * is skipped when /proc/meminfo reports less than 9 GB available.  The synthetic sheet has paper proportions: warp
- * spacing 0.115 N, weft spacing 0.07 N, turned by 3 degrees, blur 0.8, noise
- * 0.08 (tests/unit/test_scan_synth.h).  Generation time is reported apart.
+ * 1000 x 1000 x 300; --size N runs one of them).  --quick: N = 250 only;
+ * --max N: largest N.  The scan is loom_scan_sheet_preset("paper:N"),
+ * twill 2/3: warp spacing 0.115 N, weft spacing 0.07 N, turned by 3
+ * degrees, blur 0.8, noise 0.08.  The 1000 run holds the input density
+ * (1.2 GB of floats; with the orientation given another 3.6 GB) plus the
+ * pipeline's arrays (docs/scan.md, "Memory"); it is skipped when
+ * /proc/meminfo reports less than 7 GB available.  Generation time is
+ * reported apart.
  *
  * --sweep adds a robustness sweep on the unit tests' small sheet (160 x 160
  * x 40, 7 x 9 yarns): 12 scans per noise level 0.08, 0.15, 0.25 (plain,
@@ -26,8 +31,10 @@
 #include "loom.h"
 #include "../tests/unit/test_scan_synth.h"
 
-#include <pthread.h>
 #include <stdio.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -67,132 +74,124 @@ static long proc_kb(const char *file, const char *key)
 	return v;
 }
 
-typedef struct gen_arg {
-	synth_spec *s;
-	synth_out *o;
-	uint32_t z0, z1;
-} gen_arg;
+static const uint8_t TWILL23_W[25] = {1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0,
+                                      0, 0, 1, 1, 0, 0, 0, 0, 1, 1};
 
-static void *gen_main(void *a)
+/* One pipeline run in a child process (so each run's peak RSS is its own):
+   generate the paper-like sheet of size n (loom_scan_sheet_preset
+   "paper:N", twill 2/3), with the true orientation given or not, run
+   loom_scan_build with 2 threads, print a table and a JSON line. */
+static int run_child(uint32_t n, int given)
 {
-	gen_arg *g = a;
-	synth_planes(g->s, g->o, g->z0, g->z1);
-	return NULL;
-}
-
-static synth_spec paper_like(uint32_t n)
-{
-	synth_spec s = synth_default(TWILL23);
-	s.nx = n;
-	s.ny = n;
-	s.nz = (uint32_t)(0.3 * n);
-	s.sx = 0.115f * n;
-	s.sy = 0.07f * n;
-	s.x0 = 0.3f * s.sx;
-	s.y0 = 0.4f * s.sy;
-	s.nw = (uint32_t)((n - 0.6f * s.sx) / s.sx) + 1;
-	s.nf = (uint32_t)((n - 0.8f * s.sy) / s.sy) + 1;
-	s.warp_w = 0.39f * s.sx;
-	s.weft_w = 0.39f * s.sy;
-	s.warp_h = s.weft_h = 0.3f * s.sy;
-	s.warp_amp = s.weft_amp = 1.1f * s.warp_h;
-	s.zc = 0.5f * (s.nz - 1);
-	s.angle_deg = 3;
-	s.blur = 0.8f;
-	s.noise = 0.08f;
-	s.fibre = 1.5f;
-	s.seed = 2012;
-	return s;
-}
-
-static int run_size(uint32_t n)
-{
-	synth_spec s = paper_like(n);
-	synth_out o;
+	loom_scan_sheet s;
+	loom_scan_volume v;
 	loom_scan_params p;
 	loom_scan_result *r = NULL;
+	loom_scan_sheet_grid g;
 	loom_diag d = {0};
-	pthread_t th;
-	gen_arg g0, g1;
-	double t0, tgen, tpipe, cpu0, cpu, rot_err = 0, cx = 0, cy = 0;
-	long hwm;
-	int rc, weave_ok = 0, started;
-	size_t voxels = (size_t)s.nx * s.ny * s.nz;
+	char name[32];
+	struct rusage ru0, ru;
+	double t0, tgen, tpipe, cpu0, cpu, rot_err, cx, cy;
+	long hwm_gen, hwm;
+	int rc, weave_ok = 1;
+	size_t voxels;
+	double in_mb;
 
+	snprintf(name, sizeof name, "paper:%u", n);
+	if (loom_scan_sheet_preset(name, &s) != LOOM_OK)
+		return -1;
+	s.seed = 2012;
+	s.weave = TWILL23_W;
+	s.rep_rows = s.rep_cols = 5;
+	voxels = (size_t)s.nx * s.ny * s.nz;
 	t0 = now_s();
-	if (synth_alloc(&s, &o, 0)) {
+	if (loom_scan_volume_alloc(&v, s.nx, s.ny, s.nz,
+	                           LOOM_SCAN_DENSITY | (given ? LOOM_SCAN_ORIENT : 0))) {
 		printf("size %u: cannot allocate the scan\n", n);
-		synth_free(&o);
 		return -1;
 	}
-	g0 = (gen_arg){&s, &o, 0, s.nz / 2};
-	g1 = (gen_arg){&s, &o, s.nz / 2, s.nz};
-	started = pthread_create(&th, NULL, gen_main, &g1) == 0;
-	gen_main(&g0);
-	if (started)
-		pthread_join(th, NULL);
-	else
-		gen_main(&g1);
-	synth_finish(&s, &o);
+	loom_scan_sheet_make(&s, &v, NULL, 2, NULL);
 	tgen = now_s() - t0;
-
+	in_mb = voxels * (given ? 16.0 : 4.0) / 1048576.0;
+	hwm_gen = proc_kb("/proc/self/status", "VmHWM:");
 	loom_scan_params_init(&p);
 	p.n_warps = s.nw;
 	p.n_wefts = s.nf;
 	p.threads = 2;
+	getrusage(RUSAGE_SELF, &ru0);
 	cpu0 = proc_cpu_s();
 	t0 = now_s();
-	rc = loom_scan_build(&o.vol, &p, &r, &d);
+	rc = loom_scan_build(&v, &p, &r, &d);
 	tpipe = now_s() - t0;
 	cpu = proc_cpu_s() - cpu0;
-	hwm = proc_kb("/proc/self/status", "VmHWM:");
+	getrusage(RUSAGE_SELF, &ru);
+	hwm = ru.ru_maxrss; /* kB on Linux */
 	if (rc) {
 		printf("%ux%ux%u: build failed: %s\n", s.nx, s.ny, s.nz, d.message);
-		printf("{\"bench\":\"scan\",\"nx\":%u,\"ny\":%u,\"nz\":%u,\"error\":\"%s\"}\n",
-		       s.nx, s.ny, s.nz, loom_strerror(rc));
-		synth_free(&o);
+		printf("{\"bench\":\"scan\",\"nx\":%u,\"ny\":%u,\"nz\":%u,\"orientation\":\"%s\","
+		       "\"error\":\"%s\"}\n", s.nx, s.ny, s.nz, given ? "given" : "estimated",
+		       loom_strerror(rc));
+		loom_scan_volume_release(&v);
 		return -1;
 	}
-	weave_ok = 1;
+	loom_scan_sheet_truth(&s, &g);
 	for (uint32_t i = 0; i < r->rows; i++)
 		for (uint32_t j = 0; j < r->cols; j++)
 			if (r->weave[i * r->cols + j] !=
-			    synth_w(&s, r->grid.first_weft + i, r->grid.first_warp + j))
+			    loom_scan_sheet_w(&s, r->grid.first_weft + i, r->grid.first_warp + j))
 				weave_ok = 0;
 	rot_err = r->rotation_degrees - s.angle_deg;
 	cx = r->grid.crop[0] - (s.x0 + (r->grid.first_warp - 0.5) * s.sx);
 	cy = r->grid.crop[1] - (s.y0 + (r->grid.first_weft - 0.5) * s.sy);
 
-	printf("\n%ux%ux%u (%.0f M voxels, %u warps x %u wefts): generated in %.1f s\n",
-	       s.nx, s.ny, s.nz, voxels / 1e6, s.nw, s.nf, tgen);
+	printf("\n%ux%ux%u (%.0f M voxels, %u warps x %u wefts), orientation %s: "
+	       "generated in %.1f s\n", s.nx, s.ny, s.nz, voxels / 1e6, s.nw, s.nf,
+	       given ? "given" : "estimated", tgen);
 	printf("  %-13s %8s %8s %10s\n", "step", "wall s", "CPU s", "ns/voxel");
 	for (int k = 0; k < LOOM_SCAN_STEP_COUNT_; k++)
 		printf("  %-13s %8.2f %8.2f %10.2f\n", loom_scan_step_name(k), r->seconds[k],
 		       r->cpu_seconds[k], 1e9 * r->seconds[k] / voxels);
 	printf("  %-13s %8.2f %8.2f %10.2f\n", "total", tpipe, cpu, 1e9 * tpipe / voxels);
-	printf("  peak RSS %.0f MB (input density %.0f MB, estimated orientation %.0f MB "
-	       "(reused for the output), crop %ux%ux%u: new density and labels %.0f MB)\n",
-	       hwm / 1024.0, voxels * 4 / 1048576.0, voxels * 12 / 1048576.0,
-	       r->volume.nx, r->volume.ny, r->volume.nz,
-	       (double)r->volume.nx * r->volume.ny * r->volume.nz * 5 / 1048576.0);
+	printf("  peak RSS %.0f MB (getrusage; %.0f MB after generating the input, whose "
+	       "arrays take %.0f MB: density float%s); crop %ux%ux%u\n",
+	       hwm / 1024.0, hwm_gen / 1024.0, in_mb,
+	       given ? " + orientation 3 floats" : "", r->volume.nx, r->volume.ny,
+	       r->volume.nz);
 	printf("  result: weave %s (%ux%u crossings), rotation %.3f (error %+.3f deg), "
 	       "crop %d %d %d %d (error %+.1f %+.1f voxels), block %ux%ux%u\n",
 	       weave_ok ? "right" : "WRONG", r->cols, r->rows, r->rotation_degrees, rot_err,
 	       r->grid.crop[0], r->grid.crop[1], r->grid.crop[2], r->grid.crop[3], cx, cy,
 	       r->b1, r->b2, r->b3);
 	printf("{\"bench\":\"scan\",\"nx\":%u,\"ny\":%u,\"nz\":%u,\"voxels\":%zu,"
-	       "\"threads\":2,\"generate_s\":%.3f,\"total_s\":%.3f,\"cpu_s\":%.3f,",
-	       s.nx, s.ny, s.nz, voxels, tgen, tpipe, cpu);
+	       "\"orientation\":\"%s\",\"threads\":2,\"generate_s\":%.3f,\"total_s\":%.3f,"
+	       "\"cpu_s\":%.3f,", s.nx, s.ny, s.nz, voxels, given ? "given" : "estimated",
+	       tgen, tpipe, cpu);
 	for (int k = 0; k < LOOM_SCAN_STEP_COUNT_; k++)
 		printf("\"%s_s\":%.3f,\"%s_cpu_s\":%.3f,", loom_scan_step_name(k),
 		       r->seconds[k], loom_scan_step_name(k), r->cpu_seconds[k]);
-	printf("\"peak_rss_mb\":%.1f,\"weave_ok\":%s,\"rotation_error_deg\":%.4f,"
-	       "\"crop_error\":[%.1f,%.1f]}\n",
-	       hwm / 1024.0, weave_ok ? "true" : "false", rot_err, cx, cy);
+	printf("\"input_mb\":%.1f,\"peak_rss_mb\":%.1f,\"weave_ok\":%s,"
+	       "\"rotation_error_deg\":%.4f,\"crop_error\":[%.1f,%.1f]}\n",
+	       in_mb, hwm / 1024.0, weave_ok ? "true" : "false", rot_err, cx, cy);
 	fflush(stdout);
+	(void)ru0;
 	loom_scan_result_free(r);
-	synth_free(&o);
+	loom_scan_volume_release(&v);
 	return 0;
+}
+
+static int run_size(uint32_t n, int given)
+{
+	pid_t pid;
+	int st = 0;
+
+	fflush(stdout);
+	pid = fork();
+	if (pid < 0)
+		return run_child(n, given);
+	if (pid == 0)
+		_exit(run_child(n, given) ? 1 : 0);
+	waitpid(pid, &st, 0);
+	return WIFEXITED(st) && WEXITSTATUS(st) == 0 ? 0 : -1;
 }
 
 static const char *const PLAIN[] = {"10", "01", NULL};
@@ -266,7 +265,8 @@ static void sweep(void)
 int main(int argc, char **argv)
 {
 	uint32_t sizes[] = {250, 500, 1000}, max = 1000;
-	int do_sweep = 0;
+	int do_sweep = 0, with_given = 1;
+	uint32_t only = 0;
 	long avail = proc_kb("/proc/meminfo", "MemAvailable:");
 
 	for (int i = 1; i < argc; i++) {
@@ -276,8 +276,12 @@ int main(int argc, char **argv)
 			max = (uint32_t)strtoul(argv[++i], NULL, 10);
 		else if (strcmp(argv[i], "--sweep") == 0)
 			do_sweep = 1;
+		else if (strcmp(argv[i], "--estimated-only") == 0)
+			with_given = 0;
+		else if (strcmp(argv[i], "--size") == 0 && i + 1 < argc)
+			only = (uint32_t)strtoul(argv[++i], NULL, 10);
 		else {
-			fprintf(stderr, "usage: bench_scan [--quick] [--max N] [--sweep]\n");
+			fprintf(stderr, "usage: bench_scan [--quick] [--max N] [--sweep] [--estimated-only] [--size N]\n");
 			return 2;
 		}
 	}
@@ -286,12 +290,16 @@ int main(int argc, char **argv)
 	for (size_t k = 0; k < sizeof sizes / sizeof *sizes; k++) {
 		if (sizes[k] > max)
 			break;
-		if (sizes[k] >= 1000 && avail >= 0 && avail < 9L * 1024 * 1024) {
-			printf("\nskipping %ux%ux%u: %.1f GB available, 9 GB needed\n", sizes[k],
+		if (only && sizes[k] != only)
+			continue;
+		if (sizes[k] >= 1000 && avail >= 0 && avail < 7L * 1024 * 1024) {
+			printf("\nskipping %ux%ux%u: %.1f GB available, 7 GB needed\n", sizes[k],
 			       sizes[k], (uint32_t)(0.3 * sizes[k]), avail / 1048576.0);
 			break;
 		}
-		run_size(sizes[k]);
+		run_size(sizes[k], 0);
+		if (with_given)
+			run_size(sizes[k], 1);
 	}
 	if (do_sweep)
 		sweep();

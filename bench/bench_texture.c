@@ -15,6 +15,11 @@
  *      over a whole design repeat, rates per core and hit rates.
  *   4. peak resident memory (VmHWM) of `loom sample --random` on a
  *      paper-scale fabric at budgets 16, 64 and 256 MiB, one process each.
+ *   5. streamed regions, as `loom scan` reads them: every voxel of 8 x 8
+ *      crossings in quarter-crossing tiles, all channels, 1 and 2 threads,
+ *      budgets 16 and 64 MiB, both layouts, tiles in crossing-row order or
+ *      grouped by source block; against memcpy of the same bytes into the
+ *      same buffers; peak RSS (one child process per row).
  *
  * Data: the paper preset database ($LOOM_PAPER_DB, else
  * $BUILD/bench/paper.ldb, generated when missing: ~10-20 s) and a
@@ -25,7 +30,7 @@
  * Output: tables on stdout and one JSON line per figure ("{...}").
  *
  *   build/bench/bench_texture [PARTS]    PARTS: digits of the parts to run
- *                                        (default 1234)
+ *                                        (default 12345)
  */
 #include "loom.h"
 
@@ -558,11 +563,266 @@ static void peak_rss(const char *loom, const char *fabric, const char *db)
 	}
 }
 
+/* ------------------------------------------- 5. streamed regions (scan) */
+
+/* A scan-like stream: every voxel of a region of SC_ROWS x SC_COLS
+   crossings, crossing-aligned tiles split in 2 x 2 sub-tiles, read by nt
+   threads (tile k by thread k mod nt) into per-thread buffers, with all
+   five channels; then the same bytes memcpy'd into the same buffers.  Tile
+   order "rows": crossing rows in order; "source": crossings sorted by
+   source block (loom_fabric_source_at), so that the crossings that copy
+   the same block follow one another and their bricks are reused from the
+   cache.  Run in a child process per configuration (bench_texture --stream
+   ...), so that its peak RSS is the stream's alone. */
+#define SC_ROWS 8
+#define SC_COLS 8
+
+struct sc_tile {
+	uint64_t key;
+	int64_t lo[3], hi[3];
+};
+
+struct sc_job {
+	loom_texture *t;
+	const struct sc_tile *tiles;
+	int n_tiles, id, nt, layout;
+	uint8_t *buf, *src;
+	size_t cap;
+	double cpu, cpu_copy, t0, t1; /* t0, t1: wall clock of the reads */
+	uint64_t voxels, sum;
+	int errors;
+	pthread_barrier_t *bar;
+};
+
+static int sc_cmp(const void *a, const void *b)
+{
+	const struct sc_tile *p = a, *q = b;
+	return p->key < q->key ? -1 : p->key > q->key;
+}
+
+static void *sc_run(void *arg)
+{
+	struct sc_job *j = arg;
+	double c0;
+
+	pthread_barrier_wait(j->bar);
+	j->t0 = now_s();
+	c0 = cpu_s();
+	for (int k = j->id; k < j->n_tiles; k += j->nt) {
+		const struct sc_tile *tl = &j->tiles[k];
+		size_t n = (size_t)(tl->hi[0] - tl->lo[0]) * (size_t)(tl->hi[1] - tl->lo[1]) *
+		           (size_t)(tl->hi[2] - tl->lo[2]);
+		loom_texture_region r = {0};
+		r.layout = j->layout;
+		region_at(&r, j->buf, n, 0);
+		j->errors += loom_texture_read_region(j->t, tl->lo, tl->hi, &r) != LOOM_OK;
+		j->voxels += n;
+		j->sum += j->buf[(size_t)k * 7919 % n] + j->buf[5 * n - 1 - (size_t)k % n];
+	}
+	j->cpu = cpu_s() - c0;
+	j->t1 = now_s();
+	c0 = cpu_s();
+	for (int k = j->id; k < j->n_tiles; k += j->nt) {
+		const struct sc_tile *tl = &j->tiles[k];
+		size_t n = (size_t)(tl->hi[0] - tl->lo[0]) * (size_t)(tl->hi[1] - tl->lo[1]) *
+		           (size_t)(tl->hi[2] - tl->lo[2]);
+		memcpy(j->buf, j->src + k % 61, 6 * n);
+		j->sum += j->buf[(size_t)k * 7919 % n];
+	}
+	j->cpu_copy = cpu_s() - c0;
+	return NULL;
+}
+
+static long vm_hwm(void)
+{
+	char line[256];
+	long kb = -1;
+	FILE *f = fopen("/proc/self/status", "r");
+	if (!f)
+		return -1;
+	while (fgets(line, sizeof line, f))
+		if (sscanf(line, "VmHWM: %ld", &kb) == 1)
+			break;
+	fclose(f);
+	return kb;
+}
+
+/* The child: bench_texture --stream LAYOUT THREADS BUDGET_MIB ORDER;
+   prints one JSON line. */
+static int stream_child(char **argv, const char *dbp, const char *fabp)
+{
+	int layout = atoi(argv[2]), nt = atoi(argv[3]), order = atoi(argv[5]);
+	size_t budget = (size_t)atoi(argv[4]) * MIB;
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture_stats st;
+	loom_diag diag = {0};
+	loom_db_info info;
+	struct sc_tile *tiles;
+	struct sc_job j[2];
+	pthread_t th[2];
+	int n = 0;
+	size_t cap = 0;
+	double wall;
+	long rss0;
+	pthread_barrier_t bar;
+
+	if (nt < 1 || nt > 2 || loom_db_open(dbp, &db, &diag) != LOOM_OK ||
+	    loom_fabric_open(fabp, db, 0, &f, &diag) != LOOM_OK) {
+		printf("{\"error\":\"%s\"}\n", diag.message);
+		return 1;
+	}
+	loom_db_get_info(db, &info);
+	o.budget_bytes = budget;
+	o.max_threads = (unsigned)nt;
+	if (loom_texture_open(f, db, &o, &t, &diag) != LOOM_OK) {
+		printf("{\"error\":\"%s\"}\n", diag.message);
+		return 1;
+	}
+	tiles = malloc(sizeof *tiles * SC_ROWS * SC_COLS * 4);
+	for (int64_t I = 11; I < 11 + SC_ROWS; I++)
+		for (int64_t J = 7; J < 7 + SC_COLS; J++) {
+			loom_fabric_source so;
+			int64_t x0 = J * info.block[0], y0 = I * info.block[1];
+			int64_t xm = x0 + info.block[0] / 2, ym = y0 + info.block[1] / 2;
+			loom_fabric_source_at(f, I, J, &so);
+			for (int q = 0; q < 4; q++) {
+				struct sc_tile *tl = &tiles[n++];
+				size_t v;
+				/* source order: by block, then crossing, then quarter */
+				tl->key = (order ? (uint64_t)so.block << 32 : 0) | (uint64_t)n;
+				tl->lo[0] = q & 1 ? xm : x0;
+				tl->hi[0] = q & 1 ? x0 + info.block[0] : xm;
+				tl->lo[1] = q & 2 ? ym : y0;
+				tl->hi[1] = q & 2 ? y0 + info.block[1] : ym;
+				tl->lo[2] = 0;
+				tl->hi[2] = info.block[2];
+				v = (size_t)(tl->hi[0] - tl->lo[0]) * (size_t)(tl->hi[1] - tl->lo[1]) *
+				    info.block[2];
+				if (v > cap)
+					cap = v;
+			}
+		}
+	qsort(tiles, (size_t)n, sizeof *tiles, sc_cmp);
+	rss0 = vm_hwm();
+	for (int i = 0; i < nt; i++) {
+		memset(&j[i], 0, sizeof j[i]);
+		j[i].t = t, j[i].tiles = tiles, j[i].n_tiles = n, j[i].id = i, j[i].nt = nt;
+		j[i].layout = layout ? LOOM_REGION_Z_FASTEST : LOOM_REGION_X_FASTEST;
+		j[i].cap = cap;
+		j[i].buf = malloc(6 * cap);
+		j[i].src = malloc(6 * cap + 64);
+		memset(j[i].buf, 0, 6 * cap);
+		memset(j[i].src, 1, 6 * cap + 64);
+	}
+	pthread_barrier_init(&bar, NULL, (unsigned)nt);
+	for (int i = 0; i < nt; i++) {
+		j[i].bar = &bar;
+		pthread_create(&th[i], NULL, sc_run, &j[i]);
+	}
+	for (int i = 0; i < nt; i++)
+		pthread_join(th[i], NULL);
+	pthread_barrier_destroy(&bar);
+	wall = 0;
+	for (int i = 0; i < nt; i++) /* first start to last end of the reads */
+		if (j[i].t1 - j[0].t0 > wall)
+			wall = j[i].t1 - (j[0].t0 < j[nt - 1].t0 ? j[0].t0 : j[nt - 1].t0);
+	loom_texture_get_stats(t, &st);
+	{
+		double cpu = 0, cpu_copy = 0;
+		uint64_t vox = 0;
+		int errors = 0;
+		for (int i = 0; i < nt; i++) {
+			cpu += j[i].cpu, cpu_copy += j[i].cpu_copy, vox += j[i].voxels;
+			errors += j[i].errors;
+		}
+		printf("{\"bench\":\"texture_stream\",\"layout\":\"%s\",\"threads\":%d,"
+		       "\"budget_mib\":%d,\"order\":\"%s\",\"voxels\":%llu,\"wall_s\":%.3f,"
+		       "\"per_core\":%.0f,\"memcpy_per_core\":%.0f,\"ratio\":%.4f,"
+		       "\"wall_rate\":%.0f,\"hit_rate\":%.5f,\"misses\":%llu,\"peak_bytes\":%llu,"
+		       "\"rss_before_kib\":%ld,\"peak_rss_kib\":%ld,\"buffers_bytes\":%zu,"
+		       "\"errors\":%d}\n",
+		       layout ? "z" : "x", nt, atoi(argv[4]), order ? "source" : "rows",
+		       (unsigned long long)vox, wall, (double)vox / cpu, (double)vox / cpu_copy,
+		       cpu_copy / cpu, (double)vox / wall,
+		       st.hits + st.misses ? (double)st.hits / (double)(st.hits + st.misses) : 1,
+		       (unsigned long long)st.misses, (unsigned long long)st.peak_bytes, rss0,
+		       vm_hwm(), (size_t)nt * 12 * cap + 64, errors);
+	}
+	for (int i = 0; i < nt; i++)
+		free(j[i].buf), free(j[i].src);
+	free(tiles);
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	loom_db_close(db);
+	return 0;
+}
+
+static void streams(const char *self)
+{
+	static const int budgets[] = {16, 64};
+	printf("\n5. streamed regions (a scan): %dx%d crossings (%d x %d x %u voxels), tiles\n"
+	       "   of a quarter crossing, all five channels, per-thread buffers; one child\n"
+	       "   process per row.  per core = voxels over the threads' CPU seconds; memcpy =\n"
+	       "   the same bytes into the same buffers, same threads; wall: the reads only;\n"
+	       "   over = peak RSS of the process (binary, database index, fabric, texture)\n"
+	       "   beyond the budget, not counting the bench's buffers (output + memcpy\n"
+	       "   source, 2 x 3.6 MB per thread)\n",
+	       SC_ROWS, SC_COLS, SC_COLS * (int)B1, SC_ROWS * (int)B2, B3);
+	printf("%-6s %7s %6s %-7s | %9s %9s %6s | %9s %7s %8s %9s %8s\n", "layout", "threads",
+	       "budget", "order", "M/s/core", "memcpy", "ratio", "wall M/s", "hit", "misses",
+	       "peak MiB", "over");
+	for (int lay = 1; lay >= 0; lay--)
+		for (int nt = 1; nt <= 2; nt++)
+			for (int b = 0; b < 2; b++)
+				for (int order = 0; order < 2; order++) {
+					char cmd[8400], line[2048];
+					FILE *p;
+					snprintf(cmd, sizeof cmd, "'%s' --stream %d %d %d %d", self, lay, nt,
+					         budgets[b], order);
+					p = popen(cmd, "r");
+					if (!p)
+						continue;
+					while (fgets(line, sizeof line, p)) {
+						double pc = 0, mc = 0, ratio = 0, wr = 0, hit = 0;
+						unsigned long long miss = 0, peak = 0, bufs = 0;
+						long hwm = 0;
+						char *q;
+						if (!strstr(line, "texture_stream")) {
+							printf("%s", line);
+							continue;
+						}
+#define FIELD(name, fmt, var) \
+	if ((q = strstr(line, "\"" name "\":")) != NULL) \
+		sscanf(q + strlen(name) + 3, fmt, &var);
+						FIELD("per_core", "%lf", pc)
+						FIELD("memcpy_per_core", "%lf", mc)
+						FIELD("ratio", "%lf", ratio)
+						FIELD("wall_rate", "%lf", wr)
+						FIELD("hit_rate", "%lf", hit)
+						FIELD("misses", "%llu", miss)
+						FIELD("peak_bytes", "%llu", peak)
+						FIELD("peak_rss_kib", "%ld", hwm)
+						FIELD("buffers_bytes", "%llu", bufs)
+#undef FIELD
+						printf("%-6s %7d %4dMi %-7s | %8.0fM %8.0fM %6.3f | %8.0fM %7.4f "
+						       "%8llu %9.1f %6.1fMi\n", lay ? "z" : "x", nt, budgets[b],
+						       order ? "source" : "rows", pc / 1e6, mc / 1e6, ratio,
+						       wr / 1e6, hit, miss, (double)peak / MIB,
+						       ((double)hwm * 1024 - (double)bufs) / MIB - budgets[b]);
+						printf("%s", line);
+					}
+					pclose(p);
+				}
+}
+
 /* ---------------------------------------------------------------- main */
 
 int main(int argc, char **argv)
 {
-	const char *parts = argc > 1 ? argv[1] : "1234";
+	const char *parts = argc > 1 ? argv[1] : "12345";
 	const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
 	const char *paper = getenv("LOOM_PAPER_DB");
 	const char *sc = getenv("BENCH_TEXTURE_SCALE");
@@ -584,6 +844,9 @@ int main(int argc, char **argv)
 		snprintf(dbp, sizeof dbp, "%s", paper);
 	else
 		snprintf(dbp, sizeof dbp, "%s/bench/paper.ldb", build);
+	snprintf(fabp, sizeof fabp, "%s/bench/texture-paper.lfab", build);
+	if (argc == 6 && strcmp(argv[1], "--stream") == 0)
+		return stream_child(argv, dbp, fabp);
 	if (stat(dbp, &st) != 0) {
 		loom_exgen_params p;
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", dbp);
@@ -635,13 +898,18 @@ int main(int argc, char **argv)
 	}
 	if (strchr(parts, '3'))
 		budgets(f, db);
-	snprintf(fabp, sizeof fabp, "%s/bench/texture-paper.lfab", build);
 	if (!strchr(parts, '4'))
 		;
 	else if (loom_fabric_save(f, fabp, NULL, &diag) == LOOM_OK && stat(loomp, &st) == 0)
 		peak_rss(loomp, fabp, dbp);
 	else
 		printf("\n4. peak RSS: skipped (%s)\n", diag.message[0] ? diag.message : "no loom binary");
+	if (!strchr(parts, '5'))
+		;
+	else if (loom_fabric_save(f, fabp, NULL, &diag) == LOOM_OK)
+		streams(argv[0]);
+	else
+		printf("\n5. streamed regions: skipped (%s)\n", diag.message);
 	loom_fabric_free(f);
 	loom_design_free(d);
 	loom_db_close(db);

@@ -2,7 +2,7 @@
  * engine/fabric_internal.h - the fabric as the virtual-texture engine sees
  * it.  Never installed.
  *
- * A fabric (engine/fabric.c; file format io/fabric_io.c, docs/fabric.md)
+ * A fabric (engine/fabric.c; file format io/fabric_io.c, docs/formats.md)
  * is immutable once made; everything below only reads it, so it may be
  * called from any number of threads at once.
  *

@@ -95,6 +95,28 @@ static inline void loom__scan_axpy(float *o, const float *s, float w, size_t n)
 }
 #endif
 
+/* Decoded orientation codes: 3 floats per code (loom__orient_decode of
+   voxel.h), code 0 decoded as the zero vector (undefined).  Built once,
+   thread-safe. */
+const float *loom__scan_code_lut(void);
+
+/* Orientation of voxel i: from v->orient, else from v->ocode (lut from
+   loom__scan_code_lut), else zero. */
+static inline void loom__scan_dir(const loom_scan_volume *v, const float *lut,
+                                  size_t i, float o[3])
+{
+	const float *s;
+	if (v->orient)
+		s = v->orient + 3 * i;
+	else if (v->ocode)
+		s = lut + 3 * (size_t)v->ocode[i];
+	else
+		s = lut; /* code 0: zero */
+	o[0] = s[0];
+	o[1] = s[1];
+	o[2] = s[2];
+}
+
 /* Allocate n bytes for a large array (2 MiB aligned, transparent huge
    pages requested: far fewer page faults when it is first written), zeroed
    if zero.  Free with free(). */

@@ -25,6 +25,7 @@
  * for any thread count; per-tile statistics are reduced in tile order.
  */
 #include "scan_internal.h"
+#include "voxel.h"
 
 #include <pthread.h>
 #include <stdlib.h>
@@ -143,7 +144,7 @@ LOOM_API int loom_scan_volume_alloc(loom_scan_volume *v, uint32_t nx,
 	if (!v)
 		return LOOM_EINVAL;
 	memset(v, 0, sizeof *v);
-	if (!nx || !ny || !nz || !(channels & 7u))
+	if (!nx || !ny || !nz || !(channels & 15u))
 		return LOOM_EINVAL;
 	if ((uint64_t)nx * ny * nz > (1ull << 40))
 		return LOOM_ERANGE;
@@ -159,10 +160,28 @@ LOOM_API int loom_scan_volume_alloc(loom_scan_volume *v, uint32_t nx,
 		goto oom;
 	if ((channels & LOOM_SCAN_LABEL) && !(v->label = loom__scan_alloc_big(n, 1)))
 		goto oom;
+	if ((channels & LOOM_SCAN_OCODE) &&
+	    !(v->ocode = loom__scan_alloc_big(n * sizeof *v->ocode, 1)))
+		goto oom;
 	return LOOM_OK;
 oom:
 	loom_scan_volume_release(v);
 	return LOOM_ENOMEM;
+}
+
+static float code_lut[3 * 65536];
+static pthread_once_t code_lut_once = PTHREAD_ONCE_INIT;
+
+static void code_lut_init(void)
+{
+	for (uint32_t c = 1; c < 65536; c++)
+		loom__orient_decode((uint16_t)c, code_lut + 3 * c);
+}
+
+const float *loom__scan_code_lut(void)
+{
+	pthread_once(&code_lut_once, code_lut_init);
+	return code_lut;
 }
 
 LOOM_API void loom_scan_volume_release(loom_scan_volume *v)
@@ -172,6 +191,7 @@ LOOM_API void loom_scan_volume_release(loom_scan_volume *v)
 	free(v->density);
 	free(v->orient);
 	free(v->label);
+	free(v->ocode);
 	memset(v, 0, sizeof *v);
 }
 
@@ -632,6 +652,7 @@ static void orient_worker(void *vctx, uint32_t tid, uint32_t nt)
 	size_t raw_n = ext_rows * nx, slot_n = (size_t)TILE_ROWS * nx;
 	float *mem, *raw[6], *pad, *zs[6];
 	float **slot; /* slot[s*6 + c] */
+	float *rowbuf = NULL; /* one row of directions when writing codes */
 	long *slot_plane;
 	uint8_t *has;
 
@@ -640,7 +661,9 @@ static void orient_worker(void *vctx, uint32_t tid, uint32_t nt)
 	slot = malloc((size_t)S * 6 * sizeof *slot);
 	slot_plane = malloc((size_t)S * sizeof *slot_plane);
 	has = malloc(nz);
-	if (!mem || !slot || !slot_plane || !has) {
+	if (!v->orient)
+		rowbuf = malloc(3 * nx * sizeof *rowbuf);
+	if (!mem || !slot || !slot_plane || !has || (!v->orient && !rowbuf)) {
 		__atomic_store_n(&c->failed, 1, __ATOMIC_RELAXED);
 		goto out;
 	}
@@ -665,9 +688,14 @@ static void orient_worker(void *vctx, uint32_t tid, uint32_t nt)
 		for (size_t z = 0; z < nz; z++)
 			has[z] = (uint8_t)plane_has_material(v, (uint32_t)z, y0, y1, c->thr);
 		for (size_t z = 0; z < nz; z++) {
-			float *o = v->orient + 3 * (((size_t)z * ny + y0) * nx);
+			size_t base = ((size_t)z * ny + y0) * nx;
+			float *o = v->orient ? v->orient + 3 * base : NULL;
+			uint16_t *oc = v->orient ? NULL : v->ocode + base;
 			if (!has[z]) {
-				memset(o, 0, 3 * (size_t)(y1 - y0) * nx * sizeof *o);
+				if (o)
+					memset(o, 0, 3 * (size_t)(y1 - y0) * nx * sizeof *o);
+				else
+					memset(oc, 0, (size_t)(y1 - y0) * nx * sizeof *oc);
 				continue;
 			}
 			/* make sure planes clamp(z-r) .. clamp(z+r) are in the ring */
@@ -699,14 +727,18 @@ static void orient_worker(void *vctx, uint32_t tid, uint32_t nt)
 			}
 			for (uint32_t y = y0; y < y1; y++) {
 				const float *dens = v->density + ((size_t)z * ny + y) * nx;
-				float *orow = o + 3 * (size_t)(y - y0) * nx;
+				float *orow = o ? o + 3 * (size_t)(y - y0) * nx : rowbuf;
+				uint16_t *crow = oc ? oc + (size_t)(y - y0) * nx : NULL;
 				{
 					/* rows without material need no tensor */
 					int any = 0;
 					for (size_t x = 0; x < nx && !any; x++)
 						any = dens[x] > c->thr;
 					if (!any) {
-						memset(orow, 0, 3 * nx * sizeof *orow);
+						if (crow)
+							memset(crow, 0, nx * sizeof *crow);
+						else
+							memset(orow, 0, 3 * nx * sizeof *orow);
 						continue;
 					}
 				}
@@ -739,12 +771,20 @@ static void orient_worker(void *vctx, uint32_t tid, uint32_t nt)
 					coh_sum += coh;
 					count++;
 				}
+				if (crow)
+					for (size_t x = 0; x < nx; x++) {
+						const float *ov = orow + 3 * x;
+						crow[x] = ov[0] == 0 && ov[1] == 0 && ov[2] == 0
+						              ? 0
+						              : loom__orient_encode(ov[0], ov[1], ov[2]);
+					}
 			}
 		}
 		c->tile_coh[t] = coh_sum;
 		c->tile_count[t] = count;
 	}
 out:
+	free(rowbuf);
 	free(mem);
 	free(slot);
 	free(slot_plane);
@@ -763,7 +803,7 @@ LOOM_API int loom_scan_orient(loom_scan_volume *v, float threshold,
 
 	if (rc)
 		return rc;
-	if (!v->orient)
+	if (!v->orient && !v->ocode)
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "scan: orientation: no orientation array to fill");
 	if (!(tensor_sigma > 0) || tensor_sigma > 8)

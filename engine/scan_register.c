@@ -42,10 +42,15 @@
  *      incomplete yarns.
  */
 #include "scan_internal.h"
+#include "voxel.h"
 
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+/* Every cell of the crop must show its crossing's yarn on top over at
+   least this fraction of its central half (a check on the weave). */
+#define MIN_CELL_AGREEMENT 0.5
 
 #define DEG (57.295779513082320876)
 #define PLATEAU_TOL 0.005 /* of the cell count: scores this close tie */
@@ -426,6 +431,26 @@ LOOM_API int loom_scan_register(uint32_t nx, uint32_t ny, const uint8_t *top,
 			}
 	}
 	free(cand_score);
+	/* the weakest cell of the chosen window */
+	out->min_cell = 2;
+	if (best_score >= 0)
+		for (uint32_t i = 0; i < out->rows; i++)
+			for (uint32_t j = 0; j < out->cols; j++) {
+				long x0 = bx0 + best_dx, y0 = by0 + best_dy;
+				size_t xa = (size_t)(x0 + (long)j * b1 + b1 / 4);
+				size_t xb = (size_t)(x0 + (long)j * b1 + b1 - b1 / 4);
+				size_t ya = (size_t)(y0 + (long)i * b2 + b2 / 4);
+				size_t yb = (size_t)(y0 + (long)i * b2 + b2 - b2 / 4);
+				const uint32_t *S = weave[(size_t)(bia + i) * nw + bja + j] ? s1 : s0;
+				double a = (double)(S[yb * W1 + xb] - S[ya * W1 + xb] -
+				                    S[yb * W1 + xa] + S[ya * W1 + xa]) /
+				           (double)((xb - xa) * (yb - ya));
+				if (a < out->min_cell) {
+					out->min_cell = a;
+					out->worst[0] = i;
+					out->worst[1] = j;
+				}
+			}
 	free(b);
 	free(s1);
 	free(s0);
@@ -457,7 +482,10 @@ typedef struct crop_ctx {
 	const crop_tap *tap; /* one per output column */
 	float c, s;          /* cos, sin of -rotation for orientation vectors */
 	size_t z, zs;        /* output plane being made, scan plane it shows */
-	const float *src;    /* its input orientation plane (maybe a copy) */
+	const float *src;    /* its input orientation plane: floats, or */
+	const uint16_t *csrc;/* codes (maybe a copy) */
+	const float *lut;    /* loom__scan_code_lut() */
+	const uint16_t *rot; /* code -> code of the turned direction */
 } crop_ctx;
 
 /* Resample rows tid, tid + nt, ... of output plane c->z. */
@@ -468,19 +496,26 @@ static void crop_worker(void *vctx, uint32_t tid, uint32_t nt)
 	loom_scan_volume *o = c->out;
 	size_t ncol = (size_t)o->nx * o->ny, splane = (size_t)in->nx * in->ny;
 	size_t sx = in->nx, z = c->z;
-	const float *d = in->density + c->zs * splane, *w0 = c->src;
-	float *od = o->density + z * ncol, *ow = o->orient + 3 * z * ncol;
+	const float *d = in->density + c->zs * splane;
+	float *od = o->density + z * ncol;
+	uint16_t *oc = o->ocode + z * ncol;
 
 	for (size_t y = tid; y < o->ny; y += nt)
 		for (size_t q = y * o->nx; q < (y + 1) * o->nx; q++) {
 			const crop_tap *t = &c->tap[q];
-			const float *a = d + t->i00, *w = w0 + 3 * (size_t)t->inear;
-			float fx = t->fx, fy = t->fy, w_0 = w[0], w_1 = w[1], w_2 = w[2];
+			const float *a = d + t->i00, *w;
+			float fx = t->fx, fy = t->fy;
 			od[q] = (1 - fy) * ((1 - fx) * a[0] + fx * a[1]) +
 			        fy * ((1 - fx) * a[sx] + fx * a[sx + 1]);
-			ow[3 * q] = c->c * w_0 - c->s * w_1;
-			ow[3 * q + 1] = c->s * w_0 + c->c * w_1;
-			ow[3 * q + 2] = w_2;
+			if (!c->src) {
+				oc[q] = c->rot[c->csrc[t->inear]];
+				continue;
+			}
+			w = c->src + 3 * (size_t)t->inear;
+			oc[q] = w[0] == 0 && w[1] == 0 && w[2] == 0
+			            ? 0
+			            : loom__orient_encode(c->c * w[0] - c->s * w[1],
+			                                  c->s * w[0] + c->c * w[1], w[2]);
 		}
 }
 
@@ -492,11 +527,12 @@ static long clamp_floor(double v, long lo, long hi)
 }
 
 /*
- * Resample the crop and label it; fills r->volume, r->yarns.  When
- * reuse_orient is set, scan->orient is a buffer loom allocated (the
- * estimated field): the output orientation is written into it in place and
- * the buffer moves to the result, so the largest array of the pipeline is
- * neither duplicated nor faulted in twice.  In place works plane by plane
+ * Resample the crop and label it; fills r->volume (density, ocode, label),
+ * r->yarns.  The output orientation is always stored as 16-bit codes.  When
+ * reuse_orient is set, scan->ocode is a buffer loom allocated (the
+ * estimated field): the output codes are written into it in place and
+ * the buffer moves to the result, so it is neither duplicated nor faulted
+ * in twice.  In place works plane by plane
  * in increasing z: output plane z, smaller than an input plane, lies over
  * input planes <= z, of which only plane z itself is still unread; that
  * plane is copied aside first when they overlap.  Planes are processed one
@@ -515,7 +551,7 @@ static int crop_volume(loom_scan_volume *scan, float thr,
 	loom_scan_curve *tc = NULL;
 	loom_scan_moments *mom = NULL;
 	crop_tap *tap = NULL;
-	float *plane_copy = NULL;
+	uint16_t *plane_copy = NULL;
 	size_t ncol = (size_t)w * h, splane = (size_t)scan->nx * scan->ny;
 	crop_ctx c;
 	int rc;
@@ -527,14 +563,13 @@ static int crop_volume(loom_scan_volume *scan, float thr,
 	if (z0 < 0 || (int64_t)z0 + nzo > (int64_t)scan->nz)
 		reuse_orient = 0; /* see above; the scan's buffer is freed by the caller */
 	r->volume.density = loom__scan_alloc_big(ncol * nzo * sizeof(float), 0);
-	r->volume.orient = reuse_orient ? scan->orient
-	                                : loom__scan_alloc_big(3 * ncol * nzo *
-	                                                       sizeof(float), 0);
+	r->volume.ocode = reuse_orient ? scan->ocode
+	                               : loom__scan_alloc_big(ncol * nzo * sizeof(uint16_t), 0);
 	r->volume.label = loom__scan_alloc_big(ncol * nzo, 0);
-	plane_copy = malloc(3 * splane * sizeof *plane_copy);
+	plane_copy = malloc(splane * sizeof *plane_copy);
 	if (reuse_orient)
-		scan->orient = NULL; /* owned by the result from now on */
-	if (!r->volume.density || !r->volume.orient || !r->volume.label || !plane_copy) {
+		scan->ocode = NULL; /* owned by the result from now on */
+	if (!r->volume.density || !r->volume.ocode || !r->volume.label || !plane_copy) {
 		free(plane_copy);
 		return loom__fail(diag, LOOM_ENOMEM,
 		                  "scan: crop: cannot allocate %ux%ux%u voxels", w, h,
@@ -571,31 +606,54 @@ static int crop_volume(loom_scan_volume *scan, float thr,
 	c.tap = tap;
 	c.c = (float)cos(-rot / DEG);
 	c.s = (float)sin(-rot / DEG);
+	c.lut = loom__scan_code_lut();
+	c.rot = NULL;
+	if (!scan->orient) {
+		/* codes in, codes out: turning is a table lookup */
+		uint16_t *rt = malloc(65536 * sizeof *rt);
+		if (!rt) {
+			rc = loom__fail(diag, LOOM_ENOMEM, "scan: crop: out of memory");
+			goto done;
+		}
+		rt[0] = 0;
+		for (uint32_t k = 1; k < 65536; k++) {
+			const float *dv = c.lut + 3 * (size_t)k;
+			rt[k] = loom__orient_encode(c.c * dv[0] - c.s * dv[1],
+			                            c.s * dv[0] + c.c * dv[1], dv[2]);
+		}
+		c.rot = rt;
+	}
 	for (size_t k = 0; k < nzo; k++) {
 		long zs = (long)z0 + (long)k;
-		const float *in;
 		if (zs < 0 || zs >= (long)scan->nz) {
 			/* padding outside the scan */
 			memset(r->volume.density + k * ncol, 0, ncol * sizeof(float));
-			memset(r->volume.orient + 3 * k * ncol, 0, 3 * ncol * sizeof(float));
+			memset(r->volume.ocode + k * ncol, 0, ncol * sizeof(uint16_t));
 			continue;
 		}
-		in = (reuse_orient ? r->volume.orient : scan->orient) + 3 * (size_t)zs * splane;
 		c.z = k;
 		c.zs = (size_t)zs;
-		c.src = in;
-		/* in place: does output plane k reach into input plane zs? */
-		if (reuse_orient && (k + 1) * ncol > (size_t)zs * splane) {
-			memcpy(plane_copy, in, 3 * splane * sizeof *plane_copy);
-			c.src = plane_copy;
+		c.src = scan->orient ? scan->orient + 3 * (size_t)zs * splane : NULL;
+		c.csrc = NULL;
+		if (!c.src) {
+			const uint16_t *in = (reuse_orient ? r->volume.ocode : scan->ocode) +
+			                     (size_t)zs * splane;
+			c.csrc = in;
+			/* in place: does output plane k reach into input plane zs? */
+			if (reuse_orient && (k + 1) * ncol > (size_t)zs * splane) {
+				memcpy(plane_copy, in, splane * sizeof *plane_copy);
+				c.csrc = plane_copy;
+			}
 		}
 		loom__scan_parallel(threads, crop_worker, &c);
 	}
+	free((void *)c.rot);
+	c.rot = NULL;
 	if (reuse_orient) {
 		/* give back the tail the crop does not use */
-		float *shrunk = realloc(r->volume.orient, 3 * ncol * nzo * sizeof(float));
+		uint16_t *shrunk = realloc(r->volume.ocode, ncol * nzo * sizeof(uint16_t));
 		if (shrunk)
-			r->volume.orient = shrunk;
+			r->volume.ocode = shrunk;
 	}
 	/* centre curves in the output frame */
 	for (uint32_t i = 0; i < n; i++) {
@@ -787,16 +845,16 @@ LOOM_API int loom_scan_build(loom_scan_volume *scan, const loom_scan_params *p,
 
 	/* 2. orientation */
 	step_begin(&sc, LOOM_SCAN_STEP_ORIENT);
-	if (!scan->orient) {
+	if (!scan->orient && !scan->ocode) {
 		size_t nv = (size_t)scan->nx * scan->ny * scan->nz;
-		/* lent to the scan while the steps run; the crop moves it into
-		   the result (or the failure path frees it) */
-		scan->orient = loom__scan_alloc_big(3 * nv * sizeof *scan->orient, 0);
+		/* 16-bit codes, lent to the scan while the steps run; the crop
+		   moves them into the result (or the failure path frees them) */
+		scan->ocode = loom__scan_alloc_big(nv * sizeof *scan->ocode, 0);
 		own_orient = 1;
-		if (!scan->orient) {
+		if (!scan->ocode) {
 			rc = loom__fail(diag, LOOM_ENOMEM,
 			                "scan: orientation: cannot allocate %zu bytes",
-			                3 * nv * sizeof(float));
+			                nv * sizeof *scan->ocode);
 			goto fail;
 		}
 		r->orientation_estimated = 1;
@@ -891,6 +949,22 @@ LOOM_API int loom_scan_build(loom_scan_volume *scan, const loom_scan_params *p,
 			}
 		r->z0 = (int32_t)lround(zs / zn - 0.5 * (r->b3 - 1.0));
 	}
+	if (r->grid.min_cell < MIN_CELL_AGREEMENT) {
+		rc = loom__fail(diag, LOOM_EUNSUPPORTED,
+		                "scan: registration: crossing of warp %u and weft %u "
+		                "disagrees with the scan's top-yarn map (%.0f%% of its "
+		                "centre shows the %s on top, need %.0f%%); tracking went "
+		                "wrong or the scan is too noisy",
+		                r->grid.first_warp + r->grid.worst[1],
+		                r->grid.first_weft + r->grid.worst[0],
+		                100 * r->grid.min_cell,
+		                r->full_weave[(size_t)(r->grid.first_weft + r->grid.worst[0]) * nw +
+		                              r->grid.first_warp + r->grid.worst[1]]
+		                    ? "warp"
+		                    : "weft",
+		                100 * MIN_CELL_AGREEMENT);
+		goto fail;
+	}
 	r->weave = malloc((size_t)r->rows * r->cols);
 	if (!r->weave) {
 		rc = loom__fail(diag, LOOM_ENOMEM, "scan: out of memory");
@@ -917,10 +991,10 @@ LOOM_API int loom_scan_build(loom_scan_volume *scan, const loom_scan_params *p,
 	rc = crop_volume(scan, thr, curves, nw, nf, dirs, axes, r->rotation_degrees,
 	                 &r->grid, r->z0, r->b3, p->threads, max_dist, own_orient, r,
 	                 diag);
-	if (own_orient && scan->orient) {
+	if (own_orient && scan->ocode) {
 		/* not reused in place (block_z reaching outside the scan) */
-		free(scan->orient);
-		scan->orient = NULL;
+		free(scan->ocode);
+		scan->ocode = NULL;
 	}
 	own_orient = 0; /* moved to the result or freed */
 	if (rc)
@@ -948,8 +1022,8 @@ fail:
 	free(axes);
 	free(top);
 	if (own_orient) {
-		free(scan->orient);
-		scan->orient = NULL;
+		free(scan->ocode);
+		scan->ocode = NULL;
 	}
 	loom_scan_result_free(r);
 	return rc;

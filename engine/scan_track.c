@@ -241,9 +241,10 @@ static int selected(const loom_scan_volume *v, int warp, uint32_t x, uint32_t y,
                     uint32_t z, float thr, float cone)
 {
 	size_t i = loom__scan_idx(v, x, y, z);
-	const float *o = v->orient + 3 * i;
-	float on2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
-	float oa = warp ? o[1] : o[0];
+	float o[3], on2, oa;
+	loom__scan_dir(v, loom__scan_code_lut(), i, o);
+	on2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
+	oa = warp ? o[1] : o[0];
 	return v->density[i] > thr && on2 > 0 && oa * oa >= cone * cone * on2;
 }
 
@@ -499,7 +500,7 @@ LOOM_API int loom_scan_endpoints_find(const loom_scan_volume *v, int kind,
 		return rc;
 	if (!out || !p || (kind != LOOM_SCAN_WARP && kind != LOOM_SCAN_WEFT))
 		return loom__fail(diag, LOOM_EINVAL, "scan: endpoints: bad arguments");
-	if (!v->orient)
+	if (!v->orient && !v->ocode)
 		return loom__fail(diag, LOOM_EINVAL, "scan: endpoints: no orientation");
 	if (k < 2 || k > LOOM_SCAN_MAX_YARNS)
 		return loom__fail(diag, LOOM_EINVAL,
@@ -668,14 +669,14 @@ static int tangent_at(const loom_scan_volume *v, const double p[3],
 				long x = cx + i * s;
 				double dx = x - p[0], dy = y - p[1], dz = z - p[2], c;
 				size_t idx;
-				const float *w;
+				float w[3];
 				if (x < 0 || x >= (long)v->nx ||
 				    dx * dx + dy * dy + dz * dz > R * R)
 					continue;
 				idx = loom__scan_idx(v, (uint32_t)x, (uint32_t)y, (uint32_t)z);
 				if (!(v->density[idx] > thr))
 					continue;
-				w = v->orient + 3 * idx;
+				loom__scan_dir(v, loom__scan_code_lut(), idx, w);
 				c = w[0] * t0[0] + w[1] * t0[1] + w[2] * t0[2];
 				if (fabs(c) < c0 * sqrt((double)w[0] * w[0] + (double)w[1] * w[1] +
 				                        (double)w[2] * w[2]) ||
@@ -742,7 +743,7 @@ static int correct_centre(const loom_scan_volume *v, int a, double p[3],
 				double dl = (q - p[l]) / el, dz = (z - p[2]) / ez;
 				double r2 = dl * dl + dz * dz, c, wn, d;
 				size_t idx;
-				const float *w;
+				float w[3];
 				if (r2 > 1)
 					continue;
 				idx = l == 0 ? loom__scan_idx(v, (uint32_t)q, (uint32_t)ia, (uint32_t)z)
@@ -752,7 +753,7 @@ static int correct_centre(const loom_scan_volume *v, int a, double p[3],
 				d = v->density[idx] * (1 - r2);
 				uw += d;
 				ul += d * q;
-				w = v->orient + 3 * idx;
+				loom__scan_dir(v, loom__scan_code_lut(), idx, w);
 				c = w[0] * t[0] + w[1] * t[1] + w[2] * t[2];
 				wn = sqrt((double)w[0] * w[0] + (double)w[1] * w[1] +
 				          (double)w[2] * w[2]);
@@ -920,7 +921,7 @@ LOOM_API int loom_scan_track(const loom_scan_volume *v, int kind,
 	if (!out || !start || !len || (kind != LOOM_SCAN_WARP && kind != LOOM_SCAN_WEFT))
 		return loom__fail(diag, LOOM_EINVAL, "scan: tracking: bad arguments");
 	memset(out, 0, sizeof *out);
-	if (!v->orient)
+	if (!v->orient && !v->ocode)
 		return loom__fail(diag, LOOM_EINVAL, "scan: tracking: no orientation");
 	if (!(len->step > 0) || !(len->radius > 0) || !(len->ellipse_lateral > 0) ||
 	    !(len->ellipse_z > 0) || !(len->c0 >= 0) || len->c0 > 1)

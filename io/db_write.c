@@ -51,6 +51,7 @@ struct loom__dbw {
 	uint32_t n_bricks;          /* bricks put (all exemplars) */
 	uint8_t *index;             /* n_bricks * 24, capacity cap_index */
 	size_t cap_index;
+	uint32_t n_copied;          /* exemplars copied by loom__dbw_append */
 	/* current exemplar */
 	uint32_t cur_put;           /* bricks of it put so far */
 	uint32_t cur_total;
@@ -337,7 +338,7 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *d,
 	if (w->failed)
 		return loom__fail(diag, LOOM_EUNUSABLE, "%s: writer failed earlier",
 		                  w->out.path);
-	if (w->n_begun && (rc = finish_exemplar(w, diag)) != LOOM_OK)
+	if (w->n_begun > w->n_copied && (rc = finish_exemplar(w, diag)) != LOOM_OK)
 		return w->failed = 1, rc;
 	if (w->n_begun >= w->p.n_exemplars)
 		return loom__fail(diag, LOOM_EINVAL, "%s: more than the %u exemplars "
@@ -638,7 +639,7 @@ int loom__dbw_finish(loom__dbw *w, uint64_t *hash, loom_diag *diag)
 		loom__dbw_abort(w);
 		return rc;
 	}
-	rc = finish_exemplar(w, diag);
+	rc = w->n_begun > w->n_copied ? finish_exemplar(w, diag) : LOOM_OK;
 	if (rc) {
 		loom__dbw_abort(w);
 		return rc;
@@ -708,4 +709,178 @@ void loom__dbw_abort(loom__dbw *w)
 	free(w->btop);
 	free(w->blabel);
 	free(w);
+}
+
+/* ---- append ---------------------------------------------------------------- */
+
+static int read_exact(FILE *f, void *buf, size_t n, uint64_t off)
+{
+	if (fseeko(f, (off_t)off, SEEK_SET) != 0)
+		return -1;
+	return fread(buf, 1, n, f) == n ? 0 : -1;
+}
+
+/* Copy old exemplar k's record and sections from the metadata blob m (of
+   meta_len bytes, already checked by loom_db_open) into e. */
+static int copy_exemplar(const uint8_t *m, size_t meta_len, uint32_t k, size_t esz,
+                         dbw_exemplar *e)
+{
+	const uint8_t *x = m + LOOM__DB_META_HEADER_BYTES + (size_t)k * LOOM__DB_EXEMPLAR_BYTES;
+	uint64_t ow = loom__le64(x + 128), oy = loom__le64(x + 136);
+	uint64_t os = loom__le64(x + 144), ob = loom__le64(x + 152);
+	size_t nw, nb;
+
+	memcpy(e->name, x, 31);
+	memcpy(e->weave_name, x + 32, 31);
+	e->rows = loom__le32(x + 64);
+	e->cols = loom__le32(x + 68);
+	for (int a = 0; a < 3; a++) {
+		e->size[a] = loom__le32(x + 72 + 4 * a);
+		e->bricks[a] = loom__le32(x + 100 + 4 * a);
+	}
+	e->first_brick = loom__le32(x + 112);
+	e->n_yarns = loom__le32(x + 116);
+	e->n_sym = loom__le32(x + 120);
+	e->raw_bytes = loom__le64(x + 160);
+	e->stored_bytes = loom__le64(x + 168);
+	nw = (size_t)e->rows * e->cols;
+	nb = nw * esz;
+	if (ow + nw > meta_len || oy + 4 * ((size_t)e->n_yarns + 1) > meta_len ||
+	    os + 4 * (size_t)e->n_sym > meta_len || ob + nb > meta_len ||
+	    e->n_yarns > 255 || e->n_sym > nw)
+		return -1;
+	e->weave = malloc(nw);
+	e->yarns = calloc(e->n_yarns + 1, sizeof *e->yarns);
+	e->sym = malloc(sizeof(uint16_t) * 2 * (e->n_sym ? e->n_sym : 1));
+	e->blocks = malloc(nb);
+	if (!e->weave || !e->yarns || !e->sym || !e->blocks)
+		return -1;
+	memcpy(e->weave, m + ow, nw);
+	for (uint32_t l = 0; l <= e->n_yarns; l++) {
+		const uint8_t *y = m + oy + 4 * (size_t)l;
+		e->yarns[l].kind = y[0];
+		e->yarns[l].flags = y[1];
+		e->yarns[l].index = (int16_t)loom__le16(y + 2);
+	}
+	for (uint32_t s = 0; s < e->n_sym; s++) {
+		e->sym[2 * s] = loom__le16(m + os + 4 * (size_t)s);
+		e->sym[2 * s + 1] = loom__le16(m + os + 4 * (size_t)s + 2);
+	}
+	memcpy(e->blocks, m + ob, nb);
+	return 0;
+}
+
+int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
+                     loom__dbw **out, loom__dbw_params *old, loom_diag *diag)
+{
+	loom_db *db = NULL;
+	loom_db_info info;
+	loom__dbw_params p;
+	loom__dbw *w = NULL;
+	uint8_t hdr[LOOM__DB_HEADER_BYTES], tr[LOOM__DB_TRAILER_BYTES], *meta = NULL;
+	uint8_t *buf = NULL;
+	uint64_t meta_off, meta_len, index_off;
+	uint32_t n_old, n_bricks;
+	size_t esz;
+	FILE *f = NULL;
+	int rc;
+
+	*out = NULL;
+	if (!path || n_new < 1)
+		return loom__fail(diag, LOOM_EINVAL, "database append: bad arguments");
+	rc = loom_db_open(path, &db, diag); /* checks header, trailer, CRCs */
+	if (rc)
+		return rc;
+	loom_db_get_info(db, &info);
+	loom_db_close(db);
+	n_old = info.n_exemplars;
+	if ((uint64_t)n_old + n_new > LOOM__DB_MAX_EXEMPLARS)
+		return loom__fail(diag, LOOM_EINVAL, "%s: %u exemplars plus %u is more "
+		                  "than %u", path, n_old, n_new, LOOM__DB_MAX_EXEMPLARS);
+	f = fopen(path, "rb");
+	if (!f)
+		return loom__fail(diag, LOOM_EIO, "%s: cannot open for reading", path);
+	if (read_exact(f, hdr, sizeof hdr, 0) ||
+	    read_exact(f, tr, sizeof tr, info.file_bytes - LOOM__DB_TRAILER_BYTES)) {
+		fclose(f);
+		return loom__fail(diag, LOOM_EIO, "%s: read failed", path);
+	}
+	meta_off = loom__le64(tr + 8);
+	meta_len = loom__le64(tr + 16);
+	memset(&p, 0, sizeof p);
+	p.n_exemplars = n_old + n_new;
+	for (int a = 0; a < 3; a++) {
+		p.block[a] = info.block[a];
+		p.brick[a] = info.brick[a];
+	}
+	p.voxel_size_um = info.voxel_size_um;
+	p.top_threshold = (uint8_t)info.top_threshold;
+	p.level = (int)loom__le32(hdr + 56);
+	if (p.level < 1 || p.level > 12)
+		p.level = LOOM_DB_DEFAULT_LEVEL;
+	p.flags = loom__le32(hdr + 60) & ~clear_flags;
+	p.seed = info.seed;
+	if (old)
+		*old = p;
+	meta = malloc(meta_len ? meta_len : 1);
+	buf = malloc(1u << 20);
+	if (!meta || !buf) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+		goto done;
+	}
+	if (read_exact(f, meta, meta_len, meta_off)) {
+		rc = loom__fail(diag, LOOM_EIO, "%s: read failed", path);
+		goto done;
+	}
+	rc = loom__dbw_create(path, &p, &w, diag);
+	if (rc)
+		goto done;
+	/* the brick data, verbatim: every stored brick keeps its offset */
+	if (fseeko(f, LOOM__DB_HEADER_BYTES, SEEK_SET) != 0) {
+		rc = loom__fail(diag, LOOM_EIO, "%s: seek failed", path);
+		goto done;
+	}
+	for (uint64_t left = meta_off - LOOM__DB_HEADER_BYTES; left > 0;) {
+		size_t n = left > (1u << 20) ? (1u << 20) : (size_t)left;
+		if (fread(buf, 1, n, f) != n) {
+			rc = loom__fail(diag, LOOM_EIO, "%s: read failed", path);
+			goto done;
+		}
+		if ((rc = wr(w, buf, n, diag)) != LOOM_OK)
+			goto done;
+		left -= n;
+	}
+	/* tables and index */
+	esz = loom__db_block_entry_bytes(p.block[0], p.block[1]);
+	n_bricks = loom__le32(meta + 16);
+	index_off = loom__le64(meta + 40);
+	if (index_off + (uint64_t)n_bricks * LOOM__DB_INDEX_BYTES > meta_len) {
+		rc = loom__fail(diag, LOOM_ECORRUPT, "%s: brick index out of range", path);
+		goto done;
+	}
+	for (uint32_t k = 0; k < n_old; k++)
+		if (copy_exemplar(meta, meta_len, k, esz, &w->ex[k])) {
+			rc = loom__fail(diag, LOOM_ENOMEM, "%s: exemplar %u: out of memory or "
+			                "tables out of range", path, k);
+			goto done;
+		}
+	w->cap_index = n_bricks > 1024 ? n_bricks : 1024;
+	w->index = malloc(w->cap_index * LOOM__DB_INDEX_BYTES);
+	if (!w->index) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+		goto done;
+	}
+	memcpy(w->index, meta + index_off, (size_t)n_bricks * LOOM__DB_INDEX_BYTES);
+	w->n_bricks = n_bricks;
+	w->n_begun = w->n_copied = n_old;
+done:
+	free(meta);
+	free(buf);
+	fclose(f);
+	if (rc) {
+		loom__dbw_abort(w);
+		return rc;
+	}
+	*out = w;
+	return LOOM_OK;
 }

@@ -75,6 +75,22 @@ void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
                       struct libdeflate_compressor *comp, uint8_t *cbuf,
                       loom__dbw_brick *out);
 
+/*
+ * Append to an existing database: opens and checks `path` (loom_db_open),
+ * then starts a writer for the same path (temporary file, renamed by
+ * loom__dbw_finish) announcing its exemplars plus n_new, with the same
+ * geometry, voxel size, level and seed, and header flags minus clear_flags.
+ * The old brick data are copied verbatim (every stored brick keeps its
+ * offset), and so are the old exemplars' records, weaves, yarn tables,
+ * symmetries, block tables and index entries; the caller then begins the
+ * n_new exemplars as after loom__dbw_create.  *old (may be NULL) receives
+ * the database's parameters (n_exemplars = old + n_new).  Memory: the old
+ * metadata and a 1 MiB copy buffer.  Errors as loom_db_open, LOOM_EIO,
+ * LOOM_ENOMEM, LOOM_EINVAL (more than 4096 exemplars in all).
+ */
+int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
+                     loom__dbw **out, loom__dbw_params *old, loom_diag *diag);
+
 /* Append the next brick of the current exemplar. */
 int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag);
 

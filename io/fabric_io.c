@@ -1,6 +1,7 @@
 /*
  * io/fabric_io.c - the fabric file (.loomf): writer and validating reader.
- * Byte-level specification: docs/fabric.md.  Little-endian throughout.
+ * Byte-level specification: docs/formats.md, "Fabric file".  Little-endian
+ * throughout.
  *
  *   +-----------------------+ 0
  *   | header (64 B)         |  magic, version, rows, cols, n_sections, CRC

@@ -21,5 +21,6 @@
 #include "loom/volio.h"
 #include "loom/scan.h"
 #include "loom/render.h"
+#include "loom/preview.h"
 
 #endif /* LOOM_H */

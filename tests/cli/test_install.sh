@@ -42,3 +42,82 @@ else
 fi
 if "$P/bin/loom" --version | grep -q '^loom 0.1.0$'; then pass installed_binary_runs; else fail installed_binary_runs "loom --version"; fi
 if [ -f "$P/share/loom/README" ]; then pass installed_data; else fail installed_data "no share/loom"; fi
+if [ -s "$P/share/loom/default.ldb" ]; then pass installed_default_db; else fail installed_default_db "no share/loom/default.ldb"; fi
+# the installed command finds the installed database with no --db
+if env -u LOOM_DB -u LOOM_DATA "$P/bin/loom" exemplar info >"$T/xinfo.out" 2>&1 &&
+	grep -q "$P/bin/../share/loom/default.ldb\|$P/share/loom/default.ldb" "$T/xinfo.out"; then
+	pass installed_finds_db; else fail installed_finds_db "$(head -c 400 "$T/xinfo.out")"; fi
+
+# A renderer author's program (issue 5): open the installed database,
+# synthesize a small fabric, open its virtual texture with a 64 MiB budget
+# and look voxels up from two threads; both threads must see exactly what
+# the main thread saw.
+cat >"$T/tex.c" <<'C'
+#include <loom.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdint.h>
+static loom_texture *tex;
+static uint64_t walk(void)
+{
+	uint64_t h = 1469598103934665603ull;
+	for (int64_t y = -20; y < 40; y += 3)
+		for (int64_t x = -30; x < 60; x += 5)
+			for (int64_t z = -2; z < 50; z++) {
+				loom_texel v;
+				if (loom_texture_voxel(tex, x, y, z, &v) != LOOM_OK)
+					return 0;
+				h = (h ^ (uint64_t)(v.density * 255.0f + 0.5f)) * 1099511628211ull;
+				h = (h ^ (uint64_t)(v.kind + 4u * v.type)) * 1099511628211ull;
+			}
+	return h;
+}
+static void *run(void *out)
+{
+	*(uint64_t *)out = walk();
+	return NULL;
+}
+int main(int argc, char **argv)
+{
+	loom_diag diag = {0};
+	loom_db *db = NULL;
+	loom_design *d = NULL;
+	loom_fabric *f = NULL;
+	loom_weave_params p;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture_stats st;
+	uint64_t h0, h[2];
+	pthread_t th[2];
+	if (argc < 2 || loom_db_open(argv[1], &db, &diag) != LOOM_OK ||
+	    loom_weave_parse("twill:2/3", &p, &diag) != LOOM_OK ||
+	    loom_design_make(&p, 10, 10, &d, &diag) != LOOM_OK ||
+	    loom_fabric_synthesize(d, db, argv[1], NULL, &f, &diag) != LOOM_OK) {
+		fprintf(stderr, "setup: %s\n", diag.message);
+		return 1;
+	}
+	o.budget_bytes = (size_t)64 << 20;
+	if (loom_texture_open(f, NULL, &o, &tex, &diag) != LOOM_OK) {
+		fprintf(stderr, "texture: %s\n", diag.message);
+		return 1;
+	}
+	h0 = walk();
+	for (int k = 0; k < 2; k++)
+		pthread_create(&th[k], NULL, run, &h[k]);
+	for (int k = 0; k < 2; k++)
+		pthread_join(th[k], NULL);
+	loom_texture_get_stats(tex, &st);
+	printf("%d %d %d\n", h0 != 0 && h0 == h[0] && h0 == h[1],
+	       st.peak_bytes <= st.budget_bytes, st.lookups > 0);
+	loom_texture_close(tex);
+	loom_fabric_free(f);
+	loom_design_free(d);
+	loom_db_close(db);
+	return 0;
+}
+C
+if cc -std=c11 -Wall -Werror -pthread ${LOOM_SAN:-} "$T/tex.c" -o "$T/tex" $(pkg-config --cflags --libs loom) >"$T/cc3.log" 2>&1 &&
+	LD_LIBRARY_PATH="$P/lib" "$T/tex" "$P/share/loom/default.ldb" >"$T/tex.out" 2>&1 && grep -q '^1 1 1$' "$T/tex.out"; then
+	pass pkgconfig_texture_threads
+else
+	fail pkgconfig_texture_threads "$(cat "$T/cc3.log" "$T/tex.out" 2>/dev/null | head -c 600)"
+fi

@@ -103,6 +103,13 @@ expect_ok synth_pbm_maps "$LOOM" synth "$IMG/twill23_plain.pbm" --warp-map "$IMG
 	--edge-tables rebuild -o "$T/tp.loomf"
 expect_out_contains synth_pbm_rebuild "rebuilt at open"
 
+# a PNG weave (as `loom pattern make` writes it) gives the same fabric as
+# the same weave as PBM
+expect_ok make_png "$LOOM" pattern make twill:2/3 --size 5x5 -o "$T/t23.png"
+expect_ok synth_png "$LOOM" synth "$T/t23.png" --algo greedy --quiet -o "$T/tpng.loomf"
+expect_ok synth_pbm_again "$LOOM" synth "$IMG/twill23_5x5.pbm" --algo greedy --quiet -o "$T/tpbm.loomf"
+expect_same synth_png_equals_pbm "$T/tpng.loomf" "$T/tpbm.loomf"
+
 # an image + mapping file (Jacquard)
 expect_ok synth_image "$LOOM" synth "$IMG/motif.ppm" --map "$IMG/motif.map" --json -o "$T/m.loomf"
 if python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert j['correctness']==1 and j['crossings']==24" "$T/out" 2>"$T/py"

@@ -68,7 +68,7 @@ static void put32(uint8_t *p, uint32_t v)
 }
 
 /* Make header, section and trailer checksums and the trailer's file size
-   consistent with the bytes (docs/fabric.md). */
+   consistent with the bytes (docs/formats.md). */
 static void reseal(uint8_t *b, size_t n)
 {
 	size_t pos = 64;

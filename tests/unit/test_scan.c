@@ -680,37 +680,15 @@ static void register_against_brute_force(void)
 static void expected_grid(const synth_spec *s, uint32_t *ja_o, uint32_t *cols,
                           uint32_t *ia_o, uint32_t *rows)
 {
-	long best = 0;
-	double best_d = 0;
-	for (uint32_t ja = 0; ja < s->nw; ja++)
-		for (uint32_t jb = ja + 1; jb < s->nw; jb++)
-			for (uint32_t ia = 0; ia < s->nf; ia++)
-				for (uint32_t ib = ia + 1; ib < s->nf; ib++) {
-					double x0 = s->x0 + (ja - 0.5) * s->sx, x1 = s->x0 + (jb + 0.5) * s->sx - 1;
-					double y0 = s->y0 + (ia - 0.5) * s->sy, y1 = s->y0 + (ib + 0.5) * s->sy - 1;
-					double cx = (s->nx - 1) * 0.5, cy = (s->ny - 1) * 0.5;
-					double dd = pow((x0 + x1) / 2 - cx, 2) + pow((y0 + y1) / 2 - cy, 2);
-					long cells = (long)(jb - ja + 1) * (ib - ia + 1);
-					int inside = 1;
-					double corners[4][2] = {{x0, y0}, {x1, y0}, {x0, y1}, {x1, y1}};
-					if (cells < best || (cells == best && dd >= best_d))
-						continue;
-					for (int k = 0; k < 4; k++) {
-						double sx, sy;
-						loom_scan_aligned_to_scan(s->nx, s->ny, s->angle_deg,
-						                          corners[k][0], corners[k][1], &sx, &sy);
-						if (sx < 0 || sy < 0 || sx > s->nx - 1 || sy > s->ny - 1)
-							inside = 0;
-					}
-					if (!inside)
-						continue;
-					best = cells;
-					best_d = dd;
-					*ja_o = ja;
-					*cols = jb - ja + 1;
-					*ia_o = ia;
-					*rows = ib - ia + 1;
-				}
+	loom_scan_sheet sh;
+	loom_scan_sheet_grid g;
+	uint8_t wbuf[1024];
+	synth_sheet(s, &sh, wbuf);
+	CHECK_EQ_INT(loom_scan_sheet_truth(&sh, &g), LOOM_OK);
+	*ja_o = g.first_warp;
+	*cols = g.cols;
+	*ia_o = g.first_weft;
+	*rows = g.rows;
 }
 
 /* Scan-frame segmentation with the result's centre curves (moved back to
@@ -722,66 +700,7 @@ static void expected_grid(const synth_spec *s, uint32_t *ja_o, uint32_t *cols,
 static void scan_frame_accuracy(const synth_spec *s, const synth_out *o,
                                 const loom_scan_result *r, double acc[2])
 {
-	loom_scan_curve *c = calloc(r->n_yarns, sizeof *c);
-	size_t n = (size_t)s->nx * s->ny * s->nz, total = 0, right = 0, unl = 0;
-	size_t confused = 0;
-	uint8_t *lab = malloc(n);
-	float *axes = malloc(2 * r->n_yarns * sizeof *axes);
-	loom_diag d = {0};
-	int rc;
-
-	for (uint32_t i = 0; i < r->n_yarns; i++) {
-		const loom_scan_yarn *y = &r->yarns[i];
-		const float *ax = y->kind == LOOM_SCAN_WARP ? r->warp_ends.semi_axes
-		                                            : r->weft_ends.semi_axes;
-		c[i].kind = y->kind;
-		c[i].n = y->n_points;
-		c[i].pts = malloc(3 * y->n_points * sizeof(float));
-		for (uint32_t k = 0; k < y->n_points; k++) {
-			double sx, sy;
-			loom_scan_aligned_to_scan(s->nx, s->ny, r->rotation_degrees,
-			                          y->points[3 * k] + r->grid.crop[0],
-			                          y->points[3 * k + 1] + r->grid.crop[1], &sx, &sy);
-			c[i].pts[3 * k] = (float)sx;
-			c[i].pts[3 * k + 1] = (float)sy;
-			c[i].pts[3 * k + 2] = y->points[3 * k + 2];
-		}
-		axes[2 * i] = ax[0];
-		axes[2 * i + 1] = ax[1];
-	}
-	rc = loom_scan_segment(&o->vol, r->threshold, c, r->n_yarns, axes,
-	                       fmaxf(r->grid.pitch_x, r->grid.pitch_y), 2, lab, NULL, NULL, &d);
-	CHECK_EQ_INT(rc, LOOM_OK);
-	for (size_t i = 0; i < n && rc == LOOM_OK; i++) {
-		int t = o->truth[i], L = lab[i], want;
-		const loom_scan_yarn *y;
-		if (!t)
-			continue;
-		total++;
-		if (!L) {
-			unl++;
-			continue;
-		}
-		y = &r->yarns[L - 1];
-		want = y->kind == LOOM_SCAN_WARP ? (int)y->tracked + 1
-		                                 : (int)(s->nw + y->tracked + 1);
-		right += want == t;
-		confused += (want <= (int)s->nw) != (t <= (int)s->nw);
-	}
-	acc[0] = total ? (double)right / total : 0;
-	acc[1] = total > unl ? (double)right / (total - unl) : 0;
-	printf("  scan frame: %.2f%% of %zu yarn voxels labelled with the right yarn; "
-	       "%.2f%% of those above the threshold (%.2f%% below it, %.2f%% warp/weft "
-	       "confusion; semi-axes warp %.1f x %.1f, weft %.1f x %.1f)\n",
-	       100 * acc[0], total, 100 * acc[1], 100.0 * unl / total,
-	       100.0 * confused / total, r->warp_ends.semi_axes[0],
-	       r->warp_ends.semi_axes[1], r->weft_ends.semi_axes[0],
-	       r->weft_ends.semi_axes[1]);
-	for (uint32_t i = 0; i < r->n_yarns; i++)
-		loom_scan_curve_release(&c[i]);
-	free(c);
-	free(lab);
-	free(axes);
+	CHECK_EQ_INT(synth_scan_accuracy(&o->vol, o->truth, s->nw, r, acc, 1), LOOM_OK);
 }
 
 /* Check a result against the sheet's truth; returns 1 if all good. */
@@ -829,7 +748,7 @@ static int check_result(const synth_spec *s, const synth_out *o,
 	/* the output volume */
 	CHECK_EQ_INT(r->volume.nx, r->cols * r->b1);
 	CHECK_EQ_INT(r->volume.ny, r->rows * r->b2);
-	CHECK(r->volume.density && r->volume.orient && r->volume.label);
+	CHECK(r->volume.density && r->volume.ocode && !r->volume.orient && r->volume.label);
 	CHECK_EQ_INT(r->n_yarns, s->nw + s->nf);
 	for (uint32_t i = 0; i < r->n_yarns; i++) {
 		const loom_scan_yarn *y = &r->yarns[i];
@@ -1006,17 +925,17 @@ static void pipeline_block_z(void)
 			for (uint32_t z = 0; z < r[k]->b3; z++) {
 				long zs = (long)r[k]->z0 + z;
 				const float *a = r[k]->volume.density + z * ncol;
-				const float *oa = r[k]->volume.orient + 3 * z * ncol;
+				const uint16_t *oa = r[k]->volume.ocode + z * ncol;
 				if (zs < 0 || zs >= 40) {
 					int zero = 1;
 					for (size_t q = 0; q < ncol; q++)
-						zero &= a[q] == 0 && oa[3 * q] == 0 && r[k]->volume.label[z * ncol + q] == 0;
+						zero &= a[q] == 0 && oa[q] == 0 && r[k]->volume.label[z * ncol + q] == 0;
 					CHECK(zero);
 					continue;
 				}
 				CHECK(memcmp(a, r[0]->volume.density + zs * ncol, ncol * sizeof(float)) == 0);
-				CHECK(memcmp(oa, r[0]->volume.orient + 3 * zs * ncol,
-				             3 * ncol * sizeof(float)) == 0);
+				CHECK(memcmp(oa, r[0]->volume.ocode + zs * ncol,
+				             ncol * sizeof(uint16_t)) == 0);
 				for (size_t q = 0; q < ncol; q++) {
 					lab_same += r[k]->volume.label[z * ncol + q] ==
 					            r[0]->volume.label[zs * ncol + q];
@@ -1051,7 +970,7 @@ static void pipeline_deterministic(void)
 		n = (size_t)ra->volume.nx * ra->volume.ny * ra->volume.nz;
 		CHECK(ra->volume.nx == rb->volume.nx && ra->volume.ny == rb->volume.ny);
 		CHECK(memcmp(ra->volume.density, rb->volume.density, n * sizeof(float)) == 0);
-		CHECK(memcmp(ra->volume.orient, rb->volume.orient, 3 * n * sizeof(float)) == 0);
+		CHECK(memcmp(ra->volume.ocode, rb->volume.ocode, n * sizeof(uint16_t)) == 0);
 		CHECK(memcmp(ra->volume.label, rb->volume.label, n) == 0);
 		CHECK(ra->rotation_degrees == rb->rotation_degrees);
 		CHECK(memcmp(ra->grid.crop, rb->grid.crop, sizeof ra->grid.crop) == 0);

@@ -929,6 +929,180 @@ done:
 	loom_db_close(db);
 }
 
+/* Read box [lo, hi) with the channels of mask (bit 0 density, 1
+   orientation, 2 kind, 3 type, 4 label) in layout lay and compare every
+   voxel with the reference; returns mismatches (+1 for a wrong result code
+   or a NULL channel written).  Compared column by column (the reference
+   caches one crossing's offsets). */
+static uint64_t region_vs_ref(loom_texture *t, ref *r, const int64_t lo[3],
+                              const int64_t hi[3], unsigned mask, int lay)
+{
+	size_t nx = (size_t)(hi[0] - lo[0]), ny = (size_t)(hi[1] - lo[1]);
+	size_t nz = (size_t)(hi[2] - lo[2]), n = nx * ny * nz;
+	uint8_t *buf = malloc(6 * n + 1);
+	loom_texture_region reg = {0};
+	uint64_t bad = 0;
+	int rc;
+
+	if (!buf)
+		return 1;
+	memset(buf, 0xA5, 6 * n + 1);
+	/* orientation first (aligned), then density, kind, type, label */
+	reg.density = mask & 1 ? buf + 2 * n : NULL;
+	reg.orientation = mask & 2 ? (uint16_t *)buf : NULL;
+	reg.kind = mask & 4 ? buf + 3 * n : NULL;
+	reg.type = mask & 8 ? buf + 4 * n : NULL;
+	reg.label = mask & 16 ? buf + 5 * n : NULL;
+	reg.layout = lay;
+	rc = loom_texture_read_region(t, lo, hi, &reg);
+	bad += rc != LOOM_OK;
+	for (size_t y = 0; y < ny; y++)
+		for (size_t x = 0; x < nx; x++)
+			for (size_t z = 0; z < nz; z++) {
+				size_t i = lay == LOOM_REGION_X_FASTEST ? (z * ny + y) * nx + x
+				                                        : (y * nx + x) * nz + z;
+				rv e = ref_raw(r, lo[0] + (int64_t)x, lo[1] + (int64_t)y,
+				               lo[2] + (int64_t)z);
+				uint64_t b = (reg.density && reg.density[i] != e.d) +
+				             (reg.orientation && reg.orientation[i] != e.o) +
+				             (reg.kind && reg.kind[i] != e.k) +
+				             (reg.type && reg.type[i] != e.ty) +
+				             (reg.label && reg.label[i] != e.l);
+				if (b && bad < 3)
+					printf("  layout %d mask %u voxel (%lld,%lld,%lld): d %d/%d o %d/%d "
+					       "k %d/%d t %d/%d l %d/%d\n", lay, mask,
+					       (long long)(lo[0] + (int64_t)x), (long long)(lo[1] + (int64_t)y),
+					       (long long)(lo[2] + (int64_t)z), buf[2 * n + i], e.d,
+					       (mask & 2) ? reg.orientation[i] : 0, e.o,
+					       buf[3 * n + i], e.k, buf[4 * n + i], e.ty, buf[5 * n + i], e.l);
+				bad += b;
+			}
+	/* channels not asked for are untouched */
+	for (int c = 0; c < 5; c++) {
+		static const size_t at[5] = {2, 0, 3, 4, 5};
+		size_t len = c == 1 ? 2 * n : n;
+		if (mask >> c & 1)
+			continue;
+		for (size_t i = 0; i < len; i++)
+			if (buf[at[c] * n + i] != 0xA5) {
+				bad++;
+				break;
+			}
+	}
+	bad += buf[6 * n] != 0xA5; /* nothing past the end */
+	free(buf);
+	return bad;
+}
+
+/* The region-read paths (brick-grouped runs, empty slabs of the x-fastest
+   chunks, PSHUFB and table label mappings, every channel subset) against
+   the reference: odd boxes, negative coordinates, boxes across design
+   repeats and beyond both faces of the cloth, both layouts, on three brick
+   shapes (4x4x8; 3x5x7, not powers of two; 16x4x32 under 40x12x90
+   blocks, several bricks per column and labels above 15). */
+static void region_paths(void)
+{
+	const uint32_t block[3] = {40, 12, 90}, brick[3] = {16, 4, 32};
+	const char *paths[3] = {db_path, db_np2_path, NULL};
+	char tall[4300];
+	uint64_t bad = 0, boxes = 0;
+
+	if (!g_ok)
+		return;
+	snprintf(tall, sizeof tall, "%s/tall.ldb", tmpdir);
+	CHECK_EQ_INT(make_db_block(tall, "tiny", brick, 7, block), LOOM_OK);
+	paths[2] = tall;
+	for (int d = 0; d < 3; d++) {
+		loom_db *db = NULL;
+		loom_fabric *f = NULL;
+		loom_texture *t = NULL;
+		ref r;
+		int64_t rx, ry; /* repeat, voxels */
+		if (loom_db_open(paths[d], &db, NULL) != LOOM_OK) {
+			CHECK(0);
+			continue;
+		}
+		f = synth(g_design, db);
+		if (!f || ref_init(&r, f, db) != 0) {
+			CHECK(0);
+			loom_fabric_free(f);
+			loom_db_close(db);
+			continue;
+		}
+		rx = (int64_t)g_design->cols * r.b1;
+		ry = (int64_t)g_design->rows * r.b2;
+		/* a small budget: misses and evictions inside one read */
+		t = open_tex(f, db, min_budget(f, db, 1) + 40000, 1);
+		for (int it = 0; t && it < 14; it++) {
+			int64_t lo[3], hi[3];
+			unsigned mask = it < 2 ? 31 : (unsigned)(rnd() % 31) + 1;
+			int lay = it & 1;
+			/* around a repeat boundary (either sign), odd sizes */
+			int64_t kx = rnd_range(-3, 4), ky = rnd_range(-3, 4);
+			lo[0] = kx * rx + rnd_range(-(int64_t)r.b1 * 2, (int64_t)r.b1);
+			lo[1] = ky * ry + rnd_range(-(int64_t)r.b2 * 2, (int64_t)r.b2);
+			hi[0] = lo[0] + rnd_range(1, 2 * (int64_t)r.b1 + 40);
+			hi[1] = lo[1] + rnd_range(1, 2 * (int64_t)r.b2 + 3);
+			lo[2] = rnd_range(-(int64_t)r.b3 / 2, (int64_t)r.b3);
+			hi[2] = lo[2] + rnd_range(1, (int64_t)r.b3 + 10);
+			if (it % 5 == 0) { /* the whole thickness and beyond both faces */
+				lo[2] = -7;
+				hi[2] = (int64_t)r.b3 + 9;
+			}
+			if (it == 3) { /* entirely below the cloth */
+				lo[2] = -20;
+				hi[2] = -1;
+			}
+			/* the PSHUFB path and the 256-entry tables */
+			for (int simd = 1; simd >= 0; simd--) {
+				loom__texture_simd(t, simd);
+				bad += region_vs_ref(t, &r, lo, hi, mask, lay);
+				boxes++;
+			}
+			loom__texture_simd(t, 1);
+		}
+		/* kind or type alone (the other NULL) in both layouts */
+		for (int lay = 0; t && lay < 2; lay++) {
+			int64_t lo[3] = {-5, -3, -2}, hi[3] = {(int64_t)r.b1 + 19, (int64_t)r.b2 + 1, 0};
+			hi[2] = (int64_t)r.b3 + 2;
+			bad += region_vs_ref(t, &r, lo, hi, 4, lay);
+			bad += region_vs_ref(t, &r, lo, hi, 8, lay);
+			boxes += 2;
+		}
+		loom_texture_close(t);
+		ref_free(&r);
+		loom_fabric_free(f);
+		loom_db_close(db);
+	}
+	printf("  %llu boxes, %llu mismatches\n", (unsigned long long)boxes,
+	       (unsigned long long)bad);
+	CHECK_EQ_INT(bad, 0);
+}
+
+/* Labels: the exemplars of the tall database have labels above 15 (the
+   PSHUFB mapping uses more than one group of 16); a guard that the test
+   above covers that case. */
+static void labels_above_15(void)
+{
+	char tall[4300];
+	loom_db *db = NULL;
+	loom_db_exemplar_info e;
+	uint32_t top = 0;
+
+	if (!g_ok)
+		return;
+	snprintf(tall, sizeof tall, "%s/tall.ldb", tmpdir);
+	CHECK_EQ_INT(loom_db_open(tall, &db, NULL), LOOM_OK);
+	if (!db)
+		return;
+	for (uint32_t k = 0; loom_db_exemplar(db, k, &e) == LOOM_OK; k++)
+		if (e.n_yarns > top)
+			top = e.n_yarns;
+	printf("  largest label %u\n", top);
+	CHECK(top >= 16);
+	loom_db_close(db);
+}
+
 /* Trilinear density and orientation from the 8 reference voxels; the
    nearest kind/type; nearest filter = floor. */
 static void filtered_lookups(void)
@@ -1286,6 +1460,8 @@ int main(void)
 	RUN(region_equals_points);
 	RUN(tiny_budgets_deterministic);
 	RUN(wide_blocks_region);
+	RUN(region_paths);
+	RUN(labels_above_15);
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
 	RUN(corrupt_brick);

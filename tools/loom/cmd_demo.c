@@ -2,31 +2,49 @@
  * tools/loom/cmd_demo.c - `loom demo`: the main job on the built-in data.
  *
  * The demo is a list of stages run in order over one shared context; each
- * stage reads what earlier ones left in it.  Today:
+ * stage reads what earlier ones left in it:
  *
  *   1. designs  elementary weaves from the generators, a Jacquard design
  *               built in memory from a generated two-colour picture
  *               (paper 5.2, Fig. 13c: 1/7 twill and 7/1 satin), and every
  *               *.wif draft in the data directory;
  *   2. write    each design's weave as DIR/NAME.png;
- *   3. table    a short info table on stdout.
+ *   3. table    a short info table on stdout;
+ *   4. cloth    the demo cloth: a drawn motif (rings and a diamond) mapped
+ *               to 1/4 and 4/1 satin, red warp and gold weft, so the motif
+ *               shows gold on red; synthesized over the default exemplar
+ *               database (loom_fabric_synthesize) into DIR/cloth.loomf;
+ *   5. preview  a shaded top view of one repeat (loom_preview) as
+ *               DIR/cloth-preview.png and .exr;
+ *   6. render   a small path-traced picture of the cloth at an angle
+ *               (loom_render), DIR/cloth-render.png;
+ *   7. export   one 64 x 64 x b3 tile in each export format (vol, nrrd,
+ *               exr) through `loom export`, in DIR/export-FORMAT/;
+ *   8. files    a table of every file written, with its size.
  *
- * Later issues add stages (exemplar database, synthesis, export, render)
- * by appending to stages[]; a stage that fails for one item reports it,
- * marks the run failed (exit 1) and lets the others go on.
+ * Stages 4-7 need the exemplar database (--db, $LOOM_DB, or default.ldb in
+ * the data directory); without one they are skipped with a warning.  A
+ * stage that fails for one item reports it, marks the run failed (exit 1)
+ * and lets the others go on.
  */
 #include "cli.h"
 #include "commands.h"
+#include "progress.h"
 
 #include <dirent.h>
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <limits.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #define DEMO_MAX_ITEMS 64
+#define DEMO_MAX_FILES 128
 
 typedef struct demo_item {
 	char name[64];        /* file stem, e.g. "twill-2-3" */
@@ -34,9 +52,22 @@ typedef struct demo_item {
 	loom_design *design;  /* owned */
 } demo_item;
 
+typedef struct demo_file {
+	char path[PATH_MAX];
+	char what[64];
+	long long bytes;      /* -1: the file's size at print time */
+} demo_file;
+
 typedef struct demo_ctx {
 	const char *dir;      /* output directory */
+	const char *db_opt;   /* --db */
 	int quiet;
+	double t0;            /* start, seconds */
+	loom_db *db;          /* stages 4-7 */
+	loom_fabric *fabric;
+	char fabric_path[PATH_MAX];
+	demo_file files[DEMO_MAX_FILES];
+	int n_files;
 	demo_item items[DEMO_MAX_ITEMS];
 	int n_items;
 	int failed;           /* some item failed in some stage */
@@ -45,17 +76,24 @@ typedef struct demo_ctx {
 typedef void (*demo_stage_fn)(demo_ctx *ctx);
 
 static const char help_demo[] =
-	"usage: loom demo [-o DIR] [--quiet]\n"
+	"usage: loom demo [-o DIR] [--db DB] [--quiet]\n"
 	"\n"
-	"Run the main job on the built-in default data.  For now: make a few\n"
-	"designs from the weave generators (2/3 twill, 1/4 satin, herringbone,\n"
-	"...), a Jacquard design from a generated two-colour picture, and one\n"
-	"from every sample WIF draft in the data directory; write each weave as\n"
-	"DIR/NAME.png and print a table of their size, repeat, longest floats\n"
-	"and yarn types.\n"
+	"Run the main job on the built-in default data (docs/preview.md):\n"
+	" - designs from the weave generators (2/3 twill, 1/4 satin, herringbone,\n"
+	"   ...), a Jacquard design from a generated two-colour picture, and one\n"
+	"   from every sample WIF draft in the data directory; each weave as\n"
+	"   DIR/NAME.png and a table of their size, repeat, floats and yarn types;\n"
+	" - the demo cloth: a drawn motif woven in 1/4 and 4/1 satin with a red\n"
+	"   warp and a gold weft, synthesized over the default exemplar database\n"
+	"   (DIR/cloth.loomf), a preview of it (DIR/cloth-preview.png and .exr), a\n"
+	"   small path-traced render (DIR/cloth-render.png), and one tile exported\n"
+	"   in each format (DIR/export-vol, export-nrrd, export-exr);\n"
+	" - a table of the files written and their sizes.\n"
 	"\n"
 	"options:\n"
 	"  -o, --output DIR   output directory (default ./loom-demo; created)\n"
+	"  --db DB            exemplar database (default: $LOOM_DB, then\n"
+	"                     default.ldb in the data directory)\n"
 	"  -q, --quiet        no progress or warnings on stderr\n"
 	"  -h, --help         this text\n"
 	"\n"
@@ -293,6 +331,417 @@ static void stage_table(demo_ctx *ctx)
 		        ctx->n_items, ctx->dir);
 }
 
+/* ---- stages 4-8: the demo cloth ------------------------------------------------ */
+
+/* Remember a written file for the final table. */
+static void add_file(demo_ctx *ctx, const char *path, const char *what)
+{
+	demo_file *df;
+	size_t n;
+
+	if (ctx->n_files == DEMO_MAX_FILES)
+		return;
+	df = &ctx->files[ctx->n_files++];
+	n = strlen(path);
+
+	if (n >= sizeof df->path)
+		n = sizeof df->path - 1;
+	memcpy(df->path, path, n);
+	df->path[n] = 0;
+	snprintf(df->what, sizeof df->what, "%s", what);
+	df->bytes = -1;
+}
+
+static void stage_fail(demo_ctx *ctx, const char *what, const char *msg)
+{
+	cli_error("loom demo", "%s: %s", what, msg);
+	ctx->failed = 1;
+}
+
+/* The demo cloth's picture, `rows` picks by `cols` ends (crossings are
+   b1 x b2 = 24 x 16 voxels, so rows = 1.5 cols looks square): gold rings
+   and a gold diamond on red, with a gold border. */
+static loom_image *cloth_picture(uint32_t rows, uint32_t cols)
+{
+	loom_image *img = NULL;
+
+	if (loom_image_new(cols, rows, 3, &img))
+		return NULL;
+	for (uint32_t y = 0; y < rows; y++)
+		for (uint32_t x = 0; x < cols; x++) {
+			/* physical coordinates in units of a crossing's width */
+			double u = ((double)x + 0.5) / cols - 0.5;
+			double v = (((double)y + 0.5) / rows - 0.5) * (2.0 / 3.0) * rows / cols;
+			double r = sqrt(u * u + v * v);
+			double dm = fabs(u) + fabs(v);
+			int border = x < 3 || y < 4 || x >= cols - 3 || y >= rows - 4;
+			int gold = border || (r > 0.36 && r < 0.44) || dm < 0.2 ||
+			           (r > 0.27 && r < 0.30);
+			uint8_t *px = img->pixels + 3 * ((size_t)y * cols + x);
+			px[0] = gold ? 0xd4 : 0xa0;
+			px[1] = gold ? 0xa0 : 0x10;
+			px[2] = gold ? 0x17 : 0x10;
+		}
+	return img;
+}
+
+static void stage_cloth(demo_ctx *ctx)
+{
+	static const char map[] =
+		"# loom demo cloth: weft-faced 1/4 satin shows the gold weft,\n"
+		"# warp-faced 4/1 satin the red warp\n"
+		"yarn red  #b01818 alignment=0.3\n"
+		"yarn gold #e0b030 alignment=0.15\n"
+		"colour #d4a017 satin:1/4 warp=red weft=gold\n"
+		"colour #a01010 satin:4/1 warp=red weft=gold\n";
+	const char *db_path = cli_db_path(ctx->db_opt);
+	char abs_db[PATH_MAX], path[PATH_MAX];
+	loom_image *img;
+	loom_design *d = NULL;
+	loom_diag diag;
+	uint64_t bytes = 0;
+
+	if (!db_path) {
+		if (!ctx->quiet)
+			cli_error("loom demo", "warning: no exemplar database (give --db, set "
+			          "LOOM_DB, or build default.ldb with make); skipping the "
+			          "cloth, preview, render and export stages");
+		return;
+	}
+	cli_diag_init(&diag, &ctx->quiet);
+	if (loom_db_open(db_path, &ctx->db, &diag) != LOOM_OK) {
+		stage_fail(ctx, "cloth", diag.message);
+		return;
+	}
+	if (!realpath(db_path, abs_db))
+		snprintf(abs_db, sizeof abs_db, "%s", db_path);
+	img = cloth_picture(144, 96);
+	if (!img) {
+		stage_fail(ctx, "cloth", "out of memory");
+		return;
+	}
+	snprintf(path, sizeof path, "%s/cloth-picture.png", ctx->dir);
+	if (loom_image_write(path, img, &diag) != LOOM_OK)
+		stage_fail(ctx, "cloth", diag.message);
+	else
+		add_file(ctx, path, "the motif (posterized picture)");
+	if (loom_design_from_image(img, map, sizeof map - 1, "cloth.map", &d, &diag)) {
+		loom_image_free(img);
+		stage_fail(ctx, "cloth", diag.message);
+		return;
+	}
+	loom_image_free(img);
+	snprintf(path, sizeof path, "%s/cloth-weave.png", ctx->dir);
+	if (loom_weave_write(path, d, &diag) != LOOM_OK)
+		stage_fail(ctx, "cloth", diag.message);
+	else
+		add_file(ctx, path, "its weave (black = warp over)");
+	if (loom_fabric_synthesize(d, ctx->db, abs_db, NULL, &ctx->fabric, &diag) != LOOM_OK) {
+		loom_design_free(d);
+		stage_fail(ctx, "cloth synthesis", diag.message);
+		return;
+	}
+	loom_design_free(d);
+	snprintf(ctx->fabric_path, sizeof ctx->fabric_path, "%s/cloth.loomf", ctx->dir);
+	if (loom_fabric_save(ctx->fabric, ctx->fabric_path, &bytes, &diag) != LOOM_OK) {
+		stage_fail(ctx, "cloth", diag.message);
+		ctx->fabric_path[0] = 0;
+		return;
+	}
+	add_file(ctx, ctx->fabric_path, "fabric (design + synthesis)");
+}
+
+static int write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
+                     loom_diag *diag)
+{
+	size_t n = strlen(path);
+
+	if (n >= 4 && strcasecmp(path + n - 4, ".exr") == 0) {
+		static const loom_exr_channel ch[3] = {
+			{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
+		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
+		loom_exr_writer *wr = NULL;
+		int rc = loom_exr_writer_open(path, w, h, ch, 3, &eo, &wr, diag);
+		if (rc != LOOM_OK)
+			return rc;
+		rc = loom_exr_writer_put_rows(wr, rgb, h, diag);
+		if (rc != LOOM_OK) {
+			loom_exr_writer_abort(wr);
+			return rc;
+		}
+		return loom_exr_writer_finish(wr, diag);
+	} else {
+		loom_image *img = NULL;
+		int rc = loom_image_new(w, h, 3, &img);
+		if (rc != LOOM_OK)
+			return rc;
+		loom_render_to_srgb8(rgb, (size_t)w * h, 0.0, img->pixels);
+		rc = loom_image_write(path, img, diag);
+		loom_image_free(img);
+		return rc;
+	}
+}
+
+static loom_texture *open_texture(demo_ctx *ctx, size_t budget, const char *what)
+{
+	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t = NULL;
+	loom_diag diag;
+
+	cli_diag_init(&diag, &ctx->quiet);
+	to.budget_bytes = budget;
+	if (loom_texture_open(ctx->fabric, ctx->db, &to, &t, &diag) != LOOM_OK) {
+		stage_fail(ctx, what, diag.message);
+		return NULL;
+	}
+	return t;
+}
+
+static void stage_preview(demo_ctx *ctx)
+{
+	loom_preview_options po = LOOM_PREVIEW_OPTIONS_INIT;
+	uint64_t rep[3];
+	uint32_t W, H;
+	float *rgb;
+	loom_texture *t;
+	loom_diag diag;
+	char path[PATH_MAX];
+
+	if (!ctx->fabric)
+		return;
+	if (!(t = open_texture(ctx, (size_t)64 << 20, "preview")))
+		return;
+	cli_diag_init(&diag, &ctx->quiet);
+	loom_fabric_repeat_voxels(ctx->fabric, rep);
+	po.hi[0] = (int64_t)rep[0];
+	po.hi[1] = (int64_t)rep[1];
+	po.width = rep[0] < 1024 ? (uint32_t)rep[0] : 1024;
+	if (loom_preview_size(&po, &W, &H) != LOOM_OK ||
+	    !(rgb = malloc((size_t)W * H * 3 * sizeof *rgb))) {
+		stage_fail(ctx, "preview", "cannot size or allocate the preview");
+		loom_texture_close(t);
+		return;
+	}
+	if (loom_preview(t, ctx->fabric, &po, rgb, NULL, NULL, &diag) != LOOM_OK) {
+		stage_fail(ctx, "preview", diag.message);
+	} else {
+		snprintf(path, sizeof path, "%s/cloth-preview.png", ctx->dir);
+		if (write_rgb(path, rgb, W, H, &diag) != LOOM_OK)
+			stage_fail(ctx, "preview", diag.message);
+		else
+			add_file(ctx, path, "preview from above, sRGB");
+		snprintf(path, sizeof path, "%s/cloth-preview.exr", ctx->dir);
+		if (write_rgb(path, rgb, W, H, &diag) != LOOM_OK)
+			stage_fail(ctx, "preview", diag.message);
+		else
+			add_file(ctx, path, "the same, linear float RGB");
+	}
+	free(rgb);
+	loom_texture_close(t);
+}
+
+static void stage_render(demo_ctx *ctx)
+{
+	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
+	loom_volume_source src;
+	loom_texture *t;
+	loom_diag diag;
+	uint64_t rep[3];
+	float *rgb;
+	char path[PATH_MAX];
+	double cx, cy, span, el = 0.5; /* radians above the cloth (about 29 degrees) */
+
+	if (!ctx->fabric)
+		return;
+	if (!(t = open_texture(ctx, (size_t)128 << 20, "render")))
+		return;
+	cli_diag_init(&diag, &ctx->quiet);
+	loom_texture_volume_source(t, ctx->fabric, LOOM_FILTER_NEAREST, &src);
+	loom_fabric_repeat_voxels(ctx->fabric, rep);
+	ro.width = 360;
+	ro.height = 240;
+	ro.spp = 6;
+	ro.seed = 1;
+	ro.density_scale = 2;
+	ro.max_depth = 16;
+	ro.light.dir[0] = -0.35;
+	ro.light.dir[1] = -0.45;
+	ro.light.dir[2] = 1.0;
+	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = 2.6f;
+	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
+	/* a pinhole camera looking along +y at the middle of the motif */
+	cx = 0.5 * (double)rep[0];
+	cy = 0.5 * (double)rep[1];
+	span = 0.62 * (double)rep[0];
+	ro.camera.kind = LOOM_CAMERA_PINHOLE;
+	ro.camera.fov_y_deg = 30;
+	ro.camera.target[0] = cx;
+	ro.camera.target[1] = cy;
+	ro.camera.target[2] = 0.5 * (double)src.nz;
+	ro.camera.eye[0] = cx;
+	ro.camera.eye[1] = cy - 2.2 * span * cos(el);
+	ro.camera.eye[2] = 0.5 * (double)src.nz + 2.2 * span * sin(el);
+	ro.camera.up[0] = 0;
+	ro.camera.up[1] = 0;
+	ro.camera.up[2] = 1;
+	rgb = malloc((size_t)ro.width * ro.height * 3 * sizeof *rgb);
+	if (!rgb) {
+		stage_fail(ctx, "render", "out of memory");
+	} else if (loom_render(&src, &ro, rgb, NULL, &diag) != LOOM_OK) {
+		stage_fail(ctx, "render", diag.message);
+	} else {
+		snprintf(path, sizeof path, "%s/cloth-render.png", ctx->dir);
+		if (write_rgb(path, rgb, ro.width, ro.height, &diag) != LOOM_OK)
+			stage_fail(ctx, "render", diag.message);
+		else
+			add_file(ctx, path, "path-traced, 6 spp");
+	}
+	free(rgb);
+	loom_texture_close(t);
+}
+
+/* Run `loom export` in a child process (it exits on errors). */
+static int run_export(demo_ctx *ctx, char **argv, int argc)
+{
+	pid_t pid;
+	int status = 0;
+
+	fflush(stdout);
+	fflush(stderr);
+	pid = fork();
+	if (pid < 0)
+		return -1;
+	if (pid == 0) {
+		int rc = cmd_export(argc, argv);
+		fflush(stdout);
+		fflush(stderr);
+		_exit(rc & 0xff);
+	}
+	(void)ctx;
+	if (waitpid(pid, &status, 0) != pid)
+		return -1;
+	return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Count the regular files under dir (one level of subdirectories) and
+   their bytes; add each to the table when add is set. */
+static void add_dir_files(demo_ctx *ctx, const char *dir, const char *what, int depth,
+                          int add, int *count, long long *bytes)
+{
+	DIR *d = opendir(dir);
+	struct dirent *e;
+	char **names = NULL;
+	int n = 0;
+
+	if (!d)
+		return;
+	while ((e = readdir(d))) {
+		char **grown;
+		if (e->d_name[0] == '.')
+			continue;
+		grown = realloc(names, (size_t)(n + 1) * sizeof *names);
+		if (!grown)
+			break;
+		names = grown;
+		names[n++] = strdup(e->d_name);
+	}
+	closedir(d);
+	if (n)
+		qsort(names, (size_t)n, sizeof *names, cmp_str);
+	for (int k = 0; k < n; k++) {
+		char path[PATH_MAX];
+		struct stat st;
+		if (!names[k])
+			continue;
+		snprintf(path, sizeof path, "%s/%s", dir, names[k]);
+		if (stat(path, &st) == 0 && S_ISDIR(st.st_mode) && depth > 0) {
+			add_dir_files(ctx, path, what, depth - 1, add, count, bytes);
+		} else if (stat(path, &st) == 0 && S_ISREG(st.st_mode)) {
+			(*count)++;
+			*bytes += (long long)st.st_size;
+			if (add)
+				add_file(ctx, path, what);
+		}
+		free(names[k]);
+	}
+	free(names);
+}
+
+static void stage_export(demo_ctx *ctx)
+{
+	static const char *const formats[] = {"vol", "nrrd", "exr"};
+	char region[96], out[PATH_MAX];
+	uint64_t rep[3];
+
+	if (!ctx->fabric || !ctx->fabric_path[0])
+		return;
+	loom_fabric_repeat_voxels(ctx->fabric, rep);
+	snprintf(region, sizeof region, "0,0,0:64,64,%llu", (unsigned long long)rep[2]);
+	for (size_t k = 0; k < sizeof formats / sizeof formats[0]; k++) {
+		char what[64];
+		char *argv[12];
+		int argc = 0, rc;
+		snprintf(out, sizeof out, "%s/export-%s", ctx->dir, formats[k]);
+		argv[argc++] = "export";
+		argv[argc++] = ctx->fabric_path;
+		argv[argc++] = "--region";
+		argv[argc++] = region;
+		argv[argc++] = "--format";
+		argv[argc++] = (char *)formats[k];
+		argv[argc++] = "-o";
+		argv[argc++] = out;
+		argv[argc++] = "--quiet";
+		argv[argc] = NULL;
+		rc = run_export(ctx, argv, argc);
+		if (rc != 0) {
+			char msg[160];
+			snprintf(msg, sizeof msg, "loom export --format %s failed (status %d)",
+			         formats[k], rc);
+			stage_fail(ctx, "export", msg);
+			continue;
+		}
+		snprintf(what, sizeof what, "64x64x%llu tile, %s", (unsigned long long)rep[2],
+		         formats[k]);
+		{
+			int count = 0;
+			long long bytes = 0;
+			add_dir_files(ctx, out, what, 1, 0, &count, &bytes);
+			if (count <= 6) {
+				count = 0;
+				add_dir_files(ctx, out, what, 1, 1, &count, &bytes);
+			} else if (ctx->n_files < DEMO_MAX_FILES) {
+				/* many files (EXR z-slices): one line for the directory */
+				char dpath[PATH_MAX + 2];
+				snprintf(dpath, sizeof dpath, "%s/", out);
+				snprintf(what, sizeof what, "%d files: 64x64x%llu tile, %s z-slices",
+				         count, (unsigned long long)rep[2], formats[k]);
+				add_file(ctx, dpath, what);
+				ctx->files[ctx->n_files - 1].bytes = bytes;
+			}
+		}
+	}
+}
+
+static void stage_files(demo_ctx *ctx)
+{
+	uint64_t total = 0;
+
+	if (ctx->n_files == 0)
+		return;
+	printf("\n%-44s %10s  %s\n", "file", "bytes", "what");
+	for (int k = 0; k < ctx->n_files; k++) {
+		struct stat st;
+		long long size = ctx->files[k].bytes;
+		if (size < 0)
+			size = stat(ctx->files[k].path, &st) == 0 ? (long long)st.st_size : -1;
+		if (size >= 0)
+			total += (uint64_t)size;
+		printf("%-44s %10lld  %s\n", ctx->files[k].path, size, ctx->files[k].what);
+	}
+	printf("%d files, %llu bytes, in %.1f s\n", ctx->n_files, (unsigned long long)total,
+	       cli_now() - ctx->t0);
+}
+
 static const struct {
 	const char *name;
 	demo_stage_fn fn;
@@ -300,6 +749,11 @@ static const struct {
 	{"designs", stage_designs},
 	{"write", stage_write},
 	{"table", stage_table},
+	{"cloth", stage_cloth},
+	{"preview", stage_preview},
+	{"render", stage_render},
+	{"export", stage_export},
+	{"files", stage_files},
 };
 
 /* ---- driver -------------------------------------------------------------------- */
@@ -327,7 +781,8 @@ int cmd_demo(int argc, char **argv)
 	ctx->dir = "loom-demo";
 	cli_init(&a, argc, argv, "loom demo", help_demo);
 	while (cli_more(&a)) {
-		if (cli_value(&a, "-o", &ctx->dir) || cli_value(&a, "--output", &ctx->dir))
+		if (cli_value(&a, "-o", &ctx->dir) || cli_value(&a, "--output", &ctx->dir) ||
+		    cli_value(&a, "--db", &ctx->db_opt))
 			continue;
 		if (cli_flag(&a, "-q") || cli_flag(&a, "--quiet")) {
 			ctx->quiet = 1;
@@ -336,12 +791,15 @@ int cmd_demo(int argc, char **argv)
 		cli_unknown(&a);
 	}
 	make_dir(ctx->dir);
+	ctx->t0 = cli_now();
 	for (size_t s = 0; s < sizeof stages / sizeof stages[0]; s++) {
 		note(ctx, "stage %s", stages[s].name);
 		stages[s].fn(ctx);
 	}
 	for (int k = 0; k < ctx->n_items; k++)
 		loom_design_free(ctx->items[k].design);
+	loom_fabric_free(ctx->fabric);
+	loom_db_close(ctx->db);
 	failed = ctx->failed;
 	free(ctx);
 	return failed ? EXIT_BAD_INPUT : 0;

@@ -8,5 +8,9 @@ int cmd_exemplar(int argc, char **argv); /* cmd_exemplar.c */
 int cmd_synth(int argc, char **argv);    /* cmd_synth.c */
 int cmd_info(int argc, char **argv);     /* cmd_info.c */
 int cmd_sample(int argc, char **argv);   /* cmd_sample.c */
+int cmd_export(int argc, char **argv);   /* cmd_export.c */
+int cmd_scan(int argc, char **argv);     /* cmd_scan.c */
+int cmd_preview(int argc, char **argv);  /* cmd_preview.c */
+int cmd_render(int argc, char **argv);   /* cmd_render.c */
 
 #endif

@@ -18,6 +18,10 @@ static const struct command {
 	{"synth", cmd_synth, "design + exemplar database -> fabric (assignment, edge fix)"},
 	{"info", cmd_info, "describe a fabric file: sizes, parameters, metrics, database"},
 	{"sample", cmd_sample, "look voxels of a fabric up: one position, or random lookups timed"},
+	{"export", cmd_export, "stream a region or the whole bolt to tiles (.vol, NRRD, EXR)"},
+	{"scan", cmd_scan, "stream voxels through a reducer (checksum, histogram, coverage)"},
+	{"preview", cmd_preview, "picture of a fabric from above (PNG or EXR)"},
+	{"render", cmd_render, "path-trace a fabric, flat or mapped onto a mesh"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

@@ -202,10 +202,14 @@ LOOM_API int loom_db_channel_parse(const char *s, int *channel);
 
 /*
  * Write exemplar k, one channel, as NRRD (raw encoding, little-endian,
- * axes x, y, z; spacing = voxel size in mm, origin 0).  detached = 0:
- * one file with the header attached; 1: header at `path` (.nhdr) and data
- * in the same name with ".raw".  Atomic; memory bounded by one z-layer of
- * bricks.  Errors as loom_db_read_box plus LOOM_EIO.
+ * axes x, y, z; spacing = voxel size in mm; space origin = half a voxel on
+ * each axis, the centre of voxel (0,0,0), so the volume's corner is at 0).
+ * detached = 0: one file with the header attached; 1: header at `path`
+ * (.nhdr) and data in the same name with its extension replaced by ".raw".
+ * Atomic; memory bounded by one z-layer of bricks.  Returns LOOM_OK;
+ * LOOM_EINVAL (NULL db or path, unknown channel, a detached path that
+ * would name its own .raw file); LOOM_ERANGE (k out of range); LOOM_ENOMEM;
+ * the errors of loom_db_read_box; LOOM_EIO.
  */
 LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
                                  const char *path, int detached,
@@ -217,7 +221,8 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 
 /* Generator parameters.  Initialise with loom_exgen_preset(). */
 typedef struct loom_exgen_params {
-	size_t size;              /* sizeof(loom_exgen_params) */
+	size_t size;              /* sizeof(loom_exgen_params); must be exactly
+	                             that (LOOM_EINVAL otherwise) */
 	uint32_t block[3];        /* b1, b2, b3 voxels */
 	float voxel_size_um;
 	uint32_t rows, cols;      /* crossings per exemplar; 0 = per weave: the

@@ -60,17 +60,24 @@ LOOM_API int loom_design_new(uint32_t rows, uint32_t cols, loom_design **out);
 /* Free a design; NULL is a no-op. */
 LOOM_API void loom_design_free(loom_design *d);
 
-/* Deep copy.  LOOM_OK, LOOM_EINVAL, LOOM_ENOMEM. */
+/* Deep copy (maps and yarn table).  LOOM_OK; LOOM_EINVAL (NULL d or out,
+   zero size, d->n_types 0 or above LOOM_MAX_YARN_TYPES); LOOM_ERANGE (d's
+   size beyond LOOM_DESIGN_MAX_*); LOOM_ENOMEM.  *out is untouched on
+   failure. */
 LOOM_API int loom_design_clone(const loom_design *d, loom_design **out);
 
 /*
- * Resize the yarn table to n entries (1..LOOM_MAX_YARN_TYPES); new entries
- * get a default name "typeK", grey albedo 0.5 and alignment 0.3.
+ * Resize the yarn table to n entries (1..LOOM_MAX_YARN_TYPES); existing
+ * entries keep their values, new entries get a default name "typeK", grey
+ * albedo 0.5, alignment 0.3 and thickness 0.  The type maps are not
+ * touched.  Returns LOOM_OK; LOOM_EINVAL (NULL d, n = 0 or above
+ * LOOM_MAX_YARN_TYPES); LOOM_ENOMEM (the table is unchanged).
  */
 LOOM_API int loom_design_set_types(loom_design *d, uint32_t n);
 
 /* Check internal consistency: every type ID < n_types, sizes in range.
-   Returns LOOM_OK or LOOM_EFORMAT with the reason in diag. */
+   Returns LOOM_OK, LOOM_EINVAL (NULL d) or LOOM_EFORMAT with the reason in
+   diag. */
 LOOM_API int loom_design_validate(const loom_design *d, loom_diag *diag);
 
 /* ---- Generators: elementary weaves ------------------------------------- */
@@ -79,7 +86,8 @@ enum loom_weave_kind {
 	LOOM_WEAVE_PLAIN = 0,
 	LOOM_WEAVE_TWILL,        /* over/under, shift +-1 per pick */
 	LOOM_WEAVE_SATIN,        /* over/under, shift = move per pick */
-	LOOM_WEAVE_BASKET,       /* plain weave of over x over groups */
+	LOOM_WEAVE_BASKET,       /* checkerboard of cells `over` picks by
+	                            `under` ends (basket:2 = 2x2 groups) */
 	LOOM_WEAVE_HERRINGBONE,  /* twill reversing direction every `period` ends */
 	LOOM_WEAVE_BROKEN_TWILL, /* twill broken (shifted) every `period` ends */
 	LOOM_WEAVE_WAVY_TWILL,   /* twill whose shift follows a zigzag wave */
@@ -90,9 +98,10 @@ enum loom_weave_kind {
    Initialise with LOOM_WEAVE_PARAMS_INIT. */
 typedef struct loom_weave_params {
 	int kind;          /* enum loom_weave_kind */
-	uint32_t over;     /* warp-over picks per repeat (twill, satin), group
-	                      size (basket) */
-	uint32_t under;    /* warp-under picks per repeat */
+	uint32_t over;     /* warp-over picks per repeat (twill, satin); picks
+	                      per cell (basket) */
+	uint32_t under;    /* warp-under picks per repeat; ends per cell
+	                      (basket) */
 	uint32_t move;     /* satin move number (counter), 0 = choose one */
 	int direction;     /* +1: rising to the right (Z twill); -1: S twill */
 	uint32_t period;   /* herringbone / broken / wavy: ends per zig (0 =
@@ -109,8 +118,9 @@ typedef struct loom_weave_params {
 LOOM_API int loom_weave_repeat(const loom_weave_params *p, uint32_t *rows,
                                uint32_t *cols, loom_diag *diag);
 
-/* Value W(i,j) of an elementary weave at any (wrapping) position, for
-   parameters that loom_weave_repeat accepted. */
+/* Value W(i,j) (0 or 1) of an elementary weave at any (wrapping)
+   position, for parameters that loom_weave_repeat accepted (nothing is
+   checked; p must not be NULL). */
 LOOM_API int loom_weave_cell(const loom_weave_params *p, uint64_t i, uint64_t j);
 
 /*
@@ -131,7 +141,10 @@ LOOM_API int loom_design_make(const loom_weave_params *p, uint32_t rows,
 LOOM_API int loom_weave_parse(const char *name, loom_weave_params *p,
                               loom_diag *diag);
 
-/* Canonical name of params (the inverse of loom_weave_parse) into buf. */
+/* Canonical name of params (the inverse of loom_weave_parse) into buf.
+   Returns LOOM_OK; LOOM_EINVAL (NULL p or buf, unknown kind); LOOM_ERANGE
+   (the name needs more than n bytes: buf holds it cut, NUL-terminated if
+   n > 0).  64 bytes always suffice. */
 LOOM_API int loom_weave_name(const loom_weave_params *p, char *buf, size_t n);
 
 /* ---- Analysis ---------------------------------------------------------- */
@@ -148,6 +161,8 @@ typedef struct loom_design_stats {
 	                              under at least once (the cloth holds) */
 } loom_design_stats;
 
+/* Fill *st.  LOOM_OK; LOOM_EINVAL (NULL d or st, missing arrays, zero
+   size); LOOM_ENOMEM.  O(rows*cols) time, O(rows + cols) memory. */
 LOOM_API int loom_design_analyze(const loom_design *d, loom_design_stats *st);
 
 #ifdef __cplusplus

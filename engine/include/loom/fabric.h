@@ -1,8 +1,8 @@
 /*
  * loom/fabric.h - a fabric: one design bound to one exemplar database by
  * yarn-level synthesis (paper 5.3-5.5).  Include <loom.h>, not this file.
- * docs/fabric.md describes the fabric file byte by byte, the `loom synth`
- * and `loom info` commands, and the metrics.
+ * docs/fabric.md describes the `loom synth` and `loom info` commands and
+ * the metrics; docs/formats.md ("Fabric file") the file byte by byte.
  *
  * A fabric holds, in O(design) memory:
  *   - the design (weave W, warp/weft yarn-type maps, yarn table);
@@ -128,7 +128,7 @@ LOOM_API int loom_fabric_synthesize(const loom_design *d, const loom_db *db,
                                     loom_fabric **out, loom_diag *diag);
 
 /*
- * Write the fabric file (docs/fabric.md) atomically.  *bytes (may be NULL)
+ * Write the fabric file (docs/formats.md) atomically.  *bytes (may be NULL)
  * receives its size.  Same fabric => same bytes.  Memory: a few MiB of
  * buffers, whatever the design size.  Returns LOOM_OK, LOOM_EINVAL,
  * LOOM_EIO (message names the path), LOOM_ENOMEM.
@@ -152,8 +152,11 @@ LOOM_API int loom_fabric_save(const loom_fabric *f, const char *path,
  * stored one: otherwise LOOM_EMISMATCH with a message naming both hashes;
  * its geometry must match too (LOOM_EMISMATCH).  Edge-fix tables are
  * read from the file or rebuilt from the database.  flags:
- * LOOM_FABRIC_OPEN_DETACHED (db is then ignored).  *out is NULL on
- * failure.
+ * LOOM_FABRIC_OPEN_DETACHED (db is then ignored).  Other codes: LOOM_EINVAL
+ * (NULL path or out, unknown flags); LOOM_EIO (the file cannot be read);
+ * LOOM_ENOTFOUND (db NULL and the file records no database path); the
+ * error of loom_db_open when the recorded database cannot be opened;
+ * LOOM_ENOMEM.  *out is NULL on failure.
  */
 LOOM_API int loom_fabric_open(const char *path, const loom_db *db,
                               unsigned flags, loom_fabric **out,

@@ -20,10 +20,15 @@ extern "C" {
 /* ---- WIF 1.1 (weaving information file) ------------------------------- */
 
 /* Parse WIF text (len bytes, need not be NUL-terminated).  `name` is used in
-   messages ("name:line: ...").  Yarn types come from warp/weft colours. */
+   messages ("name:line: ...").  Yarn types come from warp/weft colours and
+   thicknesses.  Returns LOOM_OK; LOOM_EFORMAT (malformed, or no drawdown
+   possible: name:line and what was expected); LOOM_ERANGE (a number or
+   size beyond loom's limits, more than 256 yarn types); LOOM_ENOMEM;
+   LOOM_EINVAL (NULL out, NULL text with len > 0).  Warnings go to diag. */
 LOOM_API int loom_wif_parse(const char *text, size_t len, const char *name,
                             loom_design **out, loom_diag *diag);
-/* Read and parse a WIF file. */
+/* Read and parse a WIF file: loom_wif_parse's codes plus LOOM_EIO,
+   LOOM_ERANGE (a file over the size limit) and LOOM_EINVAL (NULL path). */
 LOOM_API int loom_wif_read(const char *path, loom_design **out, loom_diag *diag);
 
 /* ---- Images ------------------------------------------------------------ */
@@ -57,9 +62,12 @@ LOOM_API void loom_image_free(loom_image *img);
  * palette expanded, 16-bit reduced to 8).  Format chosen by content.
  * PBM pixels are returned as 1 channel, 255 = white, 0 = black; PGM/PPM
  * samples are scaled from maxval to 0..255; PNG alpha is ignored.
- * Returns LOOM_OK, LOOM_EFORMAT (malformed; diag names the line or byte
- * offset), LOOM_ETRUNCATED, LOOM_ERANGE (larger than 2^30 pixels),
- * LOOM_EIO, LOOM_ENOMEM.  *out is NULL on failure; free it with
+ * Returns LOOM_OK, LOOM_EFORMAT (not one of these formats, or malformed;
+ * diag names the line or byte offset), LOOM_ETRUNCATED (data ending early,
+ * an empty file), LOOM_ERANGE (larger than 2^30 pixels, a file over
+ * 4 GiB), LOOM_EUNSUPPORTED (an interlaced PNG too large to decode),
+ * LOOM_EIO (loom_image_read), LOOM_ENOMEM, LOOM_EINVAL (NULL out or
+ * path, NULL data with len > 0).  *out is NULL on failure; free it with
  * loom_image_free.  Thread-safe.
  */
 LOOM_API int loom_image_read(const char *path, loom_image **out, loom_diag *diag);
@@ -81,12 +89,17 @@ LOOM_API int loom_image_write(const char *path, const loom_image *img,
    warp over; an image must be two-level: the darker level is warp over, a
    one-level image is all over when darker than 128).  Chosen by extension,
    else by content.  An image gives the default yarn table and maps of
-   loom_design_new.  LOOM_OK or the reader's error; *out NULL on failure. */
+   loom_design_new.  LOOM_OK; the errors of loom_wif_read or
+   loom_image_read; LOOM_EFORMAT (an image with a third level, or two
+   levels of equal luma); LOOM_ERANGE (an image beyond the design limits);
+   LOOM_EINVAL (NULL).  *out NULL on failure. */
 LOOM_API int loom_design_read(const char *path, loom_design **out,
                               loom_diag *diag);
 
 /* Write W as .pbm (P4) or .png (1-bit grey): black = warp over, first row =
-   pick 0, first column = end 0.  Chosen by extension.  Atomic. */
+   pick 0, first column = end 0.  Chosen by extension.  Atomic.  LOOM_OK;
+   LOOM_EINVAL (NULL, empty design, another extension); LOOM_EIO;
+   LOOM_ENOMEM. */
 LOOM_API int loom_weave_write(const char *path, const loom_design *d,
                               loom_diag *diag);
 
@@ -126,9 +139,12 @@ LOOM_API int loom_type_map_read(const char *path, loom_design *d, int which,
  * in messages ("map_name:line: ...").
  * Errors (LOOM_EFORMAT unless noted): a malformed line (file:line and what
  * was expected), an image colour without a mapping (names the colour and
- * its first pixel), more than 64 distinct colours (LOOM_ERANGE), an
- * impossible weave (LOOM_EINVAL).  Mapped colours absent from the image
- * are warned about.  *out is NULL on failure.  Thread-safe.
+ * its first pixel); LOOM_ERANGE: more than 64 distinct image colours, more
+ * than 256 yarns or too many colour lines in the mapping, a design too
+ * large; LOOM_EINVAL: an impossible weave, NULL img or out, an empty
+ * image or one with other than 1 or 3 channels, NULL map_text with
+ * map_len > 0; LOOM_ENOMEM.  Mapped colours absent from the image are
+ * warned about.  *out is NULL on failure.  Thread-safe.
  */
 LOOM_API int loom_design_from_image(const loom_image *img, const char *map_text,
                                     size_t map_len, const char *map_name,

@@ -31,13 +31,15 @@
  *   LOOM_EUNSUPPORTED the data do not support the step (too noisy, tracking
  *                     lost, ambiguous crossings, nothing complete to crop)
  *   LOOM_ENOMEM       allocation failed
- * Memory: besides the caller's volume, loom_scan_build allocates an
- * orientation field when none is given (12 bytes per scan voxel; it becomes
- * the output's orientation), the output's density and labels (5 bytes per
- * crop voxel; 17 when the orientation was given), a 1-byte-per-column top
- * map, one orientation plane, and per-thread working buffers of
- * O(nx * max(ny, nz)) floats; nothing else grows with the volume.  All functions are thread-safe on distinct data and deterministic:
- * the same input and parameters give the same bytes for any thread count.
+ * Memory: besides the caller's volume, loom_scan_build allocates 16-bit
+ * orientation codes when no orientation is given (2 bytes per scan voxel,
+ * reused in place for the output's codes), the output's density and
+ * labels (5 bytes per crop voxel; 7 when the orientation was given), a
+ * 1-byte-per-column top map, one code plane, and per-thread working
+ * buffers of O(nx * max(ny, nz)) floats; nothing else grows with the
+ * volume (docs/scan.md, "Memory").  All functions are thread-safe on
+ * distinct data and deterministic: the same input and parameters give the
+ * same bytes for any thread count.
  * docs/scan.md describes each step, its parameters and its failure messages.
  */
 #ifndef LOOM_SCAN_H
@@ -81,11 +83,15 @@ typedef struct loom_scan_volume {
 	float *density;   /* nx*ny*nz, in [0,1] */
 	float *orient;    /* 3 floats per voxel at 3*index, or NULL */
 	uint8_t *label;   /* 1 byte per voxel, or NULL */
+	uint16_t *ocode;  /* orientation as 16-bit codes (loom_orientation_
+	                     encode, the database's encoding; 0 = undefined),
+	                     1 per voxel, or NULL; used when orient is NULL */
 } loom_scan_volume;
 
 #define LOOM_SCAN_DENSITY 1u /* channel flags for loom_scan_volume_alloc */
 #define LOOM_SCAN_ORIENT 2u
 #define LOOM_SCAN_LABEL 4u
+#define LOOM_SCAN_OCODE 8u
 
 /* Zero *v and allocate the channels named by `channels` (zero-filled).
    LOOM_EINVAL (NULL, a zero size, no channel), LOOM_ERANGE (more than 2^40
@@ -93,7 +99,7 @@ typedef struct loom_scan_volume {
 LOOM_API int loom_scan_volume_alloc(loom_scan_volume *v, uint32_t nx,
                                     uint32_t ny, uint32_t nz,
                                     unsigned channels);
-/* free() the three arrays and zero *v; NULL is a no-op. */
+/* free() the four arrays and zero *v; NULL is a no-op. */
 LOOM_API void loom_scan_volume_release(loom_scan_volume *v);
 
 /* ---- Parameters --------------------------------------------------------- */
@@ -127,8 +133,8 @@ typedef struct loom_scan_params {
 	float radius_warp;    /* R for warps (paper): 20 */
 	float radius_weft;    /* R for wefts (paper): 30 */
 	float ellipse_warp;   /* centre correction: lateral semi-axis for warps
-	                         (paper): 35 */
-	float ellipse_weft;   /* lateral semi-axis for wefts (paper): 25 */
+	                         (paper): 40 */
+	float ellipse_weft;   /* lateral semi-axis for wefts (paper): 30 */
 	float ellipse_z;      /* z semi-axis (paper): 60 */
 	uint32_t correct_iters; /* centre-of-mass iterations per step (10) */
 	float min_linking;    /* |L| every crossing of the crop must reach (0.25) */
@@ -145,11 +151,13 @@ LOOM_API void loom_scan_params_init(loom_scan_params *p);
 
 /* ---- Step 1: denoising -------------------------------------------------- */
 
-/* Robust noise level (standard deviation) of the density: median |d| /
-   (0.6745 sqrt 6) over second differences d = v[x-1] - 2 v[x] + v[x+1]
-   along x, on a regular sample of up to 2^20 voxels (structure touches few
-   of them, so the median sees the noise).  0 for NULL or nx < 3.
-   Thread-safe. */
+/* Robust noise level (standard deviation) of the density: m / 0.6745 /
+   sqrt 6, m the median of |d| over second differences d = v[x-1] - 2 v[x]
+   + v[x+1] along x (sd of d = sqrt 6 x the noise's; median |N(0,s)| =
+   0.6745 s), on a regular sample of up to 2^20 voxels (structure touches
+   few of them, so the median sees the noise).  The median comes from two
+   passes of a 4096-bin histogram (resolution 4 / 4096^2), not a sort.
+   0 for NULL, nx < 3 or out of memory.  Thread-safe. */
 LOOM_API float loom_scan_noise(const loom_scan_volume *v);
 
 /* Separable Gaussian blur of v->density in place, sigma in voxels (kernel
@@ -177,8 +185,9 @@ typedef struct loom_scan_orient_info {
  * Fibre orientation from the structure tensor: gradient by central
  * differences, tensor g g^T smoothed by a Gaussian of tensor_sigma (radius
  * ceil(3 sigma)), fibre direction = unit eigenvector of the smallest
- * eigenvalue (closed form), written to v->orient (must be allocated, 3
- * floats per voxel) for voxels with density > threshold, zero elsewhere and
+ * eigenvalue (closed form), written to v->orient (3 floats per voxel) or,
+ * when that is NULL, as a 16-bit code to v->ocode (one of them must be
+ * allocated) for voxels with density > threshold, zero elsewhere and
  * where the tensor has no single smallest direction.  Bounded memory: each
  * thread works on y-tiles of 32 rows with a ring of 2r+1 smoothed tensor
  * planes (about 24 x nx x (32 + 2r) x (2r+1) bytes).  info may be NULL.
@@ -221,7 +230,7 @@ typedef struct loom_scan_endpoints {
  * no cluster tiny (< 5% of the median), neighbour gaps within [0.55, 1.45]
  * of the median gap and the largest RMS cluster radius below 0.45 of it.
  * The accepted slice with the smallest largest radius wins.  v->orient must
- * be set.  Errors: LOOM_EINVAL; LOOM_EMISMATCH when most slices show
+ * be set (or v->ocode).  Errors: LOOM_EINVAL; LOOM_EMISMATCH when most slices show
  * another number of yarns than k (the message says how many);
  * LOOM_EUNSUPPORTED when no slice shows k separated yarns and the slices
  * disagree (noise, not a simple weave) or there is no oriented material.
@@ -373,6 +382,9 @@ typedef struct loom_scan_grid {
 	int32_t crop[4];      /* x0, y0, width, height in the aligned frame */
 	int32_t shift[2];     /* registration's move from the curve estimate */
 	double score;         /* mean agreement of b with W over the cells */
+	double min_cell;      /* the lowest agreement of one cell (central
+	                         half) of the chosen window */
+	uint32_t worst[2];    /* that cell: row (pick), column (end) */
 } loom_scan_grid;
 
 /*
@@ -417,9 +429,10 @@ typedef struct loom_scan_result {
 	/* What the database writer stores. */
 	loom_scan_volume volume; /* aligned and cropped: nx = cols*b1,
 	                            ny = rows*b2, nz = b3 (scan planes z0 ..
-	                            z0+b3-1, see z0); all channels set:
-	                            density (denoised, bilinear), orientation
-	                            (nearest, turned with the volume), label */
+	                            z0+b3-1, see z0); density (denoised,
+	                            bilinear), ocode (orientation codes:
+	                            nearest, turned with the volume; orient is
+	                            NULL), label */
 	uint32_t rows, cols;     /* crossings: picks, ends */
 	uint8_t *weave;          /* rows*cols, 1 = warp over */
 	uint32_t b1, b2, b3;     /* block size in voxels */
@@ -453,12 +466,13 @@ typedef struct loom_scan_result {
  * tracked yarns, segmentation (elliptical metric with the cross-section
  * semi-axes measured at the endpoints, one centre refinement), alignment,
  * registration (checks |L| >= p->min_linking on every crossing of the
- * crop), crop.  The scan's density is denoised in place (p->denoise_sigma
- * > 0).  When scan->orient is NULL the orientation field is estimated into
- * a buffer of loom's that is lent to scan->orient while the steps run and
- * then becomes, resampled in place, the result's orientation channel:
- * scan->orient is NULL again on return (success or failure), and the
- * largest array is never duplicated.  On success *out holds the result
+ * crop, and that every cell's central half shows the crossing's yarn on
+ * top for at least half its columns: grid.min_cell >= 0.5), crop.  The
+ * scan's density is denoised in place (p->denoise_sigma > 0).  When the
+ * scan has neither orient nor ocode, the orientation field is estimated
+ * into 16-bit codes lent to scan->ocode while the steps run, which then
+ * become, resampled in place, the result's ocode: scan->ocode is NULL again
+ * on return (success or failure).  On success *out holds the result
  * (free with loom_scan_result_free); on failure *out is NULL, the code says
  * what kind of failure (see the top comment) and diag says which step and
  * why ("scan: <step>: ...").  p->progress is called on this thread.  Not
@@ -469,6 +483,111 @@ LOOM_API int loom_scan_build(loom_scan_volume *scan, const loom_scan_params *p,
 
 /* Free a result and everything it owns; NULL is a no-op. */
 LOOM_API void loom_scan_result_free(loom_scan_result *r);
+
+/* ---- Storing a result in an exemplar database ---------------------------- */
+
+typedef struct loom_scan_db_params {
+	size_t size;            /* sizeof(loom_scan_db_params), set by _init */
+	const char *name;       /* exemplar name, 1..31 bytes, unique in the
+	                           database ("scan") */
+	const char *weave_name; /* free text, < 32 bytes ("") */
+	float voxel_size_um;    /* voxel edge of a new database (5); checked
+	                           against an existing one (warning) */
+	uint32_t brick[3];      /* brick shape of a new database (16x16x64) */
+	int level;              /* deflate level of a new database (6) */
+} loom_scan_db_params;
+
+LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
+
+/*
+ * Store r as one exemplar (weave r->weave, volume r->volume quantised to
+ * the database's voxel encodings, yarn table from r->yarns: warps kind 1,
+ * wefts kind 2, yarns outside the crop flagged LOOM_DB_YARN_OUTSIDE) at the
+ * end of the database `path`, creating it if it does not exist (block =
+ * r->b1 x b2 x b3).  An existing database is rewritten atomically (temporary
+ * file + rename): its brick data and tables are copied verbatim, so its
+ * exemplars read back byte-identical; its header flag "procedural" is
+ * cleared.  *appended (may be NULL) says which case happened.  Errors:
+ * LOOM_EINVAL (bad arguments, name taken), LOOM_EMISMATCH (the database's
+ * block size differs from the result's), the database open errors
+ * (loom_db_open), LOOM_EIO, LOOM_ENOMEM.  Memory: one brick plus the old
+ * database's metadata.
+ */
+LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
+                                const loom_scan_db_params *p, int *appended,
+                                loom_diag *diag);
+
+/* ---- Scan-like test volumes (loom exemplar generate --scan) -------------- */
+
+/*
+ * A woven sheet as a scanner would show it (engine/scan_sheet.c): warp j
+ * is a tube along y at aligned u = x0 + j*sx, weft i along x at v = y0 +
+ * i*sy, elliptical cross-sections (semi-axes *_w lateral, *_h vertical),
+ * centre lines at zc +- amp following the weave (cosine blends between
+ * crossings), fibre texture of cell size `fibre` inside; the sheet turned
+ * by angle_deg about z around the volume centre (the convention of
+ * loom_scan_aligned_to_scan), then Gaussian blur (sigma `blur`) and
+ * Gaussian noise (sigma `noise`) on the density, clamped to [0,1].
+ * Labels of the ground truth: 1..nw warps by x, nw+1..nw+nf wefts by y.
+ */
+typedef struct loom_scan_sheet {
+	size_t size;              /* sizeof(loom_scan_sheet), set by _preset */
+	uint32_t nx, ny, nz;      /* scan voxels */
+	uint32_t nw, nf;          /* warps and wefts of the sheet */
+	float sx, sy;             /* yarn spacing (voxels) */
+	float x0, y0;             /* aligned u of warp 0, v of weft 0 */
+	float warp_w, warp_h, weft_w, weft_h; /* semi-axes */
+	float warp_amp, weft_amp; /* crimp amplitudes */
+	float zc;                 /* mid-plane */
+	float angle_deg;          /* rotation about z, counter-clockwise */
+	float blur, noise;        /* PSF sigma (voxels), noise sigma */
+	float fibre;              /* fibre texture cell (voxels) */
+	uint64_t seed;
+	uint32_t rep_rows, rep_cols; /* weave repeat: picks x ends */
+	const uint8_t *weave;     /* rep_rows*rep_cols, 1 = warp over */
+	int pure_noise;           /* no sheet: uniform noise in [0,1) */
+} loom_scan_sheet;
+
+/* Presets (weave left unset): "small" 160x160x40, 7 warps x 9 wefts at
+   24 x 18 voxels; "paper" or "paper:N" N x N x 0.3N (N = 1000: the paper's
+   5 um resolution) with warp spacing 0.115 N and weft spacing 0.07 N.
+   Both turned by 3 degrees, blur 0.8, noise 0.08, seed 7.  LOOM_EINVAL
+   for another name. */
+LOOM_API int loom_scan_sheet_preset(const char *name, loom_scan_sheet *s);
+
+/* W(i, j) of the sheet's (periodic) weave: 1 = warp over. */
+LOOM_API int loom_scan_sheet_w(const loom_scan_sheet *s, long i, long j);
+
+/* The clean sheet at scan voxel (x, y, z): density (before blur and
+   noise), truth label, unit fibre tangent (zero outside), normalised
+   elliptical radius to the nearest yarn (< 1 inside; 9 if far; rad may be
+   NULL). */
+LOOM_API void loom_scan_sheet_voxel(const loom_scan_sheet *s, uint32_t x,
+                                    uint32_t y, uint32_t z, float *density,
+                                    uint8_t *label, float tangent[3],
+                                    float *rad);
+
+/* Fill v (allocated by the caller with the sheet's size: density required;
+   orient, if set, receives the true tangents) and truth (nx*ny*nz labels,
+   may be NULL); blur and noise applied to the density.  Same bytes for any
+   thread count.  LOOM_EINVAL, LOOM_ENOMEM. */
+LOOM_API int loom_scan_sheet_make(const loom_scan_sheet *s, loom_scan_volume *v,
+                                  uint8_t *truth, uint32_t threads,
+                                  loom_diag *diag);
+
+/* Ground truth of the crop loom_scan_build should find: the largest run of
+   complete yarns whose cells (centred on the yarns) lie inside the scan's
+   footprint, ties by distance to the scan centre (loom_scan_register's
+   rule). */
+typedef struct loom_scan_sheet_grid {
+	uint32_t first_warp, first_weft, cols, rows;
+	uint32_t b1, b2;          /* round(sx), round(sy) */
+	double crop[4];           /* x0, y0, width, height in the aligned frame */
+} loom_scan_sheet_grid;
+
+/* LOOM_EINVAL, LOOM_EUNSUPPORTED (no 2 x 2 window fits). */
+LOOM_API int loom_scan_sheet_truth(const loom_scan_sheet *s,
+                                   loom_scan_sheet_grid *g);
 
 #ifdef __cplusplus
 }

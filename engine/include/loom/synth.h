@@ -112,10 +112,12 @@ LOOM_API int loom_synth_block_info(const loom_synth_set *s, uint32_t t,
 /*
  * Symmetries of exemplar u: *n pairs (dr, dc), dr in [0, m_u), dc in
  * [0, n_u), with S_u(r+dr, c+dc) = S_u(r, c) for all r, c; (0, 0) first,
- * then increasing dr*n_u + dc.  chain = 0: all of them (used by the
- * randomisation); chain = 1: the subgroup that keeps vertical runs of
- * blocks contiguous (all for a periodic exemplar, those with dr = 0
- * otherwise; used by the DP shortcut).  *pairs points into s.
+ * then increasing dr*n_u + dc.  chain = 0: all of them (the randomisation
+ * draws from at most 64 of them, see loom_synth_lookup); chain = 1: the
+ * subgroup that keeps vertical runs of blocks contiguous (all for a
+ * periodic exemplar, those with dr = 0 otherwise; used by the DP
+ * shortcut).  *pairs points into s.  Returns LOOM_OK; LOOM_EINVAL (NULL s,
+ * pairs or n); LOOM_ERANGE (u >= number of exemplars).
  */
 LOOM_API int loom_synth_symmetries(const loom_synth_set *s, uint32_t u,
                                    int chain, const uint16_t **pairs,
@@ -213,14 +215,17 @@ typedef struct loom_synth_lookup {
 	uint32_t rows, cols;      /* M, N */
 	uint32_t group;           /* m^ (0 = no randomisation) */
 	uint64_t key;             /* randomisation key (from the seed) */
-	const uint16_t *n_sym;    /* per block: symmetries of its exemplar */
+	const uint16_t *n_sym;    /* per block: symmetries the randomisation
+	                             draws from: min(all symmetries of its
+	                             exemplar, 64), spread evenly over them */
 	const uint32_t *sym_first;/* per block: first entry in sym_image */
 	const uint16_t *sym_image;/* image of block t under symmetry k of its
 	                             exemplar: sym_image[sym_first[t] + k] */
 } loom_synth_lookup;
 
 /* Fill lk from the set, a base assignment of rows x cols and o->seed,
-   o->group.  LOOM_OK or LOOM_EINVAL. */
+   o->group.  LOOM_OK or LOOM_EINVAL (NULL argument, rows or cols 0).
+   o->size is not checked here. */
 LOOM_API int loom_synth_lookup_init(loom_synth_lookup *lk,
                                     const loom_synth_set *s,
                                     const uint16_t *base, uint32_t rows,
@@ -333,7 +338,8 @@ LOOM_API int loom_synth_metrics_repeat(const loom_synth_set *s,
  * The same over the absolute window [i0, i0+h) x [j0, j0+w) of the bolt,
  * after randomisation (each crossing's S and E partners may lie outside the
  * window and are evaluated on demand).  lk must come from the same set and
- * the design's repeat size.  O(h*w) time, O(1) memory.
+ * the design's repeat size.  O(h*w) time, O(1) memory.  LOOM_OK or
+ * LOOM_EINVAL (NULL, empty design, lk of another size or set).
  */
 LOOM_API int loom_synth_metrics_window(const loom_synth_set *s,
                                        const loom_design *d,
@@ -379,7 +385,10 @@ typedef struct loom_edgefix loom_edgefix; /* opaque, immutable */
  * y = 1..b2-2), the 2r basis solutions of the discrete Laplace equation
  * (N-edge and W-edge data; S and E by mirroring) and, per source block, its
  * four coefficient vectors.  The rank of each basis is min(rank, samples,
- * 2K).  Memory: 4 b1 b2 r + 16 K r bytes, independent of any design.
+ * 2K): rh = min(rank, b1, 2K) for N/S, rv = min(rank, b2-2, 2K) for W/E.
+ * Memory (loom_edgefix_bytes): 4 (b1 b2 (rh + rv) + 2 K (rh + rv) +
+ * b1 rh + (b2-2) rv + b1 + b2 - 2) bytes plus a small header, i.e. about
+ * 8 b1 b2 r + 16 K r bytes when rh = rv = r; independent of any design.
  * LOOM_OK, LOOM_EINVAL (NULL, b1 or b2 < 3, K = 0, rank = 0, a non-finite
  * height), LOOM_ERANGE (b1*b2 > 2^24, rank > LOOM_EDGEFIX_MAX_RANK),
  * LOOM_ENOMEM.

@@ -120,7 +120,8 @@ typedef struct loom_texture_stats {
 	                              (nearest), 8 per trilinear lookup, one per
 	                              voxel of a region read */
 	uint64_t brick_requests;   /* brick resolutions: per voxel in point
-	                              lookups, per brick z-run in region reads */
+	                              lookups, per brick of a group of columns
+	                              sharing it in region reads */
 	uint64_t hits;             /* requests served by the thread's current
 	                              brick or the cache (no read) */
 	uint64_t misses;           /* requests that read a brick (or joined a
@@ -155,10 +156,14 @@ typedef struct loom_texture_stats {
  * fabric's (content hash and block size, LOOM_EMISMATCH naming both);
  * the fabric must be attached (not opened LOOM_FABRIC_OPEN_DETACHED:
  * LOOM_EUNUSABLE).  opts may be NULL (defaults).
- * Returns LOOM_OK; LOOM_EINVAL (NULL fabric or out, options.size too
- * small, max_threads too large); LOOM_EBUDGET (budget too small: the
- * message says how many bytes this fabric needs at least);
- * LOOM_ENOMEM.  *out is NULL on failure.  Thread-safe (the fabric and the
+ * Returns LOOM_OK; LOOM_EINVAL (NULL fabric or out, options.size below
+ * sizeof(loom_texture_options), max_threads above
+ * LOOM_TEXTURE_MAX_THREADS, an unreadable fabric or database identity,
+ * edge-fix tables that do not match the block size); LOOM_EUNUSABLE
+ * (detached fabric); LOOM_EMISMATCH (another database); LOOM_EBUDGET
+ * (budget too small: the message says how many bytes this fabric needs at
+ * least); LOOM_ENOMEM; an error of loom_db_exemplar for an unreadable
+ * exemplar.  *out is NULL on failure.  Thread-safe (the fabric and the
  * database are only read).
  */
 LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
@@ -181,8 +186,9 @@ LOOM_API const char *loom_texture_errmsg(const loom_texture *t);
  * Voxel (x, y, z) of the bolt into *out (all zeros when empty).
  * Returns LOOM_OK; LOOM_EINVAL (NULL); LOOM_ERANGE (|x|, |y| or |z| >=
  * 2^62); a brick read error (LOOM_ECORRUPT,
- * LOOM_EIO, LOOM_ETRUNCATED; *out is then empty and loom_texture_errmsg
- * names the brick; the texture stays usable and a later lookup retries the
+ * LOOM_EIO, LOOM_ETRUNCATED, or LOOM_ENOMEM when the thread's decompressor
+ * cannot be allocated; *out is then empty and loom_texture_errmsg names
+ * the brick; the texture stays usable and a later lookup retries the
  * read).  Thread-safe.
  */
 LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y,
@@ -224,7 +230,8 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n,
  * Every voxel is written; voxels whose brick fails to read are empty and
  * the first failure's code is returned.  Returns LOOM_OK (also for an
  * empty box, hi == lo); LOOM_EINVAL (NULL, hi < lo, unknown layout);
- * LOOM_ERANGE (a coordinate beyond +-2^62 or nx*ny*nz above SIZE_MAX);
+ * LOOM_ERANGE (a bound with |lo| or |hi| >= 2^62, or nx*ny*nz above
+ * SIZE_MAX);
  * read errors.  Thread-safe.
  */
 LOOM_API int loom_texture_read_region(loom_texture *t, const int64_t lo[3],

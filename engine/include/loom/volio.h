@@ -16,8 +16,15 @@
  *    over the cap fails with LOOM_EBUDGET before anything is allocated.
  *  - Writers are streaming and atomic: data go to "<path>.tmp.<pid>.<n>"
  *    and are renamed over `path` only by a successful *_finish; *_abort (or
- *    any error) removes the temporary file.  After an error a writer or
- *    reader handle returns LOOM_EUNUSABLE from every later call.
+ *    a failed *_finish) removes the temporary file; *_finish frees the
+ *    writer whatever it returns.  A streaming handle (loom_vol_reader,
+ *    loom_raw_reader, loom_vol_writer, loom_exr_writer) becomes unusable
+ *    after a failed read or write (I/O error, file ending early) or, for
+ *    a writer, after values sent past the declared size (or, .vol,
+ *    put_slices after a partial slice): every later call returns
+ *    LOOM_EUNUSABLE, and a writer's *_finish then removes the temporary
+ *    file.  Argument errors (NULL pointers, a read box outside the volume)
+ *    are returned without changing the handle.
  *  - Handles are not thread-safe; distinct handles may be used from
  *    distinct threads.  Close/free/abort functions accept NULL.
  */

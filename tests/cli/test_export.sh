@@ -1,0 +1,232 @@
+# `loom export` end to end: usage errors, the three formats read back
+# (.vol by a Python reader compared with `loom sample --at` and across tile
+# sizes, NRRD by Teem's unu and against the .vol data, EXR by exrheader),
+# determinism over threads and budgets, a killed export resumed to the same
+# bytes and manifest, shards whose union equals the whole and whose merged
+# manifest equals the unsharded one.
+SUITE=export
+. "$LOOM_TOP/tests/cli/lib.sh"
+WIF=$LOOM_TOP/data/herringbone-8.wif
+F=$T/h8.loomf
+REG=-70,-40,0:90,60,48
+
+expect_ok help "$LOOM" export --help
+expect_out_contains help_text "--shard I/N"
+expect_exit no_args 2 "$LOOM" export
+expect_ok synth "$LOOM" synth "$WIF" --quiet -o "$F"
+expect_exit no_format 2 "$LOOM" export "$F" --region "$REG" -o "$T/x"
+expect_exit no_region 2 "$LOOM" export "$F" --format vol -o "$T/x"
+expect_exit no_out 2 "$LOOM" export "$F" --region "$REG" --format vol
+expect_exit bad_region 2 "$LOOM" export "$F" --region 0,0,0:10,10 --format vol -o "$T/x"
+expect_err_contains bad_region_msg "bad --region '0,0,0:10,10' (expected X0,Y0,Z0:X1,Y1,Z1"
+expect_exit empty_region 2 "$LOOM" export "$F" --region 5,0,0:5,10,10 --format vol -o "$T/x"
+expect_exit bad_format 2 "$LOOM" export "$F" --region "$REG" --format tiff -o "$T/x"
+expect_exit bad_channels 2 "$LOOM" export "$F" --region "$REG" --format vol --channels density,colour -o "$T/x"
+expect_exit bad_tile 2 "$LOOM" export "$F" --region "$REG" --format vol --tile 0,4 -o "$T/x"
+expect_exit bad_shard 2 "$LOOM" export "$F" --region "$REG" --format vol --shard 3/3 -o "$T/x"
+expect_exit region_and_all 2 "$LOOM" export "$F" --region "$REG" --all --format vol -o "$T/x"
+expect_exit tile_over_budget 2 "$LOOM" export "$F" --all --format vol --tile 2048,2048 --budget 16 -o "$T/x"
+expect_err_contains tile_over_budget_msg "more than --budget"
+: >"$T/afile"
+expect_exit out_not_dir 1 "$LOOM" export "$F" --region "$REG" --format vol -o "$T/afile/sub"
+expect_exit merge_nothing 1 "$LOOM" export --merge "$T"
+
+ALL=density,orientation,albedo,kind,type
+# reference: one tile over the whole region; then 48 x 32 tiles on 2 threads
+expect_ok vol_one "$LOOM" export "$F" --region "$REG" --format vol --channels $ALL \
+	--tile 160,100 --quiet -o "$T/one"
+expect_ok vol_tiles "$LOOM" export "$F" --region "$REG" --format vol --channels $ALL \
+	--tile 48,32 --threads 2 --quiet --json -o "$T/vol"
+expect_out_contains vol_json '"tiles_written": 16'
+# part of the thickness, tiles split in z (x fastest reads with z < b3)
+expect_ok vol_z "$LOOM" export "$F" --region -70,-40,5:90,60,30 --format vol --channels $ALL \
+	--tile 48,32,10 --quiet -o "$T/volz"
+
+# a few voxels looked up one by one, for the Python check below
+for p in "-70,-40,10" "0,0,20" "17,33,25" "89,59,30" "-1,-1,12" "45,-20,40" "60,10,5" "-30,50,22"; do
+	"$LOOM" sample "$F" --at "$p" --json >"$T/at_$p.json" 2>/dev/null
+done
+for x in 0 1 2 3 4 5 6 7 8 9 10 11; do # a run along z through the cloth
+	"$LOOM" sample "$F" --at "5,7,$((x * 4))" --json >"$T/at_z$x.json" 2>/dev/null
+done
+if python3 - "$T" >"$T/py" 2>&1 <<'EOF'
+import glob, json, os, struct, sys
+d = sys.argv[1]
+LO, HI = (-70, -40, 0), (90, 60, 48)
+N = [HI[a] - LO[a] for a in range(3)]
+CH = {"density": 1, "orientation": 3, "albedo": 3, "kind": 1, "type": 1}
+
+def read_vol(path):
+    b = open(path, "rb").read()
+    assert b[:3] == b"VOL" and b[3] == 3, path
+    enc, nx, ny, nz, nc = struct.unpack_from("<5i", b, 4)
+    box = struct.unpack_from("<6f", b, 24)
+    size = 1 if enc == 3 else 4
+    assert enc == (3 if path.endswith(".density.vol") else 1), (path, enc)
+    assert len(b) == 48 + nx * ny * nz * nc * size, path
+    return (nx, ny, nz, nc, size), box, b[48:]
+
+def manifest(sub):
+    m = json.load(open(os.path.join(d, sub, "manifest.json")))
+    assert m["complete"] and m["tiles_listed"] == m["tiles_total"], m
+    return m
+
+# the one-tile export: the whole region per channel
+one = {}
+for t in manifest("one")["tiles"]:
+    assert t["lo"] == list(LO) and t["hi"] == list(HI), t
+    for f in t["files"]:
+        ch = f["name"].split(".")[1]
+        one[ch] = read_vol(os.path.join(d, "one", f["name"]))
+assert sorted(one) == sorted(CH), one.keys()
+# every tile of the tiled exports equals the same rows of the whole
+def check(sub, nvox):
+  m = manifest(sub)
+  covered = 0
+  for t in m["tiles"]:
+      lo, hi = t["lo"], t["hi"]
+      covered += (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2])
+      for f in t["files"]:
+          p = os.path.join(d, sub, f["name"])
+          assert os.path.getsize(p) == f["bytes"]
+          ch = f["name"].split(".")[1]
+          (nx, ny, nz, nc, size), box, data = read_vol(p)
+          assert (nx, ny, nz) == tuple(hi[a] - lo[a] for a in range(3)), f
+          for a in range(3):  # node-centred box: first to last voxel centre, mm
+              assert abs(box[a] - (lo[a] + 0.5) * 0.024) < 1e-4, (f, box)
+              if hi[a] - lo[a] > 1:
+                  assert abs(box[3 + a] - (hi[a] - 0.5) * 0.024) < 1e-4, (f, box)
+          whole = one[ch][2]
+          w = nx * nc * size
+          for z in range(nz):
+              for y in range(ny):
+                  gz, gy, gx = lo[2] - LO[2] + z, lo[1] - LO[1] + y, lo[0] - LO[0]
+                  off = ((gz * N[1] + gy) * N[0] + gx) * nc * size
+                  assert data[(z * ny + y) * w:(z * ny + y + 1) * w] == whole[off:off + w], (f, y, z)
+  assert covered == nvox, (sub, covered)
+check("vol", N[0] * N[1] * N[2])
+check("volz", N[0] * N[1] * 25)
+dens = one["density"][2]
+nonempty = sum(1 for v in dens if v)
+assert 0.05 * len(dens) < nonempty < 0.95 * len(dens), nonempty
+
+def voxel(ch, key):
+    (nx, ny, nz, nc, size), _, data = one[ch]
+    i = (((key[2] - LO[2]) * ny + key[1] - LO[1]) * nx + key[0] - LO[0]) * nc
+    if size == 1:
+        return [data[i] / 255.0]
+    return list(struct.unpack_from("<%df" % nc, data, 4 * i))
+
+n = 0
+for p in glob.glob(os.path.join(d, "at_*.json")):
+    s = json.load(open(p))
+    key = tuple(s["position"])
+    assert abs(voxel("density", key)[0] - s["density"]) < 1e-6, (key, s)
+    for a in range(3):
+        assert abs(voxel("orientation", key)[a] - s["orientation"][a]) < 1e-6, (key, s)
+        assert abs(voxel("albedo", key)[a] - s["albedo"][a]) < 1e-6, (key, s)
+    assert voxel("kind", key)[0] == s["kind"] and voxel("type", key)[0] == s["type"], (key, s)
+    n += s["density"] > 0
+assert n >= 3, n
+open(os.path.join(d, "density.bin"), "wb").write(dens)
+print("ok", nonempty)
+EOF
+then pass vol_readback; else fail vol_readback "$(tail -5 "$T/py")"; fi
+
+# same bytes for any thread count and budget
+expect_ok vol_t1_b8 "$LOOM" export "$F" --region "$REG" --format vol --channels $ALL \
+	--tile 48,32 --threads 1 --budget 8 --quiet -o "$T/vol_b8"
+if (cd "$T/vol" && for f in *; do cmp -s "$f" "$T/vol_b8/$f" || echo "$f"; done) | grep -q .; then
+	fail vol_deterministic "files differ between --threads 2 --budget 64 and --threads 1 --budget 8"
+else pass vol_deterministic; fi
+
+# NRRD: unu reads it; the values equal the .vol ones
+expect_ok nrrd "$LOOM" export "$F" --region "$REG" --format nrrd --channels density,orientation,kind \
+	--tile 160,100 --quiet -o "$T/nrrd"
+if command -v teem-unu >/dev/null 2>&1; then
+	expect_ok unu_head teem-unu head "$T/nrrd/tile-0-0-0.density.nrrd"
+	expect_out_contains unu_spacing "space directions: (0.024,0,0) (0,0.024,0) (0,0,0.024)"
+	expect_out_contains unu_origin "space origin: (-1.668,-0.948,0.012)"
+	expect_ok unu_minmax teem-unu minmax "$T/nrrd/tile-0-0-0.kind.nrrd"
+	expect_out_contains unu_kind_max "max: 2"
+	expect_ok unu_minmax_orient teem-unu minmax "$T/nrrd/tile-0-0-0.orientation.nrrd"
+	expect_ok unu_slice teem-unu slice -i "$T/nrrd/tile-0-0-0.density.nrrd" -a 2 -p 20 -o "$T/slice.nrrd"
+else
+	echo "SKIP $SUITE/unu: teem-unu is not installed (tools/deps.sh test installs it)"
+fi
+if python3 - "$T" >"$T/py" 2>&1 <<'EOF'
+import os, struct, sys
+d = sys.argv[1]
+ref = open(os.path.join(d, "density.bin"), "rb").read()
+b = open(os.path.join(d, "nrrd", "tile-0-0-0.density.nrrd"), "rb").read()
+hdr, data = b.split(b"\n\n", 1)
+assert b"type: float" in hdr and b"sizes: 160 100 48" in hdr, hdr
+vals = struct.unpack("<%df" % len(ref), data)
+exp = [struct.unpack("<f", struct.pack("<f", r / 255.0))[0] for r in range(256)]
+assert all(v == exp[r] for v, r in zip(vals, ref))
+k = open(os.path.join(d, "nrrd", "tile-0-0-0.kind.nrrd"), "rb").read().split(b"\n\n", 1)[1]
+assert len(k) == len(ref) and set(k) <= {0, 1, 2} and len(set(k)) == 3
+print("ok")
+EOF
+then pass nrrd_values; else fail nrrd_values "$(tail -5 "$T/py")"; fi
+
+# EXR: one multi-channel image per z per tile; exrheader reads them
+expect_ok exr "$LOOM" export "$F" --region -8,-8,0:24,16,48 --format exr --channels $ALL \
+	--tile 16,16 --quiet -o "$T/exr"
+n=$(ls "$T/exr" | grep -c '\.exr$')
+if [ "$n" -eq $((4 * 48)) ]; then pass exr_count; else fail exr_count "$n files, expected 192"; fi
+expect_ok exrheader exrheader "$T/exr/tile-1-0-0.z20.exr"
+expect_out_contains exr_zip "zip"
+expect_out_contains exr_orient "orientation.x"
+expect_out_contains exr_slice "loomSliceZ (type int): 20"
+
+# kill an export midway (a test hook slows each tile down), then re-run it
+R2=0,0,0:128,96,48
+expect_ok ref_run "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --quiet -o "$T/ref"
+LOOM_EXPORT_TILE_DELAY_MS=150 "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+	--quiet -o "$T/kill" >/dev/null 2>&1 &
+pid=$!
+i=0
+while [ $i -lt 100 ]; do
+	if grep -q '"tiles_listed": [1-9]' "$T/kill/manifest.json" 2>/dev/null; then break; fi
+	sleep 0.1
+	i=$((i + 1))
+done
+kill -KILL $pid 2>/dev/null
+wait $pid 2>/dev/null
+if grep -q '"complete": false' "$T/kill/manifest.json" 2>/dev/null; then pass killed_midway
+else fail killed_midway "the export was not caught midway"; fi
+expect_ok resume "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 -o "$T/kill"
+expect_err_contains resume_skips "already complete and verified"
+expect_same resume_manifest "$T/ref/manifest.json" "$T/kill/manifest.json"
+if [ "$(ls "$T/ref")" = "$(ls "$T/kill")" ] &&
+   ! (cd "$T/ref" && for f in *; do cmp -s "$f" "$T/kill/$f" || echo "$f"; done) | grep -q .; then
+	pass resume_bytes; else fail resume_bytes "files differ after resuming"; fi
+# a corrupted tile file is rewritten by the next run
+printf 'x' | dd of="$T/kill/tile-2-1-0.density.vol" bs=1 seek=100 conv=notrunc 2>/dev/null
+expect_ok rerun "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --json -o "$T/kill"
+expect_out_contains rerun_one '"tiles_written": 1'
+expect_same rerun_fixed "$T/ref/tile-2-1-0.density.vol" "$T/kill/tile-2-1-0.density.vol"
+# another export into the same directory is refused
+expect_exit other_params 1 "$LOOM" export "$F" --region $R2 --format vol --tile 16,16 --quiet -o "$T/kill"
+expect_err_contains other_params_msg "belongs to another export"
+
+# shards: union = whole, merged manifest = unsharded manifest
+for s in 0 1 2; do
+	expect_ok shard_$s "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+		--shard $s/3 --quiet -o "$T/sh"
+done
+expect_ok merge "$LOOM" export --merge "$T/sh"
+expect_same merge_manifest "$T/ref/manifest.json" "$T/sh/manifest.json"
+if [ "$(ls "$T/ref" | grep -v manifest)" = "$(ls "$T/sh" | grep -v manifest)" ] &&
+   ! (cd "$T/ref" && for f in tile-*; do cmp -s "$f" "$T/sh/$f" || echo "$f"; done) | grep -q .; then
+	pass shard_union; else fail shard_union "shards' files differ from the whole"; fi
+expect_ok shard_partial "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+	--shard 0/2 --quiet -o "$T/sh2"
+expect_exit merge_missing 1 "$LOOM" export --merge "$T/sh2"
+expect_err_contains merge_missing_msg "shard 1/2 has no manifest"
+
+# --all exports the repeat (a few big tiles, density only, shard 5 of 40)
+expect_ok all_shard "$LOOM" export "$F" --all --format vol --channels density --tile 512,512 \
+	--shard 5/40 --quiet --json -o "$T/all"
+expect_out_contains all_shard_tiles '"tiles": 2'

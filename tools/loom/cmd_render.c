@@ -1,0 +1,405 @@
+/*
+ * tools/loom/cmd_render.c - `loom render FABRIC`: path-trace a fabric with
+ * the microflake volume renderer (loom_render over loom_texture_volume_source;
+ * docs/preview.md, docs/rendering.md): a flat patch of cloth seen from above
+ * at an angle, or the cloth mapped onto an OBJ mesh through a shell.
+ */
+#include "cli.h"
+#include "commands.h"
+#include "progress.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+static const char help[] =
+	"usage: loom render FABRIC [--mesh OBJ] [--width W] [--height H] [--spp N]\n"
+	"                   [--threads N] [--budget MB] [--seed S] [--db DB]\n"
+	"                   [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
+	"                   [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
+	"                   [--filter nearest|trilinear] [--thickness T]\n"
+	"                   [--uv-repeats R] [--json] [--quiet] -o OUT.png|OUT.exr\n"
+	"\n"
+	"Render the fabric with the microflake volume path tracer\n"
+	"(docs/rendering.md).  Without --mesh: a flat patch of the unbounded bolt\n"
+	"seen through a pinhole camera from above at an angle, framed on --region\n"
+	"(default one design repeat).  With --mesh: the cloth is mapped onto the\n"
+	"mesh's UV layout as a shell (shell mapping) and seen from above the mesh.\n"
+	"Same inputs and seed give the same bytes for any thread count.\n"
+	"\n"
+	"  --width W, --height H  image size (default 480 x 320)\n"
+	"  --spp N           samples per pixel (default 16)\n"
+	"  --threads N       render threads (default: all CPUs)\n"
+	"  --budget MB       texture cache budget in MiB (default 128)\n"
+	"  --seed S          random seed (default 1)\n"
+	"  --db DB           exemplar database (default: the one the fabric names)\n"
+	"  --region BOX      flat patch: the window framed, voxels (default one repeat)\n"
+	"  --elevation DEG   camera angle above the cloth plane (default 40)\n"
+	"  --azimuth DEG     camera direction around the vertical (default 0: looking\n"
+	"                    along +y, the warps)\n"
+	"  --fov DEG         vertical field of view (default 30)\n"
+	"  --density-scale K extinction per voxel length of density 1 (default 2)\n"
+	"  --exposure STOPS  PNG: scale by 2^STOPS before the sRGB curve (default 0)\n"
+	"  --filter F        texture lookups: nearest (default) or trilinear\n"
+	"  --mesh OBJ        map the cloth onto this mesh (needs texture coordinates)\n"
+	"  --thickness T     shell thickness in mesh units (default 1.5% of the\n"
+	"                    mesh's bounding-box diagonal)\n"
+	"  --uv-repeats R    design repeats per UV unit along u (default 1)\n"
+	"  -o, --output OUT  .png (8-bit sRGB) or .exr (linear float RGB)\n"
+	"  --json            print figures as JSON on stdout\n"
+	"  --quiet           no progress or summary\n"
+	"\n"
+	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
+
+static int ends_with(const char *s, const char *ext)
+{
+	size_t n = strlen(s), e = strlen(ext);
+	return n >= e && strcasecmp(s + n - e, ext) == 0;
+}
+
+static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
+{
+	long long v[4];
+	char tail;
+
+	if (sscanf(s, "%lld,%lld:%lld,%lld%c", &v[0], &v[1], &v[2], &v[3], &tail) != 4)
+		return -1;
+	if (v[2] <= v[0] || v[3] <= v[1])
+		return -1;
+	lo[0] = v[0];
+	lo[1] = v[1];
+	hi[0] = v[2];
+	hi[1] = v[3];
+	return 0;
+}
+
+typedef struct rprog {
+	cli_progress p;
+	pthread_mutex_t lock;
+} rprog;
+
+static void progress_cb(void *user, uint64_t done, uint64_t total)
+{
+	rprog *r = user;
+	(void)total;
+	pthread_mutex_lock(&r->lock);
+	cli_progress_update(&r->p, done);
+	pthread_mutex_unlock(&r->lock);
+}
+
+static int write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
+                     double exposure, loom_diag *diag)
+{
+	if (ends_with(path, ".exr")) {
+		static const loom_exr_channel ch[3] = {
+			{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
+		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
+		loom_exr_writer *wr = NULL;
+		int rc = loom_exr_writer_open(path, w, h, ch, 3, &eo, &wr, diag);
+		if (rc != LOOM_OK)
+			return rc;
+		rc = loom_exr_writer_put_rows(wr, rgb, h, diag);
+		if (rc != LOOM_OK) {
+			loom_exr_writer_abort(wr);
+			return rc;
+		}
+		return loom_exr_writer_finish(wr, diag);
+	} else {
+		loom_image *img = NULL;
+		int rc = loom_image_new(w, h, 3, &img);
+		if (rc != LOOM_OK)
+			return rc;
+		loom_render_to_srgb8(rgb, (size_t)w * h, exposure, img->pixels);
+		rc = loom_image_write(path, img, diag);
+		loom_image_free(img);
+		return rc;
+	}
+}
+
+/* Pinhole camera at elevation el, azimuth az (radians) looking at target
+   from distance dist. */
+static void place_camera(loom_camera *c, const double target[3], double dist,
+                         double el, double az, double fov)
+{
+	c->kind = LOOM_CAMERA_PINHOLE;
+	memcpy(c->target, target, 3 * sizeof(double));
+	c->eye[0] = target[0] - dist * sin(az) * cos(el);
+	c->eye[1] = target[1] - dist * cos(az) * cos(el);
+	c->eye[2] = target[2] + dist * sin(el);
+	c->up[0] = 0;
+	c->up[1] = 0;
+	c->up[2] = 1;
+	c->fov_y_deg = fov;
+}
+
+int cmd_render(int argc, char **argv)
+{
+	const char *prog = "loom render";
+	const char *path = NULL, *out = NULL, *db_opt = NULL, *mesh_path = NULL;
+	const char *w_s = NULL, *h_s = NULL, *spp_s = NULL, *threads_s = NULL;
+	const char *budget_s = NULL, *seed_s = NULL, *region_s = NULL, *el_s = NULL;
+	const char *az_s = NULL, *fov_s = NULL, *ds_s = NULL, *exp_s = NULL;
+	const char *filter_s = NULL, *thick_s = NULL, *uvr_s = NULL;
+	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc;
+	uint32_t width = 480, height = 320, spp = 16, threads = 0;
+	uint64_t seed = 1;
+	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
+	double thickness = 0, uv_repeats = 1;
+	int64_t lo[2] = {0, 0}, hi[2] = {0, 0};
+	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
+	loom_render_stats st;
+	loom_volume_source src;
+	loom_fabric_db_identity id;
+	uint64_t rep[3];
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	loom_mesh *mesh = NULL;
+	loom_shell *shell = NULL;
+	float *rgb = NULL;
+	rprog pr;
+	loom_diag diag;
+	cli_args a;
+
+	cli_init(&a, argc, argv, prog, help);
+	while (cli_more(&a)) {
+		const char *s;
+		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
+		    cli_value(&a, "--db", &db_opt) || cli_value(&a, "--mesh", &mesh_path) ||
+		    cli_value(&a, "--width", &w_s) || cli_value(&a, "--height", &h_s) ||
+		    cli_value(&a, "--spp", &spp_s) || cli_value(&a, "--threads", &threads_s) ||
+		    cli_value(&a, "--budget", &budget_s) || cli_value(&a, "--seed", &seed_s) ||
+		    cli_value(&a, "--region", &region_s) ||
+		    cli_value(&a, "--elevation", &el_s) || cli_value(&a, "--azimuth", &az_s) ||
+		    cli_value(&a, "--fov", &fov_s) ||
+		    cli_value(&a, "--density-scale", &ds_s) ||
+		    cli_value(&a, "--exposure", &exp_s) ||
+		    cli_value(&a, "--filter", &filter_s) ||
+		    cli_value(&a, "--thickness", &thick_s) ||
+		    cli_value(&a, "--uv-repeats", &uvr_s))
+			continue;
+		if (cli_flag(&a, "--quiet") || cli_flag(&a, "-q")) {
+			quiet = 1;
+			continue;
+		}
+		if (cli_flag(&a, "--json")) {
+			json = 1;
+			continue;
+		}
+		if ((s = cli_positional(&a)) != NULL) {
+			if (path)
+				cli_usage(&a, "more than one FABRIC");
+			path = s;
+			continue;
+		}
+		cli_unknown(&a);
+	}
+	if (!path)
+		cli_usage(&a, "missing FABRIC");
+	if (!out)
+		cli_usage(&a, "missing -o OUT.png|OUT.exr");
+	if (!ends_with(out, ".png") && !ends_with(out, ".exr"))
+		cli_usage(&a, "output '%s' must end in .png or .exr", out);
+	if (w_s && (cli_parse_u32(w_s, &width) || width == 0 || width > 65536))
+		cli_usage(&a, "bad --width '%s' (expected 1..65536)", w_s);
+	if (h_s && (cli_parse_u32(h_s, &height) || height == 0 || height > 65536))
+		cli_usage(&a, "bad --height '%s' (expected 1..65536)", h_s);
+	if (spp_s && (cli_parse_u32(spp_s, &spp) || spp == 0 || spp > 1000000))
+		cli_usage(&a, "bad --spp '%s' (expected 1..1000000)", spp_s);
+	if (threads_s && (cli_parse_u32(threads_s, &threads) || threads == 0 ||
+	                  threads > 256))
+		cli_usage(&a, "bad --threads '%s' (expected 1..256)", threads_s);
+	if (budget_s && (cli_parse_double(budget_s, &budget_mb) || !(budget_mb > 0) ||
+	                 budget_mb > 1048576.0))
+		cli_usage(&a, "bad --budget '%s' (expected MiB > 0)", budget_s);
+	if (seed_s && cli_parse_u64(seed_s, &seed))
+		cli_usage(&a, "bad --seed '%s'", seed_s);
+	if (region_s && parse_box2(region_s, lo, hi))
+		cli_usage(&a, "bad --region '%s' (expected X0,Y0:X1,Y1 with X0 < X1, "
+		          "Y0 < Y1)", region_s);
+	if (el_s && (cli_parse_double(el_s, &el) || !(el > 0) || el > 90))
+		cli_usage(&a, "bad --elevation '%s' (expected degrees in (0, 90])", el_s);
+	if (az_s && (cli_parse_double(az_s, &az) || !isfinite(az)))
+		cli_usage(&a, "bad --azimuth '%s'", az_s);
+	if (fov_s && (cli_parse_double(fov_s, &fov) || !(fov > 0) || fov >= 180))
+		cli_usage(&a, "bad --fov '%s' (expected degrees in (0, 180))", fov_s);
+	if (ds_s && (cli_parse_double(ds_s, &dscale) || !(dscale > 0) || dscale > 1e6))
+		cli_usage(&a, "bad --density-scale '%s' (expected > 0)", ds_s);
+	if (exp_s && (cli_parse_double(exp_s, &exposure) || exposure < -64 ||
+	              exposure > 64))
+		cli_usage(&a, "bad --exposure '%s' (expected stops in [-64, 64])", exp_s);
+	if (filter_s) {
+		if (strcmp(filter_s, "nearest") == 0)
+			filter = LOOM_FILTER_NEAREST;
+		else if (strcmp(filter_s, "trilinear") == 0)
+			filter = LOOM_FILTER_TRILINEAR;
+		else
+			cli_usage(&a, "bad --filter '%s' (expected nearest or trilinear)",
+			          filter_s);
+	}
+	if (thick_s && (cli_parse_double(thick_s, &thickness) || !(thickness > 0) ||
+	                !isfinite(thickness)))
+		cli_usage(&a, "bad --thickness '%s' (expected > 0)", thick_s);
+	if (uvr_s && (cli_parse_double(uvr_s, &uv_repeats) || !(uv_repeats > 0) ||
+	              !isfinite(uv_repeats)))
+		cli_usage(&a, "bad --uv-repeats '%s' (expected > 0)", uvr_s);
+	if (mesh_path && region_s)
+		cli_usage(&a, "--region frames a flat patch; it does not go with --mesh");
+	if (!mesh_path && (thick_s || uvr_s))
+		cli_usage(&a, "--thickness and --uv-repeats go with --mesh");
+	cli_diag_init(&diag, &quiet);
+
+	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	if (loom_fabric_open(path, db, 0, &f, &diag) != LOOM_OK) {
+		loom_db_close(db);
+		cli_fail(prog, "%s", diag.message);
+	}
+	loom_fabric_get_db_identity(f, &id);
+	loom_fabric_repeat_voxels(f, rep);
+	to.budget_bytes = (size_t)(budget_mb * 1048576.0);
+	to.max_threads = threads ? threads : 64;
+	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
+		loom_fabric_free(f);
+		loom_db_close(db);
+		cli_fail(prog, "%s", diag.message);
+	}
+	loom_texture_volume_source(t, f, filter, &src);
+
+	ro.width = width;
+	ro.height = height;
+	ro.spp = spp;
+	ro.threads = threads;
+	ro.seed = seed;
+	ro.density_scale = dscale;
+	ro.max_depth = 32;
+	ro.light.kind = LOOM_LIGHT_DISTANT;
+	ro.light.dir[0] = -0.35;
+	ro.light.dir[1] = -0.45;
+	ro.light.dir[2] = 1.0;
+	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = 2.6f;
+	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
+	if (mesh_path) {
+		loom_shell_params sp = LOOM_SHELL_PARAMS_INIT;
+		double blo[3], bhi[3], c[3], diag_len = 0, dist;
+		if (loom_obj_read(mesh_path, &mesh, &diag) != LOOM_OK) {
+			cli_error(prog, "%s", diag.message);
+			goto fail;
+		}
+		for (int k = 0; k < 3; k++) {
+			blo[k] = INFINITY;
+			bhi[k] = -INFINITY;
+		}
+		for (uint32_t v = 0; v < mesh->n_positions; v++)
+			for (int k = 0; k < 3; k++) {
+				double x = mesh->positions[3 * v + (uint32_t)k];
+				blo[k] = x < blo[k] ? x : blo[k];
+				bhi[k] = x > bhi[k] ? x : bhi[k];
+			}
+		for (int k = 0; k < 3; k++)
+			diag_len += (bhi[k] - blo[k]) * (bhi[k] - blo[k]);
+		diag_len = sqrt(diag_len);
+		if (!(diag_len > 0)) {
+			cli_error(prog, "%s: the mesh has no extent", mesh_path);
+			goto fail;
+		}
+		sp.thickness = thickness > 0 ? thickness : 0.015 * diag_len;
+		sp.offset = -sp.thickness / 2;
+		sp.voxels_per_uv = (double)rep[0] * uv_repeats;
+		sp.nz = src.nz;
+		if (loom_shell_new(mesh, &sp, &shell, &diag) != LOOM_OK) {
+			cli_error(prog, "%s", diag.message);
+			goto fail;
+		}
+		ro.shell = shell;
+		for (int k = 0; k < 3; k++)
+			c[k] = 0.5 * (blo[k] + bhi[k]);
+		dist = 0.42 * diag_len / tan(0.5 * fov * M_PI / 180.0);
+		place_camera(&ro.camera, c, dist, el * M_PI / 180.0, az * M_PI / 180.0, fov);
+	} else {
+		double c[3], wspan, dist, aspect = (double)width / height;
+		double tanh_y = tan(0.5 * fov * M_PI / 180.0);
+		if (!region_s) {
+			hi[0] = (int64_t)rep[0];
+			hi[1] = (int64_t)rep[1];
+		}
+		c[0] = 0.5 * (double)(lo[0] + hi[0]);
+		c[1] = 0.5 * (double)(lo[1] + hi[1]);
+		c[2] = 0.5 * (double)src.nz;
+		/* fit the region's width (and its foreshortened depth) */
+		wspan = (double)(hi[0] - lo[0]) / (2.0 * tanh_y * aspect);
+		dist = (double)(hi[1] - lo[1]) * sin(el * M_PI / 180.0) / (2.0 * tanh_y);
+		dist = (wspan > dist ? wspan : dist) + 0.5 * (double)(hi[1] - lo[1]) *
+		       cos(el * M_PI / 180.0);
+		place_camera(&ro.camera, c, dist, el * M_PI / 180.0, az * M_PI / 180.0, fov);
+	}
+	rgb = malloc((size_t)width * height * 3 * sizeof *rgb);
+	if (!rgb) {
+		cli_error(prog, "out of memory for a %ux%u image", width, height);
+		goto fail;
+	}
+	pthread_mutex_init(&pr.lock, NULL);
+	{
+		uint32_t tile = ro.tile ? ro.tile : 16;
+		uint64_t tiles = (uint64_t)((width + tile - 1) / tile) *
+		                 ((height + tile - 1) / tile);
+		cli_progress_begin(&pr.p, prog, "tiles", tiles, quiet);
+	}
+	ro.progress = progress_cb;
+	ro.progress_user = &pr;
+	rc = loom_render(&src, &ro, rgb, &st, &diag);
+	cli_progress_end(&pr.p);
+	pthread_mutex_destroy(&pr.lock);
+	if (rc != LOOM_OK) {
+		cli_error(prog, "%s", diag.message[0] ? diag.message : loom_strerror(rc));
+		goto fail;
+	}
+	if (write_rgb(out, rgb, width, height, exposure, &diag) != LOOM_OK) {
+		cli_error(prog, "%s", diag.message);
+		goto fail;
+	}
+	if (json) {
+		json_w w;
+		jw_begin(&w, stdout);
+		jw_str(&w, "output", out);
+		jw_uint(&w, "width", width);
+		jw_uint(&w, "height", height);
+		jw_uint(&w, "spp", spp);
+		jw_uint(&w, "seed", seed);
+		jw_str(&w, "scene", mesh_path ? "mesh" : "flat");
+		jw_uint(&w, "paths", st.paths);
+		jw_uint(&w, "rays", st.rays);
+		jw_uint(&w, "lookups", st.lookups);
+		jw_uint(&w, "scatterings", st.scatterings);
+		jw_uint(&w, "shell_queries", st.shell_queries);
+		jw_num(&w, "seconds", st.seconds);
+		jw_end(&w);
+	} else if (!quiet) {
+		fprintf(stderr, "loom render: %s: %ux%u, %u spp in %.2f s (%.0f paths/s, "
+		        "%llu lookups)\n", out, width, height, spp, st.seconds,
+		        st.seconds > 0 ? (double)st.paths / st.seconds : 0.0,
+		        (unsigned long long)st.lookups);
+	}
+	free(rgb);
+	loom_shell_free(shell);
+	loom_mesh_free(mesh);
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	loom_db_close(db);
+	return 0;
+fail:
+	free(rgb);
+	loom_shell_free(shell);
+	loom_mesh_free(mesh);
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	loom_db_close(db);
+	return EXIT_BAD_INPUT;
+}

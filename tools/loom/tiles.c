@@ -1,0 +1,536 @@
+/*
+ * tools/loom/tiles.c - region and tile options, budget split and the worker
+ * pool of `loom export` and `loom scan` (tiles.h).
+ */
+#include "tiles.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+
+void tiles_init(tiles_job *j)
+{
+	memset(j, 0, sizeof *j);
+	j->shard_n = 1;
+	j->threads = 1;
+	j->budget_mb = 64;
+	j->bolt_len = j->bolt_wid = 1;
+}
+
+int tiles_option(cli_args *a, tiles_job *j)
+{
+	if (cli_value(a, "--region", &j->region_s) || cli_value(a, "--tile", &j->tile_s) ||
+	    cli_value(a, "--shard", &j->shard_s) || cli_value(a, "--bolt", &j->bolt_s) ||
+	    cli_value(a, "--budget", &j->budget_s) ||
+	    cli_value(a, "--threads", &j->threads_s) || cli_value(a, "--db", &j->db_s))
+		return 1;
+	if (cli_flag(a, "--all")) {
+		j->all = 1;
+		return 1;
+	}
+	return 0;
+}
+
+/* One signed 64-bit integer of exactly the text [s, e). */
+static int parse_i64_span(const char *s, const char *e, int64_t *v)
+{
+	char buf[32];
+	size_t n = (size_t)(e - s);
+
+	if (n == 0 || n >= sizeof buf)
+		return -1;
+	memcpy(buf, s, n);
+	buf[n] = 0;
+	for (size_t i = 0; i < n; i++)
+		if (isspace((unsigned char)buf[i]))
+			return -1;
+	return cli_parse_i64(buf, v);
+}
+
+/* "A,B,C" (count numbers) into v; returns the count parsed or -1. */
+static int parse_list(const char *s, int64_t *v, int min, int max)
+{
+	int n = 0;
+	const char *p = s;
+
+	for (;;) {
+		const char *c = strchr(p, ',');
+		const char *e = c ? c : p + strlen(p);
+		if (n >= max || parse_i64_span(p, e, &v[n]))
+			return -1;
+		n++;
+		if (!c)
+			break;
+		p = c + 1;
+	}
+	return n >= min ? n : -1;
+}
+
+int tiles_parse_region(const char *s, int64_t lo[3], int64_t hi[3])
+{
+	const char *colon = strchr(s, ':');
+	char buf[128];
+	size_t n;
+
+	if (!colon || strchr(colon + 1, ':'))
+		return -1;
+	n = (size_t)(colon - s);
+	if (n >= sizeof buf)
+		return -1;
+	memcpy(buf, s, n);
+	buf[n] = 0;
+	if (parse_list(buf, lo, 3, 3) != 3 || parse_list(colon + 1, hi, 3, 3) != 3)
+		return -1;
+	for (int a = 0; a < 3; a++)
+		if (lo[a] <= -TILES_COORD_MAX || hi[a] >= TILES_COORD_MAX || hi[a] <= lo[a])
+			return -1;
+	return 0;
+}
+
+int tiles_parse_tile(const char *s, int64_t t[3])
+{
+	int n = parse_list(s, t, 2, 3);
+
+	if (n < 0)
+		return -1;
+	if (n == 2)
+		t[2] = 0;
+	for (int a = 0; a < n; a++)
+		if (t[a] < 1 || t[a] > TILES_SIDE_MAX)
+			return -1;
+	return 0;
+}
+
+int tiles_parse_shard(const char *s, uint32_t *i, uint32_t *n)
+{
+	const char *slash = strchr(s, '/');
+	char buf[32];
+	size_t len;
+
+	if (!slash)
+		return -1;
+	len = (size_t)(slash - s);
+	if (len == 0 || len >= sizeof buf)
+		return -1;
+	memcpy(buf, s, len);
+	buf[len] = 0;
+	if (cli_parse_u32(buf, i) || cli_parse_u32(slash + 1, n) || *n == 0 || *i >= *n)
+		return -1;
+	return 0;
+}
+
+/* "12", "2.5" (repeats) or "50m", "150cm", "900mm"; *mm = 1 with a unit
+   (the value is then in mm). */
+static int parse_extent(const char *s, double *v, int *mm)
+{
+	char *end;
+	double x = strtod(s, &end);
+
+	if (end == s || !isfinite(x) || x <= 0)
+		return -1;
+	*mm = 1;
+	if (strcmp(end, "mm") == 0)
+		*v = x;
+	else if (strcmp(end, "cm") == 0)
+		*v = 10 * x;
+	else if (strcmp(end, "m") == 0)
+		*v = 1000 * x;
+	else if (*end == 0) {
+		*v = x;
+		*mm = 0;
+	} else
+		return -1;
+	return 0;
+}
+
+int tiles_parse_bolt(const char *s, double *len, int *len_mm, double *wid,
+                     int *wid_mm)
+{
+	char buf[128], *x;
+
+	if (strlen(s) >= sizeof buf || !*s)
+		return -1;
+	strcpy(buf, s);
+	x = strpbrk(buf + 1, "xX");
+	if (!x)
+		return -1;
+	*x = 0;
+	if (parse_extent(buf, len, len_mm) || parse_extent(x + 1, wid, wid_mm))
+		return -1;
+	return 0;
+}
+
+void tiles_parse(cli_args *a, tiles_job *j, int need_region)
+{
+	if (j->region_s && j->all)
+		cli_usage(a, "give --region or --all, not both");
+	if (need_region && !j->region_s && !j->all)
+		cli_usage(a, "give --region X0,Y0,Z0:X1,Y1,Z1 or --all");
+	if (j->region_s && tiles_parse_region(j->region_s, j->lo, j->hi))
+		cli_usage(a, "bad --region '%s' (expected X0,Y0,Z0:X1,Y1,Z1: integer voxel "
+		          "coordinates of a half-open box with X0<X1, Y0<Y1, Z0<Z1, each "
+		          "below 2^62 in magnitude)", j->region_s);
+	if (j->bolt_s && !j->all)
+		cli_usage(a, "--bolt goes with --all");
+	if (j->bolt_s && tiles_parse_bolt(j->bolt_s, &j->bolt_len, &j->bolt_len_mm,
+	                                  &j->bolt_wid, &j->bolt_wid_mm))
+		cli_usage(a, "bad --bolt '%s' (expected LENGTHxWIDTH: repeats, or lengths "
+		          "with mm, cm or m, e.g. 10x2 or 50mx1.5m)", j->bolt_s);
+	if (j->tile_s && tiles_parse_tile(j->tile_s, j->tsize))
+		cli_usage(a, "bad --tile '%s' (expected TX,TY or TX,TY,TZ: tile sides in "
+		          "voxels, 1..%lld)", j->tile_s, TILES_SIDE_MAX);
+	if (j->shard_s && tiles_parse_shard(j->shard_s, &j->shard_i, &j->shard_n))
+		cli_usage(a, "bad --shard '%s' (expected I/N with 0 <= I < N, e.g. 0/4)",
+		          j->shard_s);
+	if (j->threads_s && (cli_parse_u32(j->threads_s, &j->threads) || j->threads == 0 ||
+	                     j->threads > 256))
+		cli_usage(a, "bad --threads '%s' (expected 1..256)", j->threads_s);
+	if (j->budget_s && (cli_parse_double(j->budget_s, &j->budget_mb) ||
+	                    !(j->budget_mb > 0) || j->budget_mb > 1048576.0))
+		cli_usage(a, "bad --budget '%s' (expected MiB > 0)", j->budget_s);
+}
+
+void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
+                       int64_t def_xy)
+{
+	loom_fabric_db_identity id;
+	loom_diag diag;
+	uint64_t total = 1;
+
+	cli_diag_init(&diag, NULL);
+	if (j->db_s && loom_db_open(j->db_s, &j->db, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	if (loom_fabric_open(path, j->db, 0, &j->f, &diag) != LOOM_OK) {
+		loom_db_close(j->db);
+		cli_fail(prog, "%s", diag.message);
+	}
+	loom_fabric_repeat_voxels(j->f, j->rep);
+	loom_fabric_get_db_identity(j->f, &id);
+	j->voxel_mm = (double)id.voxel_size_um / 1000.0;
+	if (j->all) {
+		uint64_t size[3];
+		double len = j->bolt_len, wid = j->bolt_wid, vox;
+		if (j->bolt_len_mm)
+			len /= (double)j->rep[1] * j->voxel_mm;
+		if (j->bolt_wid_mm)
+			wid /= (double)j->rep[0] * j->voxel_mm;
+		if (loom_fabric_bolt_voxels(j->f, len, wid, size, &vox) != LOOM_OK)
+			cli_fail(prog, "--bolt '%s': too large", j->bolt_s ? j->bolt_s : "1x1");
+		for (int a = 0; a < 3; a++) {
+			j->lo[a] = 0;
+			j->hi[a] = (int64_t)size[a];
+		}
+	}
+	for (int a = 0; a < 3; a++) {
+		int64_t ext = j->hi[a] - j->lo[a];
+		int64_t t = j->tsize[a];
+		if (t == 0)
+			t = a < 2 ? def_xy : ext;
+		if (t > ext)
+			t = ext;
+		if (t > TILES_SIDE_MAX)
+			cli_fail(prog, "the region is %lld voxels along %c: give --tile with a "
+			         "side of at most %lld", (long long)ext, "xyz"[a], TILES_SIDE_MAX);
+		j->tsize[a] = t;
+		j->nt[a] = (uint64_t)(ext / t + (ext % t != 0));
+		if (__builtin_mul_overflow(total, j->nt[a], &total))
+			cli_fail(prog, "too many tiles (more than 2^64): use a larger --tile");
+	}
+	j->total = total;
+}
+
+void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	double budget = j->budget_mb * 1048576.0;
+	double buffers = (double)worker_bytes * j->threads;
+	loom_diag diag;
+	int rc;
+
+	j->worker_bytes = worker_bytes;
+	cli_diag_init(&diag, NULL);
+	if (buffers >= budget) {
+		fprintf(stderr, "%s: tile %lld x %lld x %lld needs %.1f MiB of buffers per "
+		        "thread, %.1f MiB on %u thread%s: more than --budget %.1f MiB (use a "
+		        "smaller --tile, fewer --threads or a larger --budget)\n", prog,
+		        (long long)j->tsize[0], (long long)j->tsize[1], (long long)j->tsize[2],
+		        (double)worker_bytes / 1048576.0, buffers / 1048576.0, j->threads,
+		        j->threads == 1 ? "" : "s", j->budget_mb);
+		tiles_close(j);
+		exit(EXIT_USAGE);
+	}
+	j->texture_budget = (size_t)(budget - buffers);
+	o.budget_bytes = j->texture_budget;
+	o.max_threads = j->threads;
+	rc = loom_texture_open(j->f, j->db, &o, &j->t, &diag);
+	if (rc != LOOM_OK) {
+		int code = rc == LOOM_EBUDGET ? EXIT_USAGE : EXIT_BAD_INPUT;
+		if (rc == LOOM_EBUDGET)
+			fprintf(stderr, "%s: --budget %.1f MiB minus %.1f MiB of tile buffers "
+			        "leaves %.1f MiB for the texture: %s\n", prog, j->budget_mb,
+			        buffers / 1048576.0, (double)j->texture_budget / 1048576.0,
+			        diag.message);
+		else
+			fprintf(stderr, "%s: %s\n", prog, diag.message);
+		tiles_close(j);
+		exit(code);
+	}
+}
+
+void tiles_close(tiles_job *j)
+{
+	loom_texture_close(j->t);
+	loom_fabric_free(j->f);
+	loom_db_close(j->db);
+	j->t = NULL;
+	j->f = NULL;
+	j->db = NULL;
+}
+
+uint64_t tiles_in_shard(const tiles_job *j)
+{
+	if (j->total <= j->shard_i)
+		return 0;
+	return (j->total - j->shard_i - 1) / j->shard_n + 1;
+}
+
+uint64_t tiles_index(const tiles_job *j, uint64_t k)
+{
+	return j->shard_i + k * j->shard_n;
+}
+
+void tiles_box(const tiles_job *j, uint64_t index, int64_t lo[3], int64_t hi[3],
+               int64_t tile[3])
+{
+	uint64_t t[3];
+
+	t[0] = index % j->nt[0];
+	t[1] = index / j->nt[0] % j->nt[1];
+	t[2] = index / j->nt[0] / j->nt[1];
+	for (int a = 0; a < 3; a++) {
+		lo[a] = j->lo[a] + (int64_t)t[a] * j->tsize[a];
+		hi[a] = j->hi[a] - lo[a] < j->tsize[a] ? j->hi[a] : lo[a] + j->tsize[a];
+		if (tile)
+			tile[a] = (int64_t)t[a];
+	}
+}
+
+uint64_t tiles_shard_voxels(const tiles_job *j)
+{
+	uint64_t full[3], last[3], sum = 0;
+
+	if (j->shard_n == 1) {
+		uint64_t v = 1;
+		for (int a = 0; a < 3; a++)
+			v *= (uint64_t)(j->hi[a] - j->lo[a]);
+		return v;
+	}
+	for (int a = 0; a < 3; a++) {
+		full[a] = (uint64_t)j->tsize[a];
+		last[a] = (uint64_t)(j->hi[a] - j->lo[a]) - (j->nt[a] - 1) * full[a];
+	}
+	/* tiles of a shard: sum their sizes (O(tiles); only for progress) */
+	for (uint64_t k = 0, n = tiles_in_shard(j); k < n; k++) {
+		uint64_t idx = tiles_index(j, k), t[3], v = 1;
+		t[0] = idx % j->nt[0];
+		t[1] = idx / j->nt[0] % j->nt[1];
+		t[2] = idx / j->nt[0] / j->nt[1];
+		for (int a = 0; a < 3; a++)
+			v *= t[a] == j->nt[a] - 1 ? last[a] : full[a];
+		sum += v;
+	}
+	return sum;
+}
+
+/* ---- pool ------------------------------------------------------------------- */
+
+struct worker {
+	tiles_pool *p;
+	unsigned w;
+};
+
+static void *worker_main(void *arg)
+{
+	struct worker *wk = arg;
+	tiles_pool *p = wk->p;
+	tiles_job *j = p->job;
+	uint64_t n = tiles_in_shard(j);
+	char msg[sizeof p->msg];
+
+	while (!atomic_load_explicit(&p->stop, memory_order_relaxed)) {
+		uint64_t k = atomic_fetch_add(&p->next, 1);
+		int64_t lo[3], hi[3];
+		if (k >= n)
+			break;
+		tiles_box(j, tiles_index(j, k), lo, hi, NULL);
+		if (!p->skip || !p->skip[k]) {
+			msg[0] = 0;
+			if (p->fn(p->ctx, wk->w, k, msg, sizeof msg) != 0) {
+				pthread_mutex_lock(&p->lock);
+				if (!atomic_load(&p->stop)) {
+					snprintf(p->msg, sizeof p->msg, "%s", msg[0] ? msg : "failed");
+					atomic_store(&p->stop, 1);
+				}
+				pthread_mutex_unlock(&p->lock);
+				break;
+			}
+		}
+		atomic_fetch_add(&p->done_voxels, (unsigned long long)(hi[0] - lo[0]) *
+		                                  (unsigned long long)(hi[1] - lo[1]) *
+		                                  (unsigned long long)(hi[2] - lo[2]));
+		atomic_fetch_add(&p->done_tiles, 1);
+	}
+	loom_texture_thread_done(j->t);
+	pthread_mutex_lock(&p->lock);
+	p->finished++;
+	pthread_cond_signal(&p->cond);
+	pthread_mutex_unlock(&p->lock);
+	return NULL;
+}
+
+int tiles_run(tiles_pool *p)
+{
+	tiles_job *j = p->job;
+	pthread_t *th = calloc(j->threads, sizeof *th);
+	struct worker *wk = calloc(j->threads, sizeof *wk);
+	unsigned started = 0;
+
+	atomic_init(&p->done_tiles, 0);
+	atomic_init(&p->done_voxels, 0);
+	atomic_init(&p->stop, 0);
+	atomic_init(&p->next, 0);
+	p->msg[0] = 0;
+	p->finished = 0;
+	pthread_mutex_init(&p->lock, NULL);
+	pthread_cond_init(&p->cond, NULL);
+	if (!th || !wk) {
+		snprintf(p->msg, sizeof p->msg, "out of memory");
+		free(th);
+		free(wk);
+		return -1;
+	}
+	for (unsigned w = 0; w < j->threads; w++) {
+		wk[w].p = p;
+		wk[w].w = w;
+		if (pthread_create(&th[w], NULL, worker_main, &wk[w]) != 0) {
+			atomic_store(&p->stop, 1);
+			snprintf(p->msg, sizeof p->msg, "cannot start thread %u", w);
+			break;
+		}
+		started++;
+	}
+	for (;;) {
+		struct timespec ts;
+		unsigned fin;
+		if (p->progress)
+			cli_progress_update(p->progress, p->progress_voxels
+			                                         ? atomic_load(&p->done_voxels)
+			                                         : atomic_load(&p->done_tiles));
+		if (p->tick)
+			p->tick(p->ctx);
+		clock_gettime(CLOCK_REALTIME, &ts);
+		ts.tv_nsec += 100000000;
+		if (ts.tv_nsec >= 1000000000) {
+			ts.tv_sec++;
+			ts.tv_nsec -= 1000000000;
+		}
+		pthread_mutex_lock(&p->lock);
+		if (p->finished < started)
+			pthread_cond_timedwait(&p->cond, &p->lock, &ts);
+		fin = p->finished;
+		pthread_mutex_unlock(&p->lock);
+		if (fin >= started)
+			break;
+	}
+	for (unsigned w = 0; w < started; w++)
+		pthread_join(th[w], NULL);
+	if (p->progress && !atomic_load(&p->stop)) {
+		cli_progress_update(p->progress, p->progress_voxels
+		                                         ? atomic_load(&p->done_voxels)
+		                                         : atomic_load(&p->done_tiles));
+		cli_progress_end(p->progress);
+	} else if (p->progress)
+		cli_progress_end(p->progress);
+	pthread_mutex_destroy(&p->lock);
+	pthread_cond_destroy(&p->cond);
+	free(th);
+	free(wk);
+	return atomic_load(&p->stop) ? -1 : 0;
+}
+
+uint64_t tiles_peak_rss(void)
+{
+	struct rusage ru;
+
+	if (getrusage(RUSAGE_SELF, &ru) != 0)
+		return 0;
+	return (uint64_t)ru.ru_maxrss * 1024u;
+}
+
+double tiles_cpu_seconds(void)
+{
+	struct rusage ru;
+
+	if (getrusage(RUSAGE_SELF, &ru) != 0)
+		return 0;
+	return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+	       (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
+uint64_t tiles_mix(uint64_t x)
+{
+	x += 0x9e3779b97f4a7c15ull;
+	x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+	x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+	return x ^ (x >> 31);
+}
+
+char *tiles_read_text(const char *path, size_t max, size_t *len)
+{
+	FILE *fp = fopen(path, "rb");
+	char *buf = NULL;
+	size_t n = 0, cap = 0;
+
+	if (!fp)
+		return NULL;
+	for (;;) {
+		size_t got;
+		if (cap - n < 65536) {
+			char *nb;
+			cap = cap ? 2 * cap : 65536;
+			if (cap > max + 65536) {
+				free(buf);
+				fclose(fp);
+				errno = EFBIG;
+				return NULL;
+			}
+			nb = realloc(buf, cap + 1);
+			if (!nb) {
+				free(buf);
+				fclose(fp);
+				errno = ENOMEM;
+				return NULL;
+			}
+			buf = nb;
+		}
+		got = fread(buf + n, 1, cap - n, fp);
+		n += got;
+		if (got == 0)
+			break;
+	}
+	if (ferror(fp)) {
+		free(buf);
+		fclose(fp);
+		errno = EIO;
+		return NULL;
+	}
+	fclose(fp);
+	buf[n] = 0;
+	if (len)
+		*len = n;
+	return buf;
+}
