@@ -179,6 +179,7 @@ static int dense_build(loom_texture *t, const loom_design *d, const int64_t lo[3
 	or = malloc(2 * n);
 	if (!D.v || !dn || !kd || !ty || !lb || !or)
 		return -1;
+	memset(&r, 0, sizeof r); /* x fastest, as the dense array is indexed */
 	r.density = dn, r.orientation = or, r.kind = kd, r.type = ty, r.label = lb;
 	rc = loom_texture_read_region(t, lo, hi, &r);
 	for (size_t i = 0; i < n; i++) {

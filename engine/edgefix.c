@@ -864,18 +864,12 @@ LOOM_API int loom_edgefix_get_tables(const loom_edgefix *ef,
 	return LOOM_OK;
 }
 
-LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
-                                      loom_edgefix **out, loom_diag *diag)
+int loom__edgefix_alloc(const loom_edgefix_tables *t, loom_edgefix **out,
+                        float *arrays[7], loom_diag *diag)
 {
 	loom_edgefix *ef;
-	size_t cells;
 
-	if (!out)
-		return loom__fail(diag, LOOM_EINVAL, "edge fix tables: NULL output");
 	*out = NULL;
-	if (!t || !t->coef || !t->field_h || !t->field_v || !t->basis_h ||
-	    !t->basis_v || !t->mean_h || !t->mean_v)
-		return loom__fail(diag, LOOM_EINVAL, "edge fix tables: NULL array");
 	if (t->b1 < 3 || t->b2 < 3 || (uint64_t)t->b1 * t->b2 > MAX_CELLS ||
 	    t->n_blocks == 0 || t->n_blocks > LOOM_SYNTH_MAX_BLOCKS ||
 	    t->rank_h > LOOM_EDGEFIX_MAX_RANK || t->rank_v > LOOM_EDGEFIX_MAX_RANK ||
@@ -886,14 +880,42 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
 	ef = ef_alloc(t->b1, t->b2, t->n_blocks, t->rank_h, t->rank_v);
 	if (!ef)
 		return loom__fail(diag, LOOM_ENOMEM, "edge fix tables: out of memory");
+	arrays[0] = ef->coef;
+	arrays[1] = ef->field_h;
+	arrays[2] = ef->field_v;
+	arrays[3] = ef->basis_h;
+	arrays[4] = ef->basis_v;
+	arrays[5] = ef->mean_h;
+	arrays[6] = ef->mean_v;
+	*out = ef;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
+                                      loom_edgefix **out, loom_diag *diag)
+{
+	loom_edgefix *ef;
+	float *a[7];
+	size_t cells;
+	int rc;
+
+	if (!out)
+		return loom__fail(diag, LOOM_EINVAL, "edge fix tables: NULL output");
+	*out = NULL;
+	if (!t || !t->coef || !t->field_h || !t->field_v || !t->basis_h ||
+	    !t->basis_v || !t->mean_h || !t->mean_v)
+		return loom__fail(diag, LOOM_EINVAL, "edge fix tables: NULL array");
+	rc = loom__edgefix_alloc(t, &ef, a, diag);
+	if (rc)
+		return rc;
 	cells = (size_t)t->b1 * t->b2;
-	memcpy(ef->coef, t->coef, sizeof(float) * t->n_blocks * (2 * (size_t)t->rank_h + 2 * t->rank_v));
-	memcpy(ef->field_h, t->field_h, sizeof(float) * cells * t->rank_h);
-	memcpy(ef->field_v, t->field_v, sizeof(float) * cells * t->rank_v);
-	memcpy(ef->basis_h, t->basis_h, sizeof(float) * t->b1 * t->rank_h);
-	memcpy(ef->basis_v, t->basis_v, sizeof(float) * (t->b2 - 2) * t->rank_v);
-	memcpy(ef->mean_h, t->mean_h, sizeof(float) * t->b1);
-	memcpy(ef->mean_v, t->mean_v, sizeof(float) * (t->b2 - 2));
+	memcpy(a[0], t->coef, sizeof(float) * t->n_blocks * (2 * (size_t)t->rank_h + 2 * t->rank_v));
+	memcpy(a[1], t->field_h, sizeof(float) * cells * t->rank_h);
+	memcpy(a[2], t->field_v, sizeof(float) * cells * t->rank_v);
+	memcpy(a[3], t->basis_h, sizeof(float) * t->b1 * t->rank_h);
+	memcpy(a[4], t->basis_v, sizeof(float) * (t->b2 - 2) * t->rank_v);
+	memcpy(a[5], t->mean_h, sizeof(float) * t->b1);
+	memcpy(a[6], t->mean_v, sizeof(float) * (t->b2 - 2));
 	*out = ef;
 	return LOOM_OK;
 }

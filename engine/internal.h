@@ -45,6 +45,18 @@ void loom__atomic_abort(loom__atomic *a);
 
 /* sRGB-encoded component c in [0,1] to linear (IEC 61966-2-1).  Colours
    users type (#RRGGBB, WIF colour tables) are sRGB; albedo is linear. */
+/*
+ * Edge-fix tables of the shape of t (block, blocks, ranks; t's arrays are
+ * not read) with uninitialised arrays, for a reader that fills them in
+ * place: arrays[0..6] receive coef, field_h, field_v, basis_h, basis_v,
+ * mean_h, mean_v (sizes as in loom_edgefix_tables).  LOOM_EINVAL for a shape
+ * out of range, LOOM_ENOMEM.  Free with loom_edgefix_free.
+ */
+struct loom_edgefix_tables;
+struct loom_edgefix;
+int loom__edgefix_alloc(const struct loom_edgefix_tables *t, struct loom_edgefix **out,
+                        float *arrays[7], loom_diag *diag);
+
 float loom__srgb_to_linear(double c);
 
 /* Case-insensitive ASCII string compare helpers. */

@@ -51,7 +51,7 @@
  */
 #include "render_internal.h"
 
-#include <embree3/rtcore.h>
+#include "embree_dl.h"
 #include <float.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -892,6 +892,8 @@ LOOM_API int loom_shell_new(const loom_mesh *m, const loom_shell_params *p,
 		goto fail;
 	}
 
+	if ((rc = loom__embree_load(diag)))
+		goto fail;
 	s->dev = rtcNewDevice("threads=1");
 	if (!s->dev) {
 		rc = loom__fail(diag, LOOM_EIO, "shell: cannot create an Embree device "

@@ -1168,6 +1168,7 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 	size_t cells = (size_t)b1 * b2, cnt[7], total = 0;
 	float *arr[7] = {0};
 	loom_edgefix_tables t;
+	loom_edgefix *ef;
 	uint8_t *p;
 	int rc;
 
@@ -1181,6 +1182,10 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 	rc = read_small(r, S_EDGE, &p);
 	if (rc)
 		return rc;
+	/* the last section: the reader's chunk buffers are no longer needed */
+	free(r->raw);
+	free(r->stored);
+	r->raw = r->stored = NULL;
 	mode = get32(p);
 	rh = get32(p + 4);
 	rv = get32(p + 8);
@@ -1218,14 +1223,20 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 		free(p);
 		return LOOM_OK; /* rebuilt from the database at bind */
 	}
+	/* the tables are parsed straight into the edge fix (no second copy) */
+	t.b1 = b1;
+	t.b2 = b2;
+	t.n_blocks = K;
+	t.rank_h = rh;
+	t.rank_v = rv;
+	rc = loom__edgefix_alloc(&t, &ef, arr, r->diag);
+	if (rc) {
+		free(p);
+		return rc;
+	}
 	{
 		const uint8_t *q = p + FAB_EDGE_HEADER;
 		for (int k = 0; k < 7 && !rc; k++) {
-			arr[k] = malloc(sizeof(float) * cnt[k]);
-			if (!arr[k]) {
-				rc = loom__fail(r->diag, LOOM_ENOMEM, "%s: out of memory", r->name);
-				break;
-			}
 			for (size_t i = 0; i < cnt[k]; i++, q += 4) {
 				arr[k][i] = getf(q);
 				if (!isfinite(arr[k][i])) {
@@ -1237,24 +1248,11 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 			}
 		}
 	}
-	if (!rc) {
-		t.b1 = b1;
-		t.b2 = b2;
-		t.n_blocks = K;
-		t.rank_h = rh;
-		t.rank_v = rv;
-		t.coef = arr[0];
-		t.field_h = arr[1];
-		t.field_v = arr[2];
-		t.basis_h = arr[3];
-		t.basis_v = arr[4];
-		t.mean_h = arr[5];
-		t.mean_v = arr[6];
-		rc = loom_edgefix_from_tables(&t, &f->ef, r->diag);
-	}
-	for (int k = 0; k < 7; k++)
-		free(arr[k]);
 	free(p);
+	if (rc)
+		loom_edgefix_free(ef);
+	else
+		f->ef = ef;
 	return rc;
 }
 
@@ -1390,10 +1388,12 @@ static int parse_all(fab_reader *r, loom_fabric *f)
 		rc = parse_map(r, f, S_WEFT);
 	if (!rc)
 		rc = parse_base(r, f);
-	if (!rc)
-		rc = parse_edge(r, f);
+	/* METR before EDGE: EDGE is the last section read, so the chunk
+	   buffers can go before its tables are built (lower peak memory) */
 	if (!rc)
 		rc = parse_metr(r, f);
+	if (!rc)
+		rc = parse_edge(r, f);
 	return rc;
 }
 

@@ -27,6 +27,8 @@ need libembree-dev   has_header embree3/rtcore.h
 if [ "$what" = test ]; then
 	need openexr     command -v exrheader
 	need teem-apps   command -v teem-unu
+	# the CLI tests read loom's --json output with python3's json module
+	need python3     command -v python3
 fi
 
 [ -z "$missing" ] && exit 0

@@ -73,3 +73,14 @@ if [ -f "$MESH" ]; then
 fi
 expect_exit mesh_missing 1 "$LOOM" render "$F" --mesh "$T/nope.obj" $R -o "$T/x.png"
 expect_err_contains mesh_missing_msg "nope.obj"
+# Embree is loaded only for meshes: without it a flat render still works and
+# a mesh render fails with a message naming the library, writing nothing
+if [ -f "$MESH" ]; then
+	expect_exit no_embree 1 env LOOM_EMBREE_LIBRARY=/nonexistent/libembree3.so.3 \
+		"$LOOM" render "$F" --mesh "$MESH" $R --quiet -o "$T/noembree.png"
+	expect_err_contains no_embree_msg "cannot load Embree 3 (/nonexistent/libembree3.so.3)"
+	if [ -e "$T/noembree.png" ]; then fail no_embree_no_output "an image was written"
+	else pass no_embree_no_output; fi
+	expect_ok no_embree_flat env LOOM_EMBREE_LIBRARY=/nonexistent/libembree3.so.3 \
+		"$LOOM" render "$F" $R --quiet -o "$T/flat-noembree.png"
+fi
