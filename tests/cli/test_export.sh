@@ -139,6 +139,12 @@ expect_ok vol_t1_b8 "$LOOM" export "$F" --region "$REG" --format vol --channels 
 if (cd "$T/vol" && for f in *; do cmp -s "$f" "$T/vol_b8/$f" || echo "$f"; done) | grep -q .; then
 	fail vol_deterministic "files differ between --threads 2 --budget 64 and --threads 1 --budget 8"
 else pass vol_deterministic; fi
+# and for tiles taken in index order instead of grouped by source block
+expect_ok vol_index_order env LOOM_TILE_ORDER=index "$LOOM" export "$F" --region "$REG" \
+	--format vol --channels $ALL --tile 48,32 --threads 2 --quiet -o "$T/vol_idx"
+if (cd "$T/vol" && for f in *; do cmp -s "$f" "$T/vol_idx/$f" || echo "$f"; done) | grep -q .; then
+	fail vol_order_free "files differ between source and index tile order"
+else pass vol_order_free; fi
 
 # NRRD: unu reads it; the values equal the .vol ones
 expect_ok nrrd "$LOOM" export "$F" --region "$REG" --format nrrd --channels density,orientation,kind \

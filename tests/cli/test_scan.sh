@@ -55,6 +55,11 @@ check_cs cs_tile_small --tile 17,23
 check_cs cs_tile_z --tile 40,30,7 --threads 2
 check_cs cs_tile_one --tile 240,150,55
 check_cs cs_tile_column --tile 1,1 --budget 8
+# tiles in index order instead of grouped by source block: the same value
+export LOOM_TILE_ORDER=index
+check_cs cs_index_order --threads 2 --budget 8
+check_cs cs_index_order_tiles --tile 17,23,9
+unset LOOM_TILE_ORDER
 for s in 0 1 2 3; do
 	"$LOOM" scan "$F" --region "$REG" --reduce checksum --tile 24,24,20 --shard $s/4 \
 		--json --quiet >"$T/part$s.json" 2>/dev/null

@@ -1008,6 +1008,7 @@ int cmd_export(int argc, char **argv)
 	pool.skip = c.skip;
 	pool.tick = export_tick;
 	pool.progress = &bar;
+	pool.source_order = tiles_source_order_wanted();
 	c.last_write = cli_now();
 	cli_progress_begin(&bar, prog, "tiles", c.n, quiet);
 	t0 = cli_now();

@@ -126,6 +126,28 @@ col_sum_avx2(const uint8_t *d, const uint16_t *o, const uint8_t *k, const uint8_
 }
 #endif
 
+/* Is voxel z of a column empty (every field 0)?  Empty voxels above and
+   below the cloth are most of a column; their hashes depend on z alone, so
+   the scan skips them and adds their precomputed sums (struct scan_ctx ep). */
+static inline int vox_empty(const uint8_t *d, const uint16_t *o, const uint8_t *k,
+                            const uint8_t *t, size_t z)
+{
+	return (d[z] | o[z] | k[z] | t[z]) == 0;
+}
+
+/* Are voxels z..z+7 all empty?  (8 bytes of d, k, t, 16 of o.) */
+static inline int vox_empty8(const uint8_t *d, const uint16_t *o, const uint8_t *k,
+                             const uint8_t *t, size_t z)
+{
+	uint64_t a, b, c, e, f;
+	memcpy(&a, d + z, 8);
+	memcpy(&b, k + z, 8);
+	memcpy(&c, t + z, 8);
+	memcpy(&e, o + z, 8);
+	memcpy(&f, o + z + 4, 8);
+	return (a | b | c | e | f) == 0;
+}
+
 typedef struct scan_result {
 	int reduce;
 	uint64_t voxels, tiles;
@@ -155,6 +177,8 @@ struct scan_ctx {
 	int reduce;
 	int64_t zlo, zhi;      /* z range that is read: region z within [0, b3) */
 	uint32_t *zk1, *zk2;   /* zhi - zlo keys */
+	uint64_t *ep;          /* zhi - zlo + 1 prefix sums of the hash of an
+	                          empty voxel: ep[i] = sum over z < zlo + i */
 	int avx2;
 	unsigned n_types;
 	struct wstate *w;
@@ -200,16 +224,29 @@ static int scan_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
 	if (c->reduce == R_CHECKSUM) {
 		const uint32_t *k1 = c->zk1 + (lo[2] - c->zlo), *k2 = c->zk2 + (lo[2] - c->zlo);
 		uint64_t total = 0;
+		const uint64_t *ep = c->ep + (lo[2] - c->zlo);
 		for (size_t col = 0; col < ncol; col++) {
-			size_t off = col * nz;
+			size_t off = col * nz, a = 0, b = nz;
+			const uint8_t *d = w->d + off, *kk = w->k + off, *t = w->ty + off;
+			const uint16_t *o = w->o + off;
 			uint64_t s, x = (uint64_t)(lo[0] + (int64_t)(col % nx));
 			uint64_t y = (uint64_t)(lo[1] + (int64_t)(col / nx));
+			/* the empty runs at both ends: their sums from ep */
+			while (a + 8 <= b && vox_empty8(d, o, kk, t, a))
+				a += 8;
+			while (a < b && vox_empty(d, o, kk, t, a))
+				a++;
+			while (b >= a + 8 && vox_empty8(d, o, kk, t, b - 8))
+				b -= 8;
+			while (b > a && vox_empty(d, o, kk, t, b - 1))
+				b--;
+			s = (ep[a] - ep[0]) + (ep[nz] - ep[b]);
 #ifdef HAVE_AVX2_PATH
 			if (c->avx2)
-				s = col_sum_avx2(w->d + off, w->o + off, w->k + off, w->ty + off, k1, k2, nz);
+				s += col_sum_avx2(d + a, o + a, kk + a, t + a, k1 + a, k2 + a, b - a);
 			else
 #endif
-				s = col_sum_c(w->d + off, w->o + off, w->k + off, w->ty + off, k1, k2, nz);
+				s += col_sum_c(d + a, o + a, kk + a, t + a, k1 + a, k2 + a, b - a);
 			total += s * (tiles_mix(tiles_mix(x) ^ y) | 1);
 		}
 		w->sum += total;
@@ -654,13 +691,16 @@ int cmd_scan(int argc, char **argv)
 
 	c.zk1 = calloc((size_t)(c.zhi - c.zlo) + 1, sizeof *c.zk1);
 	c.zk2 = calloc((size_t)(c.zhi - c.zlo) + 1, sizeof *c.zk2);
+	c.ep = calloc((size_t)(c.zhi - c.zlo) + 1, sizeof *c.ep);
 	c.w = calloc(j.threads, sizeof *c.w);
-	if (!c.zk1 || !c.zk2 || !c.w)
+	if (!c.zk1 || !c.zk2 || !c.ep || !c.w)
 		cli_fail(prog, "out of memory");
 	for (int64_t z = c.zlo; z < c.zhi; z++) {
 		uint64_t key = tiles_mix((uint64_t)z ^ SEED_Z);
-		c.zk1[z - c.zlo] = (uint32_t)key;
-		c.zk2[z - c.zlo] = (uint32_t)(key >> 32);
+		size_t i = (size_t)(z - c.zlo);
+		c.zk1[i] = (uint32_t)key;
+		c.zk2[i] = (uint32_t)(key >> 32);
+		c.ep[i + 1] = c.ep[i] + vhash(0, 0, c.zk1[i], c.zk2[i]);
 	}
 	c.avx2 = 0;
 #ifdef HAVE_AVX2_PATH
@@ -683,6 +723,7 @@ int cmd_scan(int argc, char **argv)
 	pool.ctx = &c;
 	pool.progress = &prog_bar;
 	pool.progress_voxels = 1;
+	pool.source_order = tiles_source_order_wanted();
 	cli_progress_begin(&prog_bar, prog, "voxels", tiles_shard_voxels(&j), quiet);
 	t0 = cli_now();
 	cpu0 = tiles_cpu_seconds();
@@ -733,6 +774,7 @@ int cmd_scan(int argc, char **argv)
 	free(c.w);
 	free(c.zk1);
 	free(c.zk2);
+	free(c.ep);
 	free(r.hist);
 	free(r.names);
 	free(files);

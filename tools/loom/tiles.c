@@ -353,12 +353,110 @@ struct worker {
 	unsigned w;
 };
 
+/* ---- source order ---------------------------------------------------------
+
+   Tiles are taken in chunks of chunk_rows x chunk_cols tiles (one z layer;
+   whole rows when a row has at most TILES_CHUNK_TILES tiles);
+   inside a chunk, by the source block that the crossing under the tile's
+   centre copies, then by index.  Neighbouring output crossings mostly copy
+   unrelated source blocks (randomisation), so row order revisits a block's
+   bricks after the cache has dropped them; sorted, a chunk touches each
+   block's bricks in one go.  The orders of the last few chunks are kept
+   (threads finish one chunk while others start the next). */
+
+static int key_less(const uint64_t *order, const uint32_t *key, uint64_t a, uint64_t b)
+{
+	return key[a] < key[b] || (key[a] == key[b] && order[a] < order[b]);
+}
+
+static void sift(uint64_t *order, uint32_t *key, uint64_t r, uint64_t n)
+{
+	for (;;) {
+		uint64_t c = 2 * r + 1, to;
+		uint32_t tk;
+		if (c >= n)
+			return;
+		if (c + 1 < n && key_less(order, key, c, c + 1))
+			c++;
+		if (!key_less(order, key, r, c))
+			return;
+		to = order[r], tk = key[r];
+		order[r] = order[c], key[r] = key[c];
+		order[c] = to, key[c] = tk;
+		r = c;
+	}
+}
+
+/* Heap sort by (key, tile index): allocation-free, O(n log n). */
+static void sort_chunk(uint64_t *order, uint32_t *key, uint64_t n)
+{
+	for (uint64_t i = n / 2; i-- > 0;)
+		sift(order, key, i, n);
+	for (uint64_t e = n; e-- > 1;) {
+		uint64_t to = order[0];
+		uint32_t tk = key[0];
+		order[0] = order[e], key[0] = key[e];
+		order[e] = to, key[e] = tk;
+		sift(order, key, 0, e);
+	}
+}
+
+/* Under p->lock: the tile index at position q of the source order, or
+   UINT64_MAX when out of memory (or no database is bound: cannot happen
+   once the texture is open). */
+static uint64_t source_index(tiles_pool *p, uint64_t q)
+{
+	const tiles_job *j = p->job;
+	uint64_t layer = j->nt[0] * j->nt[1], t2 = q / layer, rq = q % layer;
+	uint64_t cr = p->chunk_rows, cw = p->chunk_cols;
+	uint64_t r = rq / (cr * j->nt[0]), sq = rq % (cr * j->nt[0]);
+	uint64_t row0 = r * cr, nr = j->nt[1] - row0 < cr ? j->nt[1] - row0 : cr;
+	uint64_t cc = sq / (nr * cw), pos = sq % (nr * cw);
+	uint64_t col0 = cc * cw, w = j->nt[0] - col0 < cw ? j->nt[0] - col0 : cw;
+	uint64_t cpr = (j->nt[0] + cw - 1) / cw, cpl = (j->nt[1] + cr - 1) / cr;
+	uint64_t id = (t2 * cpl + r) * cpr + cc + 1;
+	struct tiles_chunk *c = NULL;
+
+	for (unsigned s = 0; s < TILES_CHUNK_SLOTS; s++)
+		if (p->chunk[s].id == id)
+			c = &p->chunk[s];
+	if (!c) {
+		loom_db_info di;
+		c = &p->chunk[p->chunk_next];
+		p->chunk_next = (p->chunk_next + 1) % TILES_CHUNK_SLOTS;
+		if (!c->order) {
+			c->order = malloc(sizeof *c->order * cr * cw);
+			c->key = malloc(sizeof *c->key * cr * cw);
+			if (!c->order || !c->key)
+				return UINT64_MAX;
+		}
+		if (loom_db_get_info(loom_fabric_db(j->f), &di) != LOOM_OK)
+			return UINT64_MAX;
+		c->id = id;
+		c->n = 0;
+		for (uint64_t t1 = row0; t1 < row0 + nr; t1++)
+			for (uint64_t t0 = col0; t0 < col0 + w; t0++) {
+				uint64_t idx = t0 + j->nt[0] * (t1 + j->nt[1] * t2);
+				int64_t lo[3], hi[3], I, J;
+				loom_fabric_source src;
+				tiles_box(j, idx, lo, hi, NULL);
+				J = loom_synth_floordiv(lo[0] + (hi[0] - lo[0]) / 2, di.block[0]);
+				I = loom_synth_floordiv(lo[1] + (hi[1] - lo[1]) / 2, di.block[1]);
+				c->key[c->n] = loom_fabric_source_at(j->f, I, J, &src) == LOOM_OK
+				                       ? src.block : 0;
+				c->order[c->n++] = idx;
+			}
+		sort_chunk(c->order, c->key, c->n);
+	}
+	return c->order[pos];
+}
+
 static void *worker_main(void *arg)
 {
 	struct worker *wk = arg;
 	tiles_pool *p = wk->p;
 	tiles_job *j = p->job;
-	uint64_t n = tiles_in_shard(j);
+	uint64_t n = p->source_order ? j->total : tiles_in_shard(j);
 	char msg[sizeof p->msg];
 
 	while (!atomic_load_explicit(&p->stop, memory_order_relaxed)) {
@@ -366,6 +464,21 @@ static void *worker_main(void *arg)
 		int64_t lo[3], hi[3];
 		if (k >= n)
 			break;
+		if (p->source_order) { /* k counts all tiles; keep this shard's */
+			uint64_t idx;
+			pthread_mutex_lock(&p->lock);
+			idx = source_index(p, k);
+			if (idx == UINT64_MAX && !atomic_load(&p->stop)) {
+				snprintf(p->msg, sizeof p->msg, "out of memory");
+				atomic_store(&p->stop, 1);
+			}
+			pthread_mutex_unlock(&p->lock);
+			if (idx == UINT64_MAX)
+				break;
+			if (idx % j->shard_n != j->shard_i)
+				continue;
+			k = idx / j->shard_n;
+		}
 		tiles_box(j, tiles_index(j, k), lo, hi, NULL);
 		if (!p->skip || !p->skip[k]) {
 			msg[0] = 0;
@@ -392,6 +505,12 @@ static void *worker_main(void *arg)
 	return NULL;
 }
 
+int tiles_source_order_wanted(void)
+{
+	const char *e = getenv("LOOM_TILE_ORDER");
+	return !(e && strcmp(e, "index") == 0);
+}
+
 int tiles_run(tiles_pool *p)
 {
 	tiles_job *j = p->job;
@@ -405,6 +524,13 @@ int tiles_run(tiles_pool *p)
 	atomic_init(&p->next, 0);
 	p->msg[0] = 0;
 	p->finished = 0;
+	memset(p->chunk, 0, sizeof p->chunk);
+	p->chunk_next = 0;
+	/* chunks of at most TILES_CHUNK_TILES tiles: whole rows when they fit */
+	p->chunk_cols = j->nt[0] < TILES_CHUNK_TILES ? j->nt[0] : TILES_CHUNK_TILES;
+	if (p->chunk_cols < 1)
+		p->chunk_cols = 1;
+	p->chunk_rows = TILES_CHUNK_TILES / p->chunk_cols;
 	pthread_mutex_init(&p->lock, NULL);
 	pthread_cond_init(&p->cond, NULL);
 	if (!th || !wk) {
@@ -457,6 +583,12 @@ int tiles_run(tiles_pool *p)
 		cli_progress_end(p->progress);
 	pthread_mutex_destroy(&p->lock);
 	pthread_cond_destroy(&p->cond);
+	for (unsigned s = 0; s < TILES_CHUNK_SLOTS; s++) {
+		free(p->chunk[s].order);
+		free(p->chunk[s].key);
+		p->chunk[s].order = NULL;
+		p->chunk[s].key = NULL;
+	}
 	free(th);
 	free(wk);
 	return atomic_load(&p->stop) ? -1 : 0;

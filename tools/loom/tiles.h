@@ -91,6 +91,9 @@ uint64_t tiles_shard_voxels(const tiles_job *j);
 typedef int (*tiles_fn)(void *ctx, unsigned w, uint64_t k, char *msg,
                         size_t msg_size);
 
+#define TILES_CHUNK_SLOTS 4
+#define TILES_CHUNK_TILES 4096 /* tiles per chunk of the source order (about) */
+
 typedef struct tiles_pool {
 	tiles_job *job;
 	tiles_fn fn;
@@ -99,6 +102,12 @@ typedef struct tiles_pool {
 	void (*tick)(void *ctx);   /* called by the main thread while waiting */
 	cli_progress *progress;    /* may be NULL */
 	int progress_voxels;       /* 1: report voxels, else tiles */
+	int source_order;          /* 1: tiles in chunks of tile rows, each
+	                              chunk's tiles sorted by the source block
+	                              their centre copies, so that a block's
+	                              bricks are decompressed once per chunk
+	                              (any shard; a result that does not
+	                              depend on the order); 0: index order */
 	/* results */
 	atomic_ullong done_tiles, done_voxels;
 	atomic_int stop;
@@ -107,7 +116,22 @@ typedef struct tiles_pool {
 	pthread_cond_t cond;       /* signalled when a worker ends */
 	unsigned finished;         /* workers ended (under lock) */
 	atomic_ullong next;
+	/* source order (under lock): chunks of chunk_rows x chunk_cols tiles,
+	   the orders of the last TILES_CHUNK_SLOTS chunks kept (fixed memory:
+	   12 bytes per tile of a chunk) */
+	uint64_t chunk_rows, chunk_cols;
+	struct tiles_chunk {
+		uint64_t id;           /* chunk number + 1 (0: empty slot) */
+		uint64_t n;
+		uint64_t *order;       /* tile indices */
+		uint32_t *key;         /* scratch: source block per tile */
+	} chunk[TILES_CHUNK_SLOTS];
+	unsigned chunk_next;       /* slot to refill next */
 } tiles_pool;
+
+/* Tiles grouped by source block (tiles_pool.source_order) unless
+   $LOOM_TILE_ORDER is "index" (for comparisons; results are the same). */
+int tiles_source_order_wanted(void);
 
 /* Run fn over the tiles of the shard on job->threads threads.  Returns 0,
    or -1 with pool->msg set. */
