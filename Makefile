@@ -4,7 +4,7 @@
 #   make demo       build and run `loom demo` on the built-in data
 #   make test       build with -Werror and run every test; ends "N passed, N failed"
 #   make sanitize   the same suite under AddressSanitizer + UBSan
-#   make tsan       the threaded tests under ThreadSanitizer
+#   make tsan       the same suite under ThreadSanitizer
 #   make bench      run the benchmarks (figures, never pass/fail)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text

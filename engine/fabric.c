@@ -564,6 +564,7 @@ LOOM_API int loom_fabric_source_at(const loom_fabric *f, int64_t I, int64_t J,
 	if (!f->attached)
 		return LOOM_EUNUSABLE;
 	loom__fabric_crossing(f, I, J, &x);
+	memset(out, 0, sizeof *out); /* padding too: callers compare records */
 	out->block = x.nb.self;
 	out->exemplar = x.blk->exemplar;
 	out->row = x.blk->row;

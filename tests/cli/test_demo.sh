@@ -24,20 +24,9 @@ PY
 
 expect_ok make_db "$LOOM" exemplar generate --preset tiny --seed 3 --quiet -o "$DB"
 mkdir -p "$T/data"
-if "$LOOM" export --help >/dev/null 2>&1; then have_export=1; else have_export=0; fi
 LOOM_DATA="$T/data" "$LOOM" demo -o "$D" --db "$DB" >"$T/out" 2>"$T/err"
 rc=$?
-if [ $have_export = 1 ]; then
-	if [ $rc -eq 0 ]; then pass demo_runs; else fail demo_runs "exit $rc: $(head -c 400 "$T/err")"; fi
-else
-	# until `loom export` lands, only the export stage fails
-	if [ $rc -eq 1 ] && grep -q "export" "$T/err" && \
-	   [ "$(grep -c "loom demo:" "$T/err")" -eq "$(grep -c "loom demo: export" "$T/err")" ]; then
-		pass demo_runs_without_export
-	else
-		fail demo_runs_without_export "exit $rc: $(head -c 400 "$T/err")"
-	fi
-fi
+if [ $rc -eq 0 ]; then pass demo_runs; else fail demo_runs "exit $rc: $(head -c 400 "$T/err")"; fi
 cp "$T/out" "$T/demo.out"
 for f in cloth.loomf cloth-picture.png cloth-weave.png cloth-preview.png cloth-preview.exr cloth-render.png; do
 	if [ -s "$D/$f" ]; then pass "exists_$f"; else fail "exists_$f" "no $D/$f"; fi
@@ -48,14 +37,14 @@ png_check render_png "$D/cloth-render.png"
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok preview_exr exrheader "$D/cloth-preview.exr"
 	expect_out_contains preview_exr_float "R, 32-bit floating-point"
+else
+	fail preview_exr "exrheader is not installed (tools/deps.sh test installs it)"
 fi
 expect_ok fabric_info "$LOOM" info "$D/cloth.loomf" --db "$DB"
 expect_out_contains fabric_size "144 x 96 crossings"
 if grep -q "files, .* bytes, in" "$T/demo.out"; then pass files_total; else fail files_total "no total line"; fi
-if [ $have_export = 1 ]; then
-	for fmt in vol nrrd exr; do
-		n=$(find "$D/export-$fmt" -type f 2>/dev/null | wc -l)
-		if [ "$n" -gt 0 ]; then pass "export_$fmt"; else fail "export_$fmt" "no files in $D/export-$fmt"; fi
-		if grep -qF "$D/export-$fmt/" "$T/demo.out"; then pass "listed_export_$fmt"; else fail "listed_export_$fmt" "not in the table"; fi
-	done
-fi
+for fmt in vol nrrd exr; do
+	n=$(find "$D/export-$fmt" -type f 2>/dev/null | wc -l)
+	if [ "$n" -gt 0 ]; then pass "export_$fmt"; else fail "export_$fmt" "no files in $D/export-$fmt"; fi
+	if grep -qF "$D/export-$fmt/" "$T/demo.out"; then pass "listed_export_$fmt"; else fail "listed_export_$fmt" "not in the table"; fi
+done

@@ -158,7 +158,7 @@ if command -v teem-unu >/dev/null 2>&1; then
 	expect_ok unu_minmax_orient teem-unu minmax "$T/nrrd/tile-0-0-0.orientation.nrrd"
 	expect_ok unu_slice teem-unu slice -i "$T/nrrd/tile-0-0-0.density.nrrd" -a 2 -p 20 -o "$T/slice.nrrd"
 else
-	echo "SKIP $SUITE/unu: teem-unu is not installed (tools/deps.sh test installs it)"
+	fail unu "teem-unu is not installed (tools/deps.sh test installs it)"
 fi
 if python3 - "$T" >"$T/py" 2>&1 <<'EOF'
 import os, struct, sys
