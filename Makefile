@@ -51,12 +51,14 @@ TOOL_SRC   := $(sort $(wildcard tools/loom/*.c))
 UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
 FUZZ_SRC   := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 BENCH_SRC  := $(sort $(wildcard bench/bench_*.c))
+SEED_SRC   := $(sort $(wildcard tests/fuzz/seeds/*.hex))
 
 LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
 TOOL_OBJ  := $(TOOL_SRC:%.c=$(BUILD)/obj/%.o)
 UNIT_BIN  := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 FUZZ_BIN  := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=$(BUILD)/tests/replay_%)
 BENCH_BIN := $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+SEED_DIRS := $(SEED_SRC:tests/fuzz/seeds/%.hex=$(BUILD)/fuzz-corpus/%/.made)
 
 STATIC := $(BUILD)/libloom.a
 SHARED := $(BUILD)/libloom.so.$(VERSION)
@@ -126,6 +128,17 @@ $(BUILD)/tests/replay_%: $(BUILD)/obj/tests/fuzz/fuzz_%.o $(BUILD)/obj/tests/fuz
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $^ $(DEP_LIBS)
 
+# Binary seed corpora kept in git as hex text (tests/fuzz/seeds/NAME.hex),
+# written to $(BUILD)/fuzz-corpus/NAME/ and replayed with tests/fuzz/corpus/NAME/.
+$(BUILD)/tests/unhex: $(BUILD)/obj/tests/fuzz/unhex.o
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $<
+
+$(BUILD)/fuzz-corpus/%/.made: tests/fuzz/seeds/%.hex $(BUILD)/tests/unhex
+	$(Q)rm -rf $(@D) && mkdir -p $(@D)
+	$(Q)$(BUILD)/tests/unhex $< $(@D)
+	@touch $@
+
 $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) $(DEP_LIBS)
@@ -133,7 +146,7 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 demo: all
 	$(LOOM) demo
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(TESTDEPS_OK)
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK)
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 sanitize:
@@ -148,6 +161,7 @@ bench: all $(BENCH_BIN)
 	$(Q)BUILD=$(BUILD) sh bench/run.sh
 
 # libFuzzer builds (clang): make fuzz, then build/fuzz/fuzz_wif tests/fuzz/corpus/wif
+# (the vol seeds: build/fuzz/fuzz_vol build/fuzz-corpus/vol, made by make test)
 fuzz: | $(DEPS_OK)
 	@mkdir -p $(BUILD)/fuzz
 	$(Q)for f in $(FUZZ_SRC); do n=$$(basename $$f .c); \

@@ -49,7 +49,14 @@ done
 for t in "$BUILD"/tests/replay_*; do
 	[ -x "$t" ] || continue
 	n=$(basename "$t" | sed 's/^replay_//')
-	run_one "replay_$n" "$t" "tests/fuzz/corpus/$n"
+	# seeds in git (tests/fuzz/corpus/NAME) and those written from hex text
+	# by make (tests/fuzz/seeds/NAME.hex -> $BUILD/fuzz-corpus/NAME)
+	dirs=""
+	for d in "tests/fuzz/corpus/$n" "$BUILD/fuzz-corpus/$n"; do
+		[ -d "$d" ] && dirs="$dirs $d"
+	done
+	# shellcheck disable=SC2086
+	run_one "replay_$n" "$t" $dirs
 done
 for t in tests/cli/test_*.sh; do
 	[ -f "$t" ] || continue
