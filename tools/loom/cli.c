@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -360,4 +361,45 @@ void jw_bool(json_w *w, const char *key, int v)
 {
 	jw_key(w, key);
 	fputs(v ? "true" : "false", w->fp);
+}
+
+int cli_ends_with(const char *s, const char *ext)
+{
+	size_t n = strlen(s), e = strlen(ext);
+	return n >= e && strcasecmp(s + n - e, ext) == 0;
+}
+
+int cli_write_exr(const char *path, uint32_t w, uint32_t h, const loom_exr_channel *ch,
+                  uint32_t n_ch, const float *rows, loom_diag *diag)
+{
+	loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
+	loom_exr_writer *wr = NULL;
+	int rc = loom_exr_writer_open(path, w, h, ch, n_ch, &eo, &wr, diag);
+
+	if (rc != LOOM_OK)
+		return rc;
+	rc = loom_exr_writer_put_rows(wr, rows, h, diag);
+	if (rc != LOOM_OK) {
+		loom_exr_writer_abort(wr);
+		return rc;
+	}
+	return loom_exr_writer_finish(wr, diag);
+}
+
+int cli_write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
+                  double exposure, loom_diag *diag)
+{
+	static const loom_exr_channel ch[3] = {
+		{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
+	loom_image *img = NULL;
+	int rc;
+
+	if (cli_ends_with(path, ".exr"))
+		return cli_write_exr(path, w, h, ch, 3, rgb, diag);
+	if ((rc = loom_image_new(w, h, 3, &img)) != LOOM_OK)
+		return rc;
+	loom_render_to_srgb8(rgb, (size_t)w * h, exposure, img->pixels);
+	rc = loom_image_write(path, img, diag);
+	loom_image_free(img);
+	return rc;
 }

@@ -80,6 +80,20 @@ const char *cli_data_dir(void);
 const char *cli_db_path(const char *opt);
 const char *cli_db_require(const char *opt, const char *prog);
 
+/* 1 if s ends in ext, compared without regard to case (".PNG" is ".png"). */
+int cli_ends_with(const char *s, const char *ext);
+
+/* Write an OpenEXR image of h rows of w pixels x n_ch float channels
+   (interleaved, row after row) atomically.  LOOM_OK or the writer's code. */
+int cli_write_exr(const char *path, uint32_t w, uint32_t h, const loom_exr_channel *ch,
+                  uint32_t n_ch, const float *rows, loom_diag *diag);
+
+/* Write w x h linear RGB floats as OpenEXR (float R, G, B) when path ends in
+   .exr, else as an sRGB 8-bit image (PNG, PPM: loom_image_write) after
+   `exposure` stops.  LOOM_OK or the writer's code, the reason in diag. */
+int cli_write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
+                  double exposure, loom_diag *diag);
+
 /* ---- JSON output -------------------------------------------------------- */
 /* A small streaming writer that produces valid, indented JSON. */
 typedef struct json_w {

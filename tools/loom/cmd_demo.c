@@ -451,37 +451,6 @@ static void stage_cloth(demo_ctx *ctx)
 	add_file(ctx, ctx->fabric_path, "fabric (design + synthesis)");
 }
 
-static int write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
-                     loom_diag *diag)
-{
-	size_t n = strlen(path);
-
-	if (n >= 4 && strcasecmp(path + n - 4, ".exr") == 0) {
-		static const loom_exr_channel ch[3] = {
-			{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
-		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
-		loom_exr_writer *wr = NULL;
-		int rc = loom_exr_writer_open(path, w, h, ch, 3, &eo, &wr, diag);
-		if (rc != LOOM_OK)
-			return rc;
-		rc = loom_exr_writer_put_rows(wr, rgb, h, diag);
-		if (rc != LOOM_OK) {
-			loom_exr_writer_abort(wr);
-			return rc;
-		}
-		return loom_exr_writer_finish(wr, diag);
-	} else {
-		loom_image *img = NULL;
-		int rc = loom_image_new(w, h, 3, &img);
-		if (rc != LOOM_OK)
-			return rc;
-		loom_render_to_srgb8(rgb, (size_t)w * h, 0.0, img->pixels);
-		rc = loom_image_write(path, img, diag);
-		loom_image_free(img);
-		return rc;
-	}
-}
-
 static loom_texture *open_texture(demo_ctx *ctx, size_t budget, const char *what)
 {
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
@@ -526,12 +495,12 @@ static void stage_preview(demo_ctx *ctx)
 		stage_fail(ctx, "preview", diag.message);
 	} else {
 		snprintf(path, sizeof path, "%s/cloth-preview.png", ctx->dir);
-		if (write_rgb(path, rgb, W, H, &diag) != LOOM_OK)
+		if (cli_write_rgb(path, rgb, W, H, 0.0, &diag) != LOOM_OK)
 			stage_fail(ctx, "preview", diag.message);
 		else
 			add_file(ctx, path, "preview from above, sRGB");
 		snprintf(path, sizeof path, "%s/cloth-preview.exr", ctx->dir);
-		if (write_rgb(path, rgb, W, H, &diag) != LOOM_OK)
+		if (cli_write_rgb(path, rgb, W, H, 0.0, &diag) != LOOM_OK)
 			stage_fail(ctx, "preview", diag.message);
 		else
 			add_file(ctx, path, "the same, linear float RGB");
@@ -591,7 +560,7 @@ static void stage_render(demo_ctx *ctx)
 		stage_fail(ctx, "render", diag.message);
 	} else {
 		snprintf(path, sizeof path, "%s/cloth-render.png", ctx->dir);
-		if (write_rgb(path, rgb, ro.width, ro.height, &diag) != LOOM_OK)
+		if (cli_write_rgb(path, rgb, ro.width, ro.height, 0.0, &diag) != LOOM_OK)
 			stage_fail(ctx, "render", diag.message);
 		else
 			add_file(ctx, path, "path-traced, 6 spp");

@@ -5,6 +5,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "tiles.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -29,45 +30,6 @@ static const char help[] =
 	"  --json               print the result as JSON\n"
 	"\n"
 	"Exit status: 0 success, 1 bad input or database mismatch, 2 usage error.\n";
-
-/* "12", "2.5" (repeats) or "50m", "150cm", "900mm"; *mm = 1 with a unit. */
-static int parse_extent(const char *s, double *v, int *mm)
-{
-	char *end;
-	double x = strtod(s, &end);
-
-	if (end == s || !isfinite(x) || x <= 0)
-		return -1;
-	*mm = 1;
-	if (strcmp(end, "mm") == 0)
-		*v = x;
-	else if (strcmp(end, "cm") == 0)
-		*v = 10 * x;
-	else if (strcmp(end, "m") == 0)
-		*v = 1000 * x;
-	else if (*end == 0) {
-		*v = x;
-		*mm = 0;
-	} else
-		return -1;
-	return 0;
-}
-
-static int parse_bolt(const char *s, double *len, int *len_mm, double *wid, int *wid_mm)
-{
-	char buf[128], *x;
-
-	if (strlen(s) >= sizeof buf)
-		return -1;
-	strcpy(buf, s);
-	x = strpbrk(buf + 1, "xX");
-	if (!x)
-		return -1;
-	*x = 0;
-	if (parse_extent(buf, len, len_mm) || parse_extent(x + 1, wid, wid_mm))
-		return -1;
-	return 0;
-}
 
 static int file_exists(const char *p)
 {
@@ -110,7 +72,7 @@ int cmd_info(int argc, char **argv)
 	}
 	if (!path)
 		cli_usage(&a, "missing FABRIC");
-	if (bolt_s && parse_bolt(bolt_s, &len, &len_mm, &wid, &wid_mm))
+	if (bolt_s && tiles_parse_bolt(bolt_s, &len, &len_mm, &wid, &wid_mm))
 		cli_usage(&a, "bad --bolt '%s' (expected LENGTHxWIDTH: repeats, or lengths "
 		          "with mm, cm or m, e.g. 10x2 or 50mx1.5m)", bolt_s);
 	cli_diag_init(&diag, &quiet);

@@ -9,7 +9,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 static const char help[] =
 	"usage: loom preview FABRIC [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]\n"
@@ -40,12 +39,6 @@ static const char help[] =
 	"  --quiet           no progress or summary\n"
 	"\n"
 	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
-
-static int ends_with(const char *s, const char *ext)
-{
-	size_t n = strlen(s), e = strlen(ext);
-	return n >= e && strcasecmp(s + n - e, ext) == 0;
-}
 
 /* "X0,Y0:X1,Y1" or "X0,Y0,Z0:X1,Y1,Z1" */
 static int parse_box(const char *s, int64_t lo[3], int64_t hi[3], int *has_z)
@@ -98,52 +91,12 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	cli_progress_update(user, done);
 }
 
-/* Write linear RGB as PNG (sRGB 8-bit) or EXR (float R, G, B). */
-static int write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
-                     double exposure, loom_diag *diag)
-{
-	if (ends_with(path, ".exr")) {
-		static const loom_exr_channel ch[3] = {
-			{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
-		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
-		loom_exr_writer *wr = NULL;
-		int rc = loom_exr_writer_open(path, w, h, ch, 3, &eo, &wr, diag);
-		if (rc != LOOM_OK)
-			return rc;
-		rc = loom_exr_writer_put_rows(wr, rgb, h, diag);
-		if (rc != LOOM_OK) {
-			loom_exr_writer_abort(wr);
-			return rc;
-		}
-		return loom_exr_writer_finish(wr, diag);
-	} else {
-		loom_image *img = NULL;
-		int rc = loom_image_new(w, h, 3, &img);
-		if (rc != LOOM_OK)
-			return rc;
-		loom_render_to_srgb8(rgb, (size_t)w * h, exposure, img->pixels);
-		rc = loom_image_write(path, img, diag);
-		loom_image_free(img);
-		return rc;
-	}
-}
-
 static int write_height(const char *path, const float *hm, uint32_t w, uint32_t h,
                         int64_t z0, int64_t z1, loom_diag *diag)
 {
-	if (ends_with(path, ".exr")) {
+	if (cli_ends_with(path, ".exr")) {
 		static const loom_exr_channel ch[1] = {{"height", LOOM_EXR_FLOAT}};
-		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
-		loom_exr_writer *wr = NULL;
-		int rc = loom_exr_writer_open(path, w, h, ch, 1, &eo, &wr, diag);
-		if (rc != LOOM_OK)
-			return rc;
-		rc = loom_exr_writer_put_rows(wr, hm, h, diag);
-		if (rc != LOOM_OK) {
-			loom_exr_writer_abort(wr);
-			return rc;
-		}
-		return loom_exr_writer_finish(wr, diag);
+		return cli_write_exr(path, w, h, ch, 1, hm, diag);
 	} else {
 		loom_image *img = NULL;
 		double span = (double)(z1 - z0);
@@ -218,9 +171,9 @@ int cmd_preview(int argc, char **argv)
 		cli_usage(&a, "missing FABRIC");
 	if (!out)
 		cli_usage(&a, "missing -o OUT.png|OUT.exr");
-	if (!ends_with(out, ".png") && !ends_with(out, ".exr"))
+	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
 		cli_usage(&a, "output '%s' must end in .png or .exr", out);
-	if (hmap_path && !ends_with(hmap_path, ".png") && !ends_with(hmap_path, ".exr"))
+	if (hmap_path && !cli_ends_with(hmap_path, ".png") && !cli_ends_with(hmap_path, ".exr"))
 		cli_usage(&a, "height map '%s' must end in .png or .exr", hmap_path);
 	if (region_s && parse_box(region_s, lo, hi, &has_z))
 		cli_usage(&a, "bad --region '%s' (expected X0,Y0:X1,Y1 or "
@@ -298,7 +251,7 @@ int cmd_preview(int argc, char **argv)
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}
-	if (write_rgb(out, rgb, W, H, exposure, &diag) != LOOM_OK) {
+	if (cli_write_rgb(out, rgb, W, H, exposure, &diag) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}

@@ -12,7 +12,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -57,12 +56,6 @@ static const char help[] =
 	"\n"
 	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
 
-static int ends_with(const char *s, const char *ext)
-{
-	size_t n = strlen(s), e = strlen(ext);
-	return n >= e && strcasecmp(s + n - e, ext) == 0;
-}
-
 static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 {
 	long long v[4];
@@ -91,35 +84,6 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	pthread_mutex_lock(&r->lock);
 	cli_progress_update(&r->p, done);
 	pthread_mutex_unlock(&r->lock);
-}
-
-static int write_rgb(const char *path, const float *rgb, uint32_t w, uint32_t h,
-                     double exposure, loom_diag *diag)
-{
-	if (ends_with(path, ".exr")) {
-		static const loom_exr_channel ch[3] = {
-			{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT}};
-		loom_exr_options eo = LOOM_EXR_OPTIONS_INIT;
-		loom_exr_writer *wr = NULL;
-		int rc = loom_exr_writer_open(path, w, h, ch, 3, &eo, &wr, diag);
-		if (rc != LOOM_OK)
-			return rc;
-		rc = loom_exr_writer_put_rows(wr, rgb, h, diag);
-		if (rc != LOOM_OK) {
-			loom_exr_writer_abort(wr);
-			return rc;
-		}
-		return loom_exr_writer_finish(wr, diag);
-	} else {
-		loom_image *img = NULL;
-		int rc = loom_image_new(w, h, 3, &img);
-		if (rc != LOOM_OK)
-			return rc;
-		loom_render_to_srgb8(rgb, (size_t)w * h, exposure, img->pixels);
-		rc = loom_image_write(path, img, diag);
-		loom_image_free(img);
-		return rc;
-	}
 }
 
 /* Pinhole camera at elevation el, azimuth az (radians) looking at target
@@ -205,7 +169,7 @@ int cmd_render(int argc, char **argv)
 		cli_usage(&a, "missing FABRIC");
 	if (!out)
 		cli_usage(&a, "missing -o OUT.png|OUT.exr");
-	if (!ends_with(out, ".png") && !ends_with(out, ".exr"))
+	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
 		cli_usage(&a, "output '%s' must end in .png or .exr", out);
 	if (w_s && (cli_parse_u32(w_s, &width) || width == 0 || width > 65536))
 		cli_usage(&a, "bad --width '%s' (expected 1..65536)", w_s);
@@ -361,7 +325,7 @@ int cmd_render(int argc, char **argv)
 		cli_error(prog, "%s", diag.message[0] ? diag.message : loom_strerror(rc));
 		goto fail;
 	}
-	if (write_rgb(out, rgb, width, height, exposure, &diag) != LOOM_OK) {
+	if (cli_write_rgb(out, rgb, width, height, exposure, &diag) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}

@@ -14,7 +14,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -62,12 +61,6 @@ static double now_s(void)
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
 	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static int ends_with(const char *s, const char *ext)
-{
-	size_t n = strlen(s), e = strlen(ext);
-	return n >= e && strcasecmp(s + n - e, ext) == 0;
 }
 
 static char *read_text(const char *prog, const char *path, size_t *len)
@@ -525,8 +518,8 @@ int cmd_synth(int argc, char **argv)
 			cli_usage(&a, "bad --edge-tables '%s' (expected auto, store or rebuild)",
 			          edge_s);
 	}
-	if ((amap && !ends_with(amap, ".png") && !ends_with(amap, ".ppm")) ||
-	    (smap && !ends_with(smap, ".png") && !ends_with(smap, ".ppm")))
+	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
+	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
 		cli_usage(&a, "maps are written as .png (or .ppm) files");
 	progress = !quiet && !json && isatty(2);
 	cli_diag_init(&diag, &quiet);
