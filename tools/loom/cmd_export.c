@@ -87,6 +87,7 @@ struct export_ctx {
 	uint64_t n;            /* tiles in the shard */
 	uint64_t ndone, nlisted_written;
 	double last_write;
+	double write_cost;     /* seconds the last manifest write took */
 	pthread_mutex_t lock;
 	struct ewstate *w;
 	float albedo[256][3];
@@ -508,6 +509,7 @@ static int manifest_write(const char *path, const char *params, uint32_t shard_i
 static int manifest_flush(struct export_ctx *c, int final)
 {
 	int rc;
+	double t0 = cli_now();
 
 	pthread_mutex_lock(&c->lock);
 	rc = manifest_write(c->manifest, c->params, c->j->shard_i, c->j->shard_n,
@@ -516,6 +518,7 @@ static int manifest_flush(struct export_ctx *c, int final)
 	c->nlisted_written = c->ndone;
 	pthread_mutex_unlock(&c->lock);
 	c->last_write = cli_now();
+	c->write_cost = c->last_write - t0;
 	if (rc)
 		c->manifest_error = 1;
 	return rc;
@@ -529,7 +532,10 @@ static void export_tick(void *vctx)
 	pthread_mutex_lock(&c->lock);
 	nd = c->ndone;
 	pthread_mutex_unlock(&c->lock);
-	if (nd != c->nlisted_written && cli_now() - c->last_write >= 1.0 && !c->manifest_error)
+	/* the whole manifest is rewritten (atomically): at most once a second,
+	   and never more than a tenth of the time, however many tiles it lists */
+	if (nd != c->nlisted_written && !c->manifest_error &&
+	    cli_now() - c->last_write >= (c->write_cost * 10 > 1.0 ? c->write_cost * 10 : 1.0))
 		manifest_flush(c, 0);
 }
 
