@@ -979,6 +979,17 @@ int cmd_export(int argc, char **argv)
 	rowf = (size_t)j.tsize[0] * 9;
 	per = voxels * 5 + rowf * sizeof(float) + CRC_BUF + (1u << 20) +
 	      (c.format == F_EXR ? (size_t)j.tsize[0] * 16 * 9 * 4 * 3 : 0);
+	/* the manifest lines, held until the end: per tile of the shard about
+	   256 bytes of index and box and 128 per file (an upper estimate), its
+	   pointer, skip flag and allocation header */
+	{
+		size_t files = 0;
+		for (int ch = 0; ch < N_CH; ch++)
+			files += (c.chmask >> ch) & 1u;
+		if (c.format == F_EXR)
+			files = (size_t)j.tsize[2];
+		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16);
+	}
 	tiles_open_texture(&j, prog, per);
 
 	c.lines = calloc(c.n ? c.n : 1, sizeof *c.lines);

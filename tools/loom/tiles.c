@@ -247,12 +247,22 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 {
 	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
 	double budget = j->budget_mb * 1048576.0;
-	double buffers = (double)worker_bytes * j->threads;
+	double buffers = (double)worker_bytes * j->threads + (double)j->job_bytes;
 	loom_diag diag;
 	int rc;
 
 	j->worker_bytes = worker_bytes;
 	cli_diag_init(&diag, NULL);
+	if (j->job_bytes && buffers >= budget) {
+		fprintf(stderr, "%s: %llu tiles need about %.1f MiB for the manifest and "
+		        "%.1f MiB of buffers on %u thread%s: more than --budget %.1f MiB (use "
+		        "a larger --tile, --shard I/N or a larger --budget)\n", prog,
+		        (unsigned long long)tiles_in_shard(j), (double)j->job_bytes / 1048576.0,
+		        (double)worker_bytes * j->threads / 1048576.0, j->threads,
+		        j->threads == 1 ? "" : "s", j->budget_mb);
+		tiles_close(j);
+		exit(EXIT_USAGE);
+	}
 	if (buffers >= budget) {
 		fprintf(stderr, "%s: tile %lld x %lld x %lld needs %.1f MiB of buffers per "
 		        "thread, %.1f MiB on %u thread%s: more than --budget %.1f MiB (use a "
@@ -270,7 +280,7 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 	if (rc != LOOM_OK) {
 		int code = rc == LOOM_EBUDGET ? EXIT_USAGE : EXIT_BAD_INPUT;
 		if (rc == LOOM_EBUDGET)
-			fprintf(stderr, "%s: --budget %.1f MiB minus %.1f MiB of tile buffers "
+			fprintf(stderr, "%s: --budget %.1f MiB minus %.1f MiB of tile buffers (and manifest) "
 			        "leaves %.1f MiB for the texture: %s\n", prog, j->budget_mb,
 			        buffers / 1048576.0, (double)j->texture_budget / 1048576.0,
 			        diag.message);

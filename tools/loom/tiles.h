@@ -48,6 +48,9 @@ typedef struct tiles_job {
 	double voxel_mm;           /* edge of a voxel, mm */
 	size_t texture_budget;     /* bytes given to the texture */
 	size_t worker_bytes;       /* buffers per worker (the caller's figure) */
+	size_t job_bytes;          /* held for the whole job besides the workers
+	                              (export: its manifest lines), set by the
+	                              caller before tiles_open_texture; 0 */
 } tiles_job;
 
 /* Set the defaults (threads 1, budget 64 MiB, no shard). */
@@ -71,8 +74,8 @@ int tiles_parse_bolt(const char *s, double *len, int *len_mm, double *wid,
    tile's z when def_z > 0).  Failures exit 1. */
 void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
                        int64_t def_xy);
-/* Check the budget against threads x worker_bytes and open the texture
-   with the rest.  Too small: exit 2 with the figures. */
+/* Check the budget against threads x worker_bytes + j->job_bytes and open
+   the texture with the rest.  Too small: exit 2 with the figures. */
 void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes);
 void tiles_close(tiles_job *j);
 
