@@ -374,41 +374,12 @@ struct worker {
    block's bricks in one go.  The orders of the last few chunks are kept
    (threads finish one chunk while others start the next). */
 
-static int key_less(const uint64_t *order, const uint32_t *key, uint64_t a, uint64_t b)
+static int ord_cmp(const void *a, const void *b)
 {
-	return key[a] < key[b] || (key[a] == key[b] && order[a] < order[b]);
-}
-
-static void sift(uint64_t *order, uint32_t *key, uint64_t r, uint64_t n)
-{
-	for (;;) {
-		uint64_t c = 2 * r + 1, to;
-		uint32_t tk;
-		if (c >= n)
-			return;
-		if (c + 1 < n && key_less(order, key, c, c + 1))
-			c++;
-		if (!key_less(order, key, r, c))
-			return;
-		to = order[r], tk = key[r];
-		order[r] = order[c], key[r] = key[c];
-		order[c] = to, key[c] = tk;
-		r = c;
-	}
-}
-
-/* Heap sort by (key, tile index): allocation-free, O(n log n). */
-static void sort_chunk(uint64_t *order, uint32_t *key, uint64_t n)
-{
-	for (uint64_t i = n / 2; i-- > 0;)
-		sift(order, key, i, n);
-	for (uint64_t e = n; e-- > 1;) {
-		uint64_t to = order[0];
-		uint32_t tk = key[0];
-		order[0] = order[e], key[0] = key[e];
-		order[e] = to, key[e] = tk;
-		sift(order, key, 0, e);
-	}
+	const struct tiles_ord *x = a, *y = b;
+	if (x->key != y->key)
+		return x->key < y->key ? -1 : 1;
+	return x->index < y->index ? -1 : x->index > y->index;
 }
 
 /* Under p->lock: the tile index at position q of the source order, or
@@ -434,12 +405,8 @@ static uint64_t source_index(tiles_pool *p, uint64_t q)
 		loom_db_info di;
 		c = &p->chunk[p->chunk_next];
 		p->chunk_next = (p->chunk_next + 1) % TILES_CHUNK_SLOTS;
-		if (!c->order) {
-			c->order = malloc(sizeof *c->order * cr * cw);
-			c->key = malloc(sizeof *c->key * cr * cw);
-			if (!c->order || !c->key)
-				return UINT64_MAX;
-		}
+		if (!c->ord && !(c->ord = malloc(sizeof *c->ord * cr * cw)))
+			return UINT64_MAX;
 		if (loom_db_get_info(loom_fabric_db(j->f), &di) != LOOM_OK)
 			return UINT64_MAX;
 		c->id = id;
@@ -452,13 +419,13 @@ static uint64_t source_index(tiles_pool *p, uint64_t q)
 				tiles_box(j, idx, lo, hi, NULL);
 				J = loom_synth_floordiv(lo[0] + (hi[0] - lo[0]) / 2, di.block[0]);
 				I = loom_synth_floordiv(lo[1] + (hi[1] - lo[1]) / 2, di.block[1]);
-				c->key[c->n] = loom_fabric_source_at(j->f, I, J, &src) == LOOM_OK
-				                       ? src.block : 0;
-				c->order[c->n++] = idx;
+				c->ord[c->n].key = loom_fabric_source_at(j->f, I, J, &src) == LOOM_OK
+				                           ? src.block : 0;
+				c->ord[c->n++].index = idx;
 			}
-		sort_chunk(c->order, c->key, c->n);
+		qsort(c->ord, c->n, sizeof *c->ord, ord_cmp);
 	}
-	return c->order[pos];
+	return c->ord[pos].index;
 }
 
 static void *worker_main(void *arg)
@@ -594,10 +561,8 @@ int tiles_run(tiles_pool *p)
 	pthread_mutex_destroy(&p->lock);
 	pthread_cond_destroy(&p->cond);
 	for (unsigned s = 0; s < TILES_CHUNK_SLOTS; s++) {
-		free(p->chunk[s].order);
-		free(p->chunk[s].key);
-		p->chunk[s].order = NULL;
-		p->chunk[s].key = NULL;
+		free(p->chunk[s].ord);
+		p->chunk[s].ord = NULL;
 	}
 	free(th);
 	free(wk);

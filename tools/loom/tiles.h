@@ -121,13 +121,15 @@ typedef struct tiles_pool {
 	atomic_ullong next;
 	/* source order (under lock): chunks of chunk_rows x chunk_cols tiles,
 	   the orders of the last TILES_CHUNK_SLOTS chunks kept (fixed memory:
-	   12 bytes per tile of a chunk) */
+	   16 bytes per tile of a chunk) */
 	uint64_t chunk_rows, chunk_cols;
 	struct tiles_chunk {
 		uint64_t id;           /* chunk number + 1 (0: empty slot) */
 		uint64_t n;
-		uint64_t *order;       /* tile indices */
-		uint32_t *key;         /* scratch: source block per tile */
+		struct tiles_ord {
+			uint64_t index;    /* tile index */
+			uint32_t key;      /* source block under the tile's centre */
+		} *ord;                /* sorted by (key, index) */
 	} chunk[TILES_CHUNK_SLOTS];
 	unsigned chunk_next;       /* slot to refill next */
 } tiles_pool;
