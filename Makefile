@@ -40,12 +40,20 @@ DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 -l
 
 WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes -Wno-unused-parameter
 CFLAGS  ?= $(OPT) -g
-ALL_CFLAGS = -std=c11 -D_GNU_SOURCE -fPIC -fvisibility=hidden $(WARN) $(CFLAGS) $(SAN) \
-             -Iengine/include -Iengine -Iio $(DEP_CFLAGS) -DLOOM_BUILDING
+# engine/ is compiled without the repository root on its include path, so
+# an engine file cannot include an io/ or tools/ header (the layers point
+# down: tools -> io -> engine).  tests/cli/test_layers.sh checks the same
+# and the allowed edges between modules (engine/MODULES).
+ENGINE_INC := -Iengine/include -Iengine
+ALL_INC    := $(ENGINE_INC) -I.
+BASE_CFLAGS = -std=c11 -D_GNU_SOURCE -fPIC -fvisibility=hidden $(WARN) $(CFLAGS) $(SAN) \
+             $(DEP_CFLAGS) -DLOOM_BUILDING
+ALL_CFLAGS = $(BASE_CFLAGS) $(ALL_INC)
 LDFLAGS ?=
 
-ENGINE_SRC := $(sort $(wildcard engine/*.c))
-IO_SRC     := $(sort $(wildcard io/*.c))
+# Sources by folder: one folder per module (docs/architecture.md).
+ENGINE_SRC := $(sort $(wildcard engine/*/*.c))
+IO_SRC     := $(sort $(wildcard io/*/*.c))
 LIB_SRC    := $(ENGINE_SRC) $(IO_SRC)
 TOOL_SRC   := $(sort $(wildcard tools/loom/*.c))
 UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
@@ -87,6 +95,11 @@ $(TESTDEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
 	$(Q)sh tools/deps.sh test
 	@touch $@
+
+$(BUILD)/obj/engine/%.o: engine/%.c | $(DEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(BASE_CFLAGS) $(ENGINE_INC) -MMD -MP -c $< -o $@
 
 $(BUILD)/obj/%.o: %.c | $(DEPS_OK)
 	@mkdir -p $(@D)
@@ -166,7 +179,7 @@ fuzz: | $(DEPS_OK)
 	@mkdir -p $(BUILD)/fuzz
 	$(Q)for f in $(FUZZ_SRC); do n=$$(basename $$f .c); \
 	  clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined \
-	    -Iengine/include -Iengine -Iio $(DEP_CFLAGS) $$f $(LIB_SRC) \
+	    $(ALL_INC) $(DEP_CFLAGS) $$f $(LIB_SRC) \
 	    -o $(BUILD)/fuzz/$$n $(DEP_LIBS) || exit 1; echo "  FUZZ    $(BUILD)/fuzz/$$n"; done
 
 install: all

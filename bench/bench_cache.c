@@ -19,7 +19,7 @@
    time other processes hold the core) and over wall time (all threads).
    Output: a table on stdout and one JSON line per figure ("{...}").
    BENCH_CACHE_SCALE=0.1 shortens every run. */
-#include "cache.h"
+#include "texture/cache.h"
 
 #include <math.h>
 #include <pthread.h>

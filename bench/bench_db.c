@@ -14,8 +14,8 @@
  *
  * Prints a human table and JSON lines (starting with '{').
  */
-#include "db_internal.h"
-#include "exgen.h"
+#include "exemplar/db_internal.h"
+#include "exemplar/exgen.h"
 
 #include <libdeflate.h>
 #include <stdlib.h>

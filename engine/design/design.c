@@ -20,7 +20,7 @@
  * where t = j mod P.  Plain and basket are checkerboards of 1x1 and a x b
  * cells.  docs/designs.md shows each with a picture.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -19,7 +19,7 @@
  * collision only sends the search on to the next divisor).  The column
  * loop is branch-free so the compiler can vectorise it.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <stdlib.h>
 #include <string.h>

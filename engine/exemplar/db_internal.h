@@ -27,7 +27,7 @@
 #ifndef LOOM_DB_INTERNAL_H
 #define LOOM_DB_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 #include "loom/db.h"
 #include "voxel.h"
 

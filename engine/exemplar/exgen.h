@@ -11,7 +11,7 @@
 #ifndef LOOM_EXGEN_H
 #define LOOM_EXGEN_H
 
-#include "internal.h"
+#include "core/internal.h"
 #include "loom/db.h"
 
 typedef struct loom__exgen loom__exgen;

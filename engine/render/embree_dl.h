@@ -18,7 +18,7 @@
 #ifndef LOOM_EMBREE_DL_H
 #define LOOM_EMBREE_DL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 #include <embree3/rtcore.h>
 

@@ -16,7 +16,7 @@
  * of one exemplar block at a time, so a sparse preview of a huge fabric
  * decompresses each brick about once instead of thrashing the cache.
  */
-#include "internal.h"
+#include "core/internal.h"
 #include "loom/preview.h"
 
 #include <math.h>

@@ -5,7 +5,7 @@
  * texture keeps its own per-thread state, and the thread_done hook hands it
  * back when a render thread ends.
  */
-#include "internal.h"
+#include "core/internal.h"
 #include "loom/preview.h"
 
 #include <string.h>

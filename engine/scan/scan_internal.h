@@ -5,7 +5,7 @@
 #ifndef LOOM_SCAN_INTERNAL_H
 #define LOOM_SCAN_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 #include <math.h>
 #include <string.h>

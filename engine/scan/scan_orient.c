@@ -25,7 +25,7 @@
  * for any thread count; per-tile statistics are reduced in tile order.
  */
 #include "scan_internal.h"
-#include "voxel.h"
+#include "exemplar/voxel.h"
 
 #include <pthread.h>
 #include <stdlib.h>

@@ -42,7 +42,7 @@
  *      incomplete yarns.
  */
 #include "scan_internal.h"
-#include "voxel.h"
+#include "exemplar/voxel.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -56,7 +56,7 @@
  * Working memory: O(M * (BATCH + 8 * max list length)) bytes, never
  * O(M * N).
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <stdlib.h>
 #include <string.h>

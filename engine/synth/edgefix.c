@@ -59,7 +59,7 @@
  * Jacobi method; the plain Jacobi method on the whole matrix when the rank
  * is a large part of n.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,5 +1,5 @@
 /*
- * engine/fabric.c - a design bound to an exemplar database by synthesis.
+ * engine/synth/fabric.c - a design bound to an exemplar database by synthesis.
  *
  * What it owns (engine/fabric_internal.h has the struct):
  *   design            3 bytes per crossing (weave, two type maps)
@@ -18,9 +18,10 @@
  *   3. base assignment (loom_synth_assign), randomised lookup;
  *   4. edge-fix tables at rank r (loom_edgefix_build);
  *   5. metrics: repeat (base), bolt window (randomised), seams.
- * Opening (loom_fabric_open) parses the file into a detached fabric
- * (io/fabric_io.c), then binds it: hash and geometry checks, attach_db,
- * the tables from the file or rebuilt, the lookup (loom__fabric_bind).
+ * Opening a file (loom_fabric_open, io/store/fabric_file.c) parses it into
+ * a detached fabric (loom__fabric_alloc here), then binds it here: hash and
+ * geometry checks, attach_db, the tables from the file or rebuilt, the
+ * lookup (loom__fabric_bind).  This file opens no file.
  */
 #include "fabric_internal.h"
 
@@ -374,94 +375,6 @@ LOOM_API int loom_fabric_synthesize(const loom_design *d, const loom_db *db,
 fail:
 	loom_fabric_free(f);
 	return rc;
-}
-
-/* ---- files --------------------------------------------------------------- */
-
-LOOM_API int loom_fabric_save(const loom_fabric *f, const char *path,
-                              uint64_t *bytes, loom_diag *diag)
-{
-	if (!f || !path)
-		return loom__fail(diag, LOOM_EINVAL, "fabric save: NULL %s",
-		                  f ? "path" : "fabric");
-	if (!f->ef)
-		return loom__fail(diag, LOOM_EINVAL, "%s: the fabric has no edge-fix tables "
-		                  "(opened detached from a file that did not store them)",
-		                  path);
-	return loom__fabric_write(f, path, bytes, diag);
-}
-
-/* dirname(fabric_path) + "/" + rel, or NULL. */
-static char *beside(const char *fabric_path, const char *rel)
-{
-	const char *slash = strrchr(fabric_path, '/');
-	size_t dl, rl = strlen(rel);
-	char *p;
-
-	if (!slash)
-		return NULL;
-	dl = (size_t)(slash - fabric_path) + 1;
-	p = malloc(dl + rl + 1);
-	if (!p)
-		return NULL;
-	memcpy(p, fabric_path, dl);
-	memcpy(p + dl, rel, rl + 1);
-	return p;
-}
-
-/* Open the database path recorded in f. */
-static int open_recorded_db(loom_fabric *f, const char *path, loom_diag *diag)
-{
-	loom_diag d2 = {0};
-	char *alt;
-	int rc;
-
-	if (!f->db_path[0])
-		return loom__fail(diag, LOOM_ENOTFOUND,
-		                  "%s: records no database path; pass the database", path);
-	rc = loom_db_open(f->db_path, &f->db_owned, &d2);
-	if (rc == LOOM_OK)
-		return LOOM_OK;
-	if (f->db_path[0] != '/' && (alt = beside(path, f->db_path)) != NULL) {
-		int rc2 = loom_db_open(alt, &f->db_owned, NULL);
-		free(alt);
-		if (rc2 == LOOM_OK)
-			return LOOM_OK;
-	}
-	return loom__fail(diag, rc, "%s: cannot open its database: %s", path, d2.message);
-}
-
-LOOM_API int loom_fabric_open(const char *path, const loom_db *db,
-                              unsigned flags, loom_fabric **out,
-                              loom_diag *diag)
-{
-	loom_fabric *f = NULL;
-	int rc;
-
-	if (!out)
-		return loom__fail(diag, LOOM_EINVAL, "fabric open: NULL output");
-	*out = NULL;
-	if (!path)
-		return loom__fail(diag, LOOM_EINVAL, "fabric open: NULL path");
-	if (flags & ~(unsigned)LOOM_FABRIC_OPEN_DETACHED)
-		return loom__fail(diag, LOOM_EINVAL, "fabric open: unknown flags 0x%x", flags);
-	rc = loom__fabric_read(path, NULL, 0, &f, diag);
-	if (rc)
-		return rc;
-	if (!(flags & LOOM_FABRIC_OPEN_DETACHED)) {
-		if (!db) {
-			rc = open_recorded_db(f, path, diag);
-			db = f->db_owned;
-		}
-		if (!rc)
-			rc = loom__fabric_bind(f, db, 1, path, diag);
-		if (rc) {
-			loom_fabric_free(f);
-			return rc;
-		}
-	}
-	*out = f;
-	return LOOM_OK;
 }
 
 /* ---- accessors ----------------------------------------------------------- */

@@ -2,7 +2,7 @@
  * engine/fabric_internal.h - the fabric as the virtual-texture engine sees
  * it.  Never installed.
  *
- * A fabric (engine/fabric.c; file format io/fabric_io.c, docs/formats.md)
+ * A fabric (engine/synth/fabric.c; file format io/store/fabric_*.c, docs/formats.md)
  * is immutable once made; everything below only reads it, so it may be
  * called from any number of threads at once.
  *
@@ -35,7 +35,7 @@
 #ifndef LOOM_FABRIC_INTERNAL_H
 #define LOOM_FABRIC_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 /* Per source block t: where its voxels are. */
 typedef struct loom__fabric_block {
@@ -158,7 +158,7 @@ static inline void loom__fabric_crossing(const loom_fabric *f, int64_t I,
 	x->weft_type = f->design->weft_type[c];
 }
 
-/* ---- between engine/fabric.c and io/fabric_io.c ------------------------ */
+/* ---- between engine/synth/fabric.c and io/store (the .loomf file) ------- */
 
 /* Largest EDGE section (bytes) the format allows; larger tables are never
    stored (rebuilt at open instead). */
@@ -173,14 +173,5 @@ loom_fabric *loom__fabric_alloc(void);
    not store them.  `name` names the fabric in messages. */
 int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
                       const char *name, loom_diag *diag);
-
-/* Write the file (io/fabric_io.c). */
-int loom__fabric_write(const loom_fabric *f, const char *path,
-                       uint64_t *bytes, loom_diag *diag);
-
-/* Parse a fabric file into a detached fabric, from a path (mem NULL) or
-   from memory (mem, len; path used in messages only). */
-int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
-                      loom_fabric **out, loom_diag *diag);
 
 #endif /* LOOM_FABRIC_INTERNAL_H */

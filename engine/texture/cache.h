@@ -138,7 +138,7 @@
 #ifndef LOOM_CACHE_H
 #define LOOM_CACHE_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 /* Per-thread recent-brick entries (tlc) at most; see opts.tlc_entries. */
 #define LOOM__CACHE_TLC_MAX 8

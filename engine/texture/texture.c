@@ -97,8 +97,8 @@
 #include "texture_internal.h"
 
 #include "cache.h"
-#include "db_internal.h"
-#include "fabric_internal.h"
+#include "exemplar/db_internal.h"
+#include "synth/fabric_internal.h"
 
 #include <inttypes.h>
 #include <math.h>

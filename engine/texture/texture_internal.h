@@ -6,7 +6,7 @@
 #ifndef LOOM_TEXTURE_INTERNAL_H
 #define LOOM_TEXTURE_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 /*
  * Blend n fibre directions (unit lines: v and -v are the same fibre) with

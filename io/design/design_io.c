@@ -4,7 +4,7 @@
  * yarn-type maps (8-bit grey PGM/PNG, pixel value = type ID), or a WIF
  * draft (io/wif.c).
  */
-#include "io_internal.h"
+#include "image_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

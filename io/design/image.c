@@ -5,7 +5,7 @@
  * the Netpbm family), writers by the path's extension.  The format code
  * itself lives in pnm.c and png.c; this file only routes.
  */
-#include "io_internal.h"
+#include "image_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -9,7 +9,7 @@
 #ifndef LOOM_IO_INTERNAL_H
 #define LOOM_IO_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 /* Largest image accepted by the readers, in pixels (a 32768^2 weave fits). */
 #define LOOM__IMAGE_MAX_PIXELS (1ull << 30)

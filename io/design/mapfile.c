@@ -26,7 +26,7 @@
  * distinct colours (at most 64); 5. match each to a colour line; 6. fill
  * the design.
  */
-#include "io_internal.h"
+#include "image_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

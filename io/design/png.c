@@ -18,7 +18,7 @@
  * on its missing data, not on a huge allocation.  Interlaced images need
  * the whole decoded image at once and are limited to 256 MiB decoded.
  */
-#include "io_internal.h"
+#include "image_internal.h"
 
 #include <png.h>
 #include <setjmp.h>

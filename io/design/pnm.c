@@ -16,7 +16,7 @@
  * next image of a stream) are ignored with a warning.  Header and plain
  * errors name the line; binary raster errors name the byte offset.
  */
-#include "io_internal.h"
+#include "image_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -40,7 +40,7 @@
  * Messages are "name:line: what was expected, got what".  Warnings go
  * through loom__warn, once per kind of problem and section.
  */
-#include "internal.h"
+#include "core/internal.h"
 #include "wif_internal.h"
 
 #include <math.h>

@@ -5,7 +5,7 @@
 #ifndef LOOM_WIF_INTERNAL_H
 #define LOOM_WIF_INTERNAL_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 /* Largest WIF file loom_wif_read accepts. */
 #define LOOM__WIF_MAX_FILE_BYTES ((size_t)512 << 20)

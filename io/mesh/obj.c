@@ -20,7 +20,7 @@
  * of one face uses the same form.  Every problem is an error naming
  * "name:line" and what was expected; nothing is guessed.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <errno.h>
 #include <math.h>

@@ -5,8 +5,8 @@
  * through the NRRD writer, so memory does not grow with the exemplar
  * height.
  */
-#include "db_internal.h"
-#include "nrrd.h"
+#include "exemplar/db_internal.h"
+#include "io/volume/nrrd.h"
 
 #include <stdlib.h>
 

@@ -20,7 +20,7 @@
 #ifndef LOOM_DB_WRITE_H
 #define LOOM_DB_WRITE_H
 
-#include "db_internal.h"
+#include "exemplar/db_internal.h"
 
 struct libdeflate_compressor;
 

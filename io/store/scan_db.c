@@ -3,8 +3,8 @@
  * database (loom exemplar build): a new database, or an existing one
  * extended by loom__dbw_append (old bricks and tables copied verbatim).
  */
-#include "scan_internal.h"
-#include "db_internal.h"
+#include "scan/scan_internal.h"
+#include "exemplar/db_internal.h"
 #include "db_write.h"
 
 #include <stdlib.h>

@@ -34,7 +34,7 @@
  * Reader.  Whole image into planar floats, half and uint converted, float
  * copied bit for bit; from memory, so tests and fuzzers need no files.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <errno.h>
 #include <libdeflate.h>

@@ -19,7 +19,7 @@
  * the file size before anything else, so a lying header can never make it
  * allocate or read past the file.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <errno.h>
 #include <fcntl.h>

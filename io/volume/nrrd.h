@@ -14,7 +14,7 @@
 #ifndef LOOM_NRRD_H
 #define LOOM_NRRD_H
 
-#include "internal.h"
+#include "core/internal.h"
 
 enum loom__nrrd_type {
 	LOOM__NRRD_UINT8 = 0,

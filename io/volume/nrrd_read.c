@@ -16,7 +16,7 @@
  * (bounded by the 1032:1 limit of deflate, so a small file cannot ask for
  * a huge buffer); ascii data are parsed number by number.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <errno.h>
 #include <libdeflate.h>

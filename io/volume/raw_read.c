@@ -14,7 +14,7 @@
  * 1 MiB pieces straight into conversion); the streaming reader owns one
  * 1 MiB buffer.
  */
-#include "internal.h"
+#include "core/internal.h"
 
 #include <errno.h>
 #include <fcntl.h>

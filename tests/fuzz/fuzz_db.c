@@ -9,7 +9,7 @@
  *
  *   make fuzz && build/fuzz/fuzz_db tests/fuzz/corpus/db
  */
-#include "db_internal.h"
+#include "exemplar/db_internal.h"
 
 #include <libdeflate.h>
 #include <stdio.h>

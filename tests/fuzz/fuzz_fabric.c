@@ -13,7 +13,8 @@
  *
  *   make fuzz && build/fuzz/fuzz_fabric tests/fuzz/corpus/fabric
  */
-#include "fabric_internal.h"
+#include "synth/fabric_internal.h"
+#include "io/store/fabric_format.h"
 
 #include <libdeflate.h>
 #include <stdio.h>
@@ -56,16 +57,7 @@ static void setup(void)
 	atexit(cleanup);
 }
 
-static uint32_t get32(const uint8_t *p)
-{
-	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 |
-	       (uint32_t)p[3] << 24;
-}
-static void put32(uint8_t *p, uint32_t v)
-{
-	for (int k = 0; k < 4; k++)
-		p[k] = (uint8_t)(v >> (8 * k));
-}
+/* get32 / put32: io/store/fabric_format.h */
 
 /* Make header, section and trailer checksums and the trailer's file size
    consistent with the bytes (docs/formats.md). */

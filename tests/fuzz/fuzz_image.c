@@ -10,7 +10,7 @@
  * tests/fuzz/corpus/image by `make test`.
  */
 #include "loom.h"
-#include "io_internal.h"
+#include "io/design/image_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

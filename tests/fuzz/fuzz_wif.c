@@ -10,7 +10,7 @@
  * tests/fuzz/corpus/wif by `make test`.
  */
 #include "loom.h"
-#include "wif_internal.h"
+#include "io/design/wif_internal.h"
 
 #include <stdlib.h>
 #include <string.h>

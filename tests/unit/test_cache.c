@@ -3,7 +3,7 @@
    byte a get returns can be checked; a reference CLOCK model checks the
    replacement order; threads hammer one cache (also run under make tsan). */
 #include "check.h"
-#include "cache.h"
+#include "texture/cache.h"
 
 #include <malloc.h>
 #include <pthread.h>

@@ -5,9 +5,9 @@
  * and a message naming the place; none may crash).
  */
 #include "check.h"
-#include "db_internal.h"
-#include "db_write.h"
-#include "exgen.h"
+#include "exemplar/db_internal.h"
+#include "io/store/db_write.h"
+#include "exemplar/exgen.h"
 
 #include <fcntl.h>
 #include <libdeflate.h>

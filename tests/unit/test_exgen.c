@@ -6,9 +6,9 @@
  * direction, fibre orientation along the yarn, empty space above/below).
  */
 #include "check.h"
-#include "db_internal.h"
-#include "db_write.h"
-#include "exgen.h"
+#include "exemplar/db_internal.h"
+#include "io/store/db_write.h"
+#include "exemplar/exgen.h"
 
 #include <math.h>
 #include <unistd.h>

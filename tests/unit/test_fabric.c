@@ -8,7 +8,7 @@
  * block is the warp exactly where the design says warp over.
  */
 #include "check.h"
-#include "fabric_internal.h"
+#include "synth/fabric_internal.h"
 
 #include <libdeflate.h>
 #include <math.h>

@@ -6,7 +6,7 @@
  * queries, and bad arguments.
  */
 #include "loom.h"
-#include "render_internal.h"
+#include "render/render_internal.h"
 #include "check.h"
 
 #include <math.h>

@@ -10,7 +10,7 @@
  */
 #include "check.h"
 #include "loom.h"
-#include "texture_internal.h"
+#include "texture/texture_internal.h"
 
 #include <errno.h>
 #include <math.h>

@@ -3,7 +3,7 @@
  * round trip, orientation error bound, v/-v identity, brick indexing.
  */
 #include "check.h"
-#include "voxel.h"
+#include "exemplar/voxel.h"
 #include "loom.h"
 
 #include <math.h>

@@ -18,7 +18,7 @@
  */
 #include "check.h"
 #include "loom.h"
-#include "wif_internal.h"
+#include "io/design/wif_internal.h"
 
 #include <dirent.h>
 #include <math.h>

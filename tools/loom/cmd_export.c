@@ -9,7 +9,7 @@
 #include "commands.h"
 #include "tiles.h"
 
-#include "nrrd.h" /* io/: the NRRD writer (internal to libloom) */
+#include "io/volume/nrrd.h" /* io/: the NRRD writer (internal to libloom) */
 
 #include <dirent.h>
 #include <errno.h>
