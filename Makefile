@@ -30,7 +30,7 @@ SOVER   := 0
 # Dependencies (see ../shared/DEPENDENCIES.md): pkg-config where a .pc
 # exists; OpenEXR's .pc pulls the C++ libraries, so only its cflags are used
 # and the Core C library is linked by name.  Embree (no .pc) is not linked:
-# engine/embree_dl.c dlopen()s libembree3.so.3 when a shell is first built,
+# engine/render/embree_dl.c dlopen()s libembree3.so.3 when a shell is first built,
 # so processes that do not map cloth onto meshes do not pay its ~4.5 MiB.
 # The probes run once per make invocation; before deps.sh has run they may
 # print nothing, which is fine because nothing compiles before it.

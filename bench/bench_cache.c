@@ -1,4 +1,4 @@
-/* bench/bench_cache.c - brick cache (engine/cache.h) figures: get/release
+/* bench/bench_cache.c - brick cache (engine/texture/cache.h) figures: get/release
    rates with 1 and 2 threads, hit rates for coherent and random streams at
    several budgets, each next to a baseline measured in the same run: the
    same bytes read straight from a plain in-memory array.

@@ -1,5 +1,5 @@
 /* bench/bench_render.c - figures of the volume path tracer and the shell
-   mapper (engine/render.c, engine/shell.c, docs/rendering.md).
+   mapper (engine/render/render.c, engine/render/shell.c, docs/rendering.md).
 
    Source: a procedural plain weave of elliptical yarn tubes (period 16
    voxels, tubes 12 x 5 voxels, slab 12 voxels thick) with sinusoidal

@@ -1,5 +1,5 @@
 /*
- * engine/internal.h - helpers shared inside libloom; never installed.
+ * engine/core/internal.h - helpers shared inside libloom; never installed.
  * Internal symbols use the loom__ prefix (double underscore) and hidden
  * visibility, so the shared library exports only the public loom_ API.
  */
@@ -21,27 +21,6 @@
 int loom__fail(loom_diag *diag, int code, const char *fmt, ...) LOOM_PRINTF(3, 4);
 /* Report a warning through diag->warn (if any) and count it. */
 void loom__warn(loom_diag *diag, const char *fmt, ...) LOOM_PRINTF(2, 3);
-
-/* Read a whole file into a malloc'ed buffer (NUL-terminated for
-   convenience; *len excludes the NUL).  max_bytes guards against absurd
-   inputs.  Errors name the path. */
-int loom__read_file(const char *path, size_t max_bytes, uint8_t **data,
-                    size_t *len, loom_diag *diag);
-
-/*
- * Atomic output: loom__atomic_open creates "<path>.tmp.<pid>.<n>" in the
- * target's directory; loom__atomic_commit flushes, fsyncs, closes and
- * renames it over path; loom__atomic_abort closes and unlinks it.  The
- * target is untouched until commit succeeds.
- */
-typedef struct loom__atomic {
-	FILE *fp;
-	char *tmp_path;
-	char *path;
-} loom__atomic;
-int loom__atomic_open(loom__atomic *a, const char *path, loom_diag *diag);
-int loom__atomic_commit(loom__atomic *a, loom_diag *diag);
-void loom__atomic_abort(loom__atomic *a);
 
 /* sRGB-encoded component c in [0,1] to linear (IEC 61966-2-1).  Colours
    users type (#RRGGBB, WIF colour tables) are sRGB; albedo is linear. */

@@ -1,5 +1,5 @@
 /*
- * engine/design.c - the design model (paper 5.1) and elementary weave
+ * engine/design/design.c - the design model (paper 5.1) and elementary weave
  * generators.
  *
  * Every elementary weave is written as "column j is a warp that floats over

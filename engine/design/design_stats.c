@@ -1,5 +1,5 @@
 /*
- * engine/design_stats.c - loom_design_analyze: smallest repeat, float
+ * engine/design/design_stats.c - loom_design_analyze: smallest repeat, float
  * lengths, yarn types used, interlacing.
  *
  * Everything is counted cyclically, because a design is a repeat that tiles

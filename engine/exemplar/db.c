@@ -1,5 +1,5 @@
 /*
- * engine/db.c - reader of exemplar databases (.ldb); format in
+ * engine/exemplar/db.c - reader of exemplar databases (.ldb); format in
  * docs/formats.md, layout summary in db_internal.h.
  *
  * Open (numbered steps, cited below):

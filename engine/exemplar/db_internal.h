@@ -1,6 +1,6 @@
 /*
- * engine/db_internal.h - exemplar database internals shared by the reader
- * (engine/db.c), the writer (io/db_write.c), the generator (engine/exgen.c)
+ * engine/exemplar/db_internal.h - exemplar database internals shared by the reader
+ * (engine/exemplar/db.c), the writer (io/store/db_write.c), the generator (engine/exemplar/exgen.c)
  * and the virtual-texture engine.  Never installed.
  *
  * File layout (docs/formats.md, "Exemplar database (.ldb)"), little-endian:

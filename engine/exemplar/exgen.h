@@ -1,5 +1,5 @@
 /*
- * engine/exgen.h - procedural CT-like exemplars (docs/exemplars.md).
+ * engine/exemplar/exgen.h - procedural CT-like exemplars (docs/exemplars.md).
  * Internal.
  *
  * A model (loom__exgen) describes one exemplar: a window of rows x cols

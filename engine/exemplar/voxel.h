@@ -1,5 +1,5 @@
 /*
- * engine/voxel.h - the exemplar voxel record: encodings and brick layout.
+ * engine/exemplar/voxel.h - the exemplar voxel record: encodings and brick layout.
  * Internal (never installed); everything is static inline so the engine's
  * lookup paths decode without calls.
  *

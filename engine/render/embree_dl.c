@@ -1,5 +1,5 @@
 /*
- * engine/embree_dl.c - load Embree 3 on first use (see embree_dl.h).
+ * engine/render/embree_dl.c - load Embree 3 on first use (see embree_dl.h).
  */
 #include "embree_dl.h"
 

@@ -1,5 +1,5 @@
 /*
- * engine/embree_dl.h - Embree 3, loaded when first needed.
+ * engine/render/embree_dl.h - Embree 3, loaded when first needed.
  *
  * Only shell mapping (loom render --mesh) uses Embree, yet linking
  * libembree3 costs every process ~4.5 MiB of resident memory before main()

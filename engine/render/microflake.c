@@ -1,5 +1,5 @@
 /*
- * engine/microflake.c - the microflake phase function of Jakob et al. 2010
+ * engine/render/microflake.c - the microflake phase function of Jakob et al. 2010
  * with the Gaussian fibre distribution of Zhao et al. 2011 (the model the
  * paper renders with, section 7).  docs/rendering.md has the derivations.
  *

@@ -1,5 +1,5 @@
 /*
- * engine/preview.c - shaded orthographic top view of a fabric's virtual
+ * engine/render/preview.c - shaded orthographic top view of a fabric's virtual
  * texture (loom_preview; docs/preview.md).
  *
  * Three passes over the output:

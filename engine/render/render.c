@@ -1,11 +1,11 @@
 /*
- * engine/render.c - a small unidirectional volume path tracer for the cloth
+ * engine/render/render.c - a small unidirectional volume path tracer for the cloth
  * volume (the paper renders with Mitsuba's volume path tracer and the
  * microflake model, section 7).  docs/rendering.md is the user's view.
  *
  * Scene.  Either the slab [0,nx) x [0,ny) x [0,nz) of the voxel source in
  * voxel units (scene space = voxel space; nx or ny 0 = unbounded), or a
- * shell over a mesh (scene space = world space, engine/shell.c maps points
+ * shell over a mesh (scene space = world space, engine/render/shell.c maps points
  * to voxels).  Outside the medium there is nothing but a constant
  * environment; one delta light (distant or point) is sampled explicitly.
  *

@@ -1,5 +1,5 @@
 /*
- * engine/render_internal.h - what render.c, shell.c and microflake.c share
+ * engine/render/render_internal.h - what render.c, shell.c and microflake.c share
  * inside libloom (never installed).  loom/render.h is the public side.
  */
 #ifndef LOOM_RENDER_INTERNAL_H

@@ -1,5 +1,5 @@
 /*
- * engine/render_texture.c - a loom_volume_source over a fabric's virtual
+ * engine/render/render_texture.c - a loom_volume_source over a fabric's virtual
  * texture, so loom_render path-traces synthesized fabrics (docs/rendering.md,
  * "Rendering a fabric").  Lookups go through loom_texture_sample; the
  * texture keeps its own per-thread state, and the thread_done hook hands it

@@ -1,5 +1,5 @@
 /*
- * engine/shell.c - shell mapping (Porumbescu et al. 2005, as Zhao et al.
+ * engine/render/shell.c - shell mapping (Porumbescu et al. 2005, as Zhao et al.
  * 2011 and the paper's figure 13 use it): the flat cloth volume mapped into
  * a thin shell over a triangle mesh with UVs.
  *

@@ -1,5 +1,5 @@
 /*
- * engine/scan_internal.h - helpers shared by the scan pipeline files
+ * engine/scan/scan_internal.h - helpers shared by the scan pipeline files
  * (engine/scan_*.c); never installed.
  */
 #ifndef LOOM_SCAN_INTERNAL_H

@@ -1,5 +1,5 @@
 /*
- * engine/scan_orient.c - scan pipeline steps 1 and 2: denoising, threshold
+ * engine/scan/scan_orient.c - scan pipeline steps 1 and 2: denoising, threshold
  * and per-voxel fibre orientation (paper section 6, the "basic processing"
  * of its predecessor), plus the small shared helpers (threads, kernels,
  * volumes).

@@ -1,5 +1,5 @@
 /*
- * engine/scan_register.c - scan pipeline steps 7 and 8 (alignment by PCA of
+ * engine/scan/scan_register.c - scan pipeline steps 7 and 8 (alignment by PCA of
  * yarn directions, paper 6.4; weaving-grid registration and crop, 6.5) and
  * the whole pipeline, loom_scan_build.
  *

@@ -1,5 +1,5 @@
 /*
- * engine/scan_sheet.c - scan-like test volumes of a woven sheet with known
+ * engine/scan/scan_sheet.c - scan-like test volumes of a woven sheet with known
  * ground truth (loom exemplar generate --scan, tests, bench).
  *
  * The sheet lives in the aligned frame (u, v, z): warp j is a tube along v

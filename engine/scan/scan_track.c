@@ -1,5 +1,5 @@
 /*
- * engine/scan_track.c - scan pipeline steps 3 and 4: endpoint detection by
+ * engine/scan/scan_track.c - scan pipeline steps 3 and 4: endpoint detection by
  * K-means on slices and yarn tracking with centre correction (paper 6.1).
  *
  * Endpoints.  A slice perpendicular to y (for warps; x for wefts) cuts every

@@ -1,5 +1,5 @@
 /*
- * engine/scan_weave.c - scan pipeline steps 5 and 6: weave pattern by the
+ * engine/scan/scan_weave.c - scan pipeline steps 5 and 6: weave pattern by the
  * Gaussian linking integral (paper 6.2) and voxel segmentation by nearest
  * centre curve (paper 6.3).
  *

@@ -1,5 +1,5 @@
 /*
- * engine/assign.c - yarn-level synthesis: which exemplar block each crossing
+ * engine/synth/assign.c - yarn-level synthesis: which exemplar block each crossing
  * copies (paper 5.3, 5.4).
  *
  * The exemplar set (loom_synth_set) is built once and is immutable.  It

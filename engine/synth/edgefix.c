@@ -1,5 +1,5 @@
 /*
- * engine/edgefix.c - edge fixing (paper 5.5) with tables per SOURCE block.
+ * engine/synth/edgefix.c - edge fixing (paper 5.5) with tables per SOURCE block.
  *
  * Offset field of an output block (dz: how much its content is raised; the
  * lookup reads source z - dz).  On the block's grid x in [0,b1), y in

@@ -1,7 +1,7 @@
 /*
  * engine/synth/fabric.c - a design bound to an exemplar database by synthesis.
  *
- * What it owns (engine/fabric_internal.h has the struct):
+ * What it owns (engine/synth/fabric_internal.h has the struct):
  *   design            3 bytes per crossing (weave, two type maps)
  *   base              2 bytes per crossing (source block of each crossing)
  *   edge-fix tables   4 b1 b2 (rh + rv) + 16 K r bytes, size-independent

@@ -1,5 +1,5 @@
 /*
- * engine/fabric_internal.h - the fabric as the virtual-texture engine sees
+ * engine/synth/fabric_internal.h - the fabric as the virtual-texture engine sees
  * it.  Never installed.
  *
  * A fabric (engine/synth/fabric.c; file format io/store/fabric_*.c, docs/formats.md)

@@ -1,4 +1,4 @@
-/* engine/cache.c - the brick cache.  The design, the invariants and the
+/* engine/texture/cache.c - the brick cache.  The design, the invariants and the
    numbered fetch steps cited below are in cache.h. */
 #include "cache.h"
 

@@ -1,5 +1,5 @@
 /*
- * engine/cache.h - the brick cache: a fixed-budget, thread-safe page cache
+ * engine/texture/cache.h - the brick cache: a fixed-budget, thread-safe page cache
  * of decompressed exemplar bricks.  Internal to libloom (loom__ prefix).
  *
  * WHAT IT IS

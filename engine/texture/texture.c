@@ -1,11 +1,11 @@
 /*
- * engine/texture.c - the virtual 3D texture of a fabric (loom/texture.h).
+ * engine/texture/texture.c - the virtual 3D texture of a fabric (loom/texture.h).
  *
  * WHAT IT IS
  *   A voxel of the bolt is never stored: each lookup finds the crossing,
  *   its source block (base assignment + randomisation), the edge-fix offset
  *   of its voxel column, and reads the source voxel from an exemplar brick
- *   held in the brick cache (engine/cache.h).  docs/engine.md tells the
+ *   held in the brick cache (engine/texture/cache.h).  docs/engine.md tells the
  *   same story with figures.
  *
  * LOOKUP STEPS (voxel_raw; the code cites them)

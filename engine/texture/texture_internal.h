@@ -1,6 +1,6 @@
 /*
- * engine/texture_internal.h - pieces of the virtual-texture engine
- * (engine/texture.c) that the unit tests check on their own.  Never
+ * engine/texture/texture_internal.h - pieces of the virtual-texture engine
+ * (engine/texture/texture.c) that the unit tests check on their own.  Never
  * installed.
  */
 #ifndef LOOM_TEXTURE_INTERNAL_H

@@ -1,10 +1,11 @@
 /*
- * io/design_io.c - designs as files: a weave image (PBM or 1-bit PNG, black
+ * io/design/design_io.c - designs as files: a weave image (PBM or 1-bit PNG, black
  * = warp over, first row = pick 0, first column = end 0), optional
  * yarn-type maps (8-bit grey PGM/PNG, pixel value = type ID), or a WIF
- * draft (io/wif.c).
+ * draft (io/design/wif.c).
  */
 #include "image_internal.h"
+#include "io/core/file.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,11 +1,12 @@
 /*
- * io/image.c - the loom_image type, format dispatch and atomic image output.
+ * io/design/image.c - the loom_image type, format dispatch and atomic image output.
  *
  * Readers are chosen by content (PNG signature, or 'P' and a digit 1-6 for
  * the Netpbm family), writers by the path's extension.  The format code
  * itself lives in pnm.c and png.c; this file only routes.
  */
 #include "image_internal.h"
+#include "io/core/file.h"
 
 #include <stdlib.h>
 #include <string.h>

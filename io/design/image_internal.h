@@ -1,5 +1,5 @@
 /*
- * io/io_internal.h - pieces shared by the image and design readers/writers
+ * io/design/image_internal.h - pieces shared by the image and design readers/writers
  * of io/ (image.c, pnm.c, png.c, design_io.c, mapfile.c).  Never installed.
  *
  * Readers share one shape: bytes in memory plus a name for messages, flags,

@@ -1,5 +1,5 @@
 /*
- * io/mapfile.c - posterized image + mapping file -> design (paper 5.2).
+ * io/design/mapfile.c - posterized image + mapping file -> design (paper 5.2).
  *
  *     W(y, x) = V_p(I(x, y))(y, x)
  *

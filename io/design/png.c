@@ -1,5 +1,5 @@
 /*
- * io/png.c - PNG through libpng 1.6.
+ * io/design/png.c - PNG through libpng 1.6.
  *
  * Reading: any colour type and bit depth.  Palettes are expanded to RGB
  * (the palette itself is kept in loom_image.palette), grey below 8 bits is

@@ -1,5 +1,5 @@
 /*
- * io/pnm.c - Netpbm images: PBM (P1 plain, P4 raw), PGM (P2, P5) and PPM
+ * io/design/pnm.c - Netpbm images: PBM (P1 plain, P4 raw), PGM (P2, P5) and PPM
  * (P3, P6), read strictly; P4, P5 and P6 written.
  *
  * Layout (netpbm.sourceforge.net/doc): a magic "Pn", then width, height and

@@ -1,5 +1,5 @@
 /*
- * io/wif.c - WIF 1.1 reader (Weaving Information File, the interchange
+ * io/design/wif.c - WIF 1.1 reader (Weaving Information File, the interchange
  * format of hand-weaving software).  docs/wif.md is the user's view.
  *
  * A WIF file is an INI-like text: [SECTION] lines, KEY=VALUE lines, ';'
@@ -41,6 +41,7 @@
  * through loom__warn, once per kind of problem and section.
  */
 #include "core/internal.h"
+#include "io/core/file.h"
 #include "wif_internal.h"
 
 #include <math.h>

@@ -1,5 +1,5 @@
 /*
- * io/wif_internal.h - internal entry points of the WIF reader (io/wif.c),
+ * io/design/wif_internal.h - internal entry points of the WIF reader (io/design/wif.c),
  * for the fuzz target and the tests; never installed.
  */
 #ifndef LOOM_WIF_INTERNAL_H

@@ -1,6 +1,6 @@
 /*
- * io/obj.c - Wavefront OBJ reader: the triangle meshes that shell mapping
- * (engine/shell.c) drapes the cloth volume over.  docs/rendering.md has the
+ * io/mesh/obj.c - Wavefront OBJ reader: the triangle meshes that shell mapping
+ * (engine/render/shell.c) drapes the cloth volume over.  docs/rendering.md has the
  * user's view.
  *
  * One pass over the lines; each statement is a keyword and whitespace-
@@ -21,6 +21,7 @@
  * "name:line" and what was expected; nothing is guessed.
  */
 #include "core/internal.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <math.h>

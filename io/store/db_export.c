@@ -1,5 +1,5 @@
 /*
- * io/db_export.c - one exemplar channel of a database as a NRRD volume
+ * io/store/db_export.c - one exemplar channel of a database as a NRRD volume
  * (`loom exemplar export`).  Reads one z-layer of bricks at a time
  * (size_x * size_y * brick_z voxels of the one channel) and streams it
  * through the NRRD writer, so memory does not grow with the exemplar

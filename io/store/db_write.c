@@ -1,5 +1,5 @@
 /*
- * io/db_write.c - streaming, atomic writer of exemplar databases.
+ * io/store/db_write.c - streaming, atomic writer of exemplar databases.
  *
  * The file is written front to back through loom__atomic (a temporary name,
  * renamed over the target by loom__dbw_finish):
@@ -18,6 +18,7 @@
  * Invariant: w->pos is the number of bytes written to the temporary file.
  */
 #include "db_write.h"
+#include "io/core/file.h"
 
 #include <libdeflate.h>
 #include <math.h>

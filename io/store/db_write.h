@@ -1,5 +1,5 @@
 /*
- * io/db_write.h - streaming writer of exemplar databases (.ldb).  Internal.
+ * io/store/db_write.h - streaming writer of exemplar databases (.ldb).  Internal.
  *
  * Use:
  *   loom__dbw_create(path, params)            header written

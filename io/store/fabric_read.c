@@ -35,6 +35,7 @@
  *   5. the tables: loom_edgefix_from_tables (or none: rebuilt at bind).
  */
 #include "fabric_format.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -7,6 +7,7 @@
  * to fill in sizes and CRC; atomic (loom__atomic_*).
  */
 #include "fabric_format.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -1,5 +1,5 @@
 /*
- * engine/scan_db.c - store a scan pipeline result as one exemplar of a
+ * io/store/scan_db.c - store a scan pipeline result as one exemplar of a
  * database (loom exemplar build): a new database, or an existing one
  * extended by loom__dbw_append (old bricks and tables copied verbatim).
  */

@@ -1,5 +1,5 @@
 /*
- * io/exr.c - OpenEXR z-slice writer and a small reader, through the
+ * io/volume/exr.c - OpenEXR z-slice writer and a small reader, through the
  * OpenEXR Core C API (3.1).
  *
  * Writer.  One single-part scanline image per call sequence: the caller
@@ -35,6 +35,7 @@
  * copied bit for bit; from memory, so tests and fuzzers need no files.
  */
 #include "core/internal.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <libdeflate.h>

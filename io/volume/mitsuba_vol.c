@@ -1,5 +1,5 @@
 /*
- * io/mitsuba_vol.c - Mitsuba 0.5/0.6 grid volumes (.vol).
+ * io/volume/mitsuba_vol.c - Mitsuba 0.5/0.6 grid volumes (.vol).
  *
  * Layout (little-endian; byte offsets):
  *    0  'V' 'O' 'L'
@@ -20,6 +20,7 @@
  * allocate or read past the file.
  */
 #include "core/internal.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -1,11 +1,12 @@
 /*
- * io/nrrd.c - NRRD writer (attached or detached header, raw data).
+ * io/volume/nrrd.c - NRRD writer (attached or detached header, raw data).
  * Format reference: teem's "NRRD0004" text header; we write the fields
  * type, dimension, space dimension, sizes, space directions, kinds,
  * space units, space origin, endian (multi-byte types), encoding and, when
- * detached, data file.  See io/nrrd.h.
+ * detached, data file.  See io/volume/nrrd.h.
  */
 #include "nrrd.h"
+#include "io/core/file.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -1,5 +1,5 @@
 /*
- * io/nrrd.h - NRRD (teem) volume writer.  Internal.
+ * io/volume/nrrd.h - NRRD (teem) volume writer.  Internal.
  *
  * Writes NRRD0004 with raw encoding, either attached (header, blank line,
  * data in one file) or detached (header in PATH, data in PATH with its
@@ -15,6 +15,7 @@
 #define LOOM_NRRD_H
 
 #include "core/internal.h"
+#include "io/core/file.h"
 
 enum loom__nrrd_type {
 	LOOM__NRRD_UINT8 = 0,

@@ -1,5 +1,5 @@
 /*
- * io/nrrd_read.c - NRRD reader (NRRD0001 .. NRRD0005), attached or
+ * io/volume/nrrd_read.c - NRRD reader (NRRD0001 .. NRRD0005), attached or
  * detached, raw / gzip / ascii encodings, returning float volumes.
  *
  * The header is text: a magic line, then "field: description" lines,
@@ -11,12 +11,13 @@
  * say (kinds, centerings, measurement frames, ...) is accepted and ignored
  * so that files from unu, ParaView and 3D Slicer read.
  *
- * Raw data are read by io/raw_read.c (same size checks); gzip data are
+ * Raw data are read by io/volume/raw_read.c (same size checks); gzip data are
  * inflated with libdeflate into a buffer of exactly the declared size
  * (bounded by the 1032:1 limit of deflate, so a small file cannot ask for
  * a huge buffer); ascii data are parsed number by number.
  */
 #include "core/internal.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <libdeflate.h>

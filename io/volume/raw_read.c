@@ -1,5 +1,5 @@
 /*
- * io/raw_read.c - raw volumes (headerless voxel arrays), scalar types,
+ * io/volume/raw_read.c - raw volumes (headerless voxel arrays), scalar types,
  * half floats and the in-memory float volume (loom_volbuf).
  *
  * A raw volume is nx*ny*nz voxels of `channels` interleaved values of one

@@ -1,7 +1,7 @@
 /*
  * tests/fuzz/fuzz_obj.c - fuzz target of the Wavefront OBJ reader
- * (io/obj.c) and, for small meshes with texture coordinates, of shell
- * construction and queries (engine/shell.c) on whatever it accepted.
+ * (io/mesh/obj.c) and, for small meshes with texture coordinates, of shell
+ * construction and queries (engine/render/shell.c) on whatever it accepted.
  *
  *   make fuzz && build/fuzz/fuzz_obj -max_total_time=60 tests/fuzz/corpus/obj
  *

@@ -1,4 +1,4 @@
-/* tests/unit/test_assign.c - yarn-level synthesis (engine/assign.c) against
+/* tests/unit/test_assign.c - yarn-level synthesis (engine/synth/assign.c) against
    brute-force references. */
 #include "check.h"
 #include "loom.h"

@@ -1,4 +1,4 @@
-/* tests/unit/test_cache.c - the brick cache (engine/cache.h) against a
+/* tests/unit/test_cache.c - the brick cache (engine/texture/cache.h) against a
    deterministic loader: brick bytes are a function of the brick id, so every
    byte a get returns can be checked; a reference CLOCK model checks the
    replacement order; threads hammer one cache (also run under make tsan). */

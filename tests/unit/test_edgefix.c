@@ -1,4 +1,4 @@
-/* tests/unit/test_edgefix.c - edge fixing (engine/edgefix.c) against an
+/* tests/unit/test_edgefix.c - edge fixing (engine/synth/edgefix.c) against an
    independent iterative Laplace solver, the exact per-block solve and the
    paper's per-output-block formulation.  Profiles are synthetic smooth
    random curves (the database provides the real ones). */

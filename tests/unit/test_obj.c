@@ -1,5 +1,5 @@
 /*
- * tests/unit/test_obj.c - the Wavefront OBJ reader (io/obj.c): valid files
+ * tests/unit/test_obj.c - the Wavefront OBJ reader (io/mesh/obj.c): valid files
  * of every corner form, triangulation, relative indices, line endings,
  * warnings, and a table of malformed inputs each checked for its code and
  * its "name:line: what" message.

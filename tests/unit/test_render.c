@@ -1,6 +1,6 @@
 /*
  * tests/unit/test_render.c - the microflake phase function
- * (engine/microflake.c) and the volume path tracer (engine/render.c).
+ * (engine/render/microflake.c) and the volume path tracer (engine/render/render.c).
  *
  * Phase function: normalisation of D, projected-area table against direct
  * quadrature and its known limits, f integrating to 1, a chi-square test of

@@ -1,7 +1,7 @@
 /*
  * tests/unit/test_scan_synth.h - synthetic "scans" of a woven sheet with
  * known ground truth, for tests/unit/test_scan.c: a thin wrapper around
- * the library's generator (loom_scan_sheet_*, engine/scan_sheet.c, which
+ * the library's generator (loom_scan_sheet_*, engine/scan/scan_sheet.c, which
  * `loom exemplar generate --scan` uses too) taking the weave as strings.
  *
  * The sheet lives in the aligned frame (u, v, z): warp j is a tube along v
@@ -128,7 +128,7 @@ static inline void synth_free(synth_out *o)
 	memset(o, 0, sizeof *o);
 }
 
-/* Make the scan with loom_scan_sheet_make (engine/scan_sheet.c): density,
+/* Make the scan with loom_scan_sheet_make (engine/scan/scan_sheet.c): density,
    truth labels, true tangents (also in vol.orient when with_orient). */
 static inline int synth_make(synth_spec *s, synth_out *o)
 {

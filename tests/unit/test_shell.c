@@ -1,5 +1,5 @@
 /*
- * tests/unit/test_shell.c - shell mapping (engine/shell.c): the identity on
+ * tests/unit/test_shell.c - shell mapping (engine/render/shell.c): the identity on
  * a flat quad, round trips voxel -> world -> voxel on curved meshes with
  * geometric checks against the analytic cylinder, the Jacobian against
  * finite differences, ray crossings of the shell boundary, concurrent

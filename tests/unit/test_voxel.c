@@ -1,5 +1,5 @@
 /*
- * tests/unit/test_voxel.c - voxel encodings (engine/voxel.h): density
+ * tests/unit/test_voxel.c - voxel encodings (engine/exemplar/voxel.h): density
  * round trip, orientation error bound, v/-v identity, brick indexing.
  */
 #include "check.h"

@@ -1,5 +1,5 @@
 /*
- * tests/unit/test_wif.c - the WIF 1.1 reader (io/wif.c).
+ * tests/unit/test_wif.c - the WIF 1.1 reader (io/design/wif.c).
  *
  * 1. Every tests/data/wif/NAME.wif is either
  *      valid:   its drawdown must equal NAME.expected.pbm (a hand-checked

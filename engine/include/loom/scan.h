@@ -520,7 +520,7 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 /* ---- Scan-like test volumes (loom exemplar generate --scan) -------------- */
 
 /*
- * A woven sheet as a scanner would show it (engine/scan_sheet.c): warp j
+ * A woven sheet as a scanner would show it (engine/scan/scan_sheet.c): warp j
  * is a tube along y at aligned u = x0 + j*sx, weft i along x at v = y0 +
  * i*sy, elliptical cross-sections (semi-axes *_w lateral, *_h vertical),
  * centre lines at zc +- amp following the weave (cosine blends between
