@@ -1,0 +1,391 @@
+/*
+ * tools/loom/cmd_export.c - `loom export FABRIC`: write a region of the
+ * virtual texture (or a whole bolt) as tiles of Mitsuba .vol, NRRD or
+ * OpenEXR z-slice files, with a manifest that makes a killed job resumable
+ * and shards mergeable (`loom export --merge DIR`).  docs/batch.md
+ * describes the options, the files, the manifest and resuming.
+ */
+#include "cli.h"
+#include "commands.h"
+#include "export.h"
+#include "tiles.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+static const char help[] =
+	"usage: loom export FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
+	"                   --format vol|nrrd|exr -o DIR [--channels LIST]\n"
+	"                   [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
+	"                   [--threads N] [--db DB] [--quiet] [--json]\n"
+	"       loom export --merge DIR [--json]\n"
+	"\n"
+	"Write a region of the fabric's virtual texture as tiles of files other\n"
+	"tools read, with a manifest (DIR/manifest.json) listing every tile's box,\n"
+	"files, sizes and CRC-32s (docs/batch.md).  Re-running the same command\n"
+	"skips the tiles already complete and verified, so a killed job resumes.\n"
+	"\n"
+	"  --region BOX     voxels X0<=x<X1, Y0<=y<Y1, Z0<=z<Z1 (integers; x and y\n"
+	"                   of any sign: the bolt is unbounded)\n"
+	"  --all            one design repeat, the cloth's whole thickness\n"
+	"  --bolt LxW       with --all: a bolt LENGTH (along y) by WIDTH (x), in\n"
+	"                   repeats or with mm, cm or m\n"
+	"  --format F       vol: Mitsuba grid volumes, one file per channel per tile\n"
+	"                   nrrd: NRRD (attached header), one per channel per tile\n"
+	"                   exr: OpenEXR, one multi-channel image per z per tile\n"
+	"  --channels LIST  comma-separated: density, orientation, albedo, kind,\n"
+	"                   type (default density,orientation)\n"
+	"  --tile TX,TY[,TZ] tile size in voxels (default 64,64 and the region's\n"
+	"                   whole thickness)\n"
+	"  --shard I/N      only the tiles whose index mod N is I; writes\n"
+	"                   DIR/manifest-I-of-N.json\n"
+	"  --merge DIR      merge DIR's shard manifests into DIR/manifest.json\n"
+	"  --budget MB      all memory for tile buffers and bricks, MiB (default 64)\n"
+	"  --threads N      worker threads (default 1)\n"
+	"  --db DB          the exemplar database (default: the fabric's)\n"
+	"  -o DIR           output directory (made if missing)\n"
+	"  --json           print a summary as JSON\n"
+	"  --quiet          no progress on stderr\n"
+	"\n"
+	"Exit status: 0 success, 1 bad input or failed write, 2 usage error.\n";
+
+static void stem_of(const tiles_job *j, uint64_t index, char *out, size_t n)
+{
+	int64_t lo[3], hi[3], t[3];
+
+	tiles_box(j, index, lo, hi, t);
+	snprintf(out, n, "tile-%lld-%lld-%lld", (long long)t[0], (long long)t[1],
+	         (long long)t[2]);
+}
+
+/* ---- tiles -------------------------------------------------------------------- */
+
+static int export_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
+{
+	struct export_ctx *c = vctx;
+	struct ewstate *w = &c->w[wi];
+	uint64_t index = tiles_index(c->j, k);
+	int64_t lo[3], hi[3], t[3];
+	loom_texture_region r;
+	char stem[128], *line;
+	const char *delay = getenv("LOOM_EXPORT_TILE_DELAY_MS");
+
+	tiles_box(c->j, index, lo, hi, t);
+	stem_of(c->j, index, stem, sizeof stem);
+	memset(&r, 0, sizeof r);
+	r.layout = LOOM_REGION_X_FASTEST;
+	r.density = w->d;
+	if (c->chmask & 1u << CH_ORIENT)
+		r.orientation = w->o;
+	if (c->chmask & (1u << CH_ALBEDO | 1u << CH_KIND | 1u << CH_TYPE)) {
+		r.kind = w->k;
+		r.type = w->ty;
+	}
+	if (loom_texture_read_region(c->j->t, lo, hi, &r) != LOOM_OK) {
+		snprintf(msg, msz, "tile %s: %s", stem, loom_texture_errmsg(c->j->t));
+		return -1;
+	}
+	w->line_len = 0;
+	w->line[0] = 0;
+	if (export_line_add(w, "{\"index\": %llu, \"tile\": [%lld, %lld, %lld], \"lo\": "
+	                    "[%lld, %lld, %lld], \"hi\": [%lld, %lld, %lld], \"files\": [",
+	                    (unsigned long long)index, (long long)t[0], (long long)t[1],
+	                    (long long)t[2], (long long)lo[0], (long long)lo[1],
+	                    (long long)lo[2], (long long)hi[0], (long long)hi[1],
+	                    (long long)hi[2])) {
+		snprintf(msg, msz, "out of memory");
+		return -1;
+	}
+	if (export_write_tile(c, w, stem, lo, hi, msg, msz))
+		return -1;
+	if (export_line_add(w, "]}") || !(line = strdup(w->line))) {
+		snprintf(msg, msz, "out of memory");
+		return -1;
+	}
+	if (delay && *delay) { /* test hook: make a job slow enough to kill */
+		struct timespec ts;
+		long ms = atol(delay);
+		ts.tv_sec = ms / 1000;
+		ts.tv_nsec = (ms % 1000) * 1000000L;
+		nanosleep(&ts, NULL);
+	}
+	pthread_mutex_lock(&c->lock);
+	c->lines[k] = line;
+	c->ndone++;
+	pthread_mutex_unlock(&c->lock);
+	atomic_fetch_add(&c->written_tiles, 1);
+	return 0;
+}
+
+static int parse_channels(const char *s, unsigned *mask)
+{
+	char buf[256], *save = NULL, *tok;
+
+	if (strlen(s) >= sizeof buf)
+		return -1;
+	strcpy(buf, s);
+	*mask = 0;
+	for (tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+		int found = -1;
+		for (int ch = 0; ch < N_CH; ch++)
+			if (strcmp(tok, ch_names[ch]) == 0)
+				found = ch;
+		if (found < 0)
+			return -1;
+		*mask |= 1u << found;
+	}
+	return *mask ? 0 : -1;
+}
+
+static void make_dir(const char *prog, const char *dir)
+{
+	struct stat st;
+
+	if (mkdir(dir, 0777) != 0 && errno != EEXIST)
+		cli_fail(prog, "cannot create the output directory %s: %s", dir, strerror(errno));
+	if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
+		cli_fail(prog, "%s is not a directory", dir);
+	if (access(dir, W_OK | X_OK) != 0)
+		cli_fail(prog, "cannot write to the output directory %s: %s", dir,
+		         strerror(errno));
+}
+
+/* ---- the command -------------------------------------------------------------- */
+
+int cmd_export(int argc, char **argv)
+{
+	const char *prog = "loom export";
+	const char *path = NULL, *format_s = NULL, *channels_s = NULL, *out = NULL;
+	const char *merge_dir = NULL;
+	int json = 0, quiet = 0;
+	tiles_job j;
+	struct export_ctx c;
+	tiles_pool pool;
+	cli_progress bar;
+	const loom_design *d;
+	size_t voxels, per, rowf;
+	uint64_t kept;
+	uint32_t fcrc;
+	uint64_t fbytes;
+	double t0, secs;
+	char params[2048], cl[160] = "";
+	uint8_t *fbuf;
+	cli_args a;
+
+	tiles_init(&j);
+	memset(&c, 0, sizeof c);
+	cli_init(&a, argc, argv, prog, help);
+	while (cli_more(&a)) {
+		const char *s;
+		if (tiles_option(&a, &j) || cli_value(&a, "--format", &format_s) ||
+		    cli_value(&a, "--channels", &channels_s) || cli_value(&a, "-o", &out) ||
+		    cli_value(&a, "--merge", &merge_dir))
+			continue;
+		if (cli_flag(&a, "--json")) {
+			json = 1;
+			continue;
+		}
+		if (cli_flag(&a, "--quiet")) {
+			quiet = 1;
+			continue;
+		}
+		if ((s = cli_positional(&a)) != NULL) {
+			if (path)
+				cli_usage(&a, "more than one FABRIC");
+			path = s;
+			continue;
+		}
+		cli_unknown(&a);
+	}
+	if (merge_dir) {
+		if (path || format_s || channels_s || out || j.region_s || j.all || j.shard_s ||
+		    j.tile_s)
+			cli_usage(&a, "--merge DIR takes no FABRIC nor export options");
+		return export_merge(prog, merge_dir, json);
+	}
+	if (!path)
+		cli_usage(&a, "missing FABRIC");
+	tiles_parse(&a, &j, 1);
+	if (!format_s)
+		cli_usage(&a, "missing --format vol|nrrd|exr");
+	c.format = -1;
+	for (int f = 0; f < 3; f++)
+		if (strcmp(format_s, fmt_names[f]) == 0)
+			c.format = f;
+	if (c.format < 0)
+		cli_usage(&a, "bad --format '%s' (expected vol, nrrd or exr)", format_s);
+	if (parse_channels(channels_s ? channels_s : "density,orientation", &c.chmask))
+		cli_usage(&a, "bad --channels '%s' (expected a comma-separated list of density, "
+		          "orientation, albedo, kind, type)", channels_s);
+	if (!out)
+		cli_usage(&a, "missing -o DIR");
+
+	tiles_open_fabric(&j, prog, path, 64);
+	if (c.format == F_EXR && (j.tsize[0] > 65536 || j.tsize[1] > 65536)) {
+		tiles_close(&j);
+		cli_usage(&a, "EXR tiles are at most 65536 x 65536 pixels: give a smaller --tile");
+	}
+	if (c.format == F_EXR && (j.lo[2] < INT32_MIN || j.hi[2] > INT32_MAX)) {
+		tiles_close(&j);
+		cli_usage(&a, "EXR slices need z within the 32-bit range");
+	}
+	make_dir(prog, out);
+	c.j = &j;
+	c.dir = out;
+	c.n = tiles_in_shard(&j);
+	d = loom_fabric_design(j.f);
+	for (uint32_t t = 0; t < d->n_types && t < 256; t++)
+		memcpy(c.albedo[t], d->types[t].albedo, sizeof c.albedo[t]);
+
+	/* the parameters that determine the bytes (not threads nor budget) */
+	fbuf = malloc(CRC_BUF);
+	if (!fbuf || export_file_crc(path, fbuf, &fcrc, &fbytes))
+		cli_fail(prog, "%s: cannot read", path);
+	free(fbuf);
+	for (int ch = 0; ch < N_CH; ch++)
+		if (c.chmask & 1u << ch)
+			snprintf(cl + strlen(cl), sizeof cl - strlen(cl), "%s\"%s\"", cl[0] ? ", " : "",
+			         ch_names[ch]);
+	snprintf(params, sizeof params,
+	         "{\"fabric_bytes\": %llu, \"fabric_crc32\": \"%08x\", \"format\": \"%s\", "
+	         "\"channels\": [%s], \"region_lo\": [%lld, %lld, %lld], \"region_hi\": "
+	         "[%lld, %lld, %lld], \"tile\": [%lld, %lld, %lld], \"voxel_mm\": %.9g}",
+	         (unsigned long long)fbytes, fcrc, fmt_names[c.format], cl, (long long)j.lo[0],
+	         (long long)j.lo[1], (long long)j.lo[2], (long long)j.hi[0], (long long)j.hi[1],
+	         (long long)j.hi[2], (long long)j.tsize[0], (long long)j.tsize[1],
+	         (long long)j.tsize[2], j.voxel_mm);
+	c.params = params;
+	if (j.shard_n > 1)
+		snprintf(c.manifest, sizeof c.manifest, "%s/manifest-%u-of-%u.json", out, j.shard_i,
+		         j.shard_n);
+	else
+		snprintf(c.manifest, sizeof c.manifest, "%s/manifest.json", out);
+
+	/* per worker: the tile's raw channels, a row of up to 9 floats per voxel,
+	   the CRC buffer and the writers' own buffers (a .vol writer 64 KiB; an
+	   EXR writer one 16-row chunk, its planes and a compressor) */
+	voxels = (size_t)j.tsize[0] * (size_t)j.tsize[1] * (size_t)j.tsize[2];
+	rowf = (size_t)j.tsize[0] * 9;
+	per = voxels * 5 + rowf * sizeof(float) + CRC_BUF + (1u << 20) +
+	      (c.format == F_EXR ? (size_t)j.tsize[0] * 16 * 9 * 4 * 3 : 0);
+	/* the manifest lines, held until the end: per tile of the shard about
+	   256 bytes of index and box and 128 per file (an upper estimate), its
+	   pointer, skip flag and allocation header */
+	{
+		size_t files = 0;
+		for (int ch = 0; ch < N_CH; ch++)
+			files += (c.chmask >> ch) & 1u;
+		if (c.format == F_EXR)
+			files = (size_t)j.tsize[2];
+		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16);
+	}
+	tiles_open_texture(&j, prog, per);
+
+	c.lines = calloc(c.n ? c.n : 1, sizeof *c.lines);
+	c.skip = calloc(c.n ? c.n : 1, 1);
+	c.w = calloc(j.threads, sizeof *c.w);
+	if (!c.lines || !c.skip || !c.w)
+		cli_fail(prog, "out of memory");
+	for (unsigned w = 0; w < j.threads; w++) {
+		struct ewstate *ws = &c.w[w];
+		ws->d = malloc(voxels);
+		ws->k = malloc(voxels);
+		ws->ty = malloc(voxels);
+		ws->o = malloc(voxels * 2);
+		ws->row = malloc(rowf * sizeof(float));
+		ws->io = malloc(CRC_BUF);
+		ws->line_cap = 4096;
+		ws->line = malloc(ws->line_cap);
+		if (!ws->d || !ws->k || !ws->ty || !ws->o || !ws->row || !ws->io || !ws->line)
+			cli_fail(prog, "out of memory");
+	}
+	pthread_mutex_init(&c.lock, NULL);
+	export_remove_stale(&c);
+	kept = export_resume(&c, prog);
+	if (kept && !quiet)
+		fprintf(stderr, "%s: %llu of %llu tiles already complete and verified "
+		        "(%s): skipping them\n", prog, (unsigned long long)kept,
+		        (unsigned long long)c.n, c.manifest);
+
+	memset(&pool, 0, sizeof pool);
+	pool.job = &j;
+	pool.fn = export_tile;
+	pool.ctx = &c;
+	pool.skip = c.skip;
+	pool.tick = export_tick;
+	pool.progress = &bar;
+	pool.source_order = tiles_source_order_wanted();
+	c.last_write = cli_now();
+	cli_progress_begin(&bar, prog, "tiles", c.n, quiet);
+	t0 = cli_now();
+	if (tiles_run(&pool) != 0) {
+		export_manifest_flush(&c, 0);
+		cli_error(prog, "%s", pool.msg);
+		tiles_close(&j);
+		return EXIT_BAD_INPUT;
+	}
+	secs = cli_now() - t0;
+	if (export_manifest_flush(&c, 1) != 0) {
+		cli_error(prog, "%s", c.manifest_msg);
+		tiles_close(&j);
+		return EXIT_BAD_INPUT;
+	}
+	{
+		uint64_t wt = atomic_load(&c.written_tiles), bytes = atomic_load(&c.bytes);
+		uint64_t vox = 0;
+		for (uint64_t k = 0; k < c.n; k++) {
+			int64_t lo[3], hi[3];
+			if (c.skip[k])
+				continue;
+			tiles_box(&j, tiles_index(&j, k), lo, hi, NULL);
+			vox += (uint64_t)(hi[0] - lo[0]) * (uint64_t)(hi[1] - lo[1]) *
+			       (uint64_t)(hi[2] - lo[2]);
+		}
+		if (json) {
+			json_w w;
+			jw_begin(&w, stdout);
+			jw_str(&w, "manifest", c.manifest);
+			jw_str(&w, "format", fmt_names[c.format]);
+			jw_uint(&w, "tiles", c.n);
+			jw_uint(&w, "tiles_written", wt);
+			jw_uint(&w, "tiles_skipped", kept);
+			jw_uint(&w, "files_written", atomic_load(&c.files));
+			jw_uint(&w, "bytes_written", bytes);
+			jw_uint(&w, "voxels", vox);
+			jw_num(&w, "seconds", secs);
+			jw_num(&w, "voxels_per_second", secs > 0 ? (double)vox / secs : 0);
+			jw_num(&w, "bytes_per_second", secs > 0 ? (double)bytes / secs : 0);
+			jw_uint(&w, "threads", j.threads);
+			jw_num(&w, "budget_mb", j.budget_mb);
+			jw_uint(&w, "peak_rss_bytes", tiles_peak_rss());
+			jw_end(&w);
+		} else {
+			printf("%s: %llu tiles (%llu written, %llu already complete), %llu files, "
+			       "%.1f MiB in %.3f s; manifest %s\n", out, (unsigned long long)c.n,
+			       (unsigned long long)wt, (unsigned long long)kept,
+			       (unsigned long long)atomic_load(&c.files), (double)bytes / 1048576.0,
+			       secs, c.manifest);
+		}
+	}
+	for (unsigned w = 0; w < j.threads; w++) {
+		free(c.w[w].d);
+		free(c.w[w].k);
+		free(c.w[w].ty);
+		free(c.w[w].o);
+		free(c.w[w].row);
+		free(c.w[w].io);
+		free(c.w[w].line);
+	}
+	for (uint64_t k = 0; k < c.n; k++)
+		free(c.lines[k]);
+	free(c.lines);
+	free(c.skip);
+	free(c.w);
+	pthread_mutex_destroy(&c.lock);
+	tiles_close(&j);
+	return 0;
+}
