@@ -17,41 +17,21 @@
 #include <time.h>
 #include <unistd.h>
 
-static const char help[] =
-	"usage: loom export FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
-	"                   --format vol|nrrd|exr -o DIR [--channels LIST]\n"
-	"                   [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
-	"                   [--threads N] [--db DB] [--quiet] [--json]\n"
-	"       loom export --merge DIR [--json]\n"
-	"\n"
+static const char usage[] =
+	"loom export FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
+	"            --format vol|nrrd|exr -o DIR [--channels LIST]\n"
+	"            [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
+	"            [--threads N] [--db DB] [--quiet] [--json]\n"
+	"loom export --merge DIR [--json]\n";
+
+static const char about[] =
 	"Write a region of the fabric's virtual texture as tiles of files other\n"
 	"tools read, with a manifest (DIR/manifest.json) listing every tile's box,\n"
 	"files, sizes and CRC-32s (docs/batch.md).  Re-running the same command\n"
-	"skips the tiles already complete and verified, so a killed job resumes.\n"
-	"\n"
-	"  --region BOX     voxels X0<=x<X1, Y0<=y<Y1, Z0<=z<Z1 (integers; x and y\n"
-	"                   of any sign: the bolt is unbounded)\n"
-	"  --all            one design repeat, the cloth's whole thickness\n"
-	"  --bolt LxW       with --all: a bolt LENGTH (along y) by WIDTH (x), in\n"
-	"                   repeats or with mm, cm or m\n"
-	"  --format F       vol: Mitsuba grid volumes, one file per channel per tile\n"
-	"                   nrrd: NRRD (attached header), one per channel per tile\n"
-	"                   exr: OpenEXR, one multi-channel image per z per tile\n"
-	"  --channels LIST  comma-separated: density, orientation, albedo, kind,\n"
-	"                   type (default density,orientation)\n"
-	"  --tile TX,TY[,TZ] tile size in voxels (default 64,64 and the region's\n"
-	"                   whole thickness)\n"
-	"  --shard I/N      only the tiles whose index mod N is I; writes\n"
-	"                   DIR/manifest-I-of-N.json\n"
-	"  --merge DIR      merge DIR's shard manifests into DIR/manifest.json\n"
-	"  --budget MB      all memory for tile buffers and bricks, MiB (default 64)\n"
-	"  --threads N      worker threads (default 1)\n"
-	"  --db DB          the exemplar database (default: the fabric's)\n"
-	"  -o DIR           output directory (made if missing)\n"
-	"  --json           print a summary as JSON\n"
-	"  --quiet          no progress on stderr\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed write, 2 usage error.\n";
+	"skips the tiles already complete and verified, so a killed job resumes.\n";
+
+static const opt_choice format_names[] = {
+	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {NULL, 0}};
 
 static void stem_of(const tiles_job *j, uint64_t index, char *out, size_t n)
 {
@@ -141,6 +121,13 @@ static int parse_channels(const char *s, unsigned *mask)
 	return *mask ? 0 : -1;
 }
 
+static const char *opt_channels(const char *text, void *mask)
+{
+	if (parse_channels(text, mask))
+		return "a comma-separated list of density, orientation, albedo, kind, type";
+	return NULL;
+}
+
 static void make_dir(const char *prog, const char *dir)
 {
 	struct stat st;
@@ -159,8 +146,7 @@ static void make_dir(const char *prog, const char *dir)
 int cmd_export(int argc, char **argv)
 {
 	const char *prog = "loom export";
-	const char *path = NULL, *format_s = NULL, *channels_s = NULL, *out = NULL;
-	const char *merge_dir = NULL;
+	const char *path = NULL, *out = NULL, *merge_dir = NULL;
 	int json = 0, quiet = 0;
 	tiles_job j;
 	struct export_ctx c;
@@ -174,64 +160,62 @@ int cmd_export(int argc, char **argv)
 	double t0, secs;
 	char params[2048], cl[160] = "";
 	uint8_t *fbuf;
-	cli_args a;
+	opt opts[] = {
+		TILES_OPT_REGION(&j),
+		TILES_OPT_ALL(&j),
+		TILES_OPT_BOLT(&j),
+		OPT_ENUM(0, "format", &c.format, "F", format_names, "vol: Mitsuba grid volumes, "
+		         "one file per channel per tile\nnrrd: NRRD (attached header), one per "
+		         "channel per tile\nexr: OpenEXR, one multi-channel image per z per tile"),
+		OPT_CALLBACK(0, "channels", &c.chmask, "LIST", opt_channels, "comma-separated: "
+		             "density, orientation, albedo, kind, type (default "
+		             "density,orientation)"),
+		TILES_OPT_TILE(&j, "tile size in voxels (default 64,64 and the region's whole "
+		               "thickness)"),
+		TILES_OPT_SHARD(&j, "only the tiles whose index mod N is I; writes "
+		                "DIR/manifest-I-of-N.json"),
+		OPT_STRING(0, "merge", &merge_dir, "DIR",
+		           "merge DIR's shard manifests into DIR/manifest.json"),
+		TILES_OPT_BUDGET(&j, "all memory for tile buffers and bricks, MiB (default 64)"),
+		TILES_OPT_THREADS(&j),
+		TILES_OPT_DB(&j),
+		OPT_OUTPUT(&out, "DIR", "output directory (made if missing)"),
+		OPT_JSON(&json, "print a summary as JSON"),
+		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_END()
+	};
+	opts_cmd cmd = {.prog = prog, .usage = usage, .about = about,
+	                .exit1 = "bad input or failed write", .opts = opts,
+	                .pos_name = "FABRIC", .pos_max = 1, .pos = &path};
 
 	tiles_init(&j);
 	memset(&c, 0, sizeof c);
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (tiles_option(&a, &j) || cli_value(&a, "--format", &format_s) ||
-		    cli_value(&a, "--channels", &channels_s) || cli_value(&a, "-o", &out) ||
-		    cli_value(&a, "--merge", &merge_dir))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			if (path)
-				cli_usage(&a, "more than one FABRIC");
-			path = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	c.format = -1;
+	c.chmask = 1u << CH_DENSITY | 1u << CH_ORIENT;
+	opts_parse(&cmd, argc, argv);
 	if (merge_dir) {
-		if (path || format_s || channels_s || out || j.region_s || j.all || j.shard_s ||
-		    j.tile_s)
-			cli_usage(&a, "--merge DIR takes no FABRIC nor export options");
+		if (path || c.format >= 0 || opt_given(&cmd, &c.chmask) || out || j.region_s ||
+		    j.all || j.shard_s || j.tile_s)
+			opts_usage(&cmd, "--merge DIR takes no FABRIC nor export options");
 		return export_merge(prog, merge_dir, json);
 	}
 	if (!path)
-		cli_usage(&a, "missing FABRIC");
-	tiles_parse(&a, &j, 1);
-	if (!format_s)
-		cli_usage(&a, "missing --format vol|nrrd|exr");
-	c.format = -1;
-	for (int f = 0; f < 3; f++)
-		if (strcmp(format_s, fmt_names[f]) == 0)
-			c.format = f;
+		opts_usage(&cmd, "missing FABRIC");
+	tiles_parse(&cmd, &j, 1);
 	if (c.format < 0)
-		cli_usage(&a, "bad --format '%s' (expected vol, nrrd or exr)", format_s);
-	if (parse_channels(channels_s ? channels_s : "density,orientation", &c.chmask))
-		cli_usage(&a, "bad --channels '%s' (expected a comma-separated list of density, "
-		          "orientation, albedo, kind, type)", channels_s);
+		opts_usage(&cmd, "missing --format vol|nrrd|exr");
 	if (!out)
-		cli_usage(&a, "missing -o DIR");
+		opts_usage(&cmd, "missing -o DIR");
 
 	tiles_open_fabric(&j, prog, path, 64);
 	if (c.format == F_EXR && (j.tsize[0] > 65536 || j.tsize[1] > 65536)) {
 		tiles_close(&j);
-		cli_usage(&a, "EXR tiles are at most 65536 x 65536 pixels: give a smaller --tile");
+		opts_usage(&cmd, "EXR tiles are at most 65536 x 65536 pixels: give a smaller "
+		           "--tile");
 	}
 	if (c.format == F_EXR && (j.lo[2] < INT32_MIN || j.hi[2] > INT32_MAX)) {
 		tiles_close(&j);
-		cli_usage(&a, "EXR slices need z within the 32-bit range");
+		opts_usage(&cmd, "EXR slices need z within the 32-bit range");
 	}
 	make_dir(prog, out);
 	c.j = &j;
