@@ -344,7 +344,7 @@ static void put_wrapped(FILE *fp, const char *text, int at, int col)
 	while (*s) {
 		const char *end = strchr(s, '\n');
 		size_t seg = end ? (size_t)(end - s) : strlen(s);
-		int lead = 0, line = 0, indent = col;
+		int lead = 0, line = 0, indent = col, gap_before = 1;
 		const char *p = s, *stop = s + seg;
 
 		while (p < stop && *p == ' ') {
@@ -355,12 +355,12 @@ static void put_wrapped(FILE *fp, const char *text, int at, int col)
 		pad(fp, indent - at);
 		at = indent;
 		while (p < stop) {
-			const char *w = p;
-			int wl;
+			const char *w = p, *next;
+			int wl, gap = 1;
 			while (w < stop && *w != ' ')
 				w++;
 			wl = (int)(w - p);
-			if (line > 0 && at + 1 + wl > HELP_WIDTH) {
+			if (line > 0 && at + gap_before + wl > HELP_WIDTH) {
 				fputc('\n', fp);
 				indent = col + lead + (list ? 2 : 0);
 				pad(fp, indent);
@@ -368,15 +368,18 @@ static void put_wrapped(FILE *fp, const char *text, int at, int col)
 				line = 0;
 			}
 			if (line > 0) {
-				fputc(' ', fp);
-				at++;
+				pad(fp, gap_before);
+				at += gap_before;
 			}
 			fwrite(p, 1, (size_t)wl, fp);
 			at += wl;
 			line++;
-			p = w;
-			while (p < stop && *p == ' ')
-				p++;
+			next = w;
+			while (next < stop && *next == ' ')
+				next++;
+			gap = (int)(next - w);
+			gap_before = gap > 2 ? 2 : gap;
+			p = next;
 		}
 		fputc('\n', fp);
 		at = 0;
