@@ -619,12 +619,10 @@ static void dispatch_help(const opts_dispatch *d, FILE *fp)
 		put_wrapped(fp, s->summary, (int)strlen(left), col);
 	}
 	fprintf(fp, "\n  %s COMMAND --help   options of one command\n", d->prog);
-	if (d->footer) {
-		fputc('\n', fp);
-		put_block(fp, d->footer);
-	}
 	fprintf(fp, "\nExit status: 0 success, 1 bad input or failed operation, 2 usage "
 	        "error.\n");
+	if (d->footer)
+		put_block(fp, d->footer);
 }
 
 int opts_run_sub(const opts_dispatch *d, int argc, char **argv)
