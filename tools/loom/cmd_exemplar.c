@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "exemplar.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <math.h>
@@ -19,52 +20,25 @@
 #include <time.h>
 #include <unistd.h>
 
-static const char help_main[] =
-	"usage: loom exemplar COMMAND [ARGS...]\n"
-	"\n"
+static const char about_main[] =
 	"Exemplar databases: volumetric exemplars of simple weaves, stored as\n"
-	"compressed voxel bricks (docs/exemplars.md, docs/formats.md).\n"
-	"\n"
-	"commands:\n"
-	"  generate   make procedural CT-like exemplars into a new database\n"
-	"             (--scan: a scan-like volume of a woven sheet, for build)\n"
-	"  build      turn a scan into an exemplar appended to a database\n"
-	"  info       list a database's exemplars\n"
-	"  verify     check every brick and checksum of a database\n"
-	"  export     write one exemplar volume as NRRD\n"
+	"compressed voxel bricks (docs/exemplars.md, docs/formats.md).\n";
+
+static const char footer_main[] =
 	"\n"
 	"Commands that read a database take it as DB or --db DB; without one they\n"
 	"use $LOOM_DB, then default.ldb in the data directory ($LOOM_DATA, the\n"
 	"build tree, the installed share/loom).\n";
 
-static const char help_generate[] =
-	"usage: loom exemplar generate [--preset small|paper|tiny] [--weaves LIST]\n"
-	"                              [--seed N] [OPTIONS] -o DB\n"
-	"\n"
+static const char usage_generate[] =
+	"loom exemplar generate [--preset small|paper|tiny] [--weaves LIST]\n"
+	"                       [--seed N] [OPTIONS] -o DB\n";
+
+static const char about_generate[] =
 	"Generate one procedural exemplar per weave and write the database DB\n"
 	"(atomically).  The output is the same for any thread count.  With\n"
 	"--scan, write a scan-like volume instead (loom exemplar generate --scan\n"
-	"--help).\n"
-	"\n"
-	"options:\n"
-	"  -o, --output DB     database to write (.ldb)\n"
-	"  --preset NAME       small (default: block 24x16x48, 24 um voxels),\n"
-	"                      paper (115x70x300, 5 um: the paper's scale) or\n"
-	"                      tiny (8x6x12, 72 um: test corpora)\n"
-	"  --weaves LIST       comma-separated weaves (loom pattern names, e.g.\n"
-	"                      twill:2/3,satin:1/4,plain); default: the 2/3, 3/2,\n"
-	"                      1/4, 4/1 twills and the same four satins\n"
-	"  --seed N            random seed (default 1)\n"
-	"  --crossings RxC     crossings per exemplar, multiples of each weave's\n"
-	"                      repeat (default: the smallest multiple >= 4, so 5x5\n"
-	"                      for the 5-end weaves)\n"
-	"  --block B1xB2xB3    block size in voxels (overrides the preset)\n"
-	"  --voxel-size UM     voxel edge in micrometres (overrides the preset)\n"
-	"  --brick XxYxZ       brick shape (default 16x16x64)\n"
-	"  --level L           libdeflate level 1..12 (default 6)\n"
-	"  --threads N         worker threads (default 2)\n"
-	"  --json              print the result as JSON\n"
-	"  --quiet             no progress or summary\n";
+	"--help).\n";
 
 /* ---- generate ----------------------------------------------------------- */
 
@@ -97,64 +71,64 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	fflush(stderr);
 }
 
-int exemplar_parse_size3(const char *s, uint32_t v[3])
+/* --preset: a name loom_exgen_preset knows. */
+static const char *opt_preset(const char *text, void *dest)
 {
-	char buf[96], *a, *b;
+	loom_exgen_params p;
 
-	if (!s || strlen(s) >= sizeof buf)
-		return -1;
-	strcpy(buf, s);
-	a = strpbrk(buf, "xX,");
-	if (!a)
-		return -1;
-	*a++ = 0;
-	b = strpbrk(a, "xX,");
-	if (!b)
-		return -1;
-	*b++ = 0;
-	if (cli_parse_u32(buf, &v[0]) || cli_parse_u32(a, &v[1]) || cli_parse_u32(b, &v[2]))
-		return -1;
-	return 0;
+	*(const char **)dest = text;
+	return loom_exgen_preset(text, &p) == LOOM_OK ? NULL : "small, paper or tiny";
 }
 
 static int sub_generate(int argc, char **argv)
 {
 	const char *prog = "loom exemplar generate";
 	const char *out = NULL, *preset = "small", *weaves = NULL;
-	const char *seed_s = NULL, *cross_s = NULL, *block_s = NULL, *vs_s = NULL;
-	const char *brick_s = NULL, *level_s = NULL, *threads_s = NULL;
 	char *wbuf = NULL;
-	int quiet = 0, json = 0, rc;
+	int quiet = 0, json = 0, scan = 0, rc;
+	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
+	uint64_t seed = 0;
+	double vs = 0;
 	loom_exgen_params p;
 	loom_diag diag;
 	progress_state ps;
 	uint64_t hash = 0;
-	cli_args a;
 	double t0;
+	opt_entry opts[] = {
+		OPT_OUTPUT(&out, "DB", "database to write (.ldb)"),
+		OPT_CALLBACK(0, "preset", &preset, "NAME", opt_preset, "small (default: block "
+		             "24x16x48, 24 um voxels),\npaper (115x70x300, 5 um: the paper's "
+		             "scale) or\ntiny (8x6x12, 72 um: test corpora)"),
+		OPT_STRING(0, "weaves", &weaves, "LIST", "comma-separated weaves (loom pattern "
+		           "names, e.g. twill:2/3,satin:1/4,plain); default: the 2/3, 3/2, 1/4, "
+		           "4/1 twills and the same four satins"),
+		OPT_SEED(&seed, "N", "random seed (default 1)"),
+		OPT_SIZE2(0, "crossings", cross, "RxC", 1, UINT32_MAX, "crossings per exemplar, "
+		          "multiples of each weave's repeat (default: the smallest multiple >= "
+		          "4, so 5x5 for the 5-end weaves)"),
+		OPT_SIZE3(0, "block", block, "B1xB2xB3", 0, UINT32_MAX,
+		          "block size in voxels (overrides the preset)"),
+		OPT_DOUBLE(0, "voxel-size", &vs, "UM", "(]", 0, 10000, "micrometres",
+		           "voxel edge in micrometres, %r (overrides the preset)"),
+		OPT_SIZE3(0, "brick", brick, "XxYxZ", 0, UINT32_MAX,
+		          "brick shape (default 16x16x64)"),
+		OPT_U32(0, "level", &level, "L", 1, 12, "libdeflate level %r (default 6)"),
+		OPT_THREADS(&threads, 64, "worker threads (default 2; %r)"),
+		OPT_FLAG(0, "scan", &scan, "write a scan-like volume of a woven sheet instead, "
+		         "for loom exemplar build (its options: loom exemplar generate --scan "
+		         "--help)"),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_QUIET(&quiet, "no progress or summary"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = usage_generate, .about = about_generate,
+	              .opts = opts};
 
-	cli_init(&a, argc, argv, prog, help_generate);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--preset", &preset) || cli_value(&a, "--weaves", &weaves) ||
-		    cli_value(&a, "--seed", &seed_s) || cli_value(&a, "--crossings", &cross_s) ||
-		    cli_value(&a, "--block", &block_s) ||
-		    cli_value(&a, "--voxel-size", &vs_s) || cli_value(&a, "--brick", &brick_s) ||
-		    cli_value(&a, "--level", &level_s) || cli_value(&a, "--threads", &threads_s))
-			continue;
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	opts_parse(&c, argc, argv);
 	if (!out)
-		cli_usage(&a, "missing -o DB");
+		opts_usage(&c, "missing -o DB");
 	if (loom_exgen_preset(preset, &p) != LOOM_OK)
-		cli_usage(&a, "unknown preset '%s' (expected small, paper or tiny)", preset);
+		opts_usage(&c, "--preset: expected small, paper or tiny, got '%s'", preset);
 	if (weaves) {
 		char *s, *tok, *save = NULL;
 		wbuf = strdup(weaves);
@@ -163,35 +137,29 @@ static int sub_generate(int argc, char **argv)
 		p.n_weaves = 0;
 		for (s = wbuf; (tok = strtok_r(s, ",", &save)) != NULL; s = NULL) {
 			if (p.n_weaves == LOOM_EXGEN_MAX_WEAVES)
-				cli_usage(&a, "more than %d weaves", LOOM_EXGEN_MAX_WEAVES);
+				opts_usage(&c, "more than %d weaves", LOOM_EXGEN_MAX_WEAVES);
 			p.weaves[p.n_weaves++] = tok;
 		}
 		if (p.n_weaves == 0)
-			cli_usage(&a, "--weaves needs at least one weave");
+			opts_usage(&c, "--weaves needs at least one weave");
 	}
-	if (seed_s && cli_parse_u64(seed_s, &p.seed))
-		cli_usage(&a, "bad --seed '%s'", seed_s);
-	if (cross_s && (cli_parse_size2(cross_s, &p.rows, &p.cols) || !p.rows || !p.cols))
-		cli_usage(&a, "bad --crossings '%s' (expected RxC)", cross_s);
-	if (block_s && exemplar_parse_size3(block_s, p.block))
-		cli_usage(&a, "bad --block '%s' (expected B1xB2xB3)", block_s);
-	if (brick_s && exemplar_parse_size3(brick_s, p.brick))
-		cli_usage(&a, "bad --brick '%s' (expected XxYxZ)", brick_s);
-	if (vs_s) {
-		double d;
-		if (cli_parse_double(vs_s, &d) || !(d > 0) || d > 10000)
-			cli_usage(&a, "bad --voxel-size '%s'", vs_s);
-		p.voxel_size_um = (float)d;
+	/* the options override the preset */
+	if (opt_given(&c, &seed))
+		p.seed = seed;
+	if (opt_given(&c, cross)) {
+		p.rows = cross[0];
+		p.cols = cross[1];
 	}
-	if (level_s) {
-		uint32_t l;
-		if (cli_parse_u32(level_s, &l) || l < 1 || l > 12)
-			cli_usage(&a, "bad --level '%s' (expected 1..12)", level_s);
-		p.level = (int)l;
-	}
-	if (threads_s && (cli_parse_u32(threads_s, &p.threads) || !p.threads ||
-	                  p.threads > 64))
-		cli_usage(&a, "bad --threads '%s' (expected 1..64)", threads_s);
+	if (opt_given(&c, block))
+		memcpy(p.block, block, sizeof p.block);
+	if (opt_given(&c, brick))
+		memcpy(p.brick, brick, sizeof p.brick);
+	if (opt_given(&c, &vs))
+		p.voxel_size_um = (float)vs;
+	if (opt_given(&c, &level))
+		p.level = (int)level;
+	if (opt_given(&c, &threads))
+		p.threads = threads;
 	memset(&ps, 0, sizeof ps);
 	ps.on = !quiet && isatty(2);
 	ps.last_pct = -1;
@@ -238,35 +206,28 @@ static int sub_generate(int argc, char **argv)
 	return 0;
 }
 
+/* generate, or generate --scan when --scan is among the arguments. */
+static int sub_generate_any(int argc, char **argv)
+{
+	for (int i = 1; i < argc; i++)
+		if (strcmp(argv[i], "--scan") == 0)
+			return exemplar_generate_scan(argc, argv);
+	return sub_generate(argc, argv);
+}
+
 int cmd_exemplar(int argc, char **argv)
 {
-	const char *sub;
+	static const opts_sub subs[] = {
+		{"generate", NULL, sub_generate_any, "make procedural CT-like exemplars into a "
+		 "new database\n(--scan: a scan-like volume of a woven sheet, for build)"},
+		{"build", NULL, exemplar_build, "turn a scan into an exemplar appended to a "
+		 "database"},
+		{"info", NULL, exemplar_info, "list a database's exemplars"},
+		{"verify", NULL, exemplar_verify, "check every brick and checksum of a database"},
+		{"export", NULL, exemplar_export, "write one exemplar volume as NRRD"},
+		{NULL, NULL, NULL, NULL},
+	};
+	static const opts_dispatch d = {"loom exemplar", about_main, footer_main, subs};
 
-	if (argc < 2) {
-		fputs(help_main, stderr);
-		return EXIT_USAGE;
-	}
-	sub = argv[1];
-	if (strcmp(sub, "--help") == 0 || strcmp(sub, "-h") == 0 ||
-	    strcmp(sub, "help") == 0) {
-		fputs(help_main, stdout);
-		return 0;
-	}
-	if (strcmp(sub, "generate") == 0) {
-		for (int i = 2; i < argc; i++)
-			if (strcmp(argv[i], "--scan") == 0)
-				return exemplar_generate_scan(argc - 1, argv + 1);
-		return sub_generate(argc - 1, argv + 1);
-	}
-	if (strcmp(sub, "build") == 0)
-		return exemplar_build(argc - 1, argv + 1);
-	if (strcmp(sub, "info") == 0)
-		return exemplar_info(argc - 1, argv + 1);
-	if (strcmp(sub, "verify") == 0)
-		return exemplar_verify(argc - 1, argv + 1);
-	if (strcmp(sub, "export") == 0)
-		return exemplar_export(argc - 1, argv + 1);
-	fprintf(stderr, "loom exemplar: unknown command '%s'\nTry 'loom exemplar "
-	        "--help'.\n", sub);
-	return EXIT_USAGE;
+	return opts_run_sub(&d, argc, argv);
 }

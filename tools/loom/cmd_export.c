@@ -160,7 +160,7 @@ int cmd_export(int argc, char **argv)
 	double t0, secs;
 	char params[2048], cl[160] = "";
 	uint8_t *fbuf;
-	opt opts[] = {
+	opt_entry opts[] = {
 		TILES_OPT_REGION(&j),
 		TILES_OPT_ALL(&j),
 		TILES_OPT_BOLT(&j),

@@ -38,7 +38,7 @@ int cmd_info(int argc, char **argv)
 	const loom_design *d;
 	loom_diag diag;
 	struct stat st;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_DB(&db_opt, "check the fabric against this database: exit 1 if its content "
 		       "hash differs (without --db the path recorded in the fabric is checked, "
 		       "if it exists)"),

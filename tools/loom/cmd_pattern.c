@@ -287,7 +287,7 @@ static int pattern_make(int argc, char **argv)
 	loom_design *d = NULL;
 	loom_diag diag;
 	int rc;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_U32(0, "over", &m.over, "N", 1, UINT32_MAX,
 		        "warp-over picks per repeat (basket: rows per block)"),
 		OPT_U32(0, "under", &m.under, "N", 1, UINT32_MAX,
@@ -329,7 +329,7 @@ static int pattern_convert(int argc, char **argv)
 {
 	pat_opts o = {0};
 	loom_diag diag;
-	opt opts[] = {
+	opt_entry opts[] = {
 		PAT_OPT_OUT(&o, "the weave image to write"),
 		PAT_OPT_MAPS_IN(&o),
 		PAT_OPT_MAPS_OUT(&o),
@@ -352,7 +352,7 @@ static int pattern_from_image(int argc, char **argv)
 {
 	pat_opts o = {0};
 	loom_diag diag;
-	opt opts[] = {
+	opt_entry opts[] = {
 		PAT_OPT_MAP(&o, "the mapping file (required)"),
 		PAT_OPT_OUT(&o, "the weave image to write (.pbm or .png)"),
 		PAT_OPT_MAPS_OUT(&o),
@@ -472,7 +472,7 @@ static int pattern_info(int argc, char **argv)
 	loom_design *d;
 	loom_design_stats st;
 	uint8_t used[256];
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_JSON(&o.json, "JSON output (keys in docs/designs.md)"),
 		PAT_OPT_MAP(&o, "IN is a posterized image: map it as from-image does"),
 		PAT_OPT_MAPS_IN(&o),

@@ -134,7 +134,7 @@ int cmd_preview(int argc, char **argv)
 	float *rgb = NULL, *hm = NULL;
 	loom_diag diag;
 	double t0;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_CALLBACK(0, "region", &box, "BOX", opt_region, "voxels, half-open: x across "
 		             "the ends, y along the warps (integers within +-2^46, the preview's "
 		             "limit; the bolt is unbounded); "

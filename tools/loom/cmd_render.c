@@ -117,7 +117,7 @@ int cmd_render(int argc, char **argv)
 	float *rgb = NULL;
 	rprog pr;
 	loom_diag diag;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_U32(0, "width", &width, "W", 1, 65536, "image width, %r (default 480)"),
 		OPT_U32(0, "height", &height, "H", 1, 65536, "image height, %r (default 320)"),
 		OPT_U32(0, "spp", &spp, "N", 1, 1000000, "samples per pixel, %r (default 16)"),

@@ -339,7 +339,7 @@ int cmd_sample(int argc, char **argv)
 	loom_fabric *f = NULL;
 	loom_texture *t = NULL;
 	loom_diag diag;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_CALLBACK(0, "at", &at, "X,Y,Z", parse_at, AT_HELP),
 		OPT_ENUM(0, "filter", &filter, "F", filter_names, "nearest (default: the voxel "
 		         "containing the position; integers name voxels) or trilinear (voxel "

@@ -585,7 +585,7 @@ int cmd_scan(int argc, char **argv)
 	const loom_design *d;
 	size_t ncol, nz, per;
 	double t0, secs, cpu0, cpu;
-	opt opts[] = {
+	opt_entry opts[] = {
 		TILES_OPT_REGION(&j),
 		TILES_OPT_ALL(&j),
 		TILES_OPT_BOLT(&j),

@@ -445,7 +445,7 @@ int cmd_synth(int argc, char **argv)
 	loom_diag diag;
 	run r;
 	double t0;
-	opt opts[] = {
+	opt_entry opts[] = {
 		OPT_OUTPUT(&out, "FABRIC", "fabric file to write (.loomf), atomically"),
 		OPT_DB(&db_opt, "exemplar database (default: $LOOM_DB, then default.ldb in "
 		       "the data directory)"),

@@ -15,9 +15,6 @@ int exemplar_info(int argc, char **argv);          /* exemplar_info.c */
 int exemplar_verify(int argc, char **argv);
 int exemplar_export(int argc, char **argv);
 
-/* "AxBxC" (or "A,B,C") into v; 0, or -1 on bad text (cmd_exemplar.c). */
-int exemplar_parse_size3(const char *s, uint32_t v[3]);
-
 /* 1 if s ends in suf (case-sensitive). */
 static inline int exemplar_ends_with(const char *s, const char *suf)
 {

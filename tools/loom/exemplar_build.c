@@ -5,6 +5,7 @@
  */
 #include "cli.h"
 #include "exemplar.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <stdint.h>
@@ -13,50 +14,25 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static const char help_build[] =
-	"usage: loom exemplar build SCAN [--orientation ORIENT] --warps N --wefts N\n"
-	"                           [--raw-dims X,Y,Z --raw-type u8|u16|f32]\n"
-	"                           [--voxel-mm S] [--block B1xB2] [--depth B3]\n"
-	"                           [--name NAME] [--weave-name S] [--threads N]\n"
-	"                           [--json] [--quiet] --db DB\n"
-	"\n"
+static const char usage_build[] =
+	"loom exemplar build SCAN [--orientation ORIENT] --warps N --wefts N\n"
+	"                    [--raw-dims X,Y,Z --raw-type u8|u16|f32]\n"
+	"                    [--voxel-mm S] [--block B1xB2] [--depth B3]\n"
+	"                    [--name NAME] [--weave-name S] [--threads N]\n"
+	"                    [--json] [--quiet] --db DB\n";
+
+static const char about_build[] =
 	"Turn a scan of a simple weave into one exemplar (paper section 6) and\n"
 	"append it to the database DB, creating DB if it does not exist.  Steps:\n"
 	"denoise, orientation (estimated from the density when no ORIENT is\n"
 	"given), endpoints, tracking, weave by linking integrals, segmentation,\n"
 	"alignment, registration, crop (docs/scan.md).  Prints what each step\n"
 	"found; fails (exit 1) with the step's message when the data do not\n"
-	"support it (too noisy, another number of yarns than given).\n"
-	"\n"
-	"input (by extension):\n"
-	"  SCAN.vol            Mitsuba grid, 1 channel (uint8, float16 or float32)\n"
-	"  SCAN.nrrd / .nhdr   NRRD, 1 channel (integers scaled to 0..1)\n"
-	"  anything else       raw: needs --raw-dims and --raw-type\n"
-	"  --orientation F     fibre directions: .vol with 3 float channels or the\n"
-	"                      quantized encoding 4, or a 3-vector NRRD\n"
-	"  --raw-dims X,Y,Z    voxels of a raw scan (x fastest)\n"
-	"  --raw-type T        u8 (/255), u16 (/65535) or f32 (as is)\n"
-	"  --voxel-mm S        voxel edge in mm (default: the file's spacing for\n"
-	"                      NRRD and .vol, else 0.005); float densities outside\n"
-	"                      [0,1] are rescaled by their range (a warning)\n"
-	"\n"
-	"pipeline:\n"
-	"  --warps N, --wefts N  yarns in the scan, cut border yarns included\n"
-	"                      (required)\n"
-	"  --block B1xB2       crossing size in voxels (default: DB's when it\n"
-	"                      exists, else the measured yarn spacing)\n"
-	"  --depth B3          output depth, centred on the cloth (default: DB's,\n"
-	"                      else the scan's nz)\n"
-	"  --threads N         worker threads (default 2)\n"
-	"\n"
-	"output:\n"
-	"  --db DB             database to append to (created if absent)\n"
-	"  --name NAME         exemplar name (default: the scan's file name)\n"
-	"  --weave-name S      weave recorded with it (default \"\")\n"
-	"  --json              JSON: weave (one 0/1 string per pick of the crop),\n"
-	"                      rotation_degrees, crop [x0, y0, w, h] (aligned frame),\n"
-	"                      warps, wefts (tracked), crossings, block, ...\n"
-	"  --quiet             no report, no progress\n";
+	"support it (too noisy, another number of yarns than given).\n";
+
+static const opt_choice raw_types[] = {
+	{"u8", LOOM_SCALAR_U8}, {"u16", LOOM_SCALAR_U16}, {"f32", LOOM_SCALAR_F32},
+	{NULL, 0}};
 
 /* Read a 1- or 3-channel volume into floats (malloc'ed, nx*ny*nz*ch). */
 static float *read_volume(const char *prog, const char *path, uint32_t want_ch,
@@ -191,12 +167,10 @@ static void weave_rows(json_w *w, const char *key, const uint8_t *W, uint32_t ro
 int exemplar_build(int argc, char **argv)
 {
 	const char *prog = "loom exemplar build";
-	const char *scan = NULL, *orient_p = NULL, *dims_s = NULL, *type_s = NULL;
-	const char *vs_s = NULL, *warps_s = NULL, *wefts_s = NULL, *block_s = NULL;
-	const char *depth_s = NULL, *name = NULL, *wname = "", *db = NULL, *threads_s = NULL;
+	const char *scan = NULL, *orient_p = NULL, *name = NULL, *wname = "", *db = NULL;
 	int json = 0, quiet = 0, raw_type = LOOM_SCALAR_U8, rc, appended = 0;
-	uint32_t raw_dims[3], dims[3], odims[3];
-	double sp = 0, osp, voxel_mm;
+	uint32_t raw_dims[3], dims[3], odims[3], block[2];
+	double sp = 0, osp, voxel_mm = 0;
 	char namebuf[32];
 	loom_scan_params p;
 	loom_scan_db_params dp;
@@ -205,75 +179,57 @@ int exemplar_build(int argc, char **argv)
 	loom_diag diag;
 	build_progress bp;
 	struct stat st;
-	cli_args a;
 	size_t n;
+	opt_entry opts[] = {
+		OPT_GROUP("input (by extension):"),
+		OPT_TEXT("SCAN.vol", "Mitsuba grid, 1 channel (uint8, float16 or float32)"),
+		OPT_TEXT("SCAN.nrrd / .nhdr", "NRRD, 1 channel (integers scaled to 0..1)"),
+		OPT_TEXT("anything else", "raw: needs --raw-dims and --raw-type"),
+		OPT_STRING(0, "orientation", &orient_p, "ORIENT", "fibre directions: .vol with 3 "
+		           "float channels or the quantized encoding 4, or a 3-vector NRRD"),
+		OPT_SIZE3(0, "raw-dims", raw_dims, "X,Y,Z", 1, UINT32_MAX,
+		          "voxels of a raw scan (x fastest)"),
+		OPT_ENUM(0, "raw-type", &raw_type, "T", raw_types,
+		         "u8 (/255), u16 (/65535) or f32 (as is)"),
+		OPT_DOUBLE(0, "voxel-mm", &voxel_mm, "S", "(]", 0, 100, "mm", "voxel edge in "
+		           "mm, %r (default: the file's spacing for NRRD and .vol, else 0.005); "
+		           "float densities outside [0,1] are rescaled by their range (a "
+		           "warning)"),
+		OPT_GROUP("pipeline:"),
+		OPT_U32(0, "warps", &p.n_warps, "N", 2, LOOM_SCAN_MAX_YARNS, "warps in the "
+		        "scan, cut border yarns included, %r (required)"),
+		OPT_U32(0, "wefts", &p.n_wefts, "N", 2, LOOM_SCAN_MAX_YARNS, "wefts in the "
+		        "scan, likewise (required)"),
+		OPT_SIZE2(0, "block", block, "B1xB2", 1, 4096, "crossing size in voxels, "
+		          "%r (default: DB's when it exists, else the measured yarn spacing)"),
+		OPT_U32(0, "depth", &p.block_z, "B3", 1, 4096, "output depth, centred on the "
+		        "cloth, %r (default: DB's, else the scan's nz)"),
+		OPT_THREADS(&p.threads, 64, "worker threads (default 2; %r)"),
+		OPT_GROUP("output:"),
+		OPT_DB(&db, "database to append to (created if absent)"),
+		OPT_STRING(0, "name", &name, "NAME", "exemplar name, 1..31 bytes (default: the "
+		           "scan's file name)"),
+		OPT_STRING(0, "weave-name", &wname, "S", "weave recorded with it (default \"\")"),
+		OPT_JSON(&json, "JSON: weave (one 0/1 string per pick of the crop), "
+		         "rotation_degrees, crop [x0, y0, w, h] (aligned frame), warps, wefts "
+		         "(tracked), crossings, block, ..."),
+		OPT_QUIET(&quiet, "no report, no progress"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = usage_build, .about = about_build,
+	              .opts = opts, .pos_name = "SCAN", .pos_min = 1, .pos_max = 1,
+	              .pos = &scan};
 
-	cli_init(&a, argc, argv, prog, help_build);
-	while (cli_more(&a)) {
-		const char *s;
-		if (cli_value(&a, "--orientation", &orient_p) ||
-		    cli_value(&a, "--raw-dims", &dims_s) || cli_value(&a, "--raw-type", &type_s) ||
-		    cli_value(&a, "--voxel-mm", &vs_s) || cli_value(&a, "--warps", &warps_s) ||
-		    cli_value(&a, "--wefts", &wefts_s) || cli_value(&a, "--block", &block_s) ||
-		    cli_value(&a, "--depth", &depth_s) || cli_value(&a, "--name", &name) ||
-		    cli_value(&a, "--weave-name", &wname) || cli_value(&a, "--db", &db) ||
-		    cli_value(&a, "--threads", &threads_s))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if (!scan && (s = cli_positional(&a)) != NULL) {
-			scan = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!scan)
-		cli_usage(&a, "missing SCAN");
-	if (!db)
-		cli_usage(&a, "missing --db DB");
 	loom_scan_params_init(&p);
-	if (!warps_s || !wefts_s)
-		cli_usage(&a, "--warps N and --wefts N are required (yarns in the scan)");
-	if (cli_parse_u32(warps_s, &p.n_warps) || p.n_warps < 2 ||
-	    p.n_warps > LOOM_SCAN_MAX_YARNS)
-		cli_usage(&a, "bad --warps '%s' (expected 2..%d)", warps_s, LOOM_SCAN_MAX_YARNS);
-	if (cli_parse_u32(wefts_s, &p.n_wefts) || p.n_wefts < 2 ||
-	    p.n_wefts > LOOM_SCAN_MAX_YARNS)
-		cli_usage(&a, "bad --wefts '%s' (expected 2..%d)", wefts_s, LOOM_SCAN_MAX_YARNS);
-	if (block_s && (cli_parse_size2(block_s, &p.block_x, &p.block_y) || !p.block_x ||
-	                !p.block_y || p.block_x > 4096 || p.block_y > 4096))
-		cli_usage(&a, "bad --block '%s' (expected B1xB2)", block_s);
-	if (depth_s && (cli_parse_u32(depth_s, &p.block_z) || !p.block_z ||
-	                p.block_z > 4096))
-		cli_usage(&a, "bad --depth '%s' (expected 1..4096)", depth_s);
-	if (threads_s && (cli_parse_u32(threads_s, &p.threads) || !p.threads ||
-	                  p.threads > 64))
-		cli_usage(&a, "bad --threads '%s' (expected 1..64)", threads_s);
-	if (dims_s) {
-		char buf[96];
-		snprintf(buf, sizeof buf, "%s", dims_s);
-		if (exemplar_parse_size3(buf, raw_dims) || !raw_dims[0] || !raw_dims[1] || !raw_dims[2])
-			cli_usage(&a, "bad --raw-dims '%s' (expected X,Y,Z)", dims_s);
+	opts_parse(&c, argc, argv);
+	if (!db)
+		opts_usage(&c, "missing --db DB");
+	if (!opt_given(&c, &p.n_warps) || !opt_given(&c, &p.n_wefts))
+		opts_usage(&c, "--warps N and --wefts N are required (yarns in the scan)");
+	if (opt_given(&c, block)) {
+		p.block_x = block[0];
+		p.block_y = block[1];
 	}
-	if (type_s) {
-		if (strcmp(type_s, "u8") == 0)
-			raw_type = LOOM_SCALAR_U8;
-		else if (strcmp(type_s, "u16") == 0)
-			raw_type = LOOM_SCALAR_U16;
-		else if (strcmp(type_s, "f32") == 0)
-			raw_type = LOOM_SCALAR_F32;
-		else
-			cli_usage(&a, "bad --raw-type '%s' (expected u8, u16 or f32)", type_s);
-	}
-	voxel_mm = 0;
-	if (vs_s && (cli_parse_double(vs_s, &voxel_mm) || !(voxel_mm > 0) || voxel_mm > 100))
-		cli_usage(&a, "bad --voxel-mm '%s'", vs_s);
 	if (!name) {
 		const char *b = strrchr(scan, '/'), *dot;
 		size_t len;
@@ -287,7 +243,7 @@ int exemplar_build(int argc, char **argv)
 		name = namebuf[0] ? namebuf : "scan";
 	}
 	if (!name[0] || strlen(name) > 31)
-		cli_usage(&a, "bad --name '%s' (1..31 bytes)", name);
+		opts_usage(&c, "--name: expected 1..31 bytes, got '%s'", name);
 	cli_diag_init(&diag, &quiet);
 	/* the database's block, when it exists */
 	if (stat(db, &st) == 0) {
@@ -303,15 +259,15 @@ int exemplar_build(int argc, char **argv)
 			         "--name", db, k, name);
 		}
 		loom_db_close(d);
-		if (!block_s) {
+		if (!opt_given(&c, block)) {
 			p.block_x = info.block[0];
 			p.block_y = info.block[1];
 		}
-		if (!depth_s)
+		if (!opt_given(&c, &p.block_z))
 			p.block_z = info.block[2];
 	}
 	memset(&v, 0, sizeof v);
-	v.density = read_volume(prog, scan, 1, dims_s ? raw_dims : NULL, raw_type, dims,
+	v.density = read_volume(prog, scan, 1, opt_given(&c, raw_dims) ? raw_dims : NULL, raw_type, dims,
 	                        &sp, &diag);
 	v.nx = dims[0];
 	v.ny = dims[1];
@@ -333,7 +289,7 @@ int exemplar_build(int argc, char **argv)
 		}
 	}
 	if (orient_p) {
-		v.orient = read_volume(prog, orient_p, 3, dims_s ? raw_dims : NULL,
+		v.orient = read_volume(prog, orient_p, 3, opt_given(&c, raw_dims) ? raw_dims : NULL,
 		                       LOOM_SCALAR_F32, odims, &osp, &diag);
 		if (odims[0] != v.nx || odims[1] != v.ny || odims[2] != v.nz)
 			cli_fail(prog, "%s is %ux%ux%u, the scan %ux%ux%u", orient_p, odims[0],

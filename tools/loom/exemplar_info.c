@@ -5,45 +5,35 @@
  */
 #include "cli.h"
 #include "exemplar.h"
+#include "opts.h"
 
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
-static const char help_info[] =
-	"usage: loom exemplar info [DB] [--db DB] [--json]\n"
-	"\n"
+static const char about_info[] =
 	"List the exemplars of a database: weave, crossings, block size, voxel\n"
-	"count, raw and compressed bytes, compression ratio.\n"
-	"\n"
-	"options:\n"
-	"  --db DB    database (or give it as the first argument)\n"
-	"  --json     JSON object with an \"exemplars\" array (name, weave: one\n"
-	"             string of 0/1 per pick, crossings, block, raw_bytes,\n"
-	"             compressed_bytes, ...)\n";
+	"count, raw and compressed bytes, compression ratio.\n";
 
-static const char help_verify[] =
-	"usage: loom exemplar verify [DB] [--db DB] [--quiet]\n"
-	"\n"
+static const char about_verify[] =
 	"Read every brick of a database, check its CRC32, decompress it to the\n"
 	"exact size and check its labels.  Exit status 0 when all are good, 1\n"
 	"naming the first bad brick otherwise.\n";
 
-static const char help_export[] =
-	"usage: loom exemplar export [DB] [--db DB] --exemplar K -o FILE\n"
-	"                            [--channel C] [--detached]\n"
-	"\n"
+static const char about_export[] =
 	"Write one exemplar volume as NRRD (raw data, axes x y z, spacing = voxel\n"
-	"size in mm) for viewing in standard tools (unu, ParaView, 3D Slicer).\n"
-	"\n"
-	"options:\n"
-	"  --exemplar K    exemplar name or index (see `loom exemplar info`)\n"
-	"  -o, --output F  output file: F.nrrd (attached) or F.nhdr (detached)\n"
-	"  --channel C     density (uint8, default), label (uint8), kind (uint8:\n"
-	"                  0 empty, 1 warp, 2 weft), orientation (3 x float32)\n"
-	"                  or orient-code (uint16)\n"
-	"  --detached      header in FILE, data in FILE with the extension .raw\n";
+	"size in mm) for viewing in standard tools (unu, ParaView, 3D Slicer).\n";
+
+#define DB_POS_HELP "database (or give it as the first argument)"
+
+/* --channel: a name loom_db_channel_parse knows. */
+static const char *opt_channel(const char *text, void *channel)
+{
+	if (loom_db_channel_parse(text, channel) != LOOM_OK)
+		return "density, label, kind, orientation or orient-code";
+	return NULL;
+}
 
 /* ---- shared: open the database of info/verify/export ---------------------- */
 
@@ -70,27 +60,23 @@ static void weave_row(const loom_db_exemplar_info *e, uint32_t r, char *buf)
 
 int exemplar_info(int argc, char **argv)
 {
-	const char *prog = "loom exemplar info", *dbopt = NULL, *pos = NULL, *s;
+	const char *prog = "loom exemplar info", *dbopt = NULL, *pos = NULL;
 	int json = 0;
 	loom_db *db;
 	loom_db_info info;
 	char hs[32], row[1100];
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_DB(&dbopt, DB_POS_HELP),
+		OPT_JSON(&json, "JSON object with an \"exemplars\" array (name, weave: one "
+		         "string of 0/1 per pick, crossings, block, raw_bytes, "
+		         "compressed_bytes, ...)"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = "loom exemplar info [DB] [--db DB] [--json]",
+	              .about = about_info, .opts = opts, .pos_name = "DB", .pos_max = 1,
+	              .pos = &pos};
 
-	cli_init(&a, argc, argv, prog, help_info);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "--db", &dbopt))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (!pos && (s = cli_positional(&a)) != NULL) {
-			pos = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	opts_parse(&c, argc, argv);
 	db = open_db(prog, pos, dbopt);
 	loom_db_get_info(db, &info);
 	snprintf(hs, sizeof hs, "%016llx", (unsigned long long)info.content_hash);
@@ -216,27 +202,21 @@ static void verify_progress(void *user, uint64_t done, uint64_t total)
 
 int exemplar_verify(int argc, char **argv)
 {
-	const char *prog = "loom exemplar verify", *dbopt = NULL, *pos = NULL, *s;
+	const char *prog = "loom exemplar verify", *dbopt = NULL, *pos = NULL;
 	int quiet = 0, rc;
 	loom_db *db;
 	loom_db_info info;
 	loom_diag diag;
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_DB(&dbopt, DB_POS_HELP),
+		OPT_QUIET(&quiet, "no progress, no summary: the exit status says"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = "loom exemplar verify [DB] [--db DB] [--quiet]",
+	              .about = about_verify, .exit1 = "a bad brick or file", .opts = opts,
+	              .pos_name = "DB", .pos_max = 1, .pos = &pos};
 
-	cli_init(&a, argc, argv, prog, help_verify);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "--db", &dbopt))
-			continue;
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if (!pos && (s = cli_positional(&a)) != NULL) {
-			pos = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	opts_parse(&c, argc, argv);
 	db = open_db(prog, pos, dbopt);
 	cli_diag_init(&diag, &quiet);
 	rc = loom_db_verify(db, !quiet && isatty(2) ? verify_progress : NULL, NULL, &diag);
@@ -256,37 +236,35 @@ int exemplar_verify(int argc, char **argv)
 
 int exemplar_export(int argc, char **argv)
 {
-	const char *prog = "loom exemplar export", *dbopt = NULL, *pos = NULL, *s;
-	const char *ex = NULL, *out = NULL, *ch = "density";
-	int detached = 0, channel;
+	const char *prog = "loom exemplar export", *dbopt = NULL, *pos = NULL;
+	const char *ex = NULL, *out = NULL;
+	int detached = 0, channel = LOOM_DB_CH_DENSITY;
 	uint32_t k;
 	loom_db *db;
 	loom_diag diag;
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_DB(&dbopt, DB_POS_HELP),
+		OPT_STRING(0, "exemplar", &ex, "K",
+		           "exemplar name or index (see `loom exemplar info`)"),
+		OPT_OUTPUT(&out, "FILE", "output file: FILE.nrrd (attached) or FILE.nhdr "
+		           "(detached)"),
+		OPT_CALLBACK(0, "channel", &channel, "C", opt_channel, "density (uint8, "
+		             "default), label (uint8), kind (uint8: 0 empty, 1 warp, 2 weft), "
+		             "orientation (3 x float32) or orient-code (uint16)"),
+		OPT_FLAG(0, "detached", &detached,
+		         "header in FILE, data in FILE with the extension .raw"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = "loom exemplar export [DB] [--db DB] "
+	              "--exemplar K -o FILE\n                     [--channel C] [--detached]",
+	              .about = about_export, .opts = opts, .pos_name = "DB", .pos_max = 1,
+	              .pos = &pos};
 
-	cli_init(&a, argc, argv, prog, help_export);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "--db", &dbopt) || cli_value(&a, "--exemplar", &ex) ||
-		    cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--channel", &ch))
-			continue;
-		if (cli_flag(&a, "--detached")) {
-			detached = 1;
-			continue;
-		}
-		if (!pos && (s = cli_positional(&a)) != NULL) {
-			pos = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	opts_parse(&c, argc, argv);
 	if (!ex)
-		cli_usage(&a, "missing --exemplar K");
+		opts_usage(&c, "missing --exemplar K");
 	if (!out)
-		cli_usage(&a, "missing -o FILE");
-	if (loom_db_channel_parse(ch, &channel) != LOOM_OK)
-		cli_usage(&a, "unknown channel '%s' (expected density, label, kind, "
-		          "orientation or orient-code)", ch);
+		opts_usage(&c, "missing -o FILE");
 	db = open_db(prog, pos, dbopt);
 	if (loom_db_find_exemplar(db, ex, &k) != LOOM_OK) {
 		loom_db_close(db);

@@ -6,6 +6,7 @@
  */
 #include "cli.h"
 #include "exemplar.h"
+#include "opts.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -104,56 +105,83 @@ static char *sibling(const char *path, const char *tag)
 	return s;
 }
 
-static const char help_generate_scan[] =
-	"usage: loom exemplar generate --scan [--preset small|paper] [--weave NAME]\n"
-	"                              [--crossings WxF] [--rotate DEG] [--offset X,Y]\n"
-	"                              [--noise S] [--blur S] [--no-orientation]\n"
-	"                              [--density u8|f32] [--orient f32|qdir]\n"
-	"                              [--seed N] [--threads N] [--quiet]\n"
-	"                              -o SCAN.vol|SCAN.nrrd [--truth TRUTH.json]\n"
-	"\n"
+static const char usage_scan[] =
+	"loom exemplar generate --scan [--preset small|paper] [--weave NAME]\n"
+	"                       [--crossings WxF] [--rotate DEG] [--offset X,Y]\n"
+	"                       [--noise S] [--blur S] [--no-orientation]\n"
+	"                       [--density u8|f32] [--orient f32|qdir]\n"
+	"                       [--seed N] [--threads N] [--quiet]\n"
+	"                       -o SCAN.vol|SCAN.nrrd [--truth TRUTH.json]\n";
+
+static const char about_scan[] =
 	"Write what a micro-CT scanner would give for a woven sheet, for testing\n"
 	"`loom exemplar build`: yarns cut at the borders, the sheet turned about z\n"
 	"and offset from the volume's corner, blurred and noisy density, and\n"
-	"(unless --no-orientation) the fibre orientation.  Deterministic.\n"
-	"\n"
-	"options:\n"
-	"  -o, --output F     density: F.vol (Mitsuba grid) or F.nrrd; orientation\n"
-	"                     goes to F-orient.vol / F-orient.nrrd\n"
-	"  --preset NAME      small (default: 160x160x40 voxels, 7 warps x 9 wefts\n"
-	"                     24 x 18 voxels apart, 24 um voxels) or paper (1000 x\n"
-	"                     1000 x 300, spacing 115 x 70 voxels of 5 um); paper:N\n"
-	"                     scales the paper sheet to N x N x 0.3N\n"
-	"  --weave NAME       loom pattern name (default twill:2/3)\n"
-	"  --crossings WxF    warps x wefts of the sheet (default: the preset's);\n"
-	"                     the volume grows or shrinks to hold them\n"
-	"  --rotate DEG       rotation about z, counter-clockwise (default 3)\n"
-	"  --offset X,Y       aligned position of warp 0 and weft 0 (voxels;\n"
-	"                     default the preset's)\n"
-	"  --noise S          Gaussian noise sigma on density (default 0.08)\n"
-	"  --blur S           Gaussian blur sigma in voxels (default 0.8)\n"
-	"  --no-orientation   write the density only\n"
-	"  --density T        u8 (default) or f32 samples\n"
-	"  --orient E         f32 (3 floats, default) or qdir (.vol encoding 4)\n"
-	"  --seed N           random seed (default 7)\n"
-	"  --truth F.json     ground truth for tests: weave of the complete\n"
-	"                     crossings (one 0/1 string per pick), rotation_degrees,\n"
-	"                     crop [x0, y0, width, height] (aligned frame, voxels),\n"
-	"                     warps, wefts, ...; labels (0 empty, 1..W warps by x,\n"
-	"                     W+1.. wefts by y) to F-labels.nrrd (uchar)\n"
-	"  --pure-noise       uniform noise instead of a sheet (bad-scan tests)\n"
-	"  --threads N        worker threads (default 2)\n"
-	"  --quiet            no summary\n";
+	"(unless --no-orientation) the fibre orientation.  Deterministic.\n";
+
+static const opt_choice density_types[] = {{"u8", 1}, {"f32", 0}, {NULL, 0}};
+static const opt_choice orient_types[] = {{"f32", 0}, {"qdir", 1}, {NULL, 0}};
+
+/* --preset: a sheet loom_scan_sheet_preset knows. */
+static const char *opt_preset(const char *text, void *dest)
+{
+	loom_scan_sheet s;
+
+	*(const char **)dest = text;
+	return loom_scan_sheet_preset(text, &s) == LOOM_OK ? NULL : "small, paper or paper:N";
+}
+
+/* --weave: a weave name with a repeat (the reason in the message). */
+static const char *opt_weave(const char *text, void *dest)
+{
+	static char what[LOOM_DIAG_MSG_MAX + 32];
+	loom_weave_params wp;
+	loom_diag diag = {0};
+	uint32_t r, c;
+
+	*(const char **)dest = text;
+	if (loom_weave_parse(text, &wp, &diag) != LOOM_OK ||
+	    loom_weave_repeat(&wp, &r, &c, &diag) != LOOM_OK) {
+		snprintf(what, sizeof what, "a weave name (%s)", diag.message);
+		return what;
+	}
+	return NULL;
+}
+
+/* --offset X,Y: two numbers (their range depends on the preset). */
+struct offset {
+	double xy[2];
+	const char *text;
+};
+
+static const char *opt_offset(const char *text, void *dest)
+{
+	struct offset *o = dest;
+	double *xy = o->xy;
+	char buf[64], *c;
+
+	o->text = text;
+	if (strlen(text) >= sizeof buf)
+		return "X,Y";
+	strcpy(buf, text);
+	c = strchr(buf, ',');
+	if (!c)
+		return "X,Y";
+	*c++ = 0;
+	if (cli_parse_double(buf, &xy[0]) || cli_parse_double(c, &xy[1]))
+		return "X,Y (two numbers)";
+	return NULL;
+}
 
 int exemplar_generate_scan(int argc, char **argv)
 {
 	const char *prog = "loom exemplar generate --scan";
-	const char *out = NULL, *preset = "small", *weave = "twill:2/3", *cross_s = NULL;
-	const char *rot_s = NULL, *off_s = NULL, *noise_s = NULL, *blur_s = NULL;
-	const char *seed_s = NULL, *truth = NULL, *dens_s = "u8", *or_s = "f32";
-	const char *threads_s = NULL;
-	int quiet = 0, no_orient = 0, pure = 0, nrrd, rc;
-	uint32_t threads = 2;
+	const char *out = NULL, *preset = "small", *weave = "twill:2/3", *truth = NULL;
+	int quiet = 0, no_orient = 0, pure = 0, scan = 0, dens_u8 = 1, or_qdir = 0, nrrd, rc;
+	uint32_t threads = 2, cross[2];
+	uint64_t seed = 0;
+	double rot = 0, noise = 0, blur = 0;
+	struct offset off = {{0, 0}, NULL};
 	loom_scan_sheet s;
 	loom_weave_params wp;
 	uint32_t rr, rc_;
@@ -161,101 +189,85 @@ int exemplar_generate_scan(int argc, char **argv)
 	loom_scan_volume v;
 	loom_diag diag;
 	double vs_mm;
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_FLAG(0, "scan", &scan, "this form of generate: a scan-like volume"),
+		OPT_OUTPUT(&out, "F", "density: F.vol (Mitsuba grid) or F.nrrd; orientation "
+		           "goes to F-orient.vol / F-orient.nrrd"),
+		OPT_CALLBACK(0, "preset", &preset, "NAME", opt_preset, "small (default: "
+		             "160x160x40 voxels, 7 warps x 9 wefts 24 x 18 voxels apart, 24 um "
+		             "voxels) or paper (1000 x 1000 x 300, spacing 115 x 70 voxels of 5 "
+		             "um); paper:N scales the paper sheet to N x N x 0.3N"),
+		OPT_CALLBACK(0, "weave", &weave, "NAME", opt_weave,
+		             "loom pattern name (default twill:2/3)"),
+		OPT_SIZE2(0, "crossings", cross, "WxF", 3, LOOM_SCAN_MAX_YARNS, "warps x wefts "
+		          "of the sheet, %r (default: the preset's); the volume grows or "
+		          "shrinks to hold them"),
+		OPT_DOUBLE(0, "rotate", &rot, "DEG", "[]", -20, 20, "degrees",
+		           "rotation about z, counter-clockwise, %r (default 3)"),
+		OPT_CALLBACK(0, "offset", &off, "X,Y", opt_offset, "aligned position of warp 0 "
+		             "and weft 0 (voxels, -1..4 yarn spacings; default the preset's)"),
+		OPT_DOUBLE(0, "noise", &noise, "S", "[]", 0, 1, NULL,
+		           "Gaussian noise sigma on density, %r (default 0.08)"),
+		OPT_DOUBLE(0, "blur", &blur, "S", "[]", 0, 8, "voxels",
+		           "Gaussian blur sigma in voxels, %r (default 0.8)"),
+		OPT_FLAG(0, "no-orientation", &no_orient, "write the density only"),
+		OPT_ENUM(0, "density", &dens_u8, "T", density_types,
+		         "u8 (default) or f32 samples"),
+		OPT_ENUM(0, "orient", &or_qdir, "E", orient_types,
+		         "f32 (3 floats, default) or qdir (.vol encoding 4)"),
+		OPT_SEED(&seed, "N", "random seed (default 7)"),
+		OPT_STRING(0, "truth", &truth, "F.json", "ground truth for tests: weave of the "
+		           "complete crossings (one 0/1 string per pick), rotation_degrees, crop "
+		           "[x0, y0, width, height] (aligned frame, voxels), warps, wefts, ...; "
+		           "labels (0 empty, 1..W warps by x, W+1.. wefts by y) to "
+		           "F-labels.nrrd (uchar)"),
+		OPT_FLAG(0, "pure-noise", &pure,
+		         "uniform noise instead of a sheet (bad-scan tests)"),
+		OPT_THREADS(&threads, 64, "worker threads (default 2; %r)"),
+		OPT_QUIET(&quiet, "no summary"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = usage_scan, .about = about_scan,
+	              .opts = opts};
 
-	cli_init(&a, argc, argv, prog, help_generate_scan);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--preset", &preset) || cli_value(&a, "--weave", &weave) ||
-		    cli_value(&a, "--crossings", &cross_s) || cli_value(&a, "--rotate", &rot_s) ||
-		    cli_value(&a, "--offset", &off_s) || cli_value(&a, "--noise", &noise_s) ||
-		    cli_value(&a, "--blur", &blur_s) || cli_value(&a, "--seed", &seed_s) ||
-		    cli_value(&a, "--truth", &truth) || cli_value(&a, "--density", &dens_s) ||
-		    cli_value(&a, "--orient", &or_s) || cli_value(&a, "--threads", &threads_s))
-			continue;
-		if (cli_flag(&a, "--scan"))
-			continue;
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--no-orientation")) {
-			no_orient = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--pure-noise")) {
-			pure = 1;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	opts_parse(&c, argc, argv);
 	if (!out)
-		cli_usage(&a, "missing -o SCAN.vol|SCAN.nrrd");
+		opts_usage(&c, "missing -o SCAN.vol|SCAN.nrrd");
 	nrrd = exemplar_ends_with(out, ".nrrd");
 	if (!nrrd && !exemplar_ends_with(out, ".vol"))
-		cli_usage(&a, "output '%s' must end in .vol or .nrrd", out);
-	if (strcmp(dens_s, "u8") && strcmp(dens_s, "f32"))
-		cli_usage(&a, "bad --density '%s' (expected u8 or f32)", dens_s);
-	if (strcmp(or_s, "f32") && strcmp(or_s, "qdir"))
-		cli_usage(&a, "bad --orient '%s' (expected f32 or qdir)", or_s);
-	if (nrrd && strcmp(or_s, "qdir") == 0)
-		cli_usage(&a, "--orient qdir needs a .vol output");
+		opts_usage(&c, "output '%s' must end in .vol or .nrrd", out);
+	if (nrrd && or_qdir)
+		opts_usage(&c, "--orient qdir needs a .vol output");
 	if (loom_scan_sheet_preset(preset, &s) != LOOM_OK)
-		cli_usage(&a, "unknown preset '%s' (expected small, paper or paper:N)", preset);
+		cli_fail(prog, "preset '%s': cannot set up the sheet", preset);
 	vs_mm = strcmp(preset, "small") == 0 ? 0.024 : 0.005 * 1000.0 / s.nx;
 	cli_diag_init(&diag, &quiet);
 	if (loom_weave_parse(weave, &wp, &diag) != LOOM_OK ||
 	    loom_weave_repeat(&wp, &rr, &rc_, &diag) != LOOM_OK)
-		cli_usage(&a, "bad --weave '%s': %s", weave, diag.message);
-	if (threads_s && (cli_parse_u32(threads_s, &threads) || !threads || threads > 64))
-		cli_usage(&a, "bad --threads '%s' (expected 1..64)", threads_s);
-	if (seed_s && cli_parse_u64(seed_s, &s.seed))
-		cli_usage(&a, "bad --seed '%s'", seed_s);
-	if (rot_s) {
-		double d;
-		if (cli_parse_double(rot_s, &d) || fabs(d) > 20)
-			cli_usage(&a, "bad --rotate '%s' (expected -20..20 degrees)", rot_s);
-		s.angle_deg = (float)d;
+		cli_fail(prog, "--weave '%s': %s", weave, diag.message);
+	/* the options override the preset's sheet */
+	if (opt_given(&c, &seed))
+		s.seed = seed;
+	if (opt_given(&c, &rot))
+		s.angle_deg = (float)rot;
+	if (opt_given(&c, &noise))
+		s.noise = (float)noise;
+	if (opt_given(&c, &blur))
+		s.blur = (float)blur;
+	if (opt_given(&c, &off)) {
+		const double *xy = off.xy;
+		if (xy[0] < -s.sx || xy[1] < -s.sy || xy[0] > 4 * s.sx || xy[1] > 4 * s.sy)
+			opts_usage(&c, "--offset: expected X,Y within -1..4 yarn spacings "
+			           "(%g..%g, %g..%g), got '%s'", -(double)s.sx, 4 * (double)s.sx,
+			           -(double)s.sy, 4 * (double)s.sy, off.text);
+		s.x0 = (float)xy[0];
+		s.y0 = (float)xy[1];
 	}
-	if (noise_s) {
-		double d;
-		if (cli_parse_double(noise_s, &d) || d < 0 || d > 1)
-			cli_usage(&a, "bad --noise '%s' (expected 0..1)", noise_s);
-		s.noise = (float)d;
-	}
-	if (blur_s) {
-		double d;
-		if (cli_parse_double(blur_s, &d) || d < 0 || d > 8)
-			cli_usage(&a, "bad --blur '%s' (expected 0..8 voxels)", blur_s);
-		s.blur = (float)d;
-	}
-	if (off_s) {
-		char buf[64], *c;
-		double x, y;
-		if (strlen(off_s) >= sizeof buf)
-			cli_usage(&a, "bad --offset '%s'", off_s);
-		strcpy(buf, off_s);
-		c = strchr(buf, ',');
-		if (!c)
-			cli_usage(&a, "bad --offset '%s' (expected X,Y)", off_s);
-		*c++ = 0;
-		if (cli_parse_double(buf, &x) || cli_parse_double(c, &y) || x < -s.sx ||
-		    y < -s.sy || x > 4 * s.sx || y > 4 * s.sy)
-			cli_usage(&a, "bad --offset '%s' (expected X,Y within a few yarn "
-			          "spacings)", off_s);
-		s.x0 = (float)x;
-		s.y0 = (float)y;
-	}
-	if (cross_s) {
-		uint32_t w, f;
-		if (cli_parse_size2(cross_s, &w, &f) || w < 3 || f < 3 ||
-		    w > LOOM_SCAN_MAX_YARNS || f > LOOM_SCAN_MAX_YARNS)
-			cli_usage(&a, "bad --crossings '%s' (expected WxF, 3..%d each)", cross_s,
-			          LOOM_SCAN_MAX_YARNS);
-		s.nw = w;
-		s.nf = f;
-		s.nx = (uint32_t)ceil(2 * s.x0 + (w - 1) * s.sx) + 4;
-		s.ny = (uint32_t)ceil(2 * s.y0 + (f - 1) * s.sy) + 4;
+	if (opt_given(&c, cross)) {
+		s.nw = cross[0];
+		s.nf = cross[1];
+		s.nx = (uint32_t)ceil(2 * s.x0 + (cross[0] - 1) * s.sx) + 4;
+		s.ny = (uint32_t)ceil(2 * s.y0 + (cross[1] - 1) * s.sy) + 4;
 	}
 	s.pure_noise = pure;
 	s.rep_rows = rr;
@@ -276,10 +288,10 @@ int exemplar_generate_scan(int argc, char **argv)
 	if (rc)
 		cli_fail(prog, "%s", diag.message);
 	/* density */
-	rc = nrrd ? write_nrrd(out, v.density, s.nx, s.ny, s.nz, 1, dens_s[0] == 'u',
+	rc = nrrd ? write_nrrd(out, v.density, s.nx, s.ny, s.nz, 1, dens_u8,
 	                       vs_mm, &diag)
 	          : write_vol(out, v.density, s.nx, s.ny, s.nz, 1,
-	                      dens_s[0] == 'u' ? LOOM_VOL_UINT8 : LOOM_VOL_FLOAT32, vs_mm,
+	                      dens_u8 ? LOOM_VOL_UINT8 : LOOM_VOL_FLOAT32, vs_mm,
 	                      &diag);
 	if (rc)
 		cli_fail(prog, "%s: cannot write%s%s", out, nrrd ? "" : ": ",
@@ -290,7 +302,7 @@ int exemplar_generate_scan(int argc, char **argv)
 			cli_fail(prog, "out of memory");
 		rc = nrrd ? write_nrrd(op, v.orient, s.nx, s.ny, s.nz, 3, 0, vs_mm, &diag)
 		          : write_vol(op, v.orient, s.nx, s.ny, s.nz, 3,
-		                      or_s[0] == 'q' ? LOOM_VOL_QDIR : LOOM_VOL_FLOAT32, vs_mm,
+		                      or_qdir ? LOOM_VOL_QDIR : LOOM_VOL_FLOAT32, vs_mm,
 		                      &diag);
 		if (rc)
 			cli_fail(prog, "%s: cannot write", op);

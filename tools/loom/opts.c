@@ -67,7 +67,7 @@ static uint64_t kind_max(enum opt_kind k)
 
 /* The range of o alone ("1..128", "(0, 1]", "dp, greedy or naive") into
    buf. */
-static void describe_range(const opt *o, char *buf, size_t n)
+static void describe_range(const opt_entry *o, char *buf, size_t n)
 {
 	char a[48], b[48];
 	size_t len = 0;
@@ -112,7 +112,7 @@ static void describe_range(const opt *o, char *buf, size_t n)
 }
 
 /* What a good value of o looks like, for "expected ...". */
-static void describe(const opt *o, char *buf, size_t n)
+static void describe(const opt_entry *o, char *buf, size_t n)
 {
 	char r[WHAT_MAX / 2];
 	int full;
@@ -174,7 +174,7 @@ void opts_usage(const opts_cmd *c, const char *fmt, ...)
 	exit(EXIT_USAGE);
 }
 
-static _Noreturn void bad_value(const opts_cmd *c, const opt *o, const char *text,
+static _Noreturn void bad_value(const opts_cmd *c, const opt_entry *o, const char *text,
                                 const char *what)
 {
 	opts_usage(c, "--%s: expected %s, got '%s'", o->long_name, what, text);
@@ -203,14 +203,14 @@ static int parse_sizes(const char *s, uint32_t *v, int n)
 	return 0;
 }
 
-static int in_bounds(const opt *o, double x)
+static int in_bounds(const opt_entry *o, double x)
 {
 	int lo = o->bounds[0] == '(' ? x > o->dmin : x >= o->dmin;
 	int hi = o->bounds[1] == ')' ? x < o->dmax : x <= o->dmax;
 	return lo && hi && isfinite(x);
 }
 
-static void set_value(const opts_cmd *c, const opt *o, const char *text)
+static void set_value(const opts_cmd *c, const opt_entry *o, const char *text)
 {
 	char what[WHAT_MAX];
 	const char *msg;
@@ -279,17 +279,17 @@ bad:
 
 /* ---- --help -------------------------------------------------------------------- */
 
-static int is_option(const opt *o)
+static int is_option(const opt_entry *o)
 {
 	return o->kind != OPTK_END && o->kind != OPTK_GROUP && o->kind != OPTK_TEXT &&
 	       !(o->flags & OPTF_HIDDEN);
 }
 
-static const opt help_opt = {.kind = OPTK_FLAG, .short_name = 'h', .long_name = "help",
+static const opt_entry help_opt = {.kind = OPTK_FLAG, .short_name = 'h', .long_name = "help",
                              .help = "this text"};
 
 /* The left column of a row: "  -o, --output OUT". */
-static void row_left(const opt *o, char *buf, size_t n)
+static void row_left(const opt_entry *o, char *buf, size_t n)
 {
 	int k;
 
@@ -303,7 +303,7 @@ static void row_left(const opt *o, char *buf, size_t n)
 }
 
 /* Help text of o with "%r" replaced by its range. */
-static void expand_help(const opt *o, char *buf, size_t n)
+static void expand_help(const opt_entry *o, char *buf, size_t n)
 {
 	const char *s = o->help ? o->help : "";
 	char r[WHAT_MAX];
@@ -389,7 +389,7 @@ static void put_wrapped(FILE *fp, const char *text, int at, int col)
 		fputc('\n', fp);
 }
 
-static void put_row(FILE *fp, const opt *o, int col)
+static void put_row(FILE *fp, const opt_entry *o, int col)
 {
 	char left[160], text[2048];
 
@@ -407,7 +407,7 @@ static int help_column(const opts_cmd *c)
 
 	row_left(&help_opt, left, sizeof left);
 	col = (int)strlen(left) + 2;
-	for (const opt *o = c->opts; o->kind != OPTK_END; o++) {
+	for (const opt_entry *o = c->opts; o->kind != OPTK_END; o++) {
 		if (!is_option(o) && o->kind != OPTK_TEXT)
 			continue;
 		row_left(o, left, sizeof left);
@@ -454,7 +454,7 @@ static void print_help(const opts_cmd *c, FILE *fp)
 		fputc('\n', fp);
 		put_block(fp, c->about);
 	}
-	for (const opt *o = c->opts; o->kind != OPTK_END; o++) {
+	for (const opt_entry *o = c->opts; o->kind != OPTK_END; o++) {
 		if (o->kind == OPTK_GROUP) {
 			fprintf(fp, "\n%s\n", o->help);
 			heading = 1;
@@ -482,7 +482,7 @@ static void print_help(const opts_cmd *c, FILE *fp)
 
 static void list_options(const opts_cmd *c)
 {
-	for (const opt *o = c->opts; o->kind != OPTK_END; o++) {
+	for (const opt_entry *o = c->opts; o->kind != OPTK_END; o++) {
 		if (!is_option(o))
 			continue;
 		if (o->short_name)
@@ -495,14 +495,14 @@ static void list_options(const opts_cmd *c)
 /* ---- parsing ------------------------------------------------------------------- */
 
 struct given {
-	opt *o;
+	opt_entry *o;
 	const char *text;
 };
 
 /* The entry for "--name" (len bytes of name) or "-s" (short). */
-static opt *find(const opts_cmd *c, const char *name, size_t len, char short_name)
+static opt_entry *find(const opts_cmd *c, const char *name, size_t len, char short_name)
 {
-	for (opt *o = c->opts; o->kind != OPTK_END; o++) {
+	for (opt_entry *o = c->opts; o->kind != OPTK_END; o++) {
 		if (o->kind == OPTK_GROUP || o->kind == OPTK_TEXT)
 			continue;
 		if (short_name ? o->short_name == short_name
@@ -520,13 +520,13 @@ void opts_parse(opts_cmd *c, int argc, char **argv)
 	if (!g)
 		cli_fail(c->prog, "out of memory");
 	c->n_pos = 0;
-	for (opt *o = c->opts; o->kind != OPTK_END; o++)
+	for (opt_entry *o = c->opts; o->kind != OPTK_END; o++)
 		o->seen = 0;
 	/* step 1: scan */
 	for (int i = 1; i < argc; i++) {
 		const char *s = argv[i], *eq, *name;
 		size_t len;
-		opt *o;
+		opt_entry *o;
 
 		if (only_pos || s[0] != '-' || s[1] == 0) {
 			if (c->n_pos >= c->pos_max) {
@@ -588,7 +588,7 @@ void opts_parse(opts_cmd *c, int argc, char **argv)
 
 unsigned opt_given(const opts_cmd *c, const void *dest)
 {
-	for (const opt *o = c->opts; o->kind != OPTK_END; o++)
+	for (const opt_entry *o = c->opts; o->kind != OPTK_END; o++)
 		if (o->dest == dest && o->kind != OPTK_GROUP && o->kind != OPTK_TEXT)
 			return o->seen;
 	return 0;

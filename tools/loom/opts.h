@@ -59,7 +59,7 @@ typedef const char *(*opt_fn)(const char *text, void *dest);
 #define OPTF_ICASE 1u   /* enum: names compared without regard to case */
 #define OPTF_HIDDEN 2u  /* not in --help nor --list-options */
 
-typedef struct opt {
+typedef struct opt_entry {
 	enum opt_kind kind;
 	char short_name;          /* 'o' for -o, or 0 */
 	const char *long_name;    /* "output" for --output (no dashes) */
@@ -77,7 +77,7 @@ typedef struct opt {
 	opt_fn fn;                /* CALLBACK */
 	unsigned flags;           /* OPTF_* */
 	unsigned seen;            /* times given (opts_parse counts) */
-} opt;
+} opt_entry;
 
 /* Compile-time check that v points to T (a mismatch is a warning, and the
    build uses -Werror). */
@@ -147,7 +147,7 @@ typedef struct opts_cmd {
 	const char *exit1;       /* what exit status 1 means (NULL: "bad input
 	                            or failed operation"; "": no exit line) */
 	const char *footer;      /* verbatim after the exit line, or NULL */
-	opt *opts;               /* the table, ended by OPT_END() */
+	opt_entry *opts;               /* the table, ended by OPT_END() */
 	const char *pos_name;    /* positional arguments' name ("FABRIC") */
 	const char *pos_missing; /* message when fewer than pos_min (NULL:
 	                            "missing FABRIC") */
