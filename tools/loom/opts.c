@@ -480,14 +480,18 @@ static void print_help(const opts_cmd *c, FILE *fp)
 	}
 }
 
+/* --list-options: each name of each option, one a line, "=METAVAR" after
+   those that take a value. */
 static void list_options(const opts_cmd *c)
 {
 	for (const opt_entry *o = c->opts; o->kind != OPTK_END; o++) {
+		const char *v = o->kind == OPTK_FLAG ? "" : "=";
+		const char *m = o->kind == OPTK_FLAG ? "" : o->metavar ? o->metavar : "VALUE";
 		if (!is_option(o))
 			continue;
 		if (o->short_name)
-			printf("-%c\n", o->short_name);
-		printf("--%s\n", o->long_name);
+			printf("-%c%s%s\n", o->short_name, v, m);
+		printf("--%s%s%s\n", o->long_name, v, m);
 	}
 	printf("-h\n--help\n");
 }

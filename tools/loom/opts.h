@@ -161,8 +161,9 @@ typedef struct opts_cmd {
  * "--name VALUE", "--name=VALUE", "-s VALUE", "-s=VALUE", flags, and
  * positionals into c->pos ("-" alone is positional; after "--" everything
  * is).  --help or -h anywhere prints the help (stdout) and exits 0;
- * --list-options prints the option names of the table, one a line, and
- * exits 0 (tests/cli/test_help.sh compares them with --help).  Any error
+ * --list-options prints the option names of the table, one a line
+ * ("--db=DB" for one that takes a value, "--json" for a flag), and exits 0
+ * (tests/cli/test_help.sh compares them with --help).  Any error
  * is a usage error: message on stderr, exit 2.  Given twice, an option's
  * last value wins.
  */
