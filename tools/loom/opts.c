@@ -78,7 +78,7 @@ static void describe_range(const opt_entry *o, char *buf, size_t n)
 	case OPTK_U64:
 	case OPTK_SIZE2:
 	case OPTK_SIZE3:
-		if (o->umax == kind_max(o->kind == OPTK_U64 ? OPTK_U64 : OPTK_U32))
+		if (o->umax == kind_max(o->kind))
 			snprintf(buf, n, "%llu or more", (unsigned long long)o->umin);
 		else
 			snprintf(buf, n, "%llu..%llu", (unsigned long long)o->umin,
@@ -100,10 +100,9 @@ static void describe_range(const opt_entry *o, char *buf, size_t n)
 			snprintf(buf, n, "%c%s, %s%c", o->bounds[0], a, b, o->bounds[1]);
 		break;
 	case OPTK_ENUM:
-		for (int k = 0; o->choices[k].name; k++) {
+		for (int k = 0; o->choices[k].name && len < n; k++) {
 			const char *sep = k == 0 ? "" : o->choices[k + 1].name ? ", " : " or ";
-			len += (size_t)snprintf(buf + len, len < n ? n - len : 0, "%s%s", sep,
-			                        o->choices[k].name);
+			len += (size_t)snprintf(buf + len, n - len, "%s%s", sep, o->choices[k].name);
 		}
 		break;
 	default:
@@ -285,8 +284,9 @@ static int is_option(const opt_entry *o)
 	       !(o->flags & OPTF_HIDDEN);
 }
 
-static const opt_entry help_opt = {.kind = OPTK_FLAG, .short_name = 'h', .long_name = "help",
-                             .help = "this text"};
+/* -h, --help: in every table without being written. */
+static const opt_entry help_opt = {.kind = OPTK_FLAG, .short_name = 'h',
+                                   .long_name = "help", .help = "this text"};
 
 /* The left column of a row: "  -o, --output OUT". */
 static void row_left(const opt_entry *o, char *buf, size_t n)
@@ -329,9 +329,9 @@ static void pad(FILE *fp, int n)
 		fputc(' ', fp);
 }
 
-/* Print text from column *at (already there), each line starting at col
-   (continuation lines of a list item at col + 2), wrapped at HELP_WIDTH;
-   ends with a newline. */
+/* Print text from column `at` (the cursor is there), each line starting at
+   col (continuation lines of a list item at col + 2), wrapped at
+   HELP_WIDTH, keeping two spaces after a full stop; ends with a newline. */
 static void put_wrapped(FILE *fp, const char *text, int at, int col)
 {
 	int list = strchr(text, '\n') != NULL;
@@ -343,43 +343,37 @@ static void put_wrapped(FILE *fp, const char *text, int at, int col)
 	}
 	while (*s) {
 		const char *end = strchr(s, '\n');
-		size_t seg = end ? (size_t)(end - s) : strlen(s);
-		int lead = 0, line = 0, indent = col, gap_before = 1;
-		const char *p = s, *stop = s + seg;
+		const char *p = s, *stop = end ? end : s + strlen(s);
+		int lead = 0, words = 0, gap = 0;
 
-		while (p < stop && *p == ' ') {
+		while (p < stop && *p == ' ') { /* an item's own indent */
 			p++;
 			lead++;
 		}
-		indent += lead;
-		pad(fp, indent - at);
-		at = indent;
+		pad(fp, col + lead - at);
+		at = col + lead;
 		while (p < stop) {
-			const char *w = p, *next;
-			int wl, gap = 1;
+			const char *w = p;
+			int wl;
 			while (w < stop && *w != ' ')
 				w++;
 			wl = (int)(w - p);
-			if (line > 0 && at + gap_before + wl > HELP_WIDTH) {
+			if (words > 0 && at + gap + wl > HELP_WIDTH) {
 				fputc('\n', fp);
-				indent = col + lead + (list ? 2 : 0);
-				pad(fp, indent);
-				at = indent;
-				line = 0;
+				at = col + lead + (list ? 2 : 0);
+				pad(fp, at);
+				words = 0;
 			}
-			if (line > 0) {
-				pad(fp, gap_before);
-				at += gap_before;
+			if (words > 0) {
+				pad(fp, gap);
+				at += gap;
 			}
 			fwrite(p, 1, (size_t)wl, fp);
 			at += wl;
-			line++;
-			next = w;
-			while (next < stop && *next == ' ')
-				next++;
-			gap = (int)(next - w);
-			gap_before = gap > 2 ? 2 : gap;
-			p = next;
+			words++;
+			for (p = w; p < stop && *p == ' '; p++)
+				;
+			gap = p - w > 2 ? 2 : (int)(p - w);
 		}
 		fputc('\n', fp);
 		at = 0;
