@@ -1,4 +1,4 @@
-/* tools/loom/cli.c - argument parsing, messages, data lookup. */
+/* tools/loom/cli.c - messages, value parsers, data lookup, JSON, images. */
 #include "cli.h"
 
 #include <errno.h>
@@ -9,97 +9,6 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-void cli_init(cli_args *a, int argc, char **argv, const char *prog,
-              const char *help)
-{
-	a->argc = argc;
-	a->argv = argv;
-	a->i = 1;
-	a->prog = prog;
-	a->help = help;
-}
-
-int cli_more(const cli_args *a)
-{
-	return a->i < a->argc;
-}
-
-int cli_flag(cli_args *a, const char *name)
-{
-	const char *s;
-
-	if (a->i >= a->argc)
-		return 0;
-	s = a->argv[a->i];
-	if (strcmp(s, "--help") == 0 || strcmp(s, "-h") == 0) {
-		fputs(a->help, stdout);
-		exit(0);
-	}
-	if (strcmp(s, name) == 0) {
-		a->i++;
-		return 1;
-	}
-	return 0;
-}
-
-int cli_value(cli_args *a, const char *name, const char **val)
-{
-	const char *s;
-	size_t n = strlen(name);
-
-	if (cli_flag(a, name)) {
-		if (a->i >= a->argc)
-			cli_usage(a, "option %s needs a value", name);
-		*val = a->argv[a->i++];
-		return 1;
-	}
-	if (a->i >= a->argc)
-		return 0;
-	s = a->argv[a->i];
-	if (strncmp(s, name, n) == 0 && s[n] == '=') {
-		*val = s + n + 1;
-		a->i++;
-		return 1;
-	}
-	return 0;
-}
-
-const char *cli_positional(cli_args *a)
-{
-	const char *s;
-
-	if (a->i >= a->argc)
-		return NULL;
-	s = a->argv[a->i];
-	if (strcmp(s, "--help") == 0 || strcmp(s, "-h") == 0) {
-		fputs(a->help, stdout);
-		exit(0);
-	}
-	if (s[0] == '-' && s[1] != 0)
-		return NULL;
-	a->i++;
-	return s;
-}
-
-void cli_unknown(const cli_args *a)
-{
-	const char *s = a->i < a->argc ? a->argv[a->i] : "";
-	if (s[0] == '-')
-		cli_usage(a, "unknown option '%s'", s);
-	cli_usage(a, "unexpected argument '%s'", s);
-}
-
-void cli_usage(const cli_args *a, const char *fmt, ...)
-{
-	va_list ap;
-	fprintf(stderr, "%s: ", a->prog);
-	va_start(ap, fmt);
-	vfprintf(stderr, fmt, ap);
-	va_end(ap);
-	fprintf(stderr, "\nTry '%s --help'.\n", a->prog);
-	exit(EXIT_USAGE);
-}
 
 void cli_error(const char *prog, const char *fmt, ...)
 {

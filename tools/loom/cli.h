@@ -1,6 +1,7 @@
 /*
- * tools/loom/cli.h - shared pieces of the loom command: argument parsing,
- * exit codes, messages, JSON output, locating the default data.
+ * tools/loom/cli.h - shared pieces of the loom command: exit codes,
+ * messages, value parsers, JSON output, locating the default data (the
+ * option parser is opts.h).
  *
  * Exit codes (stable, scripts rely on them): 0 success, 1 bad input or a
  * failed operation, 2 usage error.  Errors and warnings go to stderr as
@@ -20,33 +21,8 @@
 /* A subcommand: argv[0] is the subcommand's own name. */
 typedef int (*cli_cmd_fn)(int argc, char **argv);
 
-/* Argument cursor over argv[1..]. */
-typedef struct cli_args {
-	int argc;
-	char **argv;
-	int i;             /* next argument */
-	const char *prog;  /* "loom pattern make", for messages */
-	const char *help;  /* full --help text */
-} cli_args;
+/* Options and usage errors: opts.h (one table per command). */
 
-void cli_init(cli_args *a, int argc, char **argv, const char *prog,
-              const char *help);
-/* 1 while arguments remain. */
-int cli_more(const cli_args *a);
-/* Current argument is the flag `name` (or --help / -h, which print help and
-   exit 0): consume it and return 1. */
-int cli_flag(cli_args *a, const char *name);
-/* Current argument is `--name VALUE` or `--name=VALUE`: consume it, store the
-   value and return 1.  A missing value is a usage error. */
-int cli_value(cli_args *a, const char *name, const char **val);
-/* Current argument is positional (not starting with '-', or "-" alone):
-   consume and return it; NULL otherwise. */
-const char *cli_positional(cli_args *a);
-/* Usage error about the current argument (unknown option). */
-_Noreturn void cli_unknown(const cli_args *a);
-/* Usage error: message, then "Try '<prog> --help'."; exit 2. */
-_Noreturn void cli_usage(const cli_args *a, const char *fmt, ...)
-	__attribute__((format(printf, 2, 3)));
 /* Print "prog: message" to stderr (no exit). */
 void cli_error(const char *prog, const char *fmt, ...)
 	__attribute__((format(printf, 2, 3)));
@@ -54,7 +30,7 @@ void cli_error(const char *prog, const char *fmt, ...)
 _Noreturn void cli_fail(const char *prog, const char *fmt, ...)
 	__attribute__((format(printf, 2, 3)));
 
-/* Parsers for option values; return 0 on success, -1 on bad text. */
+/* Parsers of values (opts.c and callbacks); 0 on success, -1 on bad text. */
 int cli_parse_u32(const char *s, uint32_t *v);
 int cli_parse_u64(const char *s, uint64_t *v);
 int cli_parse_i64(const char *s, int64_t *v);

@@ -29,6 +29,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <dirent.h>
@@ -75,9 +76,7 @@ typedef struct demo_ctx {
 
 typedef void (*demo_stage_fn)(demo_ctx *ctx);
 
-static const char help_demo[] =
-	"usage: loom demo [-o DIR] [--db DB] [--quiet]\n"
-	"\n"
+static const char about_demo[] =
 	"Run the main job on the built-in default data (docs/preview.md):\n"
 	" - designs from the weave generators (2/3 twill, 1/4 satin, herringbone,\n"
 	"   ...), a Jacquard design from a generated two-colour picture, and one\n"
@@ -88,15 +87,9 @@ static const char help_demo[] =
 	"   (DIR/cloth.loomf), a preview of it (DIR/cloth-preview.png and .exr), a\n"
 	"   small path-traced render (DIR/cloth-render.png), and one tile exported\n"
 	"   in each format (DIR/export-vol, export-nrrd, export-exr);\n"
-	" - a table of the files written and their sizes.\n"
-	"\n"
-	"options:\n"
-	"  -o, --output DIR   output directory (default ./loom-demo; created)\n"
-	"  --db DB            exemplar database (default: $LOOM_DB, then\n"
-	"                     default.ldb in the data directory)\n"
-	"  -q, --quiet        no progress or warnings on stderr\n"
-	"  -h, --help         this text\n"
-	"\n"
+	" - a table of the files written and their sizes.\n";
+
+static const char footer_demo[] =
 	"The data directory is $LOOM_DATA, else share/loom next to the loom\n"
 	"binary, else ../share/loom.\n";
 
@@ -741,23 +734,25 @@ static void make_dir(const char *dir)
 
 int cmd_demo(int argc, char **argv)
 {
-	cli_args a;
 	demo_ctx *ctx = calloc(1, sizeof *ctx);
 	int failed;
 
 	if (!ctx)
 		cli_fail("loom demo", "out of memory");
 	ctx->dir = "loom-demo";
-	cli_init(&a, argc, argv, "loom demo", help_demo);
-	while (cli_more(&a)) {
-		if (cli_value(&a, "-o", &ctx->dir) || cli_value(&a, "--output", &ctx->dir) ||
-		    cli_value(&a, "--db", &ctx->db_opt))
-			continue;
-		if (cli_flag(&a, "-q") || cli_flag(&a, "--quiet")) {
-			ctx->quiet = 1;
-			continue;
-		}
-		cli_unknown(&a);
+	{
+		opt_entry opts[] = {
+			OPT_OUTPUT(&ctx->dir, "DIR", "output directory (default ./loom-demo; "
+			           "created)"),
+			OPT_DB(&ctx->db_opt, "exemplar database (default: $LOOM_DB, then "
+			       "default.ldb in the data directory)"),
+			OPT_QUIET(&ctx->quiet, "no progress or warnings on stderr"),
+			OPT_END()
+		};
+		opts_cmd c = {.prog = "loom demo", .usage = "loom demo [-o DIR] [--db DB] "
+		              "[--quiet]", .about = about_demo, .footer = footer_demo,
+		              .opts = opts};
+		opts_parse(&c, argc, argv);
 	}
 	make_dir(ctx->dir);
 	ctx->t0 = cli_now();

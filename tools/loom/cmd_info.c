@@ -12,24 +12,10 @@
 #include <string.h>
 #include <sys/stat.h>
 
-static const char help[] =
-	"usage: loom info FABRIC [--db DB] [--bolt LENGTHxWIDTH] [--json]\n"
-	"\n"
+static const char about[] =
 	"Describe a fabric file made by `loom synth`: design size, voxel\n"
 	"dimensions and physical size of one repeat, total virtual voxels of a\n"
-	"bolt, synthesis parameters, metrics, and the database it belongs to.\n"
-	"\n"
-	"options:\n"
-	"  --db DB              check the fabric against this database: exit 1 if\n"
-	"                       its content hash differs (without --db the path\n"
-	"                       recorded in the fabric is checked, if it exists)\n"
-	"  --bolt LxW           bolt LENGTH (along the warps) by WIDTH (across):\n"
-	"                       numbers of repeats (\"10x2\", fractions allowed) or\n"
-	"                       lengths with a unit mm, cm or m (\"50mx1.5m\");\n"
-	"                       default 1x1 (one repeat)\n"
-	"  --json               print the result as JSON\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or database mismatch, 2 usage error.\n";
+	"bolt, synthesis parameters, metrics, and the database it belongs to.\n";
 
 static int file_exists(const char *p)
 {
@@ -40,41 +26,38 @@ static int file_exists(const char *p)
 int cmd_info(int argc, char **argv)
 {
 	const char *prog = "loom info";
-	const char *path = NULL, *db_opt = NULL, *bolt_s = NULL, *check = NULL;
-	int json = 0, quiet = 0, len_mm = 0, wid_mm = 0, found = 0, matches = 0;
-	double len = 1, wid = 1, rep_mm[3], total;
+	const char *path = NULL, *db_opt = NULL, *check = NULL;
+	int json = 0, quiet = 0, found = 0, matches = 0;
+	double len, wid, rep_mm[3], total;
 	uint64_t rep[3], bolt[3], db_hash = 0, fbytes = 0;
+	tiles_bolt b = {1, 1, 0, 0, NULL};
 	loom_fabric *f = NULL;
 	loom_fabric_params p;
 	loom_fabric_db_identity id;
 	loom_fabric_metrics m;
 	const loom_design *d;
 	loom_diag diag;
-	cli_args a;
 	struct stat st;
+	opt_entry opts[] = {
+		OPT_DB(&db_opt, "check the fabric against this database: exit 1 if its content "
+		       "hash differs (without --db the path recorded in the fabric is checked, "
+		       "if it exists)"),
+		OPT_CALLBACK(0, "bolt", &b, "LxW", tiles_opt_bolt, "bolt LENGTH (along the "
+		             "warps) by WIDTH (across): numbers of repeats (\"10x2\", fractions "
+		             "allowed) or lengths with a unit mm, cm or m (\"50mx1.5m\"); default "
+		             "1x1 (one repeat)"),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog,
+	              .usage = "loom info FABRIC [--db DB] [--bolt LENGTHxWIDTH] [--json]",
+	              .about = about, .exit1 = "bad input or database mismatch",
+	              .opts = opts, .pos_name = "FABRIC", .pos_min = 1, .pos_max = 1,
+	              .pos = &path};
 
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (cli_value(&a, "--db", &db_opt) || cli_value(&a, "--bolt", &bolt_s))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			if (path)
-				cli_usage(&a, "more than one FABRIC");
-			path = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!path)
-		cli_usage(&a, "missing FABRIC");
-	if (bolt_s && tiles_parse_bolt(bolt_s, &len, &len_mm, &wid, &wid_mm))
-		cli_usage(&a, "bad --bolt '%s' (expected LENGTHxWIDTH: repeats, or lengths "
-		          "with mm, cm or m, e.g. 10x2 or 50mx1.5m)", bolt_s);
+	opts_parse(&c, argc, argv);
+	len = b.len;
+	wid = b.wid;
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt) {
@@ -115,12 +98,12 @@ int cmd_info(int argc, char **argv)
 	loom_fabric_repeat_voxels(f, rep);
 	for (int k = 0; k < 3; k++)
 		rep_mm[k] = (double)rep[k] * id.voxel_size_um / 1000.0;
-	if (len_mm)
+	if (b.len_mm)
 		len /= rep_mm[1];
-	if (wid_mm)
+	if (b.wid_mm)
 		wid /= rep_mm[0];
 	if (loom_fabric_bolt_voxels(f, len, wid, bolt, &total) != LOOM_OK)
-		cli_fail(prog, "--bolt '%s': too large", bolt_s);
+		cli_fail(prog, "--bolt '%s': too large", b.text ? b.text : "1x1");
 
 	if (json) {
 		json_w w;

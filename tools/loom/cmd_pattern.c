@@ -12,6 +12,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 
 #include <errno.h>
 #include <math.h>
@@ -34,105 +35,57 @@ typedef struct pat_opts {
 	int quiet;
 } pat_opts;
 
-enum { OPT_OUT = 1, OPT_MAP = 2, OPT_MAPS_IN = 4, OPT_MAPS_OUT = 8, OPT_JSON = 16 };
+/* Table entries of those options. */
+#define PAT_OPT_OUT(o, h) OPT_OUTPUT(&(o)->out, "OUT", h)
+#define PAT_OPT_MAP(o, h) OPT_STRING(0, "map", &(o)->map, "MAPFILE", h)
+#define PAT_OPT_MAPS_IN(o) \
+	OPT_STRING(0, "warp-map", &(o)->warp_in, "FILE", "read the warp-type map of an " \
+	           "image IN (.pgm or .png, pixel value = yarn type ID)"), \
+	OPT_STRING(0, "weft-map", &(o)->weft_in, "FILE", \
+	           "read the weft-type map of an image IN")
+#define PAT_OPT_MAPS_OUT(o) \
+	OPT_STRING(0, "write-warp-map", &(o)->warp_out, "FILE", \
+	           "also write the warp-type map (.pgm or .png)"), \
+	OPT_STRING(0, "write-weft-map", &(o)->weft_out, "FILE", \
+	           "also write the weft-type map (.pgm or .png)")
+#define PAT_OPT_QUIET(o) OPT_QUIET(&(o)->quiet, "no warnings")
 
-static const char help_pattern[] =
-	"usage: loom pattern COMMAND [ARGS...]\n"
-	"\n"
+static const char about_pattern[] =
 	"Make, convert and inspect weave patterns.  A weave image has one pixel\n"
-	"per crossing: row = pick (weft), column = end (warp), black = warp over.\n"
-	"\n"
-	"commands:\n"
-	"  make KIND         generate an elementary weave (plain, twill, satin, ...)\n"
-	"  convert IN        a WIF draft or weave image to a .pbm or .png weave\n"
-	"  from-image IMAGE  posterized image + mapping file -> design (Jacquard)\n"
-	"  info IN           size, repeat, float lengths and yarn types\n"
-	"\n"
-	"  loom pattern COMMAND --help   options of one command\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n"
-	"Reference: docs/designs.md.\n";
+	"per crossing: row = pick (weft), column = end (warp), black = warp over.\n";
 
-static const char help_make[] =
-	"usage: loom pattern make KIND [OPTIONS] -o OUT\n"
-	"\n"
+static const char about_make[] =
 	"Generate an elementary weave and write it as a weave image.\n"
 	"\n"
 	"KIND is plain, twill, satin, basket, herringbone, broken-twill or\n"
 	"wavy-twill, or a full weave name such as twill:2/3, twill:2/3:s,\n"
 	"satin:1/4:move=2, basket:2/3 or herringbone:2/2:period=4.  Options\n"
 	"override what the name says.  A bare KIND means twill 2/2, satin 1/4,\n"
-	"basket 2/2, herringbone, broken-twill and wavy-twill 2/2.\n"
-	"\n"
-	"options:\n"
-	"  --over N          warp-over picks per repeat (basket: rows per block)\n"
-	"  --under N         warp-under picks per repeat (basket: ends per block)\n"
-	"  --move N          satin move number, coprime with over+under\n"
-	"                    (default: the smallest valid move)\n"
-	"  --direction z|s   twill direction: z rises to the right, s to the left\n"
-	"  --period P        ends per section (herringbone, broken-twill,\n"
-	"                    wavy-twill)\n"
-	"  --size MxN        M picks (rows) by N ends (columns), the weave tiled\n"
-	"                    from the top-left corner (default: one repeat)\n"
-	"  -o, --output OUT  write OUT: .pbm (binary P4) or .png (1-bit grey)\n"
-	"  -q, --quiet       no warnings\n"
-	"  -h, --help        this text\n";
+	"basket 2/2, herringbone, broken-twill and wavy-twill 2/2.\n";
 
-static const char help_convert[] =
-	"usage: loom pattern convert IN -o OUT [OPTIONS]\n"
-	"\n"
+static const char about_convert[] =
 	"Read a design and write its weave pattern as an image: black = warp\n"
 	"over, first row = first pick, first column = first end.  For a WIF\n"
 	"draft that is exactly its drawdown.\n"
 	"\n"
 	"IN is a WIF draft (.wif) or a weave image (.pbm, .png, .pgm: two\n"
-	"levels, the darker one warp over).  OUT is .pbm (P4) or .png (1-bit).\n"
-	"\n"
-	"options:\n"
-	"  -o, --output OUT        the weave image to write\n"
-	"  --warp-map FILE         read the warp-type map of an image IN\n"
-	"  --weft-map FILE         read the weft-type map of an image IN\n"
-	"                          (.pgm or .png, pixel value = yarn type ID)\n"
-	"  --write-warp-map FILE   also write the warp-type map (.pgm or .png)\n"
-	"  --write-weft-map FILE   also write the weft-type map (.pgm or .png)\n"
-	"  -q, --quiet             no warnings\n"
-	"  -h, --help              this text\n";
+	"levels, the darker one warp over).  OUT is .pbm (P4) or .png (1-bit).\n";
 
-static const char help_from_image[] =
-	"usage: loom pattern from-image IMAGE --map MAPFILE -o OUT [OPTIONS]\n"
-	"\n"
+static const char about_from_image[] =
 	"Build a design from a posterized image (paper 5.2): every colour of\n"
 	"IMAGE gets the elementary weave and warp/weft yarn types of its line in\n"
 	"MAPFILE, and W(x,y) = V_p(I(x,y))(x,y), each weave tiled from the\n"
 	"top-left corner (row y = pick y, column x = end x).  IMAGE is PNG, PPM,\n"
 	"PGM or PBM with at most 64 colours.  The mapping-file format is in\n"
-	"docs/designs.md.\n"
-	"\n"
-	"options:\n"
-	"  --map MAPFILE           the mapping file (required)\n"
-	"  -o, --output OUT        the weave image to write (.pbm or .png)\n"
-	"  --write-warp-map FILE   also write the warp-type map (.pgm or .png)\n"
-	"  --write-weft-map FILE   also write the weft-type map (.pgm or .png)\n"
-	"  -q, --quiet             no warnings\n"
-	"  -h, --help              this text\n";
+	"docs/designs.md.\n";
 
-static const char help_info[] =
-	"usage: loom pattern info IN [--json] [OPTIONS]\n"
-	"\n"
+static const char about_info[] =
 	"Print a design's size, smallest repeat, float lengths (counted across\n"
 	"the repeat's edges, as the bolt tiles it) and yarn types.\n"
 	"\n"
-	"IN is a WIF draft (.wif) or a weave image (.pbm, .png, .pgm).\n"
-	"\n"
-	"options:\n"
-	"  --json              JSON output (keys in docs/designs.md)\n"
-	"  --map MAPFILE       IN is a posterized image: map it as from-image does\n"
-	"  --warp-map FILE     read the warp-type map of an image IN\n"
-	"  --weft-map FILE     read the weft-type map of an image IN\n"
-	"  -q, --quiet         no warnings\n"
-	"  -h, --help          this text\n";
+	"IN is a WIF draft (.wif) or a weave image (.pbm, .png, .pgm).\n";
 
-/* ---- option parsing ------------------------------------------------------ */
+/* ---- option checks --------------------------------------------------------- */
 
 static int ends_with(const char *path, const char *const *exts)
 {
@@ -148,57 +101,16 @@ static int ends_with(const char *path, const char *const *exts)
 static const char *const weave_exts[] = {".pbm", ".png", NULL};
 static const char *const map_exts[] = {".pgm", ".png", NULL};
 
-/* One option of the set `allowed`; 0 if the argument is not one. */
-static int take_option(cli_args *a, pat_opts *o, unsigned allowed)
+/* After opts_parse: the checks of convert, from-image and info. */
+static void check_common(const opts_cmd *c, const pat_opts *o, int need_out)
 {
-	if ((allowed & OPT_OUT) &&
-	    (cli_value(a, "-o", &o->out) || cli_value(a, "--output", &o->out)))
-		return 1;
-	if ((allowed & OPT_MAP) && cli_value(a, "--map", &o->map))
-		return 1;
-	if ((allowed & OPT_MAPS_IN) && (cli_value(a, "--warp-map", &o->warp_in) ||
-	                                cli_value(a, "--weft-map", &o->weft_in)))
-		return 1;
-	if ((allowed & OPT_MAPS_OUT) &&
-	    (cli_value(a, "--write-warp-map", &o->warp_out) ||
-	     cli_value(a, "--write-weft-map", &o->weft_out)))
-		return 1;
-	if ((allowed & OPT_JSON) && cli_flag(a, "--json")) {
-		o->json = 1;
-		return 1;
-	}
-	if (cli_flag(a, "-q") || cli_flag(a, "--quiet")) {
-		o->quiet = 1;
-		return 1;
-	}
-	return 0;
-}
-
-/* Parse IN and options; checks output extensions. */
-static void parse_common(cli_args *a, pat_opts *o, unsigned allowed,
-                         const char *in_name)
-{
-	while (cli_more(a)) {
-		const char *p;
-		if (take_option(a, o, allowed))
-			continue;
-		if ((p = cli_positional(a)) && !o->in) {
-			o->in = p;
-			continue;
-		}
-		if (p)
-			cli_usage(a, "unexpected argument '%s'", p);
-		cli_unknown(a);
-	}
-	if (!o->in)
-		cli_usage(a, "missing %s", in_name);
-	if ((allowed & OPT_OUT) && !o->out)
-		cli_usage(a, "missing -o OUT");
+	if (need_out && !o->out)
+		opts_usage(c, "missing -o OUT");
 	if (o->out && !ends_with(o->out, weave_exts))
-		cli_usage(a, "output '%s': expected a .pbm or .png file name", o->out);
+		opts_usage(c, "output '%s': expected a .pbm or .png file name", o->out);
 	if ((o->warp_out && !ends_with(o->warp_out, map_exts)) ||
 	    (o->weft_out && !ends_with(o->weft_out, map_exts)))
-		cli_usage(a, "type maps are written as .pgm or .png files");
+		opts_usage(c, "type maps are written as .pgm or .png files");
 }
 
 /* ---- loading and saving -------------------------------------------------- */
@@ -286,11 +198,15 @@ static void save(const char *prog, const pat_opts *o, loom_design *d,
 
 /* ---- make ---------------------------------------------------------------- */
 
+/* The options of make that change the weave: given (opt_given) or not. */
 typedef struct make_opts {
-	const char *over, *under, *move, *direction, *period, *size;
+	uint32_t over, under, move, period;
+	int direction;
+	uint32_t size[2];      /* --size: rows, cols (0: one repeat) */
 } make_opts;
 
-/* Options each kind uses (bit per make_opts field, in order). */
+/* Options each kind uses (bit per option: over, under, move, direction,
+   period). */
 static unsigned kind_uses(int kind)
 {
 	switch (kind) {
@@ -303,7 +219,7 @@ static unsigned kind_uses(int kind)
 }
 
 /* KIND alone ("twill") or a full name ("twill:2/3"). */
-static void parse_kind(const cli_args *a, const char *kind, loom_weave_params *p)
+static void parse_kind(const opts_cmd *c, const char *kind, loom_weave_params *p)
 {
 	static const char *const bare[][2] = {
 		{"twill", "twill:2/2"}, {"satin", "satin:1/4"}, {"basket", "basket:2/2"},
@@ -317,95 +233,93 @@ static void parse_kind(const cli_args *a, const char *kind, loom_weave_params *p
 		if (strcasecmp(kind, bare[k][0]) == 0)
 			name = bare[k][1];
 	if (loom_weave_parse(name, p, &d))
-		cli_usage(a, "%s", d.message);
+		opts_usage(c, "%s", d.message);
 }
 
-static uint32_t u32_opt(const cli_args *a, const char *name, const char *v)
-{
-	uint32_t x;
-	if (cli_parse_u32(v, &x) || x == 0)
-		cli_usage(a, "%s: expected a positive whole number, got '%s'", name, v);
-	return x;
-}
-
-static void apply_make_opts(const cli_args *a, const make_opts *m,
+static void apply_make_opts(const opts_cmd *c, const make_opts *m,
                             loom_weave_params *p)
 {
-	const char *given[5] = {m->over, m->under, m->move, m->direction, m->period};
+	const void *given[5] = {&m->over, &m->under, &m->move, &m->direction, &m->period};
 	static const char *const names[5] = {"--over", "--under", "--move",
 	                                     "--direction", "--period"};
 	unsigned uses = kind_uses(p->kind);
 	char kind[64];
 	loom_diag d = {0};
-	uint32_t r, c;
+	uint32_t r, cols;
 
 	loom_weave_name(p, kind, sizeof kind);
 	for (int k = 0; k < 5; k++)
-		if (given[k] && !(uses & (1u << k)))
-			cli_usage(a, "%s does not apply to %s", names[k], kind);
-	if (m->over)
-		p->over = u32_opt(a, "--over", m->over);
-	if (m->under)
-		p->under = u32_opt(a, "--under", m->under);
-	if (m->move)
-		p->move = u32_opt(a, "--move", m->move);
-	if (m->period)
-		p->period = u32_opt(a, "--period", m->period);
-	if (m->direction) {
-		if (strcasecmp(m->direction, "z") && strcasecmp(m->direction, "s"))
-			cli_usage(a, "--direction: expected z or s, got '%s'", m->direction);
-		p->direction = strcasecmp(m->direction, "s") == 0 ? -1 : 1;
-	}
-	if (loom_weave_repeat(p, &r, &c, &d))
-		cli_usage(a, "%s", d.message);
+		if (opt_given(c, given[k]) && !(uses & (1u << k)))
+			opts_usage(c, "%s does not apply to %s", names[k], kind);
+	if (opt_given(c, &m->over))
+		p->over = m->over;
+	if (opt_given(c, &m->under))
+		p->under = m->under;
+	if (opt_given(c, &m->move))
+		p->move = m->move;
+	if (opt_given(c, &m->period))
+		p->period = m->period;
+	if (opt_given(c, &m->direction))
+		p->direction = m->direction;
+	if (loom_weave_repeat(p, &r, &cols, &d))
+		opts_usage(c, "%s", d.message);
 }
+
+/* --size MxN: rows and columns of the design. */
+static const char *opt_size(const char *text, void *dest)
+{
+	uint32_t *rc = dest;
+
+	if (cli_parse_size2(text, &rc[0], &rc[1]) || rc[0] == 0 || rc[1] == 0 ||
+	    rc[0] > LOOM_DESIGN_MAX_SIDE || rc[1] > LOOM_DESIGN_MAX_SIDE ||
+	    (uint64_t)rc[0] * rc[1] > LOOM_DESIGN_MAX_CELLS)
+		return "MxN, 1..1000000 each and at most 2^32 cells";
+	return NULL;
+}
+
+static const opt_choice direction_names[] = {{"z", 1}, {"s", -1}, {NULL, 0}};
 
 static int pattern_make(int argc, char **argv)
 {
-	cli_args a;
 	pat_opts o = {0};
-	make_opts m = {0};
+	make_opts m = {0, 0, 0, 0, 1, {0, 0}};
 	loom_weave_params p;
 	loom_design *d = NULL;
 	loom_diag diag;
-	uint32_t rows = 0, cols = 0;
 	int rc;
+	opt_entry opts[] = {
+		OPT_U32(0, "over", &m.over, "N", 1, UINT32_MAX,
+		        "warp-over picks per repeat (basket: rows per block)"),
+		OPT_U32(0, "under", &m.under, "N", 1, UINT32_MAX,
+		        "warp-under picks per repeat (basket: ends per block)"),
+		OPT_U32(0, "move", &m.move, "N", 1, UINT32_MAX, "satin move number, coprime "
+		        "with over+under (default: the smallest valid move)"),
+		OPT_ENUM_ICASE(0, "direction", &m.direction, "z|s", direction_names,
+		               "twill direction: z rises to the right, s to the left"),
+		OPT_U32(0, "period", &m.period, "P", 1, UINT32_MAX,
+		        "ends per section (herringbone, broken-twill, wavy-twill)"),
+		OPT_CALLBACK(0, "size", m.size, "MxN", opt_size, "M picks (rows) by N ends "
+		             "(columns), the weave tiled from the top-left corner (default: one "
+		             "repeat)"),
+		PAT_OPT_OUT(&o, "write OUT: .pbm (binary P4) or .png (1-bit grey)"),
+		PAT_OPT_QUIET(&o),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = "loom pattern make", .usage = "loom pattern make KIND "
+	              "[OPTIONS] -o OUT", .about = about_make, .opts = opts,
+	              .pos_name = "KIND", .pos_missing = "missing KIND (plain, twill, satin, "
+	              "basket, herringbone, broken-twill, wavy-twill)", .pos_min = 1,
+	              .pos_max = 1, .pos = &o.in};
 
-	cli_init(&a, argc, argv, "loom pattern make", help_make);
-	while (cli_more(&a)) {
-		const char *v;
-		if (cli_value(&a, "--over", &m.over) || cli_value(&a, "--under", &m.under) ||
-		    cli_value(&a, "--move", &m.move) || cli_value(&a, "--period", &m.period) ||
-		    cli_value(&a, "--direction", &m.direction) ||
-		    cli_value(&a, "--size", &m.size) || take_option(&a, &o, OPT_OUT))
-			continue;
-		if ((v = cli_positional(&a)) && !o.in) {
-			o.in = v;
-			continue;
-		}
-		if (v)
-			cli_usage(&a, "unexpected argument '%s'", v);
-		cli_unknown(&a);
-	}
-	if (!o.in)
-		cli_usage(&a, "missing KIND (plain, twill, satin, basket, herringbone, "
-		          "broken-twill, wavy-twill)");
-	if (!o.out)
-		cli_usage(&a, "missing -o OUT");
-	if (!ends_with(o.out, weave_exts))
-		cli_usage(&a, "output '%s': expected a .pbm or .png file name", o.out);
-	if (m.size && (cli_parse_size2(m.size, &rows, &cols) || rows == 0 || cols == 0 ||
-	               rows > LOOM_DESIGN_MAX_SIDE || cols > LOOM_DESIGN_MAX_SIDE ||
-	               (uint64_t)rows * cols > LOOM_DESIGN_MAX_CELLS))
-		cli_usage(&a, "--size: expected MxN, 1..%u each and at most 2^32 cells, "
-		          "got '%s'", LOOM_DESIGN_MAX_SIDE, m.size);
-	parse_kind(&a, o.in, &p);
-	apply_make_opts(&a, &m, &p);
+	opts_parse(&c, argc, argv);
+	check_common(&c, &o, 1);
+	parse_kind(&c, o.in, &p);
+	apply_make_opts(&c, &m, &p);
 	cli_diag_init(&diag, &o.quiet);
-	rc = loom_design_make(&p, rows, cols, &d, &diag);
+	rc = loom_design_make(&p, m.size[0], m.size[1], &d, &diag);
 	if (rc)
-		cli_fail(a.prog, "%s", diag.message);
-	save(a.prog, &o, d, &diag);
+		cli_fail(c.prog, "%s", diag.message);
+	save(c.prog, &o, d, &diag);
 	return 0;
 }
 
@@ -413,29 +327,49 @@ static int pattern_make(int argc, char **argv)
 
 static int pattern_convert(int argc, char **argv)
 {
-	cli_args a;
 	pat_opts o = {0};
 	loom_diag diag;
+	opt_entry opts[] = {
+		PAT_OPT_OUT(&o, "the weave image to write"),
+		PAT_OPT_MAPS_IN(&o),
+		PAT_OPT_MAPS_OUT(&o),
+		PAT_OPT_QUIET(&o),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = "loom pattern convert",
+	              .usage = "loom pattern convert IN -o OUT [OPTIONS]",
+	              .about = about_convert, .opts = opts, .pos_name = "IN", .pos_min = 1,
+	              .pos_max = 1, .pos = &o.in};
 
-	cli_init(&a, argc, argv, "loom pattern convert", help_convert);
-	parse_common(&a, &o, OPT_OUT | OPT_MAPS_IN | OPT_MAPS_OUT, "IN");
+	opts_parse(&c, argc, argv);
+	check_common(&c, &o, 1);
 	cli_diag_init(&diag, &o.quiet);
-	save(a.prog, &o, load(a.prog, &o, &diag), &diag);
+	save(c.prog, &o, load(c.prog, &o, &diag), &diag);
 	return 0;
 }
 
 static int pattern_from_image(int argc, char **argv)
 {
-	cli_args a;
 	pat_opts o = {0};
 	loom_diag diag;
+	opt_entry opts[] = {
+		PAT_OPT_MAP(&o, "the mapping file (required)"),
+		PAT_OPT_OUT(&o, "the weave image to write (.pbm or .png)"),
+		PAT_OPT_MAPS_OUT(&o),
+		PAT_OPT_QUIET(&o),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = "loom pattern from-image",
+	              .usage = "loom pattern from-image IMAGE --map MAPFILE -o OUT [OPTIONS]",
+	              .about = about_from_image, .opts = opts, .pos_name = "IMAGE",
+	              .pos_min = 1, .pos_max = 1, .pos = &o.in};
 
-	cli_init(&a, argc, argv, "loom pattern from-image", help_from_image);
-	parse_common(&a, &o, OPT_OUT | OPT_MAP | OPT_MAPS_OUT, "IMAGE");
+	opts_parse(&c, argc, argv);
+	check_common(&c, &o, 1);
 	if (!o.map)
-		cli_usage(&a, "missing --map MAPFILE");
+		opts_usage(&c, "missing --map MAPFILE");
 	cli_diag_init(&diag, &o.quiet);
-	save(a.prog, &o, load(a.prog, &o, &diag), &diag);
+	save(c.prog, &o, load(c.prog, &o, &diag), &diag);
 	return 0;
 }
 
@@ -533,20 +467,30 @@ static void info_text(const pat_opts *o, const loom_design *d,
 
 static int pattern_info(int argc, char **argv)
 {
-	cli_args a;
 	pat_opts o = {0};
 	loom_diag diag;
 	loom_design *d;
 	loom_design_stats st;
 	uint8_t used[256];
+	opt_entry opts[] = {
+		OPT_JSON(&o.json, "JSON output (keys in docs/designs.md)"),
+		PAT_OPT_MAP(&o, "IN is a posterized image: map it as from-image does"),
+		PAT_OPT_MAPS_IN(&o),
+		PAT_OPT_QUIET(&o),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = "loom pattern info",
+	              .usage = "loom pattern info IN [--json] [OPTIONS]",
+	              .about = about_info, .opts = opts, .pos_name = "IN", .pos_min = 1,
+	              .pos_max = 1, .pos = &o.in};
 
-	cli_init(&a, argc, argv, "loom pattern info", help_info);
-	parse_common(&a, &o, OPT_MAP | OPT_MAPS_IN | OPT_JSON, "IN");
+	opts_parse(&c, argc, argv);
+	check_common(&c, &o, 0);
 	cli_diag_init(&diag, &o.quiet);
-	d = load(a.prog, &o, &diag);
+	d = load(c.prog, &o, &diag);
 	if (loom_design_analyze(d, &st)) {
 		loom_design_free(d);
-		cli_fail(a.prog, "%s: cannot analyse the design (out of memory)", o.in);
+		cli_fail(c.prog, "%s: cannot analyse the design (out of memory)", o.in);
 	}
 	types_in_use(d, used);
 	if (o.json)
@@ -561,29 +505,18 @@ static int pattern_info(int argc, char **argv)
 
 int cmd_pattern(int argc, char **argv)
 {
-	static const struct {
-		const char *name;
-		cli_cmd_fn fn;
-	} subs[] = {
-		{"make", pattern_make},
-		{"convert", pattern_convert},
-		{"from-image", pattern_from_image},
-		{"info", pattern_info},
+	static const opts_sub subs[] = {
+		{"make", "KIND", pattern_make,
+		 "generate an elementary weave (plain, twill, satin, ...)"},
+		{"convert", "IN", pattern_convert,
+		 "a WIF draft or weave image to a .pbm or .png weave"},
+		{"from-image", "IMAGE", pattern_from_image,
+		 "posterized image + mapping file -> design (Jacquard)"},
+		{"info", "IN", pattern_info, "size, repeat, float lengths and yarn types"},
+		{NULL, NULL, NULL, NULL},
 	};
+	static const opts_dispatch d = {"loom pattern", about_pattern,
+	                                "Reference: docs/designs.md.", subs};
 
-	if (argc < 2) {
-		fputs(help_pattern, stderr);
-		return EXIT_USAGE;
-	}
-	if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||
-	    strcmp(argv[1], "help") == 0) {
-		fputs(help_pattern, stdout);
-		return 0;
-	}
-	for (size_t k = 0; k < sizeof subs / sizeof subs[0]; k++)
-		if (strcmp(argv[1], subs[k].name) == 0)
-			return subs[k].fn(argc - 1, argv + 1);
-	fprintf(stderr, "loom pattern: unknown command '%s'\nTry 'loom pattern --help'.\n",
-	        argv[1]);
-	return EXIT_USAGE;
+	return opts_run_sub(&d, argc, argv);
 }

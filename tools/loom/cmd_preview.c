@@ -5,40 +5,24 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-static const char help[] =
-	"usage: loom preview FABRIC [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]\n"
-	"                    [--width PX] [--height PX] [--budget MB] [--db DB]\n"
-	"                    [--threads N] [--threshold D] [--exposure STOPS]\n"
-	"                    [--height-map FILE] [--json] [--quiet] -o OUT.png|OUT.exr\n"
-	"\n"
+static const char usage[] =
+	"loom preview FABRIC [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]\n"
+	"             [--width PX] [--height PX] [--budget MB] [--db DB]\n"
+	"             [--threads N] [--threshold D] [--exposure STOPS]\n"
+	"             [--height-map FILE] [--json] [--quiet] -o OUT.png|OUT.exr\n";
+
+static const char about[] =
 	"Draw the fabric from straight above (orthographic): per pixel the top-most\n"
 	"voxel of the column under its centre, shaded from the height map and the\n"
 	"fibre direction with one light, coloured by the yarn albedo\n"
 	"(docs/preview.md).  Reads are streamed through the virtual texture in\n"
-	"bounded memory; a 4096-pixel preview of a whole large fabric takes seconds.\n"
-	"\n"
-	"  --region BOX      voxels, half-open: x across the ends, y along the warps\n"
-	"                    (any integers; the bolt is unbounded); default one\n"
-	"                    design repeat.  A z range restricts the columns.\n"
-	"  --width PX        output width (default: the region's width, at most 1024)\n"
-	"  --height PX       output height (default: keep the region's aspect)\n"
-	"  --budget MB       texture cache budget in MiB (default 64)\n"
-	"  --db DB           exemplar database (default: the one the fabric names)\n"
-	"  --threads N       worker threads (default: all CPUs)\n"
-	"  --threshold D     density at which a voxel counts as surface (default 0.2)\n"
-	"  --exposure STOPS  PNG only: scale by 2^STOPS before the sRGB curve (0)\n"
-	"  --height-map FILE also write the surface height: .exr (float channel\n"
-	"                    'height', voxels) or .png (grey, 0 = z0 .. 255 = top)\n"
-	"  -o, --output OUT  .png (8-bit sRGB) or .exr (linear float RGB, ZIP)\n"
-	"  --json            print figures as JSON on stdout\n"
-	"  --quiet           no progress or summary\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
+	"bounded memory; a 4096-pixel preview of a whole large fabric takes seconds.\n";
 
 /* "X0,Y0:X1,Y1" or "X0,Y0,Z0:X1,Y1,Z1" */
 static int parse_box(const char *s, int64_t lo[3], int64_t hi[3], int *has_z)
@@ -85,6 +69,21 @@ static int parse_box(const char *s, int64_t lo[3], int64_t hi[3], int *has_z)
 	return 0;
 }
 
+/* --region: the box into a struct box. */
+struct box {
+	int64_t lo[3], hi[3];
+	int has_z;
+};
+
+static const char *opt_region(const char *text, void *dest)
+{
+	struct box *b = dest;
+
+	if (parse_box(text, b->lo, b->hi, &b->has_z))
+		return "X0,Y0:X1,Y1 or X0,Y0,Z0:X1,Y1,Z1 with X0 < X1, Y0 < Y1 (and Z0 < Z1)";
+	return NULL;
+}
+
 static void progress_cb(void *user, uint64_t done, uint64_t total)
 {
 	(void)total;
@@ -117,13 +116,12 @@ static int write_height(const char *path, const float *hm, uint32_t w, uint32_t 
 int cmd_preview(int argc, char **argv)
 {
 	const char *prog = "loom preview";
-	const char *path = NULL, *out = NULL, *db_opt = NULL, *region_s = NULL;
-	const char *width_s = NULL, *height_s = NULL, *budget_s = NULL;
-	const char *threads_s = NULL, *thr_s = NULL, *hmap_path = NULL, *exp_s = NULL;
-	int quiet = 0, json = 0, has_z = 0, rc;
+	const char *path = NULL, *out = NULL, *db_opt = NULL, *hmap_path = NULL;
+	int quiet = 0, json = 0, has_z, rc;
 	double budget_mb = 64, exposure = 0, thr = 0.2;
 	uint32_t width = 0, height = 0, threads = 0, W, H;
-	int64_t lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+	struct box box = {{0, 0, 0}, {0, 0, 0}, 0};
+	int64_t *lo = box.lo, *hi = box.hi;
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_preview_options po = LOOM_PREVIEW_OPTIONS_INIT;
 	loom_preview_stats st;
@@ -135,68 +133,42 @@ int cmd_preview(int argc, char **argv)
 	cli_progress pr;
 	float *rgb = NULL, *hm = NULL;
 	loom_diag diag;
-	cli_args a;
 	double t0;
+	opt_entry opts[] = {
+		OPT_CALLBACK(0, "region", &box, "BOX", opt_region, "voxels, half-open: x across "
+		             "the ends, y along the warps (integers within +-2^46, the preview's "
+		             "limit; the bolt is unbounded); "
+		             "default one design repeat.  A z range restricts the columns."),
+		OPT_U32(0, "width", &width, "PX", 1, LOOM_PREVIEW_MAX_SIDE, "output width, "
+		        "%r (default: the region's width, at most 1024)"),
+		OPT_U32(0, "height", &height, "PX", 1, LOOM_PREVIEW_MAX_SIDE, "output height, "
+		        "%r (default: keep the region's aspect)"),
+		OPT_BUDGET(&budget_mb, "texture cache budget in MiB (default 64)"),
+		OPT_DB(&db_opt, "exemplar database (default: the one the fabric names)"),
+		OPT_THREADS(&threads, 256, "worker threads (default: all CPUs)"),
+		OPT_DOUBLE(0, "threshold", &thr, "D", "(]", 0, 1, "a density", "density at "
+		           "which a voxel counts as surface, in %r (default 0.2)"),
+		OPT_DOUBLE(0, "exposure", &exposure, "STOPS", "[]", -64, 64, "stops",
+		           "PNG only: scale by 2^STOPS before the sRGB curve (0)"),
+		OPT_STRING(0, "height-map", &hmap_path, "FILE", "also write the surface height: "
+		           ".exr (float channel 'height', voxels) or .png (grey, 0 = z0 .. 255 = "
+		           "top)"),
+		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB, ZIP)"),
+		OPT_JSON(&json, "print figures as JSON on stdout"),
+		OPT_QUIET(&quiet, "no progress or summary"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = usage, .about = about, .opts = opts,
+	              .pos_name = "FABRIC", .pos_min = 1, .pos_max = 1, .pos = &path};
 
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--db", &db_opt) || cli_value(&a, "--region", &region_s) ||
-		    cli_value(&a, "--width", &width_s) ||
-		    cli_value(&a, "--height", &height_s) ||
-		    cli_value(&a, "--budget", &budget_s) ||
-		    cli_value(&a, "--threads", &threads_s) ||
-		    cli_value(&a, "--threshold", &thr_s) ||
-		    cli_value(&a, "--exposure", &exp_s) ||
-		    cli_value(&a, "--height-map", &hmap_path))
-			continue;
-		if (cli_flag(&a, "--quiet") || cli_flag(&a, "-q")) {
-			quiet = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			if (path)
-				cli_usage(&a, "more than one FABRIC");
-			path = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!path)
-		cli_usage(&a, "missing FABRIC");
+	opts_parse(&c, argc, argv);
+	has_z = box.has_z;
 	if (!out)
-		cli_usage(&a, "missing -o OUT.png|OUT.exr");
+		opts_usage(&c, "missing -o OUT.png|OUT.exr");
 	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
-		cli_usage(&a, "output '%s' must end in .png or .exr", out);
+		opts_usage(&c, "output '%s' must end in .png or .exr", out);
 	if (hmap_path && !cli_ends_with(hmap_path, ".png") && !cli_ends_with(hmap_path, ".exr"))
-		cli_usage(&a, "height map '%s' must end in .png or .exr", hmap_path);
-	if (region_s && parse_box(region_s, lo, hi, &has_z))
-		cli_usage(&a, "bad --region '%s' (expected X0,Y0:X1,Y1 or "
-		          "X0,Y0,Z0:X1,Y1,Z1 with X0 < X1 ...)", region_s);
-	if (width_s && (cli_parse_u32(width_s, &width) || width == 0 ||
-	                width > LOOM_PREVIEW_MAX_SIDE))
-		cli_usage(&a, "bad --width '%s' (expected 1..%u)", width_s,
-		          LOOM_PREVIEW_MAX_SIDE);
-	if (height_s && (cli_parse_u32(height_s, &height) || height == 0 ||
-	                 height > LOOM_PREVIEW_MAX_SIDE))
-		cli_usage(&a, "bad --height '%s' (expected 1..%u)", height_s,
-		          LOOM_PREVIEW_MAX_SIDE);
-	if (budget_s && (cli_parse_double(budget_s, &budget_mb) || !(budget_mb > 0) ||
-	                 budget_mb > 1048576.0))
-		cli_usage(&a, "bad --budget '%s' (expected MiB > 0)", budget_s);
-	if (threads_s && (cli_parse_u32(threads_s, &threads) || threads == 0 ||
-	                  threads > 256))
-		cli_usage(&a, "bad --threads '%s' (expected 1..256)", threads_s);
-	if (thr_s && (cli_parse_double(thr_s, &thr) || !(thr > 0) || thr > 1))
-		cli_usage(&a, "bad --threshold '%s' (expected a density in (0, 1])", thr_s);
-	if (exp_s && (cli_parse_double(exp_s, &exposure) || exposure < -64 ||
-	              exposure > 64))
-		cli_usage(&a, "bad --exposure '%s' (expected stops in [-64, 64])", exp_s);
+		opts_usage(&c, "height map '%s' must end in .png or .exr", hmap_path);
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
@@ -206,7 +178,7 @@ int cmd_preview(int argc, char **argv)
 		cli_fail(prog, "%s", diag.message);
 	}
 	loom_fabric_get_db_identity(f, &id);
-	if (!region_s) {
+	if (!opt_given(&c, &box)) {
 		uint64_t size[3];
 		loom_fabric_repeat_voxels(f, size);
 		hi[0] = (int64_t)size[0];
@@ -221,8 +193,8 @@ int cmd_preview(int argc, char **argv)
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	memcpy(po.lo, lo, sizeof lo);
-	memcpy(po.hi, hi, sizeof hi);
+	memcpy(po.lo, box.lo, sizeof box.lo);
+	memcpy(po.hi, box.hi, sizeof box.hi);
 	po.width = width;
 	po.height = height;
 	po.threads = threads;

@@ -6,6 +6,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <math.h>
@@ -17,44 +18,24 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static const char help[] =
-	"usage: loom render FABRIC [--mesh OBJ] [--width W] [--height H] [--spp N]\n"
-	"                   [--threads N] [--budget MB] [--seed S] [--db DB]\n"
-	"                   [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
-	"                   [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
-	"                   [--filter nearest|trilinear] [--thickness T]\n"
-	"                   [--uv-repeats R] [--json] [--quiet] -o OUT.png|OUT.exr\n"
-	"\n"
+static const char usage[] =
+	"loom render FABRIC [--mesh OBJ] [--width W] [--height H] [--spp N]\n"
+	"            [--threads N] [--budget MB] [--seed S] [--db DB]\n"
+	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
+	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
+	"            [--filter nearest|trilinear] [--thickness T]\n"
+	"            [--uv-repeats R] [--json] [--quiet] -o OUT.png|OUT.exr\n";
+
+static const char about[] =
 	"Render the fabric with the microflake volume path tracer\n"
 	"(docs/rendering.md).  Without --mesh: a flat patch of the unbounded bolt\n"
 	"seen through a pinhole camera from above at an angle, framed on --region\n"
 	"(default one design repeat).  With --mesh: the cloth is mapped onto the\n"
 	"mesh's UV layout as a shell (shell mapping) and seen from above the mesh.\n"
-	"Same inputs and seed give the same bytes for any thread count.\n"
-	"\n"
-	"  --width W, --height H  image size (default 480 x 320)\n"
-	"  --spp N           samples per pixel (default 16)\n"
-	"  --threads N       render threads (default: all CPUs)\n"
-	"  --budget MB       texture cache budget in MiB (default 128)\n"
-	"  --seed S          random seed (default 1)\n"
-	"  --db DB           exemplar database (default: the one the fabric names)\n"
-	"  --region BOX      flat patch: the window framed, voxels (default one repeat)\n"
-	"  --elevation DEG   camera angle above the cloth plane (default 40)\n"
-	"  --azimuth DEG     camera direction around the vertical (default 0: looking\n"
-	"                    along +y, the warps)\n"
-	"  --fov DEG         vertical field of view (default 30)\n"
-	"  --density-scale K extinction per voxel length of density 1 (default 2)\n"
-	"  --exposure STOPS  PNG: scale by 2^STOPS before the sRGB curve (default 0)\n"
-	"  --filter F        texture lookups: nearest (default) or trilinear\n"
-	"  --mesh OBJ        map the cloth onto this mesh (needs texture coordinates)\n"
-	"  --thickness T     shell thickness in mesh units (default 1.5% of the\n"
-	"                    mesh's bounding-box diagonal)\n"
-	"  --uv-repeats R    design repeats per UV unit along u (default 1)\n"
-	"  -o, --output OUT  .png (8-bit sRGB) or .exr (linear float RGB)\n"
-	"  --json            print figures as JSON on stdout\n"
-	"  --quiet           no progress or summary\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
+	"Same inputs and seed give the same bytes for any thread count.\n";
+
+static const opt_choice filter_names[] = {
+	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
 
 static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 {
@@ -70,6 +51,16 @@ static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 	hi[0] = v[2];
 	hi[1] = v[3];
 	return 0;
+}
+
+/* --region into int64_t[4]: lo x, lo y, hi x, hi y. */
+static const char *opt_region(const char *text, void *dest)
+{
+	int64_t *b = dest;
+
+	if (parse_box2(text, b, b + 2))
+		return "X0,Y0:X1,Y1 with X0 < X1, Y0 < Y1";
+	return NULL;
 }
 
 typedef struct rprog {
@@ -106,16 +97,12 @@ int cmd_render(int argc, char **argv)
 {
 	const char *prog = "loom render";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *mesh_path = NULL;
-	const char *w_s = NULL, *h_s = NULL, *spp_s = NULL, *threads_s = NULL;
-	const char *budget_s = NULL, *seed_s = NULL, *region_s = NULL, *el_s = NULL;
-	const char *az_s = NULL, *fov_s = NULL, *ds_s = NULL, *exp_s = NULL;
-	const char *filter_s = NULL, *thick_s = NULL, *uvr_s = NULL;
 	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc;
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
 	double thickness = 0, uv_repeats = 1;
-	int64_t lo[2] = {0, 0}, hi[2] = {0, 0};
+	int64_t box[4] = {0, 0, 0, 0}, *lo = box, *hi = box + 2;
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
 	loom_render_stats st;
@@ -130,94 +117,54 @@ int cmd_render(int argc, char **argv)
 	float *rgb = NULL;
 	rprog pr;
 	loom_diag diag;
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_U32(0, "width", &width, "W", 1, 65536, "image width, %r (default 480)"),
+		OPT_U32(0, "height", &height, "H", 1, 65536, "image height, %r (default 320)"),
+		OPT_U32(0, "spp", &spp, "N", 1, 1000000, "samples per pixel, %r (default 16)"),
+		OPT_THREADS(&threads, 256, "render threads (default: all CPUs)"),
+		OPT_BUDGET(&budget_mb, "texture cache budget in MiB (default 128)"),
+		OPT_SEED(&seed, "S", "random seed (default 1)"),
+		OPT_DB(&db_opt, "exemplar database (default: the one the fabric names)"),
+		OPT_CALLBACK(0, "region", box, "BOX", opt_region, "flat patch: the window "
+		             "framed, voxels (default one repeat)"),
+		OPT_DOUBLE(0, "elevation", &el, "DEG", "(]", 0, 90, "degrees", "camera angle "
+		           "above the cloth plane, %r (default 40)"),
+		OPT_DOUBLE(0, "azimuth", &az, "DEG", "()", -INFINITY, INFINITY,
+		           "a finite number of degrees",
+		           "camera direction around the vertical (default 0: looking along "
+		           "+y, the warps)"),
+		OPT_DOUBLE(0, "fov", &fov, "DEG", "()", 0, 180, "degrees",
+		           "vertical field of view, %r (default 30)"),
+		OPT_DOUBLE(0, "density-scale", &dscale, "K", "(]", 0, 1e6, NULL, "extinction "
+		           "per voxel length of density 1 (default 2)"),
+		OPT_DOUBLE(0, "exposure", &exposure, "STOPS", "[]", -64, 64, "stops", "PNG: "
+		           "scale by 2^STOPS before the sRGB curve (default 0)"),
+		OPT_ENUM(0, "filter", &filter, "F", filter_names,
+		         "texture lookups: nearest (default) or trilinear"),
+		OPT_STRING(0, "mesh", &mesh_path, "OBJ",
+		           "map the cloth onto this mesh (needs texture coordinates)"),
+		OPT_DOUBLE(0, "thickness", &thickness, "T", "()", 0, INFINITY, NULL, "shell "
+		           "thickness in mesh units (default 1.5% of the mesh's bounding-box "
+		           "diagonal)"),
+		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
+		           "design repeats per UV unit along u (default 1)"),
+		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB)"),
+		OPT_JSON(&json, "print figures as JSON on stdout"),
+		OPT_QUIET(&quiet, "no progress or summary"),
+		OPT_END()
+	};
+	opts_cmd cmd = {.prog = prog, .usage = usage, .about = about, .opts = opts,
+	                .pos_name = "FABRIC", .pos_min = 1, .pos_max = 1, .pos = &path};
 
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--db", &db_opt) || cli_value(&a, "--mesh", &mesh_path) ||
-		    cli_value(&a, "--width", &w_s) || cli_value(&a, "--height", &h_s) ||
-		    cli_value(&a, "--spp", &spp_s) || cli_value(&a, "--threads", &threads_s) ||
-		    cli_value(&a, "--budget", &budget_s) || cli_value(&a, "--seed", &seed_s) ||
-		    cli_value(&a, "--region", &region_s) ||
-		    cli_value(&a, "--elevation", &el_s) || cli_value(&a, "--azimuth", &az_s) ||
-		    cli_value(&a, "--fov", &fov_s) ||
-		    cli_value(&a, "--density-scale", &ds_s) ||
-		    cli_value(&a, "--exposure", &exp_s) ||
-		    cli_value(&a, "--filter", &filter_s) ||
-		    cli_value(&a, "--thickness", &thick_s) ||
-		    cli_value(&a, "--uv-repeats", &uvr_s))
-			continue;
-		if (cli_flag(&a, "--quiet") || cli_flag(&a, "-q")) {
-			quiet = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			if (path)
-				cli_usage(&a, "more than one FABRIC");
-			path = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!path)
-		cli_usage(&a, "missing FABRIC");
+	opts_parse(&cmd, argc, argv);
 	if (!out)
-		cli_usage(&a, "missing -o OUT.png|OUT.exr");
+		opts_usage(&cmd, "missing -o OUT.png|OUT.exr");
 	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
-		cli_usage(&a, "output '%s' must end in .png or .exr", out);
-	if (w_s && (cli_parse_u32(w_s, &width) || width == 0 || width > 65536))
-		cli_usage(&a, "bad --width '%s' (expected 1..65536)", w_s);
-	if (h_s && (cli_parse_u32(h_s, &height) || height == 0 || height > 65536))
-		cli_usage(&a, "bad --height '%s' (expected 1..65536)", h_s);
-	if (spp_s && (cli_parse_u32(spp_s, &spp) || spp == 0 || spp > 1000000))
-		cli_usage(&a, "bad --spp '%s' (expected 1..1000000)", spp_s);
-	if (threads_s && (cli_parse_u32(threads_s, &threads) || threads == 0 ||
-	                  threads > 256))
-		cli_usage(&a, "bad --threads '%s' (expected 1..256)", threads_s);
-	if (budget_s && (cli_parse_double(budget_s, &budget_mb) || !(budget_mb > 0) ||
-	                 budget_mb > 1048576.0))
-		cli_usage(&a, "bad --budget '%s' (expected MiB > 0)", budget_s);
-	if (seed_s && cli_parse_u64(seed_s, &seed))
-		cli_usage(&a, "bad --seed '%s'", seed_s);
-	if (region_s && parse_box2(region_s, lo, hi))
-		cli_usage(&a, "bad --region '%s' (expected X0,Y0:X1,Y1 with X0 < X1, "
-		          "Y0 < Y1)", region_s);
-	if (el_s && (cli_parse_double(el_s, &el) || !(el > 0) || el > 90))
-		cli_usage(&a, "bad --elevation '%s' (expected degrees in (0, 90])", el_s);
-	if (az_s && (cli_parse_double(az_s, &az) || !isfinite(az)))
-		cli_usage(&a, "bad --azimuth '%s'", az_s);
-	if (fov_s && (cli_parse_double(fov_s, &fov) || !(fov > 0) || fov >= 180))
-		cli_usage(&a, "bad --fov '%s' (expected degrees in (0, 180))", fov_s);
-	if (ds_s && (cli_parse_double(ds_s, &dscale) || !(dscale > 0) || dscale > 1e6))
-		cli_usage(&a, "bad --density-scale '%s' (expected > 0)", ds_s);
-	if (exp_s && (cli_parse_double(exp_s, &exposure) || exposure < -64 ||
-	              exposure > 64))
-		cli_usage(&a, "bad --exposure '%s' (expected stops in [-64, 64])", exp_s);
-	if (filter_s) {
-		if (strcmp(filter_s, "nearest") == 0)
-			filter = LOOM_FILTER_NEAREST;
-		else if (strcmp(filter_s, "trilinear") == 0)
-			filter = LOOM_FILTER_TRILINEAR;
-		else
-			cli_usage(&a, "bad --filter '%s' (expected nearest or trilinear)",
-			          filter_s);
-	}
-	if (thick_s && (cli_parse_double(thick_s, &thickness) || !(thickness > 0) ||
-	                !isfinite(thickness)))
-		cli_usage(&a, "bad --thickness '%s' (expected > 0)", thick_s);
-	if (uvr_s && (cli_parse_double(uvr_s, &uv_repeats) || !(uv_repeats > 0) ||
-	              !isfinite(uv_repeats)))
-		cli_usage(&a, "bad --uv-repeats '%s' (expected > 0)", uvr_s);
-	if (mesh_path && region_s)
-		cli_usage(&a, "--region frames a flat patch; it does not go with --mesh");
-	if (!mesh_path && (thick_s || uvr_s))
-		cli_usage(&a, "--thickness and --uv-repeats go with --mesh");
+		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
+	if (mesh_path && opt_given(&cmd, box))
+		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
+	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats)))
+		opts_usage(&cmd, "--thickness and --uv-repeats go with --mesh");
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
@@ -290,7 +237,7 @@ int cmd_render(int argc, char **argv)
 	} else {
 		double c[3], wspan, dist, aspect = (double)width / height;
 		double tanh_y = tan(0.5 * fov * M_PI / 180.0);
-		if (!region_s) {
+		if (!opt_given(&cmd, box)) {
 			hi[0] = (int64_t)rep[0];
 			hi[1] = (int64_t)rep[1];
 		}

@@ -6,6 +6,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -15,34 +16,27 @@
 #include <time.h>
 #include <unistd.h>
 
-static const char help[] =
-	"usage: loom sample FABRIC [--db DB] --at X,Y,Z [--filter nearest|trilinear]\n"
-	"                          [--budget MB] [--json]\n"
-	"       loom sample FABRIC [--db DB] --random N [--seed S] [--budget MB]\n"
-	"                          [--threads T] [--json] [--quiet]\n"
-	"\n"
-	"Look voxels of the fabric's virtual texture up (docs/engine.md).\n"
-	"\n"
-	"  --at X,Y,Z       one position in voxels (x across the ends, y along the\n"
-	"                   warps, z up; any integer, the bolt is unbounded in x\n"
-	"                   and y): prints density, fibre orientation, kind (0\n"
-	"                   empty, 1 warp, 2 weft), yarn type and albedo\n"
-	"  --filter F       nearest (default: the voxel containing the position;\n"
-	"                   integers name voxels) or trilinear (voxel centres are\n"
-	"                   at integer + 0.5)\n"
-	"  --random N       N nearest lookups at uniformly random voxels of one\n"
-	"                   design repeat; prints lookups per second, the cache's\n"
-	"                   statistics, the peak resident memory and a checksum of\n"
-	"                   the voxels (the same for any budget and thread count)\n"
-	"  --seed S         seed of the random positions (default 1)\n"
-	"  --threads T      lookup threads for --random (default 1)\n"
-	"  --budget MB      memory budget of the texture in MiB (default 64)\n"
-	"  --db DB          the exemplar database (default: the path recorded in\n"
-	"                   the fabric)\n"
-	"  --json           print the result as JSON\n"
-	"  --quiet          no progress on stderr\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed lookup, 2 usage error.\n";
+static const char usage[] =
+	"loom sample FABRIC [--db DB] --at X,Y,Z [--filter nearest|trilinear]\n"
+	"                   [--budget MB] [--json]\n"
+	"loom sample FABRIC [--db DB] --random N [--seed S] [--budget MB]\n"
+	"                   [--threads N] [--json] [--quiet]\n";
+
+static const char about[] =
+	"Look voxels of the fabric's virtual texture up (docs/engine.md).\n";
+
+/* The texture's limits (loom/texture.h): integer voxel coordinates below
+   2^62 in magnitude, real positions (and every trilinear lookup) below
+   2^61. */
+#define AT_HELP \
+	"one position in voxels (x across the ends, y along the warps, z up; " \
+	"the bolt is unbounded in x and y): prints density, fibre orientation, " \
+	"kind (0 empty, 1 warp, 2 weft), yarn type and albedo.  Integers with " \
+	"the nearest filter name a voxel and must be below 2^62 in magnitude; " \
+	"other positions below 2^61"
+
+static const opt_choice filter_names[] = {
+	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
 
 static double now_s(void)
 {
@@ -75,28 +69,35 @@ static uint64_t peak_rss(void)
 	return (uint64_t)kb * 1024;
 }
 
-/* "X,Y,Z": three numbers; ints[a] = 1 where the text is an integer. */
-static int parse_at(const char *s, double v[3], int64_t iv[3], int ints[3])
+/* --at "X,Y,Z": three numbers; ints[a] = 1 where the text is an integer. */
+typedef struct at_pos {
+	double v[3];
+	int64_t iv[3];
+	int ints[3];
+} at_pos;
+
+static const char *parse_at(const char *s, void *dest)
 {
+	at_pos *at = dest;
 	char buf[256], *p = buf;
 
 	if (strlen(s) >= sizeof buf)
-		return -1;
+		return "three numbers X,Y,Z";
 	strcpy(buf, s);
 	for (int a = 0; a < 3; a++) {
 		char *comma = strchr(p, ',');
 		if ((a < 2) != (comma != NULL))
-			return -1;
+			return "three numbers X,Y,Z";
 		if (comma)
 			*comma = 0;
-		ints[a] = cli_parse_i64(p, &iv[a]) == 0;
-		if (cli_parse_double(p, &v[a]) != 0 || !isfinite(v[a]))
-			return -1;
-		if (ints[a])
-			v[a] = (double)iv[a];
+		at->ints[a] = cli_parse_i64(p, &at->iv[a]) == 0;
+		if (cli_parse_double(p, &at->v[a]) != 0 || !isfinite(at->v[a]))
+			return "three numbers X,Y,Z";
+		if (at->ints[a])
+			at->v[a] = (double)at->iv[a];
 		p = comma ? comma + 1 : p;
 	}
-	return 0;
+	return NULL;
 }
 
 static const char *kind_name(int k)
@@ -254,20 +255,26 @@ static int run_random(const char *prog, loom_texture *t, const loom_fabric *f,
 /* ---- --at ------------------------------------------------------------------- */
 
 static int run_at(const char *prog, loom_texture *t, const loom_fabric *f,
-                  const double v[3], const int64_t iv[3], const int ints[3],
-                  int filter, int json)
+                  const at_pos *at, int filter, int json)
 {
 	const loom_design *d = loom_fabric_design(f);
+	const double *v = at->v;
+	const int64_t *iv = at->iv;
+	const int *ints = at->ints;
+	int voxel = filter == LOOM_FILTER_NEAREST && ints[0] && ints[1] && ints[2];
 	loom_texel tx;
 	int rc;
 
-	if (filter == LOOM_FILTER_NEAREST && ints[0] && ints[1] && ints[2])
+	if (voxel)
 		rc = loom_texture_voxel(t, iv[0], iv[1], iv[2], &tx);
 	else
 		rc = loom_texture_sample(t, v, filter, &tx);
+	if ((rc == LOOM_EINVAL || rc == LOOM_ERANGE) && voxel)
+		cli_fail(prog, "voxel %lld,%lld,%lld out of range (|coordinate| < 2^62)",
+		         (long long)iv[0], (long long)iv[1], (long long)iv[2]);
 	if (rc == LOOM_EINVAL || rc == LOOM_ERANGE)
-		cli_fail(prog, "position %g,%g,%g out of range (|coordinate| < 2^61)",
-		         v[0], v[1], v[2]);
+		cli_fail(prog, "position %g,%g,%g out of range (|coordinate| < 2^61 for real "
+		         "positions and trilinear lookups)", v[0], v[1], v[2]);
 	if (rc != LOOM_OK)
 		cli_fail(prog, "%s", loom_texture_errmsg(t));
 	if (json) {
@@ -321,73 +328,46 @@ static int run_at(const char *prog, loom_texture *t, const loom_fabric *f,
 int cmd_sample(int argc, char **argv)
 {
 	const char *prog = "loom sample";
-	const char *path = NULL, *db_opt = NULL, *at_s = NULL, *filter_s = NULL;
-	const char *random_s = NULL, *seed_s = NULL, *threads_s = NULL, *budget_s = NULL;
-	int json = 0, quiet = 0, filter = LOOM_FILTER_NEAREST, ints[3] = {0, 0, 0}, rc;
+	const char *path = NULL, *db_opt = NULL;
+	int json = 0, quiet = 0, filter = LOOM_FILTER_NEAREST, rc;
 	uint64_t n = 0, seed = 1;
 	uint32_t threads = 1;
-	double budget_mb = 64, v[3] = {0, 0, 0};
-	int64_t iv[3] = {0, 0, 0};
+	double budget_mb = 64;
+	at_pos at = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
 	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
 	loom_texture *t = NULL;
 	loom_diag diag;
-	cli_args a;
+	opt_entry opts[] = {
+		OPT_CALLBACK(0, "at", &at, "X,Y,Z", parse_at, AT_HELP),
+		OPT_ENUM(0, "filter", &filter, "F", filter_names, "nearest (default: the voxel "
+		         "containing the position; integers name voxels) or trilinear (voxel "
+		         "centres are at integer + 0.5)"),
+		OPT_U64(0, "random", &n, "N", 1, UINT64_MAX, "N nearest lookups at uniformly "
+		        "random voxels of one design repeat; prints lookups per second, the "
+		        "cache's statistics, the peak resident memory and a checksum of the "
+		        "voxels (the same for any budget and thread count)"),
+		OPT_SEED(&seed, "S", "seed of the random positions (default 1)"),
+		OPT_THREADS(&threads, 1024, "lookup threads for --random (default 1; %r)"),
+		OPT_BUDGET(&budget_mb, "memory budget of the texture in MiB (default 64)"),
+		OPT_DB(&db_opt, "the exemplar database (default: the path recorded in the "
+		       "fabric)"),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = usage, .about = about,
+	              .exit1 = "bad input or failed lookup", .opts = opts,
+	              .pos_name = "FABRIC", .pos_min = 1, .pos_max = 1, .pos = &path};
 
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (cli_value(&a, "--db", &db_opt) || cli_value(&a, "--at", &at_s) ||
-		    cli_value(&a, "--filter", &filter_s) ||
-		    cli_value(&a, "--random", &random_s) || cli_value(&a, "--seed", &seed_s) ||
-		    cli_value(&a, "--threads", &threads_s) ||
-		    cli_value(&a, "--budget", &budget_s))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			if (path)
-				cli_usage(&a, "more than one FABRIC");
-			path = s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!path)
-		cli_usage(&a, "missing FABRIC");
-	if (!at_s == !random_s)
-		cli_usage(&a, "give one of --at X,Y,Z or --random N");
-	if (at_s && parse_at(at_s, v, iv, ints))
-		cli_usage(&a, "bad --at '%s' (expected three numbers X,Y,Z)", at_s);
-	if (filter_s) {
-		if (strcmp(filter_s, "nearest") == 0)
-			filter = LOOM_FILTER_NEAREST;
-		else if (strcmp(filter_s, "trilinear") == 0)
-			filter = LOOM_FILTER_TRILINEAR;
-		else
-			cli_usage(&a, "bad --filter '%s' (expected nearest or trilinear)", filter_s);
-		if (random_s)
-			cli_usage(&a, "--filter goes with --at");
-	}
-	if (random_s && (cli_parse_u64(random_s, &n) || n == 0))
-		cli_usage(&a, "bad --random '%s' (expected a count > 0)", random_s);
-	if (seed_s && cli_parse_u64(seed_s, &seed))
-		cli_usage(&a, "bad --seed '%s'", seed_s);
-	if (threads_s && (cli_parse_u32(threads_s, &threads) || threads == 0 ||
-	                  threads > 1024))
-		cli_usage(&a, "bad --threads '%s' (expected 1..1024)", threads_s);
-	if ((seed_s || threads_s) && !random_s)
-		cli_usage(&a, "--seed and --threads go with --random");
-	if (budget_s && (cli_parse_double(budget_s, &budget_mb) || !(budget_mb > 0) ||
-	                 budget_mb > 1048576.0))
-		cli_usage(&a, "bad --budget '%s' (expected MiB > 0)", budget_s);
+	opts_parse(&c, argc, argv);
+	if (!opt_given(&c, &at) == !opt_given(&c, &n))
+		opts_usage(&c, "give one of --at X,Y,Z or --random N");
+	if (opt_given(&c, &filter) && opt_given(&c, &n))
+		opts_usage(&c, "--filter goes with --at");
+	if ((opt_given(&c, &seed) || opt_given(&c, &threads)) && !opt_given(&c, &n))
+		opts_usage(&c, "--seed and --threads go with --random");
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
@@ -403,8 +383,8 @@ int cmd_sample(int argc, char **argv)
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	if (at_s)
-		rc = run_at(prog, t, f, v, iv, ints, filter, json);
+	if (opt_given(&c, &at))
+		rc = run_at(prog, t, f, &at, filter, json);
 	else
 		rc = run_random(prog, t, f, n, seed, threads, json, quiet, budget_mb);
 	loom_texture_close(t);

@@ -25,45 +25,24 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char help[] =
-	"usage: loom scan FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
-	"                 --reduce checksum|histogram|coverage [--bins B]\n"
-	"                 [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
-	"                 [--threads N] [--db DB] [--quiet] [--json]\n"
-	"       loom scan --combine PART.json... [--json]\n"
-	"\n"
+static const char usage[] =
+	"loom scan FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
+	"          --reduce checksum|histogram|coverage [--bins B]\n"
+	"          [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
+	"          [--threads N] [--db DB] [--quiet] [--json]\n"
+	"loom scan --combine PART.json... [--json]\n";
+
+static const char about[] =
 	"Stream every voxel of a region of the fabric's virtual texture through a\n"
 	"reducer, in tiles, on N threads, within a fixed memory budget, and print\n"
 	"the result with voxels per second and the peak resident memory\n"
-	"(docs/batch.md).\n"
-	"\n"
-	"  --region BOX     voxels X0<=x<X1, Y0<=y<Y1, Z0<=z<Z1 (integers, any sign\n"
-	"                   in x and y: the bolt is unbounded)\n"
-	"  --all            one design repeat, the cloth's whole thickness\n"
-	"  --bolt LxW       with --all: a bolt LENGTH (along the warps, y) by WIDTH\n"
-	"                   (x), in repeats or with mm, cm or m (e.g. 2x1, 1.5mx90cm)\n"
-	"  --reduce R       checksum: a 64-bit hash of every voxel (density,\n"
-	"                     orientation, kind, type), the same for any threads,\n"
-	"                     budget, tile size and shard split; shards' values add\n"
-	"                   histogram: density per yarn type (voxels with a yarn)\n"
-	"                   coverage: per voxel column, the kind of the top-most\n"
-	"                     voxel with density > 0: warp, weft or none\n"
-	"  --bins B         histogram bins over density 0..1 (default 16, 1..256)\n"
-	"  --tile TX,TY[,TZ] tile size in voxels (default 32,32 and the whole\n"
-	"                   region's thickness; coverage needs whole columns)\n"
-	"  --shard I/N      only the tiles whose index mod N is I (0-based)\n"
-	"  --budget MB      all memory for tiles and bricks, MiB (default 64)\n"
-	"  --threads N      worker threads (default 1)\n"
-	"  --db DB          the exemplar database (default: the fabric's)\n"
-	"  --combine F...   add up the --json results of shards (or of disjoint\n"
-	"                   regions) of one reducer\n"
-	"  --json           print the result as JSON\n"
-	"  --quiet          no progress on stderr\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed read, 2 usage error.\n";
+	"(docs/batch.md).\n";
 
 enum { R_CHECKSUM, R_HISTOGRAM, R_COVERAGE };
 static const char *const reduce_names[] = {"checksum", "histogram", "coverage"};
+static const opt_choice reduce_choices[] = {
+	{"checksum", R_CHECKSUM}, {"histogram", R_HISTOGRAM}, {"coverage", R_COVERAGE},
+	{NULL, 0}};
 
 #define SEED_Z 0x6c6f6f6d7363616eull /* "loomscan" */
 #define M1 0x9e3779b1u
@@ -464,9 +443,8 @@ static int get_arr(const char *p, uint64_t *v, size_t n, size_t *got)
 	}
 }
 
-static int combine(cli_args *a, int nfiles, char **files, int json)
+static int combine(const char *prog, int nfiles, const char **files, int json)
 {
-	const char *prog = a->prog;
 	scan_result r;
 	uint8_t *seen = NULL;
 	uint64_t tile_lo[3] = {0}, tile_hi[3] = {0};
@@ -594,9 +572,9 @@ static int combine(cli_args *a, int nfiles, char **files, int json)
 int cmd_scan(int argc, char **argv)
 {
 	const char *prog = "loom scan";
-	const char *path = NULL, *reduce_s = NULL, *bins_s = NULL;
-	int json = 0, quiet = 0, combine_mode = 0, nfiles = 0;
-	char **files = calloc((size_t)argc + 1, sizeof *files);
+	const char *path;
+	int json = 0, quiet = 0, combine_mode = 0, nfiles;
+	const char **files = calloc((size_t)argc + 1, sizeof *files);
 	uint32_t bins = 16;
 	tiles_job j;
 	struct scan_ctx c;
@@ -607,69 +585,65 @@ int cmd_scan(int argc, char **argv)
 	const loom_design *d;
 	size_t ncol, nz, per;
 	double t0, secs, cpu0, cpu;
-	cli_args a;
+	opt_entry opts[] = {
+		TILES_OPT_REGION(&j),
+		TILES_OPT_ALL(&j),
+		TILES_OPT_BOLT(&j),
+		OPT_ENUM(0, "reduce", &c.reduce, "R", reduce_choices, "checksum: a 64-bit hash "
+		         "of every voxel (density, orientation, kind, type), the same for any "
+		         "threads, budget, tile size and shard split; shards' values add\n"
+		         "histogram: density per yarn type (voxels with a yarn)\ncoverage: per "
+		         "voxel column, the kind of the top-most voxel with density > 0: warp, "
+		         "weft or none"),
+		OPT_U32(0, "bins", &bins, "B", 1, 256,
+		        "histogram bins over density 0..1 (default 16, %r)"),
+		TILES_OPT_TILE(&j, "tile size in voxels (default 32,32 and the whole region's "
+		               "thickness; coverage needs whole columns)"),
+		TILES_OPT_SHARD(&j, "only the tiles whose index mod N is I (0-based)"),
+		TILES_OPT_BUDGET(&j, "all memory for tiles and bricks, MiB (default 64)"),
+		TILES_OPT_THREADS(&j),
+		TILES_OPT_DB(&j),
+		OPT_FLAG(0, "combine", &combine_mode, "add up the --json results of shards (or "
+		         "of disjoint regions) of one reducer, given as PART.json..."),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_END()
+	};
+	opts_cmd cmd = {.prog = prog, .usage = usage, .about = about,
+	                .exit1 = "bad input or failed read", .opts = opts,
+	                .pos_name = "FABRIC", .pos_max = argc, .pos = files};
 
 	if (!files)
 		cli_fail(prog, "out of memory");
 	tiles_init(&j);
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *s;
-		if (tiles_option(&a, &j) || cli_value(&a, "--reduce", &reduce_s) ||
-		    cli_value(&a, "--bins", &bins_s))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--combine")) {
-			combine_mode = 1;
-			continue;
-		}
-		if ((s = cli_positional(&a)) != NULL) {
-			files[nfiles++] = (char *)s;
-			continue;
-		}
-		cli_unknown(&a);
-	}
+	c.reduce = -1;
+	opts_parse(&cmd, argc, argv);
+	nfiles = cmd.n_pos;
 	if (combine_mode) {
 		int rc;
 		if (nfiles == 0)
-			cli_usage(&a, "--combine needs the JSON results to add up");
-		if (j.region_s || j.all || reduce_s || j.tile_s || j.shard_s)
-			cli_usage(&a, "--combine takes only JSON files (and --json)");
-		rc = combine(&a, nfiles, files, json);
+			opts_usage(&cmd, "--combine needs the JSON results to add up");
+		if (j.region_s || j.all || c.reduce >= 0 || j.tile_s || j.shard_s)
+			opts_usage(&cmd, "--combine takes only JSON files (and --json)");
+		rc = combine(prog, nfiles, files, json);
 		free(files);
 		return rc;
 	}
 	if (nfiles == 0)
-		cli_usage(&a, "missing FABRIC");
+		opts_usage(&cmd, "missing FABRIC");
 	if (nfiles > 1)
-		cli_usage(&a, "more than one FABRIC");
+		opts_usage(&cmd, "more than one FABRIC ('%s' and '%s')", files[0], files[1]);
 	path = files[0];
-	tiles_parse(&a, &j, 1);
-	if (!reduce_s)
-		cli_usage(&a, "missing --reduce checksum|histogram|coverage");
-	c.reduce = -1;
-	for (int k = 0; k < 3; k++)
-		if (strcmp(reduce_s, reduce_names[k]) == 0)
-			c.reduce = k;
+	tiles_parse(&cmd, &j, 1);
 	if (c.reduce < 0)
-		cli_usage(&a, "bad --reduce '%s' (expected checksum, histogram or coverage)",
-		          reduce_s);
-	if (bins_s && (cli_parse_u32(bins_s, &bins) || bins < 1 || bins > 256))
-		cli_usage(&a, "bad --bins '%s' (expected 1..256)", bins_s);
-	if (bins_s && c.reduce != R_HISTOGRAM)
-		cli_usage(&a, "--bins goes with --reduce histogram");
+		opts_usage(&cmd, "missing --reduce checksum|histogram|coverage");
+	if (opt_given(&cmd, &bins) && c.reduce != R_HISTOGRAM)
+		opts_usage(&cmd, "--bins goes with --reduce histogram");
 
 	tiles_open_fabric(&j, prog, path, 32);
 	if (c.reduce == R_COVERAGE && j.tsize[2] < j.hi[2] - j.lo[2]) {
 		tiles_close(&j);
-		cli_usage(&a, "--reduce coverage needs whole columns: no TZ in --tile");
+		opts_usage(&cmd, "--reduce coverage needs whole columns: no TZ in --tile");
 	}
 	d = loom_fabric_design(j.f);
 	c.j = &j;

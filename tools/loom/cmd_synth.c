@@ -9,6 +9,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "opts.h"
 
 #include <errno.h>
 #include <math.h>
@@ -17,39 +18,20 @@
 #include <time.h>
 #include <unistd.h>
 
-static const char help[] =
-	"usage: loom synth DESIGN [OPTIONS] -o FABRIC\n"
-	"\n"
+static const char about[] =
 	"Choose, for every crossing of DESIGN, the exemplar block it copies and\n"
 	"compute the edge-fix tables that hide the seams between blocks (paper\n"
 	"sections 5.3-5.5); write the fabric file FABRIC (docs/fabric.md).\n"
 	"\n"
 	"DESIGN is any design loom reads: a WIF draft, a PBM/PNG/PGM weave (dark =\n"
-	"warp over), or a posterized image with --map.\n"
-	"\n"
-	"options:\n"
-	"  -o, --output FABRIC     fabric file to write (.loomf), atomically\n"
-	"  --db DB                 exemplar database (default: $LOOM_DB, then\n"
-	"                          default.ldb in the data directory)\n"
-	"  --algo A                dp (default), greedy or naive\n"
-	"  --seed N                random seed (default 1)\n"
-	"  --rank R                edge-fix rank, 1..128 (default 15)\n"
-	"  --group M               randomisation group side m^, 0..65536 (default 3;\n"
-	"                          0 = no randomisation)\n"
-	"  --map MAPFILE           DESIGN is a posterized image: map its colours to\n"
-	"                          weaves and yarns (docs/designs.md)\n"
-	"  --warp-map FILE         warp-type map, one grey pixel per crossing\n"
-	"  --weft-map FILE         weft-type map\n"
-	"  --edge-tables HOW       auto (default: store the tables when they take at\n"
-	"                          most 1.5 MiB), store, or rebuild (at open)\n"
-	"  --assignment-map PNG    draw which exemplar (hue) and block (brightness)\n"
-	"                          each crossing of the first repeat copies\n"
-	"  --seam-map PNG          draw the seam jumps before (left) and after (right)\n"
-	"                          the edge fix, colour ramp in docs/fabric.md\n"
-	"  --json                  print the result as JSON\n"
-	"  --quiet                 no progress or summary\n"
-	"\n"
-	"Exit status: 0 success, 1 bad input or failed operation, 2 usage error.\n";
+	"warp over), or a posterized image with --map.\n";
+
+static const opt_choice algo_names[] = {
+	{"dp", LOOM_SYNTH_DP}, {"greedy", LOOM_SYNTH_GREEDY}, {"naive", LOOM_SYNTH_NAIVE},
+	{NULL, 0}};
+static const opt_choice edge_names[] = {
+	{"auto", LOOM_FABRIC_EDGE_AUTO}, {"store", LOOM_FABRIC_EDGE_STORE},
+	{"rebuild", LOOM_FABRIC_EDGE_REBUILD}, {NULL, 0}};
 
 #define MAP_TEXT_MAX (16u << 20)
 #define ASSIGN_MAP_MAX 4096u /* crossings per side drawn */
@@ -453,74 +435,52 @@ static void print_summary(const run *r)
 int cmd_synth(int argc, char **argv)
 {
 	const char *prog = "loom synth";
-	const char *in = NULL, *out = NULL, *db_opt = NULL, *algo_s = NULL;
-	const char *seed_s = NULL, *rank_s = NULL, *group_s = NULL, *map = NULL;
-	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL, *edge_s = NULL;
+	const char *in = NULL, *out = NULL, *db_opt = NULL, *map = NULL;
+	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL;
 	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
-	int quiet = 0, json = 0, progress;
+	int quiet = 0, json = 0, progress, edge = LOOM_FABRIC_EDGE_AUTO;
 	loom_design *d;
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
 	loom_diag diag;
-	cli_args a;
 	run r;
 	double t0;
+	opt_entry opts[] = {
+		OPT_OUTPUT(&out, "FABRIC", "fabric file to write (.loomf), atomically"),
+		OPT_DB(&db_opt, "exemplar database (default: $LOOM_DB, then default.ldb in "
+		       "the data directory)"),
+		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
+		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
+		OPT_U32(0, "rank", &o.rank, "R", 1, LOOM_EDGEFIX_MAX_RANK,
+		        "edge-fix rank, %r (default 15)"),
+		OPT_U32(0, "group", &o.group, "M", 0, 65536, "randomisation group side m^, %r "
+		        "(default 3; 0 = no randomisation)"),
+		OPT_STRING(0, "map", &map, "MAPFILE", "DESIGN is a posterized image: map its "
+		           "colours to weaves and yarns (docs/designs.md)"),
+		OPT_STRING(0, "warp-map", &warp, "FILE",
+		           "warp-type map, one grey pixel per crossing"),
+		OPT_STRING(0, "weft-map", &weft, "FILE", "weft-type map"),
+		OPT_ENUM(0, "edge-tables", &edge, "HOW", edge_names, "auto (default: store the "
+		         "tables when they take at most 1.5 MiB), store, or rebuild (at open)"),
+		OPT_STRING(0, "assignment-map", &amap, "PNG", "draw which exemplar (hue) and "
+		           "block (brightness) each crossing of the first repeat copies"),
+		OPT_STRING(0, "seam-map", &smap, "PNG", "draw the seam jumps before (left) and "
+		           "after (right) the edge fix, colour ramp in docs/fabric.md"),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_QUIET(&quiet, "no progress or summary"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = "loom synth DESIGN [OPTIONS] -o FABRIC",
+	              .about = about, .opts = opts, .pos_name = "DESIGN", .pos_min = 1,
+	              .pos_max = 1, .pos = &in};
 
-	cli_init(&a, argc, argv, prog, help);
-	while (cli_more(&a)) {
-		const char *p;
-		if (cli_value(&a, "-o", &out) || cli_value(&a, "--output", &out) ||
-		    cli_value(&a, "--db", &db_opt) || cli_value(&a, "--algo", &algo_s) ||
-		    cli_value(&a, "--seed", &seed_s) || cli_value(&a, "--rank", &rank_s) ||
-		    cli_value(&a, "--group", &group_s) || cli_value(&a, "--map", &map) ||
-		    cli_value(&a, "--warp-map", &warp) || cli_value(&a, "--weft-map", &weft) ||
-		    cli_value(&a, "--assignment-map", &amap) ||
-		    cli_value(&a, "--seam-map", &smap) ||
-		    cli_value(&a, "--edge-tables", &edge_s))
-			continue;
-		if (cli_flag(&a, "--json")) {
-			json = 1;
-			continue;
-		}
-		if (cli_flag(&a, "--quiet")) {
-			quiet = 1;
-			continue;
-		}
-		if ((p = cli_positional(&a)) != NULL) {
-			if (in)
-				cli_usage(&a, "more than one DESIGN ('%s' and '%s')", in, p);
-			in = p;
-			continue;
-		}
-		cli_unknown(&a);
-	}
-	if (!in)
-		cli_usage(&a, "missing DESIGN");
+	opts_parse(&c, argc, argv);
 	if (!out)
-		cli_usage(&a, "missing -o FABRIC");
-	if (algo_s && loom_fabric_algo_parse(algo_s, &o.algo) != LOOM_OK)
-		cli_usage(&a, "bad --algo '%s' (expected dp, greedy or naive)", algo_s);
-	if (seed_s && cli_parse_u64(seed_s, &o.seed))
-		cli_usage(&a, "bad --seed '%s'", seed_s);
-	if (rank_s && (cli_parse_u32(rank_s, &o.rank) || o.rank < 1 ||
-	               o.rank > LOOM_EDGEFIX_MAX_RANK))
-		cli_usage(&a, "bad --rank '%s' (expected 1..%u)", rank_s, LOOM_EDGEFIX_MAX_RANK);
-	if (group_s && (cli_parse_u32(group_s, &o.group) || o.group > 65536))
-		cli_usage(&a, "bad --group '%s' (expected 0..65536)", group_s);
-	if (edge_s) {
-		if (strcmp(edge_s, "auto") == 0)
-			o.edge_storage = LOOM_FABRIC_EDGE_AUTO;
-		else if (strcmp(edge_s, "store") == 0)
-			o.edge_storage = LOOM_FABRIC_EDGE_STORE;
-		else if (strcmp(edge_s, "rebuild") == 0)
-			o.edge_storage = LOOM_FABRIC_EDGE_REBUILD;
-		else
-			cli_usage(&a, "bad --edge-tables '%s' (expected auto, store or rebuild)",
-			          edge_s);
-	}
+		opts_usage(&c, "missing -o FABRIC");
+	o.edge_storage = (uint32_t)edge;
 	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
 	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
-		cli_usage(&a, "maps are written as .png (or .ppm) files");
+		opts_usage(&c, "maps are written as .png (or .ppm) files");
 	progress = !quiet && !json && isatty(2);
 	cli_diag_init(&diag, &quiet);
 

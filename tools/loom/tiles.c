@@ -18,21 +18,7 @@ void tiles_init(tiles_job *j)
 	j->shard_n = 1;
 	j->threads = 1;
 	j->budget_mb = 64;
-	j->bolt_len = j->bolt_wid = 1;
-}
-
-int tiles_option(cli_args *a, tiles_job *j)
-{
-	if (cli_value(a, "--region", &j->region_s) || cli_value(a, "--tile", &j->tile_s) ||
-	    cli_value(a, "--shard", &j->shard_s) || cli_value(a, "--bolt", &j->bolt_s) ||
-	    cli_value(a, "--budget", &j->budget_s) ||
-	    cli_value(a, "--threads", &j->threads_s) || cli_value(a, "--db", &j->db_s))
-		return 1;
-	if (cli_flag(a, "--all")) {
-		j->all = 1;
-		return 1;
-	}
-	return 0;
+	j->bolt.len = j->bolt.wid = 1;
 }
 
 /* One signed 64-bit integer of exactly the text [s, e). */
@@ -164,34 +150,49 @@ int tiles_parse_bolt(const char *s, double *len, int *len_mm, double *wid,
 	return 0;
 }
 
-void tiles_parse(cli_args *a, tiles_job *j, int need_region)
+const char *tiles_opt_bolt(const char *text, void *bolt)
+{
+	tiles_bolt *b = bolt;
+
+	b->text = text;
+	if (tiles_parse_bolt(text, &b->len, &b->len_mm, &b->wid, &b->wid_mm))
+		return "LENGTHxWIDTH (repeats, or lengths with mm, cm or m: 10x2, 50mx1.5m)";
+	return NULL;
+}
+
+const char *tiles_opt_tile(const char *text, void *job)
+{
+	tiles_job *j = job;
+
+	j->tile_s = text;
+	if (tiles_parse_tile(text, j->tsize))
+		return "TX,TY or TX,TY,TZ (tile sides in voxels, 1..2147483647)";
+	return NULL;
+}
+
+const char *tiles_opt_shard(const char *text, void *job)
+{
+	tiles_job *j = job;
+
+	j->shard_s = text;
+	if (tiles_parse_shard(text, &j->shard_i, &j->shard_n))
+		return "I/N with 0 <= I < N (e.g. 0/4)";
+	return NULL;
+}
+
+void tiles_parse(const opts_cmd *c, tiles_job *j, int need_region)
 {
 	if (j->region_s && j->all)
-		cli_usage(a, "give --region or --all, not both");
+		opts_usage(c, "give --region or --all, not both");
 	if (need_region && !j->region_s && !j->all)
-		cli_usage(a, "give --region X0,Y0,Z0:X1,Y1,Z1 or --all");
+		opts_usage(c, "give --region X0,Y0,Z0:X1,Y1,Z1 or --all");
+	/* the wording of tests/cli/test_export.sh and test_scan.sh */
 	if (j->region_s && tiles_parse_region(j->region_s, j->lo, j->hi))
-		cli_usage(a, "bad --region '%s' (expected X0,Y0,Z0:X1,Y1,Z1: integer voxel "
-		          "coordinates of a half-open box with X0<X1, Y0<Y1, Z0<Z1, each "
-		          "below 2^62 in magnitude)", j->region_s);
-	if (j->bolt_s && !j->all)
-		cli_usage(a, "--bolt goes with --all");
-	if (j->bolt_s && tiles_parse_bolt(j->bolt_s, &j->bolt_len, &j->bolt_len_mm,
-	                                  &j->bolt_wid, &j->bolt_wid_mm))
-		cli_usage(a, "bad --bolt '%s' (expected LENGTHxWIDTH: repeats, or lengths "
-		          "with mm, cm or m, e.g. 10x2 or 50mx1.5m)", j->bolt_s);
-	if (j->tile_s && tiles_parse_tile(j->tile_s, j->tsize))
-		cli_usage(a, "bad --tile '%s' (expected TX,TY or TX,TY,TZ: tile sides in "
-		          "voxels, 1..%lld)", j->tile_s, TILES_SIDE_MAX);
-	if (j->shard_s && tiles_parse_shard(j->shard_s, &j->shard_i, &j->shard_n))
-		cli_usage(a, "bad --shard '%s' (expected I/N with 0 <= I < N, e.g. 0/4)",
-		          j->shard_s);
-	if (j->threads_s && (cli_parse_u32(j->threads_s, &j->threads) || j->threads == 0 ||
-	                     j->threads > 256))
-		cli_usage(a, "bad --threads '%s' (expected 1..256)", j->threads_s);
-	if (j->budget_s && (cli_parse_double(j->budget_s, &j->budget_mb) ||
-	                    !(j->budget_mb > 0) || j->budget_mb > 1048576.0))
-		cli_usage(a, "bad --budget '%s' (expected MiB > 0)", j->budget_s);
+		opts_usage(c, "bad --region '%s' (expected X0,Y0,Z0:X1,Y1,Z1: integer voxel "
+		           "coordinates of a half-open box with X0<X1, Y0<Y1, Z0<Z1, each "
+		           "below 2^62 in magnitude)", j->region_s);
+	if (j->bolt.text && !j->all)
+		opts_usage(c, "--bolt goes with --all");
 }
 
 void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
@@ -213,13 +214,13 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 	j->voxel_mm = (double)id.voxel_size_um / 1000.0;
 	if (j->all) {
 		uint64_t size[3];
-		double len = j->bolt_len, wid = j->bolt_wid, vox;
-		if (j->bolt_len_mm)
+		double len = j->bolt.len, wid = j->bolt.wid, vox;
+		if (j->bolt.len_mm)
 			len /= (double)j->rep[1] * j->voxel_mm;
-		if (j->bolt_wid_mm)
+		if (j->bolt.wid_mm)
 			wid /= (double)j->rep[0] * j->voxel_mm;
 		if (loom_fabric_bolt_voxels(j->f, len, wid, size, &vox) != LOOM_OK)
-			cli_fail(prog, "--bolt '%s': too large", j->bolt_s ? j->bolt_s : "1x1");
+			cli_fail(prog, "--bolt '%s': too large", j->bolt.text ? j->bolt.text : "1x1");
 		for (int a = 0; a < 3; a++) {
 			j->lo[a] = 0;
 			j->hi[a] = (int64_t)size[a];

@@ -17,6 +17,7 @@
 #define LOOM_TILES_H
 
 #include "cli.h"
+#include "opts.h"
 #include "progress.h"
 
 #include <pthread.h>
@@ -26,20 +27,28 @@
 #define TILES_COORD_MAX ((int64_t)1 << 62)
 #define TILES_SIDE_MAX 2147483647ll /* a .vol resolution is an int32 */
 
+/* A bolt LENGTHxWIDTH (--bolt of loom info, export and scan). */
+typedef struct tiles_bolt {
+	double len, wid;           /* repeats, or mm where len_mm / wid_mm */
+	int len_mm, wid_mm;
+	const char *text;          /* as given; NULL when absent */
+} tiles_bolt;
+
 typedef struct tiles_job {
-	/* option text as given (NULL when absent) */
-	const char *region_s, *tile_s, *shard_s, *bolt_s, *budget_s, *threads_s;
-	const char *db_s;
-	int all;
+	/* options (TILES_OPT_*) */
+	const char *region_s;      /* --region as given, NULL when absent */
+	const char *tile_s;        /* --tile, --shard as given (NULL: absent) */
+	const char *shard_s;
+	const char *db_s;          /* --db */
+	int all;                   /* --all */
+	tiles_bolt bolt;           /* --bolt (1x1 when absent) */
+	uint32_t threads;          /* --threads (1) */
+	double budget_mb;          /* --budget (64) */
 	/* parsed */
 	int64_t lo[3], hi[3];      /* the region, half open */
 	int64_t tsize[3];          /* tile size (0 = default) */
 	uint64_t nt[3], total;     /* tiles per axis, tiles in the region */
 	uint32_t shard_i, shard_n; /* 0 / 1 when not sharded */
-	unsigned threads;
-	double budget_mb;
-	double bolt_len, bolt_wid; /* repeats */
-	int bolt_len_mm, bolt_wid_mm;
 	/* opened */
 	loom_db *db;
 	loom_fabric *f;
@@ -55,12 +64,36 @@ typedef struct tiles_job {
 
 /* Set the defaults (threads 1, budget 64 MiB, no shard). */
 void tiles_init(tiles_job *j);
-/* Consume one of the shared options at the cursor (--region, --all, --bolt,
-   --tile, --shard, --budget, --threads, --db): 1 if it was one. */
-int tiles_option(cli_args *a, tiles_job *j);
-/* Parse the option values (usage errors exit 2).  need_region: --region or
-   --all is required. */
-void tiles_parse(cli_args *a, tiles_job *j, int need_region);
+
+/* The options of export and scan, one entry each for a command's table. */
+#define TILES_OPT_REGION(j) \
+	OPT_STRING(0, "region", &(j)->region_s, "BOX", "voxels X0<=x<X1, Y0<=y<Y1, " \
+	           "Z0<=z<Z1 (integers below 2^62 in magnitude; x and y of any sign: " \
+	           "the bolt is unbounded)")
+#define TILES_OPT_ALL(j) \
+	OPT_FLAG(0, "all", &(j)->all, "one design repeat, the cloth's whole thickness")
+#define TILES_OPT_BOLT(j) \
+	OPT_CALLBACK(0, "bolt", &(j)->bolt, "LxW", tiles_opt_bolt, "with --all: a bolt " \
+	             "LENGTH (along the warps, y) by WIDTH (x), in repeats or with mm, cm " \
+	             "or m (e.g. 2x1, 1.5mx90cm)")
+#define TILES_OPT_TILE(j, h) OPT_CALLBACK(0, "tile", (j), "TX,TY[,TZ]", tiles_opt_tile, h)
+#define TILES_OPT_SHARD(j, h) OPT_CALLBACK(0, "shard", (j), "I/N", tiles_opt_shard, h)
+#define TILES_OPT_BUDGET(j, h) OPT_BUDGET(&(j)->budget_mb, h)
+#define TILES_OPT_THREADS(j) \
+	OPT_THREADS(&(j)->threads, TILES_THREADS_MAX, "worker threads (default 1)")
+#define TILES_OPT_DB(j) \
+	OPT_DB(&(j)->db_s, "the exemplar database (default: the fabric's)")
+#define TILES_THREADS_MAX 256
+
+/* Option callbacks (opt_fn): --bolt into a tiles_bolt; --tile and --shard
+   into a tiles_job. */
+const char *tiles_opt_bolt(const char *text, void *bolt);
+const char *tiles_opt_tile(const char *text, void *job);
+const char *tiles_opt_shard(const char *text, void *job);
+
+/* Check the options that go together (usage errors exit 2) and parse
+   --region.  need_region: --region or --all is required. */
+void tiles_parse(const opts_cmd *c, tiles_job *j, int need_region);
 
 /* Text parsers (0 ok, -1 bad text). */
 int tiles_parse_region(const char *s, int64_t lo[3], int64_t hi[3]);
