@@ -1,0 +1,398 @@
+/*
+ * engine/texture/texture.c - the virtual 3D texture of a fabric (loom/texture.h):
+ * open, close, the memory budget and statistics.
+ *
+ * WHAT IT IS
+ *   A voxel of the bolt is never stored: each lookup finds the crossing,
+ *   its source block (base assignment + randomisation), the edge-fix offset
+ *   of its voxel column, and reads the source voxel from an exemplar brick
+ *   held in the brick cache (engine/texture/cache.h).  docs/engine.md tells the
+ *   same story with figures.
+ *
+ *   The module's files by job are listed in texture_impl.h: the lookup
+ *   steps are in lookup.c, region reads in region.c, per-thread slots in
+ *   slots.c.
+ *
+ * THE MEMORY IT OWNS (all counted against the budget)
+ *   - the texture header (density, albedo and alignment tables) and one
+ *     block allocated at open (calloc: pages become resident when first
+ *     used): per-exemplar tables (first brick, brick counts, label ->
+ *     kind), a bit per brick (stored empty), and max_threads + 1 thread
+ *     slots, each holding its cache thread handle, its current brick, its
+ *     error message, the region gather buffer (6 planes of RCOLS x RZ
+ *     bytes) and XENT crossing entries (coefficients, label -> type table,
+ *     column bitmap, dz of b1*b2 columns as int16);
+ *   - the brick cache, opened with budget - (that block): frames,
+ *     bookkeeping, and one database reader (decompressor + scratch) per
+ *     thread slot.
+ *   Nothing else is allocated after open.  bytes_in_use = block + cache's.
+ *
+ * DETERMINISM
+ *   Every value is a pure function of the fabric, the database and the
+ *   position: the crossing entries and bricks are caches of such values.
+ */
+#include "texture_impl.h"
+
+#include <inttypes.h>
+#include <stdlib.h>
+
+/* ------------------------------------------------------------ open/close */
+
+static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *diag)
+{
+	loom_texture *t = ctx;
+	size_t n = 0;
+	int rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
+	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
+	return rc;
+}
+
+static void *tex_scratch_new(void *ctx)
+{
+	return loom__db_reader_new(((loom_texture *)ctx)->db);
+}
+
+static void tex_scratch_free(void *ctx, void *scratch)
+{
+	(void)ctx;
+	loom__db_reader_free(scratch);
+}
+
+/* Smallest cache budget that opens with co's other settings (0 if none
+   below 2^48). */
+static size_t cache_min_budget(const loom__cache_opts *co)
+{
+	loom__cache_opts o = *co;
+	size_t lo = 0, hi = 1u << 16;
+	loom__cache *c;
+
+	for (;;) {
+		o.budget_bytes = hi;
+		if (loom__cache_open(&o, &c, NULL) == LOOM_OK) {
+			loom__cache_close(c);
+			break;
+		}
+		if (hi >= (size_t)1 << 48)
+			return 0;
+		lo = hi;
+		hi *= 2;
+	}
+	while (hi - lo > 1) {
+		size_t mid = lo + (hi - lo) / 2;
+		o.budget_bytes = mid;
+		if (loom__cache_open(&o, &c, NULL) == LOOM_OK) {
+			loom__cache_close(c);
+			hi = mid;
+		} else {
+			lo = mid;
+		}
+	}
+	return hi;
+}
+
+static int budget_fail(loom_diag *diag, size_t budget, size_t fixed, size_t cache,
+                       unsigned T, size_t brick)
+{
+	return loom__fail(diag, LOOM_EBUDGET, "texture: budget of %zu bytes too small: "
+	                  "this fabric needs at least %zu bytes with %u threads (%zu for "
+	                  "per-thread state and tables, %zu for the smallest brick cache: "
+	                  "at least %u frames of %zu bytes, a decompressor per thread, "
+	                  "bookkeeping)", budget, fixed + cache, T, fixed, cache, T + 2,
+	                  brick);
+}
+
+static int check_identity(const loom_fabric *fab, const loom_db *db, loom_diag *diag)
+{
+	loom_fabric_db_identity id;
+	loom_db_info info;
+	uint64_t h = loom_db_content_hash(db);
+
+	if (loom_fabric_get_db_identity(fab, &id) != LOOM_OK ||
+	    loom_db_get_info(db, &info) != LOOM_OK)
+		return loom__fail(diag, LOOM_EINVAL, "texture: cannot read the fabric's or "
+		                  "the database's identity");
+	if (id.content_hash != h)
+		return loom__fail(diag, LOOM_EMISMATCH, "texture: the fabric was made with "
+		                  "database %s (content hash %016" PRIx64 "), this database's "
+		                  "content hash is %016" PRIx64, id.path ? id.path : "?",
+		                  id.content_hash, h);
+	if (memcmp(id.block, info.block, sizeof id.block) != 0 ||
+	    id.n_exemplars != info.n_exemplars ||
+	    fab->b1 != info.block[0] || fab->b2 != info.block[1] || fab->b3 != info.block[2])
+		return loom__fail(diag, LOOM_EMISMATCH, "texture: block size %ux%ux%u or "
+		                  "%u exemplars of the fabric differ from the database's "
+		                  "%ux%ux%u, %u exemplars", id.block[0], id.block[1],
+		                  id.block[2], id.n_exemplars, info.block[0], info.block[1],
+		                  info.block[2], info.n_exemplars);
+	return LOOM_OK;
+}
+
+static int is_pow2(uint32_t v)
+{
+	return v && !(v & (v - 1));
+}
+
+static uint32_t log2u(uint32_t v)
+{
+	uint32_t s = 0;
+	while ((1u << s) < v)
+		s++;
+	return s;
+}
+
+/* Fill the per-exemplar tables; LOOM_OK or a database error. */
+static int load_exemplars(loom_texture *t, loom_diag *diag)
+{
+	for (uint32_t k = 0; k < t->n_ex; k++) {
+		loom_db_exemplar_info e;
+		const loom_db_yarn *y = loom__db_yarn_lut(t->db, k);
+		int rc = loom_db_exemplar(t->db, k, &e);
+		if (rc != LOOM_OK || !y)
+			return loom__fail(diag, rc ? rc : LOOM_EINVAL, "texture: exemplar %u "
+			                  "unreadable", k);
+		t->ex[k].first_brick = e.first_brick;
+		memcpy(t->ex[k].nb, e.bricks, sizeof e.bricks);
+		unsigned top = 0;
+		for (int l = 0; l < 256; l++) {
+			t->ex[k].kind[l] = y[l].kind <= LOOM_YARN_WEFT ? y[l].kind : 0;
+			if (t->ex[k].kind[l])
+				top = (unsigned)l + 1;
+		}
+		t->ex[k].ngrp = (uint8_t)((top + 15) / 16 <= 8 ? (top + 15) / 16 : 0);
+		if (top == 0) /* no yarn at all: one group of zeros */
+			t->ex[k].ngrp = 1;
+	}
+	return LOOM_OK;
+}
+
+/* Carve the slots out of t->mem and initialise them. */
+static void lay_out_slots(loom_texture *t)
+{
+	size_t cols = (size_t)t->b1 * t->b2;
+	size_t a_bytes = round_up(sizeof(float) * 2 * (t->rh + t->rv), ALIGN);
+	size_t h_bytes = round_up((cols + 63) / 64 * 8, ALIGN);
+
+	for (unsigned i = 0; i < t->n_slots; i++) {
+		struct tslot *s = slot_at(t, i);
+		uint8_t *p = (uint8_t *)s + round_up(sizeof *s, ALIGN);
+		s->memo_id = NO_BRICK;
+		s->shared = i == t->n_slots - 1;
+		s->next_free = i + 1 < t->n_slots - 1 ? i + 1 : t->n_slots;
+		s->rbuf = p;
+		p += 6 * RCOLS * RZ;
+		for (int k = 0; k < XENT; k++) {
+			s->ent[k].a = (float *)p;
+			p += a_bytes;
+			s->ent[k].have = (uint64_t *)p;
+			p += h_bytes;
+			s->ent[k].dz = (int16_t *)p;
+			p += round_up(cols * sizeof(int16_t), ALIGN);
+		}
+	}
+	t->free_head = t->n_slots > 1 ? 0 : t->n_slots;
+	atomic_init(&t->n_free, t->n_slots - 1);
+}
+
+LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
+                               const loom_texture_options *opts,
+                               loom_texture **out, loom_diag *diag)
+{
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_edgefix_tables tb;
+	loom__db_geom g;
+	loom__cache_opts co;
+	loom_texture *t;
+	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed;
+	unsigned T;
+	int rc;
+
+	if (!out)
+		return loom__fail(diag, LOOM_EINVAL, "loom_texture_open: NULL output");
+	*out = NULL;
+	if (!fabric)
+		return loom__fail(diag, LOOM_EINVAL, "loom_texture_open: NULL fabric");
+	if (opts) {
+		if (opts->size < sizeof(loom_texture_options))
+			return loom__fail(diag, LOOM_EINVAL, "loom_texture_open: options.size "
+			                  "%zu too small (initialise with "
+			                  "LOOM_TEXTURE_OPTIONS_INIT)", opts->size);
+		o.budget_bytes = opts->budget_bytes;
+		o.max_threads = opts->max_threads;
+	}
+	if (!o.budget_bytes)
+		o.budget_bytes = LOOM_TEXTURE_DEFAULT_BUDGET;
+	T = o.max_threads ? o.max_threads : LOOM_TEXTURE_DEFAULT_THREADS;
+	if (T > LOOM_TEXTURE_MAX_THREADS)
+		return loom__fail(diag, LOOM_EINVAL, "loom_texture_open: max_threads %u above "
+		                  "%u", T, LOOM_TEXTURE_MAX_THREADS);
+	if (!loom_fabric_attached(fabric) || !fabric->ef)
+		return loom__fail(diag, LOOM_EUNUSABLE, "loom_texture_open: the fabric is "
+		                  "detached (opened without its database): no lookups");
+	if (!db)
+		db = loom_fabric_db(fabric);
+	if ((rc = check_identity(fabric, db, diag)) != LOOM_OK)
+		return rc;
+	if (loom_edgefix_get_tables(fabric->ef, &tb) != LOOM_OK || tb.b1 != fabric->b1 ||
+	    tb.b2 != fabric->b2 || tb.n_blocks != fabric->n_blocks)
+		return loom__fail(diag, LOOM_EINVAL, "loom_texture_open: the fabric's edge-fix "
+		                  "tables do not match its block size");
+	loom__db_geometry(db, &g);
+
+	cols = (size_t)fabric->b1 * fabric->b2;
+	slot_bytes = round_up(sizeof(struct tslot), ALIGN) + 6 * RCOLS * RZ +
+	             XENT * (round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN) +
+	                     round_up((cols + 63) / 64 * 8, ALIGN) +
+	                     round_up(cols * sizeof(int16_t), ALIGN));
+	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
+	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN);
+	mem_bytes = ex_bytes + (size_t)(T + 1) * slot_bytes;
+	fixed = round_up(sizeof *t, ALIGN) + mem_bytes;
+
+	memset(&co, 0, sizeof co);
+	co.brick_bytes = g.brick_bytes;
+	co.load = tex_load;
+	co.scratch_new = tex_scratch_new;
+	co.scratch_free = tex_scratch_free;
+	co.scratch_bytes = loom__db_reader_bytes(db);
+	co.max_threads = T + 1;
+	co.pins_per_thread = 2;
+	if (o.budget_bytes <= fixed) {
+		size_t need = cache_min_budget(&co);
+		return budget_fail(diag, o.budget_bytes, fixed, need, T, g.brick_bytes);
+	}
+	co.budget_bytes = o.budget_bytes - fixed;
+
+	t = aligned_alloc(ALIGN, round_up(sizeof *t, ALIGN));
+	if (!t)
+		return loom__fail(diag, LOOM_ENOMEM, "texture: out of memory");
+	memset(t, 0, sizeof *t);
+	t->mem = calloc(1, mem_bytes);
+	if (!t->mem) {
+		free(t);
+		return loom__fail(diag, LOOM_ENOMEM, "texture: out of memory (%zu bytes)",
+		                  mem_bytes);
+	}
+	t->fab = fabric;
+	t->db = db;
+	t->b1 = fabric->b1;
+	t->b2 = fabric->b2;
+	t->b3 = fabric->b3;
+	memcpy(t->bs, g.brick, sizeof t->bs);
+	t->pow2 = is_pow2(t->bs[0]) && is_pow2(t->bs[1]) && is_pow2(t->bs[2]);
+	loom__texture_simd(t, 1); /* CPU check for the region reads */
+	for (int a = 0; a < 3; a++) {
+		t->sh[a] = log2u(t->bs[a]);
+		t->mk[a] = t->bs[a] - 1;
+	}
+	t->bv = g.brick_voxels;
+	for (int k = 0; k < 256; k++)
+		t->dens[k] = (float)k / 255.0f;
+	t->rh = tb.rank_h;
+	t->rv = tb.rank_v;
+	t->coef = tb.coef;
+	t->field_h = tb.field_h;
+	t->field_v = tb.field_v;
+	for (uint32_t k = 0; k < fabric->design->n_types && k < LOOM_MAX_YARN_TYPES; k++) {
+		memcpy(t->albedo[k], fabric->design->types[k].albedo, sizeof t->albedo[k]);
+		t->align[k] = fabric->design->types[k].alignment;
+	}
+	t->n_ex = g.n_exemplars;
+	t->ex = (struct exm *)t->mem;
+	t->empty = (uint64_t *)(t->mem + round_up(sizeof(struct exm) * g.n_exemplars, ALIGN));
+	t->n_bricks = g.n_bricks;
+	for (uint32_t id = 0; id < g.n_bricks; id++)
+		if (loom__db_brick_empty(db, id))
+			t->empty[id >> 6] |= (uint64_t)1 << (id & 63);
+	t->slots = t->mem + ex_bytes;
+	t->n_slots = T + 1;
+	t->slot_bytes = slot_bytes;
+	t->fixed_bytes = fixed;
+	t->budget = o.budget_bytes;
+	pthread_mutex_init(&t->pool_lock, NULL);
+	pthread_mutex_init(&t->overflow_lock, NULL);
+	pthread_mutex_init(&t->msg_lock, NULL);
+	lay_out_slots(t);
+	if ((rc = load_exemplars(t, diag)) != LOOM_OK)
+		goto fail;
+
+	co.ctx = t;
+	if ((rc = loom__cache_open(&co, &t->cache, diag)) != LOOM_OK) {
+		if (rc == LOOM_EBUDGET) {
+			size_t need = cache_min_budget(&co);
+			rc = budget_fail(diag, o.budget_bytes, fixed, need, T, g.brick_bytes);
+		}
+		goto fail;
+	}
+	for (unsigned i = 0; i < t->n_slots; i++)
+		if ((rc = loom__cache_thread_attach(t->cache, &slot_at(t, i)->cth, diag)) !=
+		    LOOM_OK)
+			goto fail;
+
+	loom__registry_add(t);
+	*out = t;
+	return LOOM_OK;
+fail:
+	loom__cache_close(t->cache);
+	pthread_mutex_destroy(&t->pool_lock);
+	pthread_mutex_destroy(&t->overflow_lock);
+	pthread_mutex_destroy(&t->msg_lock);
+	free(t->mem);
+	free(t);
+	return rc;
+}
+
+LOOM_API void loom_texture_close(loom_texture *t)
+{
+	if (!t)
+		return;
+	loom__registry_remove(t);
+	loom__cache_close(t->cache);
+	pthread_mutex_destroy(&t->pool_lock);
+	pthread_mutex_destroy(&t->overflow_lock);
+	pthread_mutex_destroy(&t->msg_lock);
+	free(t->mem);
+	free(t);
+}
+
+/* ------------------------------------------------------------ statistics */
+
+LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *st)
+{
+	loom__cache_stats cs;
+	uint64_t memo = 0, empty = 0;
+
+	if (!st)
+		return LOOM_EINVAL;
+	memset(st, 0, sizeof *st);
+	if (!t)
+		return LOOM_EINVAL;
+	loom__cache_get_stats(t->cache, &cs);
+	for (unsigned i = 0; i < t->n_slots; i++) {
+		const struct counters *k = &slot_at(t, i)->cnt;
+		st->lookups += rd(&k->lookups);
+		memo += rd(&k->memo_hits);
+		empty += rd(&k->empty);
+		st->crossings += rd(&k->xings);
+		st->dz_columns += rd(&k->dz);
+		st->errors += rd(&k->errors);
+	}
+	st->brick_requests = memo + empty + cs.lookups;
+	st->hits = memo + cs.hits;
+	st->misses = cs.misses;
+	st->empty_bricks = empty;
+	st->evictions = cs.evictions;
+	st->bytes_read = atomic_load_explicit(&((loom_texture *)t)->bytes_read,
+	                                      memory_order_relaxed);
+	st->bytes_decompressed = cs.bytes_loaded;
+	st->decompress_ns = cs.load_ns;
+	st->bytes_in_use = t->fixed_bytes + cs.bytes_in_use;
+	st->peak_bytes = t->fixed_bytes + cs.peak_bytes;
+	st->fixed_bytes = t->fixed_bytes;
+	st->budget_bytes = t->budget;
+	st->brick_bytes = cs.brick_bytes;
+	st->cache_frames = cs.n_frames;
+	st->max_threads = t->n_slots - 1;
+	st->threads = t->n_slots - 1 - atomic_load(&((loom_texture *)t)->n_free);
+	return LOOM_OK;
+}
+
