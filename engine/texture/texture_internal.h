@@ -1,6 +1,6 @@
 /*
  * engine/texture/texture_internal.h - pieces of the virtual-texture engine
- * (engine/texture/texture.c) that the unit tests check on their own.  Never
+ * (the files of engine/texture/) that the unit tests check on their own.  Never
  * installed.
  */
 #ifndef LOOM_TEXTURE_INTERNAL_H

@@ -5,7 +5,7 @@
  * (loom_synth_assign, loom_synth_src), the edge-fix offsets from
  * loom_edgefix_build + loom_edgefix_block, the source voxels from
  * loom_db_read_box, yarn kinds from the exemplar yarn tables and types and
- * albedo from the design.  Nothing of engine/texture/texture.c is reused except
+ * albedo from the design.  Nothing of engine/texture/ is reused except
  * where a test says so.
  */
 #include "check.h"

@@ -1,0 +1,409 @@
+/*
+ * engine/texture/lookup.c - point lookups of the virtual texture: crossings,
+ * edge-fix offsets and bricks (the lookup steps), and the nearest,
+ * trilinear and batch lookups built on them (loom/texture.h).
+ *
+ * LOOKUP STEPS (voxel_raw; the code cites them)
+ *   Step 1.  z outside [0, b3): empty, done.
+ *   Step 2.  Crossing: if (x, y) lies in the thread's current crossing
+ *            entry, use it; else I = floor(y / b2), J = floor(x / b1) and
+ *            find (I, J) among the thread's XENT entries, or set one up
+ *            (evicting the least recently used): the crossing's sources
+ *            and its neighbours' (loom__fabric_crossing: base assignment of
+ *            (I mod M, J mod N) shifted by its group's symmetry), the
+ *            yarn types of its warp and weft, the 4 (rh + rv) edge-fix
+ *            coefficients of the block, and an empty column bitmap.
+ *   Step 3.  Column offset dz(lx, ly): computed on first use in the entry
+ *            (4 dot products of length r with the fabric's basis fields,
+ *            the same arithmetic as loom_edgefix_block), rounded to whole
+ *            voxels (loom__dz_round), kept in the entry.
+ *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - dz) of the block's
+ *            exemplar; z - dz outside [0, b3): empty, done.
+ *   Step 5.  Brick id of that voxel.  The thread's current brick (memo)
+ *            answers without a cache call when the id matches; otherwise
+ *            the memo's pin is released and the brick is taken from the
+ *            cache (loom__cache_get: per-thread recent bricks, then the
+ *            shared frames, else read + CRC + inflate).  A brick stored as
+ *            nothing (all empty) is never read.  A read error is returned
+ *            with its message; nothing stays pinned.
+ *   Step 6.  The four byte planes at the voxel; label -> kind through the
+ *            exemplar's yarn table; kind -> the crossing's warp or weft
+ *            type; the type's albedo and alignment from the design.
+ *   Lookups in the same crossing skip step 2, in the same column the offset
+ *   evaluation, in the same brick the cache.
+ *
+ * PINS AND THE CACHE'S DEADLOCK RULE
+ *   A thread holds at most one caller pin: its current brick, kept across
+ *   calls (it is released before any other get).  So an idle thread keeps
+ *   one caller pin plus its IDLE per-thread pins, and a sleeping get holds
+ *   none: the cache is opened with pins_per_thread = 2, which reserves one
+ *   frame per thread for that (cache.h, the deadlock rule).
+ */
+#include "texture_impl.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+int loom__dz_round(float dz)
+{
+	if (!(dz == dz))
+		return 0;
+	if (dz >= (float)DZ_LIMIT)
+		return DZ_LIMIT;
+	if (dz <= -(float)DZ_LIMIT)
+		return -DZ_LIMIT;
+	return (int)lroundf(dz);
+}
+
+void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
+                        float out[3])
+{
+	unsigned ref = n;
+	float s[3] = {0, 0, 0}, len;
+
+	out[0] = out[1] = out[2] = 0;
+	for (unsigned k = 0; k < n; k++)
+		if (w[k] > 0 && (ref == n || w[k] > w[ref]))
+			ref = k;
+	if (ref == n)
+		return;
+	for (unsigned k = 0; k < n; k++) {
+		float sg;
+		if (!(w[k] > 0))
+			continue;
+		sg = v[k][0] * v[ref][0] + v[k][1] * v[ref][1] + v[k][2] * v[ref][2] < 0
+		             ? -w[k]
+		             : w[k];
+		s[0] += sg * v[k][0];
+		s[1] += sg * v[k][1];
+		s[2] += sg * v[k][2];
+	}
+	len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+	if (!(len > 0))
+		return;
+	if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
+		len = -len;
+	out[0] = s[0] / len;
+	out[1] = s[1] / len;
+	out[2] = s[2] / len;
+}
+
+
+/* ------------------------------------------------------------ crossings */
+
+/* Edge-fix coefficients of a block with sources nb (as the edge-fix
+   module combines them: half the difference of the two sides' profile
+   coefficients on each edge). */
+static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a)
+{
+	uint32_t rh = t->rh, rv = t->rv, st = 2 * rh + 2 * rv;
+	const float *cs = t->coef + (size_t)nb->self * st;
+	const float *cn = t->coef + (size_t)nb->n * st;
+	const float *css = t->coef + (size_t)nb->s * st;
+	const float *cw = t->coef + (size_t)nb->w * st;
+	const float *ce = t->coef + (size_t)nb->e * st;
+	float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
+
+	for (uint32_t k = 0; k < rh; k++) {
+		an[k] = 0.5f * (cn[rh + k] - cs[k]);
+		as[k] = 0.5f * (css[k] - cs[rh + k]);
+	}
+	for (uint32_t k = 0; k < rv; k++) {
+		aw[k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
+		ae[k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
+	}
+}
+
+float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
+                       uint32_t ly)
+{
+	float a[4 * LOOM_EDGEFIX_MAX_RANK];
+	loom_synth_nbhd nb;
+
+	if (!t || lx >= t->b1 || ly >= t->b2)
+		return 0;
+	loom__fabric_nbhd(t->fab, I, J, &nb);
+	xent_coef(t, &nb, a);
+	return dz_eval(t, a, lx, ly);
+}
+
+struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y)
+{
+	int64_t I = loom_synth_floordiv(y, t->b2), J = loom_synth_floordiv(x, t->b1);
+	struct xent *e = NULL;
+	loom__fabric_xing xg;
+
+	for (int k = 0; k < XENT; k++) {
+		struct xent *q = &s->ent[k];
+		if (q->valid && q->I == I && q->J == J) {
+			e = q;
+			goto found;
+		}
+		if (!e || !q->valid || (e->valid && q->stamp < e->stamp))
+			e = q;
+	}
+	loom__fabric_crossing(t->fab, I, J, &xg);
+	e->I = I;
+	e->J = J;
+	e->x0 = J * (int64_t)t->b1;
+	e->y0 = I * (int64_t)t->b2;
+	e->ex = &t->ex[xg.blk->exemplar];
+	e->sx0 = xg.blk->x0;
+	e->sy0 = xg.blk->y0;
+	e->tok[0] = 0;
+	e->tok[LOOM_YARN_WARP] = xg.warp_type;
+	e->tok[LOOM_YARN_WEFT] = xg.weft_type;
+	e->tok[3] = 0;
+	e->tlut_ok = 0;
+	xent_coef(t, &xg.nb, e->a);
+	memset(e->have, 0, ((size_t)t->b1 * t->b2 + 63) / 64 * 8);
+	e->valid = 1;
+	bump(&s->cnt.xings, 1);
+found:
+	e->stamp = ++s->clock;
+	s->cur = e;
+	return e;
+}
+
+/* ---------------------------------------------------------------- bricks */
+
+int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
+{
+	loom_diag d;
+	const void *p;
+	int rc;
+
+	memo_drop(s);
+	if (brick_empty(t, id)) {
+		s->memo_id = id;
+		bump(&s->cnt.empty, 1);
+		return LOOM_OK;
+	}
+	d.message[0] = 0;
+	d.warn = NULL;
+	d.user = NULL;
+	d.n_warnings = 0;
+	rc = loom__cache_get(s->cth, id, &p, &d);
+	if (rc != LOOM_OK)
+		return loom__slot_error(t, s, rc, d.message);
+	s->memo_id = id;
+	s->memo = p;
+	s->memo_pinned = 1;
+	return LOOM_OK;
+}
+
+/* Raw voxel: the encodings plus kind and type. */
+typedef struct rawvox {
+	uint8_t d, l, k, ty;
+	uint16_t o;
+} rawvox;
+
+static const rawvox raw_empty;
+
+/* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked). */
+static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                            int64_t z, rawvox *r)
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly, sx, sy, sz;
+	uint64_t id;
+	int64_t zs;
+	size_t i;
+	const uint8_t *p;
+
+	*r = raw_empty;
+	if ((uint64_t)z >= t->b3) /* Step 1 */
+		return LOOM_OK;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y); /* Step 2 */
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	zs = z - xent_dz(t, s, e, lx, ly); /* Step 3 */
+	if ((uint64_t)zs >= t->b3) /* Step 4 */
+		return LOOM_OK;
+	sx = e->sx0 + lx;
+	sy = e->sy0 + ly;
+	sz = (uint32_t)zs;
+	id = e->ex->first_brick +
+	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+	             e->ex->nb[2] +
+	     brick_of(t, 2, sz);
+	if (id != s->memo_id) { /* Step 5 */
+		int rc = loom__memo_switch(t, s, id);
+		if (rc != LOOM_OK)
+			return rc;
+	} else {
+		bump(&s->cnt.memo_hits, 1);
+	}
+	p = s->memo;
+	if (!p)
+		return LOOM_OK;
+	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
+	    in_brick(t, 2, sz); /* Step 6 */
+	r->d = p[i];
+	r->o = (uint16_t)(p[t->bv + i] | p[2 * t->bv + i] << 8);
+	r->l = p[3 * t->bv + i];
+	r->k = e->ex->kind[r->l];
+	r->ty = e->tok[r->k];
+	return LOOM_OK;
+}
+
+static void texel_of(const loom_texture *t, const rawvox *r, loom_texel *out)
+{
+	memset(out, 0, sizeof *out);
+	if (r->d) {
+		out->density = t->dens[r->d];
+		loom__orient_decode(r->o, out->orientation);
+	}
+	out->label = r->l;
+	out->kind = r->k;
+	if (r->k) {
+		out->type = r->ty;
+		memcpy(out->albedo, t->albedo[r->ty], sizeof out->albedo);
+		out->alignment = t->align[r->ty];
+	}
+}
+
+/* --------------------------------------------------------------- lookups */
+
+LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z,
+                                loom_texel *out)
+{
+	struct tslot *s;
+	rawvox r;
+	int rc;
+
+	if (!t || !out) {
+		if (out)
+			memset(out, 0, sizeof *out);
+		return LOOM_EINVAL;
+	}
+	if (!coord_ok(x) || !coord_ok(y) || !coord_ok(z)) {
+		memset(out, 0, sizeof *out);
+		return LOOM_ERANGE;
+	}
+	s = slot_enter(t);
+	rc = voxel_raw(t, s, x, y, z, &r);
+	bump(&s->cnt.lookups, 1);
+	slot_leave(t, s);
+	texel_of(t, &r, out);
+	return rc;
+}
+
+/* The calling thread's slot is s; p is finite and in range. */
+static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int filter,
+                      loom_texel *out)
+{
+	double u[3], f[3];
+	int64_t i0[3];
+	rawvox r[8];
+	float w[8], wd[8], v[8][3], dens = 0;
+	int rc = LOOM_OK, near = 0;
+
+	if (filter == LOOM_FILTER_NEAREST) {
+		int64_t q[3];
+		for (int a = 0; a < 3; a++)
+			q[a] = (int64_t)floor(p[a]);
+		rc = voxel_raw(t, s, q[0], q[1], q[2], &r[0]);
+		bump(&s->cnt.lookups, 1);
+		texel_of(t, &r[0], out);
+		return rc;
+	}
+	for (int a = 0; a < 3; a++) {
+		u[a] = p[a] - 0.5;
+		i0[a] = (int64_t)floor(u[a]);
+		f[a] = u[a] - (double)i0[a];
+	}
+	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y */
+	for (int c = 0; c < 8; c++) {
+		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+		int e = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2] + dz, &r[c]);
+		if (e != LOOM_OK && rc == LOOM_OK)
+			rc = e;
+		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+		               (dz ? f[2] : 1 - f[2]));
+		wd[c] = 0;
+		v[c][0] = v[c][1] = v[c][2] = 0;
+		if (r[c].d) {
+			float d = t->dens[r[c].d];
+			dens += w[c] * d;
+			wd[c] = w[c] * d;
+			loom__orient_decode(r[c].o, v[c]);
+		}
+	}
+	bump(&s->cnt.lookups, 8);
+	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	texel_of(t, &r[near], out);
+	out->density = dens;
+	loom__orient_blend(8, wd, (const float(*)[3])v, out->orientation);
+	return rc;
+}
+
+static int pos_check(const double p[3])
+{
+	for (int a = 0; a < 3; a++) {
+		if (!isfinite(p[a]))
+			return LOOM_EINVAL;
+		if (!(fabs(p[a]) < (double)(COORD_LIMIT / 2)))
+			return LOOM_ERANGE;
+	}
+	return LOOM_OK;
+}
+
+LOOM_API int loom_texture_sample(loom_texture *t, const double p[3], int filter,
+                                 loom_texel *out)
+{
+	struct tslot *s;
+	int rc;
+
+	if (out)
+		memset(out, 0, sizeof *out);
+	if (!t || !p || !out ||
+	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+		return LOOM_EINVAL;
+	if ((rc = pos_check(p)) != LOOM_OK)
+		return rc;
+	s = slot_enter(t);
+	rc = sample_one(t, s, p, filter, out);
+	slot_leave(t, s);
+	return rc;
+}
+
+LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *x,
+                                       const double *y, const double *z, int filter,
+                                       const loom_texture_channels *out)
+{
+	struct tslot *s;
+	int rc = LOOM_OK;
+
+	if (!t || !out || (n && (!x || !y || !z)) ||
+	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+		return LOOM_EINVAL;
+	if (n == 0)
+		return LOOM_OK;
+	s = slot_enter(t);
+	for (size_t i = 0; i < n; i++) {
+		double p[3] = {x[i], y[i], z[i]};
+		loom_texel tx;
+		int e = pos_check(p);
+		if (e == LOOM_OK)
+			e = sample_one(t, s, p, filter, &tx);
+		else
+			memset(&tx, 0, sizeof tx);
+		if (e != LOOM_OK && rc == LOOM_OK)
+			rc = e;
+		if (out->density)
+			out->density[i] = tx.density;
+		if (out->orientation)
+			memcpy(out->orientation + 3 * i, tx.orientation, sizeof tx.orientation);
+		if (out->kind)
+			out->kind[i] = tx.kind;
+		if (out->type)
+			out->type[i] = tx.type;
+		if (out->albedo)
+			memcpy(out->albedo + 3 * i, tx.albedo, sizeof tx.albedo);
+	}
+	slot_leave(t, s);
+	return rc;
+}
+

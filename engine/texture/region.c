@@ -1,0 +1,865 @@
+/*
+ * engine/texture/region.c - region reads of the virtual texture
+ * (loom_texture_read_region): whole boxes of voxels in raw encodings.
+ *
+ * THE PLAN (the lookup steps cited are lookup.c's)
+ *   Region reads go crossing by crossing and, in a crossing, by groups of
+ *   adjacent output columns of one row whose source columns share their
+ *   bricks (up to a brick's width, at most GMAX; group_fill): steps 3-4 once per
+ *   column (offset and valid z range), step 5 once per brick of the group,
+ *   then each column's z-run in that brick is copied; z above, below or
+ *   beyond the source block is filled with zeros.  label -> kind / type
+ *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
+ *   open) and the exemplar's labels with a kind are below 128
+ *   (kind_type), else through 256-entry tables.  z-fastest output: the
+ *   runs go straight out (region_zfast).  x-fastest output: per crossing,
+ *   the z planes where the whole piece is surely empty (outside the block,
+ *   or in bricks stored as nothing: chunk_extent) are zeroed plane by
+ *   plane (zero_rect, sequential writes); then slabs of RZ z-values, rows,
+ *   chunks of up to RCOLS columns (xchunk): the z rows where the chunk is
+ *   surely empty are zeroed directly; the rest is gathered
+ *   into the slot's buffer and transposed 16 x 16 at a time (SSE2; with
+ *   SSSE3 kind and type come from the transposed labels instead of being
+ *   gathered and transposed), each output row of the chunk written whole
+ *   (region_xfast).
+ */
+#include "texture_impl.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#include <tmmintrin.h> /* SSSE3, used under a target attribute after a CPU check */
+#define HAVE_KT_SSSE3 1
+#endif
+
+/* ------------------------------------------------------------ region reads */
+
+/* Where a group's voxels go: the final channels at stride 1 (z-fastest
+   output), or the raw planes into the thread's gather buffer (x-fastest
+   output, transposed afterwards).  NULL members are not written. */
+struct sink {
+	int raw;
+	uint8_t *d, *k, *ty, *l;   /* final: density, kind, type, label */
+	uint16_t *o;               /* final: orientation */
+	const uint8_t *kl, *tl;    /* label -> kind, label -> type */
+	unsigned ngrp;             /* of the exemplar (struct exm) */
+	uint8_t *rd, *rlo, *rhi, *rl, *rk, *rt; /* gathered planes */
+};
+
+/* Byte copies and fills of runs of a few dozen bytes: inline 16-byte moves
+   (a libc call per run costs as much as the run). */
+static inline void copy_run(uint8_t *restrict d, const uint8_t *restrict s, size_t n)
+{
+#ifdef __SSE2__
+	if (n >= 16) {
+		size_t i = 0;
+		for (; i + 16 < n; i += 16)
+			_mm_storeu_si128((__m128i *)(d + i), _mm_loadu_si128((const __m128i *)(s + i)));
+		_mm_storeu_si128((__m128i *)(d + n - 16),
+		                 _mm_loadu_si128((const __m128i *)(s + n - 16)));
+		return;
+	}
+#endif
+	memcpy(d, s, n);
+}
+
+static inline void zero_run(uint8_t *d, size_t n)
+{
+	memset(d, 0, n); /* measured: faster here than inline stores */
+}
+
+static void sink_empty(const struct sink *k, size_t off, size_t n)
+{
+	if (!n)
+		return;
+	if (k->raw) {
+		if (k->rd)
+			zero_run(k->rd + off, n);
+		if (k->rlo) {
+			zero_run(k->rlo + off, n);
+			zero_run(k->rhi + off, n);
+		}
+		if (k->rl)
+			zero_run(k->rl + off, n);
+		if (k->rk)
+			zero_run(k->rk + off, n);
+		if (k->rt)
+			zero_run(k->rt + off, n);
+		return;
+	}
+	if (k->d)
+		zero_run(k->d + off, n);
+	if (k->o)
+		zero_run((uint8_t *)(k->o + off), 2 * n);
+	if (k->k)
+		zero_run(k->k + off, n);
+	if (k->ty)
+		zero_run(k->ty + off, n);
+	if (k->l)
+		zero_run(k->l + off, n);
+}
+
+/* Orientation codes of n voxels from their low and high byte planes
+   (little-endian interleave). */
+static inline void orient_join(uint16_t *restrict o, const uint8_t *restrict lo,
+                               const uint8_t *restrict hi, size_t n)
+{
+	size_t i = 0;
+#ifdef __SSE2__
+	for (; i + 16 <= n; i += 16) {
+		__m128i a = _mm_loadu_si128((const __m128i *)(lo + i));
+		__m128i b = _mm_loadu_si128((const __m128i *)(hi + i));
+		_mm_storeu_si128((__m128i *)(o + i), _mm_unpacklo_epi8(a, b));
+		_mm_storeu_si128((__m128i *)(o + i + 8), _mm_unpackhi_epi8(a, b));
+	}
+	if (i < n && n >= 16) { /* the last 16, overlapping */
+		i = n - 16;
+		__m128i a = _mm_loadu_si128((const __m128i *)(lo + i));
+		__m128i b = _mm_loadu_si128((const __m128i *)(hi + i));
+		_mm_storeu_si128((__m128i *)(o + i), _mm_unpacklo_epi8(a, b));
+		_mm_storeu_si128((__m128i *)(o + i + 8), _mm_unpackhi_epi8(a, b));
+		return;
+	}
+#endif
+	for (; i < n; i++)
+		o[i] = (uint16_t)(lo[i] | hi[i] << 8);
+}
+
+/* label -> kind and label -> type of n voxels (either output may be NULL),
+   through the 256-entry tables. */
+static void kt_scalar(uint8_t *restrict dk, uint8_t *restrict dt,
+                      const uint8_t *restrict lab, size_t n, const uint8_t *restrict kl,
+                      const uint8_t *restrict tl)
+{
+	if (dk && dt) {
+		for (size_t i = 0; i < n; i++) {
+			dk[i] = kl[lab[i]];
+			dt[i] = tl[lab[i]];
+		}
+	} else if (dk || dt) {
+		uint8_t *restrict d = dk ? dk : dt;
+		const uint8_t *restrict lut = dk ? kl : tl;
+		for (size_t i = 0; i < n; i++)
+			d[i] = lut[lab[i]];
+	}
+}
+
+#ifdef HAVE_KT_SSSE3
+/* The same with PSHUFB, 16 voxels at a time, for labels below 16 * ng
+   (every label at or above maps to 0).  Group g of 16 table entries is
+   looked up with index label - 16 g + 0x70 (saturated): its high bit (a
+   zero result) is set exactly for labels outside [16 g, 16 g + 16).
+   n >= 16: the last 16 voxels are done overlapping. */
+__attribute__((target("ssse3"))) static void kt_ssse3(uint8_t *dk, uint8_t *dt,
+                                                        const uint8_t *lab, size_t n,
+                                                        const uint8_t *kl,
+                                                        const uint8_t *tl, unsigned ng)
+{
+	const __m128i bias = _mm_set1_epi8(0x70);
+	size_t i = 0;
+
+	if (!tl)
+		tl = kl;
+	for (;;) {
+		__m128i l = _mm_loadu_si128((const __m128i *)(lab + i));
+		__m128i rk = _mm_setzero_si128(), rt = _mm_setzero_si128();
+		for (unsigned g = 0; g < ng; g++) {
+			__m128i ix = _mm_adds_epu8(_mm_sub_epi8(l, _mm_set1_epi8((char)(16 * g))), bias);
+			rk = _mm_or_si128(rk, _mm_shuffle_epi8(
+			                              _mm_loadu_si128((const __m128i *)(kl + 16 * g)), ix));
+			rt = _mm_or_si128(rt, _mm_shuffle_epi8(
+			                              _mm_loadu_si128((const __m128i *)(tl + 16 * g)), ix));
+		}
+		if (dk)
+			_mm_storeu_si128((__m128i *)(dk + i), rk);
+		if (dt)
+			_mm_storeu_si128((__m128i *)(dt + i), rt);
+		if (i + 16 == n)
+			break;
+		i = i + 32 <= n ? i + 16 : n - 16;
+	}
+}
+#endif
+
+static inline void kind_type(const loom_texture *t, const struct sink *k, uint8_t *dk,
+                             uint8_t *dt, const uint8_t *lab, size_t n)
+{
+#ifdef HAVE_KT_SSSE3
+	if (k->ngrp && t->ssse3 && n >= 16) {
+		kt_ssse3(dk, dt, lab, n, k->kl, k->tl, k->ngrp);
+		return;
+	}
+#else
+	(void)t;
+#endif
+	kt_scalar(dk, dt, lab, n, k->kl, k->tl);
+}
+
+/* n voxels of a brick z-run; p points at the run in plane 0. */
+static inline void sink_run(const loom_texture *t, const struct sink *k, size_t off,
+                            const uint8_t *p, size_t n)
+{
+	const uint8_t *lo = p + t->bv, *hi = p + 2 * t->bv, *lab = p + 3 * t->bv;
+	uint8_t *ok = k->k, *ot = k->ty;
+
+	if (k->raw) {
+		if (k->rd)
+			copy_run(k->rd + off, p, n);
+		if (k->rlo) {
+			copy_run(k->rlo + off, lo, n);
+			copy_run(k->rhi + off, hi, n);
+		}
+		if (k->rl)
+			copy_run(k->rl + off, lab, n);
+		ok = k->rk;
+		ot = k->rt;
+	} else {
+		if (k->d)
+			copy_run(k->d + off, p, n);
+		if (k->o)
+			orient_join(k->o + off, lo, hi, n);
+		if (k->l)
+			copy_run(k->l + off, lab, n);
+	}
+	if (ok || ot)
+		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
+}
+
+/* Columns handled together by group_fill at most. */
+#define GMAX 64
+
+/*
+ * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
+ * ly), c < n, of crossing e whose source columns lie in one brick column
+ * (so they share every brick id), into sink k: column c from offset
+ * off + c*cstride (voxel za).  Steps 3-5 once per column (offset, valid
+ * range), then per brick of the union of the columns' source z ranges:
+ * one brick resolution (the slot's memo) and each column's run in it.
+ * Voxels whose brick fails are empty; the first error is returned.
+ */
+static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
+                      uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
+                      size_t off, size_t cstride)
+{
+	int64_t b3 = t->b3, bz = t->bs[2];
+	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
+	int64_t smin = INT64_MAX, smax = INT64_MIN;
+	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
+	uint64_t base;
+	size_t col;
+	int rc = LOOM_OK;
+
+	for (uint32_t c = 0; c < n; c++) {
+		int64_t dz = xent_dz(t, s, e, lx0 + c, ly);
+		int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
+		size_t o = off + c * cstride;
+		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
+		if (va < dz)
+			va = dz;
+		if (vb > b3 + dz)
+			vb = b3 + dz;
+		if (va >= vb) {
+			sink_empty(k, o, (size_t)(zb - za));
+			sa[c] = sb[c] = 0;
+			continue;
+		}
+		sink_empty(k, o, (size_t)(va - za));
+		sink_empty(k, o + (size_t)(vb - za), (size_t)(zb - vb));
+		dzs[c] = dz;
+		sa[c] = va - dz;
+		sb[c] = vb - dz;
+		if (sa[c] < smin)
+			smin = sa[c];
+		if (sb[c] > smax)
+			smax = sb[c];
+	}
+	if (smin >= smax)
+		return LOOM_OK;
+	base = e->ex->first_brick +
+	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+	               e->ex->nb[2];
+	col = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2];
+	for (int64_t kz = brick_of(t, 2, (uint32_t)smin); kz * bz < smax; kz++) {
+		int64_t z0 = kz * bz, z1 = z0 + bz;
+		uint64_t id = base + (uint64_t)kz;
+		const uint8_t *p;
+		int ok = 1;
+		if (id != s->memo_id) {
+			int e2 = loom__memo_switch(t, s, id);
+			if (e2 != LOOM_OK) {
+				if (rc == LOOM_OK)
+					rc = e2;
+				ok = 0;
+			}
+		} else {
+			bump(&s->cnt.memo_hits, 1);
+		}
+		p = ok ? s->memo : NULL;
+		for (uint32_t c = 0; c < n; c++) {
+			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
+			size_t o;
+			if (a >= b)
+				continue;
+			o = off + c * cstride + (size_t)(a + dzs[c] - za);
+			if (p)
+				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
+				         (size_t)(b - a));
+			else
+				sink_empty(k, o, (size_t)(b - a));
+		}
+	}
+	return rc;
+}
+
+/* label -> yarn type of crossing e (built on first use). */
+static const uint8_t *xent_tlut(struct xent *e)
+{
+	if (!e->tlut_ok) {
+		for (int l = 0; l < 256; l++)
+			e->tlut[l] = e->tok[e->ex->kind[l]];
+		e->tlut_ok = 1;
+	}
+	return e->tlut;
+}
+
+struct region {
+	const loom_texture_region *out;
+	int64_t lo[3], hi[3];
+	size_t nx, ny, nz, plane;
+};
+
+/* Columns from lx of a row of crossing e (source column e->sx0 + lx) up to
+   the end of their source brick column, at most max and GMAX. */
+static inline uint32_t group_len(const loom_texture *t, const struct xent *e, uint32_t lx,
+                                 int64_t max)
+{
+	int64_t n = (int64_t)t->bs[0] - (int64_t)in_brick(t, 0, e->sx0 + lx);
+	if (n > max)
+		n = max;
+	return (uint32_t)(n < GMAX ? n : GMAX);
+}
+
+/* z-fastest: crossing by crossing (so each crossing entry is set up once
+   per call), row by row, groups of columns sharing their bricks; each
+   column's runs go straight to the output. */
+static int region_zfast(loom_texture *t, struct tslot *s, const struct region *g)
+{
+	const loom_texture_region *out = g->out;
+	int rc = LOOM_OK;
+	struct sink k = {0};
+
+	k.d = out->density, k.o = out->orientation, k.k = out->kind;
+	k.ty = out->type, k.l = out->label;
+	for (int64_t yb = g->lo[1]; yb < g->hi[1];) {
+		int64_t ye = (loom_synth_floordiv(yb, t->b2) + 1) * (int64_t)t->b2;
+		if (ye > g->hi[1])
+			ye = g->hi[1];
+		for (int64_t xb = g->lo[0]; xb < g->hi[0];) {
+			struct xent *e = loom__xent_enter(t, s, xb, yb);
+			int64_t xe = e->x0 + t->b1 < g->hi[0] ? e->x0 + t->b1 : g->hi[0];
+			k.kl = e->ex->kind;
+			k.ngrp = e->ex->ngrp;
+			k.tl = out->type ? xent_tlut(e) : NULL;
+			for (int64_t y = yb; y < ye; y++)
+				for (int64_t x = xb; x < xe;) {
+					uint32_t lx = (uint32_t)(x - e->x0), n = group_len(t, e, lx, xe - x);
+					size_t off = ((size_t)(y - g->lo[1]) * g->nx + (size_t)(x - g->lo[0])) *
+					             g->nz;
+					int e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, g->lo[2],
+					                    g->hi[2], &k, off, g->nz);
+					if (e2 != LOOM_OK && rc == LOOM_OK)
+						rc = e2;
+					x += n;
+				}
+			xb = xe;
+		}
+		yb = ye;
+	}
+	return rc;
+}
+
+#ifdef __SSE2__
+/* 16 rows of 16 bytes (row r at src + r*stride) -> v[j] = byte j of every
+   row: four rounds of byte interleaves of rows k and k + 8. */
+static inline __attribute__((always_inline)) void tr16(const uint8_t *src, size_t stride,
+                                                       __m128i v[16])
+{
+	__m128i w[16];
+#pragma GCC unroll 16
+	for (int r = 0; r < 16; r++)
+		v[r] = _mm_loadu_si128((const __m128i *)(src + (size_t)r * stride));
+#pragma GCC unroll 4
+	for (int round = 0; round < 4; round++) {
+#pragma GCC unroll 8
+		for (int k = 0; k < 8; k++) {
+			w[2 * k] = _mm_unpacklo_epi8(v[k], v[k + 8]);
+			w[2 * k + 1] = _mm_unpackhi_epi8(v[k], v[k + 8]);
+		}
+#pragma GCC unroll 16
+		for (int k = 0; k < 16; k++)
+			v[k] = w[k];
+	}
+}
+
+/* Store the first n (1..16) bytes of v at d. */
+static inline void store_part(uint8_t *d, __m128i v, size_t n)
+{
+	if (n == 16) {
+		_mm_storeu_si128((__m128i *)d, v);
+	} else {
+		uint8_t tmp[16];
+		_mm_storeu_si128((__m128i *)tmp, v);
+		memcpy(d, tmp, n);
+	}
+}
+#endif
+
+/* out[o + z*plane + c] = buf[c*RZ + z] for c < cn, z < zn (bytes).  The
+   buffer holds RCOLS columns of RZ bytes: 16 x 16 blocks are read whole
+   (stale bytes past cn or zn are read, never stored).  All column blocks of
+   a z block are transposed first so that each output row is then written
+   in one go (whole cache lines, whatever the row stride). */
+static void tr_plane(uint8_t *restrict out, size_t o, size_t plane,
+                     const uint8_t *restrict buf, size_t cn, size_t zn)
+{
+#ifdef __SSE2__
+	size_t nb = (cn + 15) / 16, last = cn - (nb - 1) * 16;
+	for (size_t z = 0; z < zn; z += 16) {
+		size_t h = zn - z < 16 ? zn - z : 16;
+		__m128i v[RCOLS / 16][16];
+		for (size_t b = 0; b < nb; b++)
+			tr16(buf + b * 16 * RZ + z, RZ, v[b]);
+		for (size_t j = 0; j < h; j++) {
+			uint8_t *d = out + o + (z + j) * plane;
+			for (size_t b = 0; b + 1 < nb; b++)
+				_mm_storeu_si128((__m128i *)(d + 16 * b), v[b][j]);
+			store_part(d + 16 * (nb - 1), v[nb - 1][j], last);
+		}
+	}
+#else
+	for (size_t z = 0; z < zn; z++)
+		for (size_t q = 0; q < cn; q++)
+			out[o + z * plane + q] = buf[q * RZ + z];
+#endif
+}
+
+/* The same for orientation codes from their byte planes. */
+static void tr_orient(uint16_t *restrict out, size_t o, size_t plane,
+                      const uint8_t *restrict lo, const uint8_t *restrict hi, size_t cn,
+                      size_t zn)
+{
+#ifdef __SSE2__
+	size_t nb = (cn + 15) / 16, last = cn - (nb - 1) * 16;
+	for (size_t z = 0; z < zn; z += 16) {
+		size_t h = zn - z < 16 ? zn - z : 16;
+		__m128i a[RCOLS / 16][16], b[RCOLS / 16][16];
+		for (size_t k = 0; k < nb; k++) {
+			tr16(lo + k * 16 * RZ + z, RZ, a[k]);
+			tr16(hi + k * 16 * RZ + z, RZ, b[k]);
+		}
+		for (size_t j = 0; j < h; j++) {
+			uint8_t *d = (uint8_t *)(out + o + (z + j) * plane);
+			for (size_t k = 0; k < nb; k++) {
+				__m128i p0 = _mm_unpacklo_epi8(a[k][j], b[k][j]);
+				__m128i p1 = _mm_unpackhi_epi8(a[k][j], b[k][j]);
+				if (k + 1 < nb || last == 16) {
+					_mm_storeu_si128((__m128i *)(d + 32 * k), p0);
+					_mm_storeu_si128((__m128i *)(d + 32 * k + 16), p1);
+				} else {
+					uint8_t tmp[32];
+					_mm_storeu_si128((__m128i *)tmp, p0);
+					_mm_storeu_si128((__m128i *)(tmp + 16), p1);
+					memcpy(d + 32 * k, tmp, 2 * last);
+				}
+			}
+		}
+	}
+#else
+	for (size_t z = 0; z < zn; z++)
+		for (size_t q = 0; q < cn; q++)
+			out[o + z * plane + q] = (uint16_t)(lo[q * RZ + z] | hi[q * RZ + z] << 8);
+#endif
+}
+
+#if defined(__SSE2__) && defined(HAVE_KT_SSSE3)
+#define HAVE_TR_KT 1
+/* tr_plane of the gathered labels, and from the transposed labels the
+   kind and type rows through kind_type's PSHUFB groups (so kind and type
+   are neither gathered nor transposed).  lab_out, kind, type may be NULL;
+   ng as in kt_ssse3. */
+__attribute__((target("ssse3"))) static void
+tr_label_kt(uint8_t *lab_out, uint8_t *kind, uint8_t *type, size_t o, size_t plane,
+            const uint8_t *restrict buf, size_t cn, size_t zn, const uint8_t *kl,
+            const uint8_t *tl, unsigned ng)
+{
+	const __m128i bias = _mm_set1_epi8(0x70), g16 = _mm_set1_epi8(16);
+	/* up to two groups (labels below 32, the usual case) in registers */
+	const __m128i K0 = _mm_loadu_si128((const __m128i *)kl);
+	const __m128i T0 = _mm_loadu_si128((const __m128i *)(tl ? tl : kl));
+	const __m128i K1 = ng > 1 ? _mm_loadu_si128((const __m128i *)(kl + 16)) : _mm_setzero_si128();
+	const __m128i T1 = ng > 1 ? _mm_loadu_si128((const __m128i *)((tl ? tl : kl) + 16))
+	                          : _mm_setzero_si128();
+	size_t nb = (cn + 15) / 16, last = cn - (nb - 1) * 16;
+
+	if (!tl)
+		tl = kl;
+	for (size_t z = 0; z < zn; z += 16) {
+		size_t h = zn - z < 16 ? zn - z : 16;
+		__m128i v[RCOLS / 16][16];
+		for (size_t b = 0; b < nb; b++)
+			tr16(buf + b * 16 * RZ + z, RZ, v[b]);
+		for (size_t j = 0; j < h; j++) {
+			size_t r = o + (z + j) * plane;
+			for (size_t b = 0; b < nb; b++) {
+				size_t w = b + 1 < nb ? 16 : last;
+				__m128i l = v[b][j];
+				__m128i i0 = _mm_adds_epu8(l, bias);
+				__m128i i1 = _mm_adds_epu8(_mm_sub_epi8(l, g16), bias);
+				__m128i rk = _mm_or_si128(_mm_shuffle_epi8(K0, i0), _mm_shuffle_epi8(K1, i1));
+				__m128i rt = _mm_or_si128(_mm_shuffle_epi8(T0, i0), _mm_shuffle_epi8(T1, i1));
+				for (unsigned g = 2; g < ng; g++) {
+					__m128i ix = _mm_adds_epu8(_mm_sub_epi8(l, _mm_set1_epi8((char)(16 * g))),
+					                           bias);
+					rk = _mm_or_si128(rk, _mm_shuffle_epi8(
+					             _mm_loadu_si128((const __m128i *)(kl + 16 * g)), ix));
+					rt = _mm_or_si128(rt, _mm_shuffle_epi8(
+					             _mm_loadu_si128((const __m128i *)(tl + 16 * g)), ix));
+				}
+				if (w == 16) {
+					if (lab_out)
+						_mm_storeu_si128((__m128i *)(lab_out + r + 16 * b), l);
+					if (kind)
+						_mm_storeu_si128((__m128i *)(kind + r + 16 * b), rk);
+					if (type)
+						_mm_storeu_si128((__m128i *)(type + r + 16 * b), rt);
+					continue;
+				}
+				if (lab_out)
+					store_part(lab_out + r + 16 * b, l, w);
+				if (kind)
+					store_part(kind + r + 16 * b, rk, w);
+				if (type)
+					store_part(type + r + 16 * b, rt, w);
+			}
+		}
+	}
+}
+#endif
+
+/* Output z range [*ea, *eb) outside which columns lx0 .. lx0 + cn - 1 of
+   row ly of crossing e are surely empty: outside [0, b3), outside the
+   source block (z - dz outside [0, b3)), or in bricks stored as nothing.
+   Empty when *ea >= *eb. */
+static void chunk_extent(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
+                         uint32_t ly, uint32_t cn, int64_t *ea, int64_t *eb)
+{
+	int64_t b3 = t->b3, bz = t->bs[2], a = INT64_MAX, b = INT64_MIN;
+	uint32_t sy = e->sy0 + ly;
+
+	for (uint32_t c = 0; c < cn;) {
+		uint32_t n = group_len(t, e, lx0 + c, cn - c), sx = e->sx0 + lx0 + c;
+		uint64_t base = e->ex->first_brick +
+		                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+		                        e->ex->nb[2];
+		int64_t klo = -1, khi = -1; /* stored bricks of the group */
+		for (uint32_t kz = 0; kz < e->ex->nb[2]; kz++)
+			if (!brick_empty(t, base + kz)) {
+				if (klo < 0)
+					klo = kz;
+				khi = kz;
+			}
+		if (klo >= 0)
+			for (uint32_t q = c; q < c + n; q++) {
+				int64_t dz = xent_dz(t, s, e, lx0 + q, ly);
+				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz;
+				if (lo < dz)
+					lo = dz;
+				if (hi > b3 + dz)
+					hi = b3 + dz;
+				if (lo < a)
+					a = lo;
+				if (hi > b)
+					b = hi;
+			}
+		c += n;
+	}
+	*ea = a > 0 ? a : 0;
+	*eb = b < b3 ? b : b3;
+}
+
+/* n zero bytes at d, inline (rows of a chunk or a crossing piece). */
+static inline void zero_row(uint8_t *d, size_t n)
+{
+#ifdef __SSE2__
+	if (n >= 16) {
+		const __m128i z = _mm_setzero_si128();
+		for (size_t i = 0; i + 16 < n; i += 16)
+			_mm_storeu_si128((__m128i *)(d + i), z);
+		_mm_storeu_si128((__m128i *)(d + n - 16), z);
+		return;
+	}
+#endif
+	memset(d, 0, n);
+}
+
+/* Zero rows z in [z0, z1) (relative to the chunk's first output row o) of
+   cn columns of every requested channel. */
+static void zero_rows(const loom_texture_region *out, size_t o, size_t plane, size_t z0,
+                      size_t z1, size_t cn)
+{
+	for (size_t z = z0; z < z1; z++) {
+		size_t r = o + z * plane;
+		if (out->density)
+			zero_row(out->density + r, cn);
+		if (out->orientation)
+			zero_row((uint8_t *)(out->orientation + r), 2 * cn);
+		if (out->label)
+			zero_row(out->label + r, cn);
+		if (out->kind)
+			zero_row(out->kind + r, cn);
+		if (out->type)
+			zero_row(out->type + r, cn);
+	}
+}
+
+/* Zero the x-fastest output over [xa, xb) x [ya, yb) x [za, zb) (every
+   requested channel), plane by plane and row after row. */
+static void zero_rect(const loom_texture_region *out, const struct region *g, int64_t xa,
+                      int64_t xb, int64_t ya, int64_t yb, int64_t za, int64_t zb)
+{
+	size_t cn = (size_t)(xb - xa);
+
+	for (int64_t z = za; z < zb; z++)
+		for (int64_t y = ya; y < yb; y++) {
+			size_t r = (size_t)(z - g->lo[2]) * g->plane + (size_t)(y - g->lo[1]) * g->nx +
+			           (size_t)(xa - g->lo[0]);
+			if (out->density)
+				zero_row(out->density + r, cn);
+			if (out->orientation)
+				zero_row((uint8_t *)(out->orientation + r), 2 * cn);
+			if (out->label)
+				zero_row(out->label + r, cn);
+			if (out->kind)
+				zero_row(out->kind + r, cn);
+			if (out->type)
+				zero_row(out->type + r, cn);
+		}
+}
+
+/* One chunk of the x-fastest output: columns [x, xc) of row y (crossing
+   e), z values [zc, zc + zn) within [0, b3): the rows where the chunk is
+   surely empty (chunk_extent, in whole 16-row steps) are zeroed; the rest
+   is gathered group by group into the thread's buffer and transposed. */
+static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct region *g,
+                  const struct sink *k, int kt_after, int64_t x, int64_t xc, int64_t y,
+                  int64_t zc, size_t zn)
+{
+	const loom_texture_region *out = g->out;
+	const uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
+	const uint8_t *rl = rhi + RCOLS * RZ, *rk = rl + RCOLS * RZ, *rt = rk + RCOLS * RZ;
+	size_t cn = (size_t)(xc - x), za, zb;
+	size_t o = (size_t)(zc - g->lo[2]) * g->plane + (size_t)(y - g->lo[1]) * g->nx +
+	           (size_t)(x - g->lo[0]);
+	int64_t ea, eb;
+	int rc = LOOM_OK;
+
+	chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn, &ea,
+	             &eb);
+	if (ea >= eb || eb <= zc || ea >= zc + (int64_t)zn) {
+		zero_rows(out, o, g->plane, 0, zn, cn);
+		return LOOM_OK;
+	}
+	za = ea > zc ? (size_t)(ea - zc) / 16 * 16 : 0;
+	zb = eb < zc + (int64_t)zn ? (size_t)(eb - zc + 15) / 16 * 16 : zn;
+	if (zb > zn)
+		zb = zn;
+	zero_rows(out, o, g->plane, 0, za, cn);
+	zero_rows(out, o, g->plane, zb, zn, cn);
+	for (int64_t q = x; q < xc;) {
+		uint32_t lx = (uint32_t)(q - e->x0);
+		uint32_t n = group_len(t, e, lx, xc - q);
+		int e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, zc + (int64_t)za,
+		                    zc + (int64_t)zb, k, (size_t)(q - x) * RZ + za, RZ);
+		if (e2 != LOOM_OK && rc == LOOM_OK)
+			rc = e2;
+		q += n;
+	}
+	o += za * g->plane;
+	rd += za, rlo += za, rhi += za, rl += za, rk += za, rt += za;
+	zn = zb - za;
+	if (out->density)
+		tr_plane(out->density, o, g->plane, rd, cn, zn);
+	if (out->orientation)
+		tr_orient(out->orientation, o, g->plane, rlo, rhi, cn, zn);
+#ifdef HAVE_TR_KT
+	if (kt_after) {
+		tr_label_kt(out->label, out->kind, out->type, o, g->plane, rl, cn, zn, k->kl, k->tl,
+		            k->ngrp);
+		return rc;
+	}
+#endif
+	if (out->label)
+		tr_plane(out->label, o, g->plane, rl, cn, zn);
+	if (out->kind)
+		tr_plane(out->kind, o, g->plane, rk, cn, zn);
+	if (out->type)
+		tr_plane(out->type, o, g->plane, rt, cn, zn);
+	return rc;
+}
+
+/* x-fastest: crossing by crossing; per crossing, slabs of RZ z values
+   (outermost, so the rows written meanwhile stay few whatever the plane
+   size), rows, chunks of up to RCOLS columns (xchunk).  z planes outside
+   [0, b3) are zeroed whole. */
+static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g)
+{
+	const loom_texture_region *out = g->out;
+	uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
+	uint8_t *rl = rhi + RCOLS * RZ, *rk = rl + RCOLS * RZ, *rt = rk + RCOLS * RZ;
+	int64_t b3 = t->b3;
+	int64_t za0 = g->lo[2] > 0 ? g->lo[2] : 0, zb0 = g->hi[2] < b3 ? g->hi[2] : b3;
+	int rc = LOOM_OK;
+	struct sink k = {0};
+
+	for (int64_t z = g->lo[2]; z < g->hi[2]; z++) {
+		size_t o = (size_t)(z - g->lo[2]) * g->plane;
+		if (z >= 0 && z < b3) {
+			z = b3 - 1; /* skip the cloth */
+			continue;
+		}
+		if (out->density)
+			memset(out->density + o, 0, g->plane);
+		if (out->orientation)
+			memset(out->orientation + o, 0, 2 * g->plane);
+		if (out->label)
+			memset(out->label + o, 0, g->plane);
+		if (out->kind)
+			memset(out->kind + o, 0, g->plane);
+		if (out->type)
+			memset(out->type + o, 0, g->plane);
+	}
+	if (za0 >= zb0)
+		return LOOM_OK;
+	k.raw = 1;
+	k.rd = out->density ? rd : NULL;
+	k.rlo = out->orientation ? rlo : NULL;
+	k.rhi = out->orientation ? rhi : NULL;
+	for (int64_t yb = g->lo[1]; yb < g->hi[1];) {
+		int64_t ye = (loom_synth_floordiv(yb, t->b2) + 1) * (int64_t)t->b2;
+		if (ye > g->hi[1])
+			ye = g->hi[1];
+		for (int64_t xb = g->lo[0]; xb < g->hi[0];) {
+			struct xent *e = loom__xent_enter(t, s, xb, yb);
+			int64_t xe = e->x0 + t->b1 < g->hi[0] ? e->x0 + t->b1 : g->hi[0];
+			/* kind and type: from the transposed labels (PSHUFB), or
+			   gathered and transposed like the other planes */
+			int kt_after = 0;
+			k.kl = e->ex->kind;
+			k.ngrp = e->ex->ngrp;
+			k.tl = out->type ? xent_tlut(e) : NULL;
+#ifdef HAVE_TR_KT
+			kt_after = t->ssse3 && k.ngrp && (out->kind || out->type);
+#endif
+			k.rl = out->label || kt_after ? rl : NULL;
+			k.rk = out->kind && !kt_after ? rk : NULL;
+			k.rt = out->type && !kt_after ? rt : NULL;
+			/* z rows where the whole piece of the crossing is surely
+			   empty: zeroed plane by plane, row after row (sequential);
+			   the slabs cover the rest */
+			int64_t pa = INT64_MAX, pb = INT64_MIN, zs = za0, ze = zb0;
+			for (int64_t y = yb; y < ye; y++)
+				for (int64_t x = xb; x < xe; x += RCOLS) {
+					int64_t xc = xe - x > RCOLS ? x + RCOLS : xe, a, b;
+					chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
+					             (uint32_t)(xc - x), &a, &b);
+					if (a < b && a < pa)
+						pa = a;
+					if (a < b && b > pb)
+						pb = b;
+				}
+			if (pa < za0)
+				pa = za0;
+			if (pb > zb0)
+				pb = zb0;
+			if (pa >= pb) {
+				zs = ze = za0;
+			} else {
+				if (pa > za0)
+					zs = za0 + (pa - za0) / 16 * 16;
+				if (pb < zb0)
+					ze = za0 + (pb - za0 + 15) / 16 * 16 < zb0 ? za0 + (pb - za0 + 15) / 16 * 16
+					                                           : zb0;
+			}
+			zero_rect(out, g, xb, xe, yb, ye, za0, zs);
+			zero_rect(out, g, xb, xe, yb, ye, ze, zb0);
+			for (int64_t zc = zs; zc < ze; zc += RZ) {
+				size_t zn = ze - zc < RZ ? (size_t)(ze - zc) : RZ;
+				for (int64_t y = yb; y < ye; y++)
+					for (int64_t x = xb; x < xe; x += RCOLS) {
+						int64_t xc = xe - x > RCOLS ? x + RCOLS : xe;
+						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn);
+						if (e2 != LOOM_OK && rc == LOOM_OK)
+							rc = e2;
+					}
+			}
+			xb = xe;
+		}
+		yb = ye;
+	}
+	return rc;
+}
+
+LOOM_API int loom_texture_read_region(loom_texture *t, const int64_t lo[3],
+                                      const int64_t hi[3],
+                                      const loom_texture_region *out)
+{
+	struct region g;
+	struct tslot *s;
+	size_t total;
+	int rc;
+
+	if (!t || !lo || !hi || !out ||
+	    (out->layout != LOOM_REGION_X_FASTEST && out->layout != LOOM_REGION_Z_FASTEST))
+		return LOOM_EINVAL;
+	for (int a = 0; a < 3; a++) {
+		if (hi[a] < lo[a])
+			return LOOM_EINVAL;
+		if (!coord_ok(lo[a]) || !coord_ok(hi[a]))
+			return LOOM_ERANGE;
+		g.lo[a] = lo[a];
+		g.hi[a] = hi[a];
+	}
+	g.out = out;
+	g.nx = (size_t)(hi[0] - lo[0]);
+	g.ny = (size_t)(hi[1] - lo[1]);
+	g.nz = (size_t)(hi[2] - lo[2]);
+	if (!loom__mul_ok(g.nx, g.ny, &g.plane) || !loom__mul_ok(g.plane, g.nz, &total))
+		return LOOM_ERANGE;
+	if (total == 0)
+		return LOOM_OK;
+	s = slot_enter(t);
+	rc = out->layout == LOOM_REGION_Z_FASTEST ? region_zfast(t, s, &g) :
+	                                            region_xfast(t, s, &g);
+	bump(&s->cnt.lookups, total);
+	slot_leave(t, s);
+	return rc;
+}
+
+void loom__texture_simd(loom_texture *t, int on)
+{
+	if (!t)
+		return;
+	t->ssse3 = 0;
+#ifdef HAVE_KT_SSSE3
+	if (on) {
+		__builtin_cpu_init();
+		t->ssse3 = __builtin_cpu_supports("ssse3") != 0;
+	}
+#else
+	(void)on;
+#endif
+}
+

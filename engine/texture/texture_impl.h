@@ -1,0 +1,281 @@
+/*
+ * engine/texture/texture_impl.h - the virtual texture's shared types and hot
+ * inline helpers, included only by the files of engine/texture/ (never
+ * installed; the unit tests use texture_internal.h).
+ *
+ * The texture is split by job:
+ *
+ *   texture.c   open, close, the memory budget and its split, statistics
+ *   slots.c     per-thread slots: the registry of open textures, the
+ *               thread-local bindings, the pool and the overflow slot
+ *   lookup.c    crossings, edge-fix offsets, bricks; point, trilinear and
+ *               batch lookups (the lookup steps 1-6)
+ *   region.c    region reads (grouped z-runs, the x-fastest transposes,
+ *               the SIMD label mappings)
+ *   cache.c     the brick cache (cache.h)
+ *
+ * What is hot stays inline here (slot_enter, the column offset, brick
+ * coordinates), so that the split costs no call on the lookup path.
+ */
+#ifndef LOOM_TEXTURE_IMPL_H
+#define LOOM_TEXTURE_IMPL_H
+
+#include "texture_internal.h"
+
+#include "cache.h"
+#include "exemplar/db_internal.h"
+#include "synth/fabric_internal.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <string.h>
+
+#define XENT 4              /* crossing entries per thread slot */
+#define TL_BINDINGS 8       /* textures one thread keeps bound at once */
+#define NO_BRICK UINT64_MAX
+#define COORD_LIMIT ((int64_t)1 << 62) /* |x|, |y|, |z| below this */
+#define DZ_LIMIT 4096       /* |dz| clamp: b3 <= LOOM__DB_MAX_BLOCK */
+#define ALIGN 64
+#define RCOLS 64            /* columns gathered at once (x-fastest regions) */
+#define RZ 64               /* z values gathered at once */
+
+#define LOOM__HIDDEN __attribute__((visibility("hidden")))
+
+/* Per exemplar, read-only after open. */
+struct exm {
+	uint32_t first_brick;    /* global id of brick (0, 0, 0) */
+	uint32_t nb[3];          /* bricks along x, y, z */
+	uint8_t kind[256];       /* label -> enum loom_yarn_kind */
+	uint8_t ngrp;            /* labels with a kind are below 16 * ngrp
+	                            (region reads: kind_type's PSHUFB tables);
+	                            0: above 8 groups, table lookups instead */
+};
+
+/* One crossing of a thread's small cache (steps 2-3). */
+struct xent {
+	int64_t I, J;            /* crossing */
+	int64_t x0, y0;          /* its first output voxel: J*b1, I*b2 */
+	const struct exm *ex;    /* source exemplar */
+	uint32_t sx0, sy0;       /* source block origin in the exemplar */
+	uint32_t stamp;          /* last use (LRU) */
+	uint8_t valid;
+	uint8_t tok[4];          /* yarn type by kind: 0, warp, weft, 0 */
+	uint8_t tlut_ok;         /* tlut is built */
+	uint8_t tlut[256];       /* label -> yarn type (region reads) */
+	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
+	uint64_t *have;          /* bit per column: dz computed */
+	int16_t *dz;             /* b1*b2 whole-voxel offsets, where have */
+};
+
+/* Per-slot counters: written by the slot's current thread only (relaxed
+   load + store), summed by loom_texture_get_stats. */
+struct counters {
+	_Atomic uint64_t lookups, memo_hits, empty, xings, dz, errors;
+};
+
+struct tslot {
+	loom__cache_thread *cth; /* attached at open, for the slot's life */
+	struct xent *cur;        /* the entry of the last lookup (or NULL) */
+	uint64_t memo_id;        /* current brick (NO_BRICK: none) */
+	const uint8_t *memo;     /* its bytes; NULL for an empty brick */
+	int memo_pinned;         /* memo holds a caller pin */
+	int shared;              /* the overflow slot */
+	uint32_t clock;          /* stamps for the entries' LRU */
+	uint32_t next_free;      /* pool free list */
+	struct xent ent[XENT];
+	uint8_t *rbuf;           /* region gather buffer: 6 planes of RCOLS*RZ */
+	struct counters cnt;
+	char msg[LOOM_DIAG_MSG_MAX]; /* last error of this slot */
+} __attribute__((aligned(ALIGN)));
+
+struct loom_texture {
+	const loom_fabric *fab;
+	const loom_db *db;
+	uint64_t serial;         /* unique per open, never reused */
+	uint32_t b1, b2, b3;
+	uint32_t bs[3];          /* brick shape */
+	uint32_t sh[3], mk[3];   /* shifts and masks when pow2 */
+	int pow2;                /* every brick side a power of two */
+	int ssse3;               /* the CPU has SSSE3 (kind_type) */
+	size_t bv;               /* voxels per brick (plane size) */
+	uint32_t rh, rv;         /* edge-fix ranks */
+	const float *coef, *field_h, *field_v; /* the fabric's tables */
+	float dens[256];         /* density byte -> d / 255 (correctly rounded) */
+	float albedo[LOOM_MAX_YARN_TYPES][3];
+	float align[LOOM_MAX_YARN_TYPES];
+	struct exm *ex;          /* n_ex entries (in mem) */
+	uint32_t n_ex;
+	uint64_t *empty;         /* bit per brick: stored as nothing (in mem) */
+	uint32_t n_bricks;
+	uint8_t *slots;          /* n_slots thread slots (in mem) */
+	loom__cache *cache;
+	unsigned n_slots;        /* max_threads + 1 (the last is the overflow) */
+	size_t slot_bytes;
+	uint8_t *mem;            /* the block allocated at open */
+	size_t fixed_bytes;      /* what the budget counts for it */
+	size_t budget;
+	pthread_mutex_t pool_lock;
+	uint32_t free_head;      /* pool free list (n_slots: none) */
+	_Atomic uint32_t n_free; /* pool slots free */
+	pthread_mutex_t overflow_lock;
+	pthread_mutex_t msg_lock;
+	char msg[LOOM_DIAG_MSG_MAX]; /* last error of any thread */
+	_Atomic uint64_t bytes_read;
+	loom_texture *live_next; /* registry (slots.c, under its lock) */
+};
+
+/* One thread's binding of a texture to a slot (slots.c). */
+struct loom__binding {
+	uint64_t serial;               /* 0: unused */
+	loom_texture *tex;             /* only followed once found alive */
+	struct tslot *slot;
+};
+
+/* The calling thread's bindings, most recent first (slots.c). */
+extern _Thread_local struct loom__binding loom__tl_bind[TL_BINDINGS] LOOM__HIDDEN;
+
+static inline size_t round_up(size_t n, size_t a)
+{
+	return (n + a - 1) / a * a;
+}
+
+static inline void bump(_Atomic uint64_t *c, uint64_t n) /* single writer */
+{
+	atomic_store_explicit(c, atomic_load_explicit(c, memory_order_relaxed) + n,
+	                      memory_order_relaxed);
+}
+
+static inline uint64_t rd(const _Atomic uint64_t *c)
+{
+	return atomic_load_explicit(c, memory_order_relaxed);
+}
+
+static inline struct tslot *slot_at(const loom_texture *t, unsigned i)
+{
+	return (struct tslot *)(t->slots + (size_t)i * t->slot_bytes);
+}
+
+/* 1 if brick id is stored as nothing (all empty). */
+static inline int brick_empty(const loom_texture *t, uint64_t id)
+{
+	return id < t->n_bricks && (t->empty[id >> 6] >> (id & 63) & 1);
+}
+
+/* Release the slot's current brick (memo). */
+static inline void memo_drop(struct tslot *s)
+{
+	if (s->memo_pinned)
+		loom__cache_release(s->cth, s->memo);
+	s->memo_pinned = 0;
+	s->memo = NULL;
+	s->memo_id = NO_BRICK;
+}
+
+static inline int coord_ok(int64_t v)
+{
+	return v > -COORD_LIMIT && v < COORD_LIMIT;
+}
+
+/* ------------------------------------------------ slots.c (threads) */
+
+/* The slow path of slot_enter: another binding, or a new one. */
+struct tslot *loom__slot_bind(loom_texture *t);
+/* A pool slot, or NULL when the pool is empty. */
+struct tslot *loom__pool_take(loom_texture *t);
+/* Record a failed brick read on the slot and the texture; returns rc. */
+int loom__slot_error(loom_texture *t, struct tslot *s, int rc, const char *msg);
+/* Give slot s (the calling thread's) back to t's pool; t is alive. */
+void loom__slot_return(loom_texture *t, struct tslot *s);
+/* Add t to the registry of open textures (gives it its serial); remove
+   it (bindings to it are no longer followed). */
+void loom__registry_add(loom_texture *t);
+void loom__registry_remove(loom_texture *t);
+
+/* The calling thread's slot on t, locked if it is the overflow slot. */
+static inline struct tslot *slot_enter(loom_texture *t)
+{
+	struct tslot *s = loom__tl_bind[0].serial == t->serial ? loom__tl_bind[0].slot
+	                                                       : loom__slot_bind(t);
+
+	if (s->shared) {
+		struct tslot *p;
+		if (atomic_load_explicit(&t->n_free, memory_order_relaxed) &&
+		    (p = loom__pool_take(t)) != NULL) {
+			loom__tl_bind[0].slot = p; /* leave the overflow slot */
+			return p;
+		}
+		pthread_mutex_lock(&t->overflow_lock);
+	}
+	return s;
+}
+
+static inline void slot_leave(loom_texture *t, struct tslot *s)
+{
+	if (s->shared)
+		pthread_mutex_unlock(&t->overflow_lock);
+}
+
+/* ------------------------------------------ lookup.c (crossings, bricks) */
+
+/* Step 2: the entry of the crossing holding (x, y). */
+struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y);
+/* Step 5: make brick id the slot's current brick. */
+int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id);
+
+/* Step 3: dz of column (x, y) of an entry, in the edge-fix module's
+   order of operations (so equal to loom_edgefix_block bit for bit). */
+static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
+                            uint32_t y)
+{
+	uint32_t b1 = t->b1, b2 = t->b2, rh = t->rh, rv = t->rv;
+	const float *fn = t->field_h + ((size_t)y * b1 + x) * rh;
+	const float *fs = t->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh;
+	const float *fw = t->field_v + ((size_t)y * b1 + x) * rv;
+	const float *fe = t->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv;
+	const float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
+	float sn = 0, ss = 0, sw = 0, se = 0;
+	uint32_t k = 0, m = rh < rv ? rh : rv;
+
+	/* the four dot products interleaved: independent chains, each summed
+	   in k order, so the same values as four separate loops */
+	for (; k < m; k++) {
+		sn += an[k] * fn[k];
+		ss += as[k] * fs[k];
+		sw += aw[k] * fw[k];
+		se += ae[k] * fe[k];
+	}
+	for (uint32_t j = k; j < rh; j++) {
+		sn += an[j] * fn[j];
+		ss += as[j] * fs[j];
+	}
+	for (uint32_t j = k; j < rv; j++) {
+		sw += aw[j] * fw[j];
+		se += ae[j] * fe[j];
+	}
+	return sn + ss + sw + se;
+}
+
+/* Step 3, cached in the entry: the whole-voxel offset of column (lx, ly). */
+static inline int xent_dz(const loom_texture *t, struct tslot *s, struct xent *e,
+                          uint32_t lx, uint32_t ly)
+{
+	size_t c = (size_t)ly * t->b1 + lx;
+	if (!(e->have[c >> 6] >> (c & 63) & 1)) {
+		e->dz[c] = (int16_t)loom__dz_round(dz_eval(t, e->a, lx, ly));
+		e->have[c >> 6] |= (uint64_t)1 << (c & 63);
+		bump(&s->cnt.dz, 1);
+	}
+	return e->dz[c];
+}
+
+/* Brick coordinates: split v along axis a into brick index and offset. */
+static inline uint32_t brick_of(const loom_texture *t, int a, uint32_t v)
+{
+	return t->pow2 ? v >> t->sh[a] : v / t->bs[a];
+}
+static inline uint32_t in_brick(const loom_texture *t, int a, uint32_t v)
+{
+	return t->pow2 ? v & t->mk[a] : v % t->bs[a];
+}
+
+#endif /* LOOM_TEXTURE_IMPL_H */
