@@ -351,6 +351,7 @@ static int pattern_convert(int argc, char **argv)
 		OPT_U32(0, "cell", &cell, "PX", 1, 64, "pixels per crossing with --color "
 		        "(default 1) or per cell with --draft (default: about 1100 px in all), "
 		        "%r"),
+		PAT_OPT_MAP(&o, "IN is a posterized image: map it as from-image does"),
 		PAT_OPT_MAPS_IN(&o),
 		PAT_OPT_MAPS_OUT(&o),
 		PAT_OPT_QUIET(&o),
