@@ -35,16 +35,17 @@ double pic_bar_length(double width_mm, char *label, size_t n)
 	return len;
 }
 
-/* 3 x 5 glyphs, rows top to bottom, bit 2 = left column. */
+/* 5-row glyphs of 3 (5 for m) columns; bit (w - 1) is the left column. */
 static const struct glyph {
 	char c;
+	uint8_t w;
 	uint8_t row[5];
 } glyphs[] = {
-	{'0', {7, 5, 5, 5, 7}}, {'1', {2, 6, 2, 2, 7}}, {'2', {7, 1, 7, 4, 7}},
-	{'3', {7, 1, 7, 1, 7}}, {'4', {5, 5, 7, 1, 1}}, {'5', {7, 4, 7, 1, 7}},
-	{'6', {7, 4, 7, 5, 7}}, {'7', {7, 1, 1, 1, 1}}, {'8', {7, 5, 7, 5, 7}},
-	{'9', {7, 5, 7, 1, 7}}, {'.', {0, 0, 0, 0, 2}}, {'c', {0, 0, 7, 4, 7}},
-	{'m', {0, 0, 7, 7, 5}}, {'u', {0, 0, 5, 5, 7}}, {' ', {0, 0, 0, 0, 0}},
+	{'0', 3, {7, 5, 5, 5, 7}}, {'1', 3, {2, 6, 2, 2, 7}}, {'2', 3, {7, 1, 7, 4, 7}},
+	{'3', 3, {7, 1, 7, 1, 7}}, {'4', 3, {5, 5, 7, 1, 1}}, {'5', 3, {7, 4, 7, 1, 7}},
+	{'6', 3, {7, 4, 7, 5, 7}}, {'7', 3, {7, 1, 1, 1, 1}}, {'8', 3, {7, 5, 7, 5, 7}},
+	{'9', 3, {7, 5, 7, 1, 7}}, {'.', 3, {0, 0, 0, 0, 2}}, {'c', 3, {0, 0, 7, 4, 7}},
+	{'m', 5, {0, 0, 26, 21, 21}}, {'u', 3, {0, 0, 5, 5, 7}}, {' ', 2, {0, 0, 0, 0, 0}},
 };
 
 static void put(uint8_t *rgb, uint32_t w, uint32_t h, int x, int y, uint8_t v)
@@ -57,7 +58,7 @@ static void put(uint8_t *rgb, uint32_t w, uint32_t h, int x, int y, uint8_t v)
 static void text_pass(uint8_t *rgb, uint32_t w, uint32_t h, int x, int y, int s,
                       const char *text, int outline)
 {
-	for (; *text; text++, x += 4 * s) {
+	for (; *text; text++) {
 		const struct glyph *g = NULL;
 		for (size_t k = 0; k < sizeof glyphs / sizeof glyphs[0]; k++)
 			if (glyphs[k].c == *text)
@@ -65,14 +66,15 @@ static void text_pass(uint8_t *rgb, uint32_t w, uint32_t h, int x, int y, int s,
 		if (!g)
 			continue;
 		for (int r = 0; r < 5; r++)
-			for (int col = 0; col < 3; col++) {
-				if (!(g->row[r] >> (2 - col) & 1))
+			for (int col = 0; col < g->w; col++) {
+				if (!(g->row[r] >> (g->w - 1 - col) & 1))
 					continue;
 				for (int dy = -outline; dy < s + outline; dy++)
 					for (int dx = -outline; dx < s + outline; dx++)
 						put(rgb, w, h, x + col * s + dx, y + r * s + dy,
 						    outline ? 0 : 255);
 			}
+		x += (g->w + 1) * s;
 	}
 }
 
