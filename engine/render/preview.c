@@ -1178,13 +1178,17 @@ LOOM_API int loom_preview_stream(loom_texture *t, const loom_fabric *f,
 	c->Hv[2] = c->L[2] + 1.0;
 	normalize3(c->Hv);
 	memcpy(c->bg, o.background, sizeof c->bg);
-	for (uint32_t k = 0; d && k < d->n_types && k < 256; k++) {
-		float al = d->types[k].alignment;
-		if (!(al > 0) || al > 1)
-			al = 0.3f;
-		memcpy(c->alb[k], d->types[k].albedo, sizeof c->alb[k]);
-		c->spk[k] = 0.25f * (1.0f - al);
-		c->valid[k] = 1;
+	{
+		const loom_yarn_type *ty = o.types ? o.types : d ? d->types : NULL;
+		uint32_t nt = o.types ? o.n_types : d ? d->n_types : 0;
+		for (uint32_t k = 0; ty && k < nt && k < 256; k++) {
+			float al = ty[k].alignment;
+			if (!(al > 0) || al > 1)
+				al = 0.3f;
+			memcpy(c->alb[k], ty[k].albedo, sizeof c->alb[k]);
+			c->spk[k] = 0.25f * (1.0f - al);
+			c->valid[k] = 1;
+		}
 	}
 	c->nthreads = o.threads;
 	if (c->nthreads == 0) {

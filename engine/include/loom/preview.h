@@ -58,11 +58,16 @@ typedef struct loom_preview_options {
 	int filter;             /* enum loom_preview_filter */
 	size_t memory_bytes;    /* cap on the preview's own working memory
 	                           (row buffers, block tables); 0 = 16 MiB */
+	const loom_yarn_type *types; /* yarn table to colour by (type IDs as
+	                           the design's: a colour change needs no new
+	                           synthesis); NULL = the fabric's design */
+	uint32_t n_types;       /* entries of types */
 } loom_preview_options;
 
 #define LOOM_PREVIEW_OPTIONS_INIT                                          \
 	{sizeof(loom_preview_options), {0, 0, 0}, {0, 0, 0}, 512, 0, 0, 0.2f, \
-	 {0.0, 0.0, 0.0}, {0.0f, 0.0f, 0.0f}, NULL, NULL, LOOM_PREVIEW_AUTO, 0}
+	 {0.0, 0.0, 0.0}, {0.0f, 0.0f, 0.0f}, NULL, NULL, LOOM_PREVIEW_AUTO, 0, \
+	 NULL, 0}
 
 /* Optional per-pixel outputs of loom_preview (width * height entries each,
    row 0 at the top = smallest y, pick 0; NULL = not wanted). */
