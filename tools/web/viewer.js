@@ -63,8 +63,25 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
     ctx.setTransform(1, 0, 0, 1, 0, 0);
     ctx.fillStyle = '#050505';
     ctx.fillRect(0, 0, canvas.width, canvas.height);
-    ctx.imageSmoothingEnabled = sx < 1 || sy < 1;
-    const pattern = ctx.createPattern(repeat, 'repeat');
+    /* minified, the repeat is first scaled down with the browser's good
+       filter (a pattern alone would sample it and alias); magnified, cells
+       stay crisp */
+    let src = repeat;
+    if (sx < 1 || sy < 1) {
+      const off = document.createElement('canvas');
+      off.width = Math.max(1, Math.round(repeat.width * Math.min(1, sx)));
+      off.height = Math.max(1, Math.round(repeat.height * Math.min(1, sy)));
+      const o = off.getContext('2d');
+      o.imageSmoothingEnabled = true;
+      o.imageSmoothingQuality = 'high';
+      o.drawImage(repeat, 0, 0, off.width, off.height);
+      src = off;
+    }
+    ctx.imageSmoothingEnabled = src !== repeat;
+    const pattern = ctx.createPattern(src, 'repeat');
+    if (src !== repeat)   /* pattern pixels back to crossing units */
+      pattern.setTransform(new DOMMatrix([repeat.width / src.width, 0, 0,
+                                          repeat.height / src.height, 0, 0]));
     ctx.setTransform(sx, 0, 0, sy, -cx0 * sx, -cy0 * sy);
     ctx.fillStyle = pattern;
     /* the window only: repeats x repeats of the design */
