@@ -14,10 +14,13 @@
 #include "views.h"
 
 #include <errno.h>
+#include <spawn.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+extern char **environ;
 
 static const char usage[] =
 	"loom look DRAFT [-o DIR] [--open] [--time S] [--noise N] [--width PX]\n"
@@ -354,13 +357,14 @@ int cmd_look(int argc, char **argv)
 			printf("  %-44s %s\n", lk.files[k].path, lk.files[k].what);
 	}
 	if (open_it) {
-		char cmd[4400];
-		snprintf(cmd, sizeof cmd, "xdg-open '%s/index.html' >/dev/null 2>&1 &", lk.dir);
-		if (system("command -v xdg-open >/dev/null 2>&1") != 0)
-			fprintf(stderr, "%s: --open: no xdg-open here; open %s/index.html in a "
-			        "browser\n", prog, lk.dir);
-		else if (system(cmd) != 0)
-			fprintf(stderr, "%s: --open: xdg-open failed\n", prog);
+		/* xdg-open DIR/index.html, without a shell (any path is safe) */
+		char page[4200];
+		char *args[] = {"xdg-open", page, NULL};
+		pid_t pid;
+		snprintf(page, sizeof page, "%s/index.html", lk.dir);
+		if (posix_spawnp(&pid, "xdg-open", NULL, NULL, args, environ) != 0)
+			fprintf(stderr, "%s: --open: cannot run xdg-open; open %s in a browser\n",
+			        prog, page);
 	}
 	loom_texture_close(t);
 	loom_fabric_free(f);

@@ -87,7 +87,8 @@ static int put(serve_cache *c, const char *key, uint64_t bytes, uint64_t used)
 			c->cap = nc;
 		}
 		e = &c->e[c->n++];
-		snprintf(e->key, sizeof e->key, "%s", key);
+		strncpy(e->key, key, sizeof e->key - 1);
+		e->key[sizeof e->key - 1] = 0;
 		e->bytes = 0;
 	}
 	c->bytes += bytes - e->bytes;
@@ -152,13 +153,14 @@ serve_cache *serve_cache_open(const char *dir, uint64_t max_bytes, char *err, si
 			f = g;
 			cf = nc;
 		}
-		snprintf(f[nf].key, KEY_MAX, "%s", de->d_name);
+		memcpy(f[nf].key, de->d_name, len + 1); /* len < KEY_MAX */
 		f[nf].bytes = (uint64_t)st.st_size;
 		f[nf].mtime = st.st_mtime;
 		nf++;
 	}
 	closedir(dp);
-	qsort(f, nf, sizeof *f, by_mtime);
+	if (nf)
+		qsort(f, nf, sizeof *f, by_mtime);
 	for (size_t k = 0; k < nf; k++)
 		put(c, f[k].key, f[k].bytes, ++c->clock);
 	free(f);
