@@ -67,6 +67,30 @@ done
 expect_ok cs_combine "$LOOM" scan --combine "$T/part0.json" "$T/part1.json" "$T/part2.json" "$T/part3.json"
 cp "$T/out" "$T/comb.txt"
 expect_out_contains cs_combine_value "checksum $CS"
+# other splits, tilings with several chunks of the source order (2 x 2
+# tiles: 9000 a layer, 3 chunks) and 40 shards of few tiles: every tile
+# once (the parts add up to the whole)
+check_split() { # NAME N TILE
+	n=$2
+	parts=""
+	for s in $(seq 0 $((n - 1))); do
+		"$LOOM" scan "$F" --region "$REG" --reduce checksum --tile "$3" --shard $s/$n --json \
+			--quiet -o "$T/sp$s.json" 2>"$T/err" || fail "$1" "shard $s/$n: $(cat "$T/err")"
+		parts="$parts $T/sp$s.json"
+	done
+	# shellcheck disable=SC2086
+	"$LOOM" scan --combine $parts --json >"$T/out" 2>"$T/err"
+	got=$(sed -n 's/.*"checksum": "\([0-9a-f]*\)".*/\1/p' "$T/out")
+	if [ "$got" = "$CS" ]; then pass "$1"; else fail "$1" "checksum '$got' over $n shards of $3, expected $CS"; fi
+	rm -f "$T"/sp*.json
+}
+check_split cs_split7 7 17,23,20
+check_split cs_split5_chunks 5 2,2,55
+check_split cs_split40 40 60,50
+export LOOM_TILE_ORDER=index
+check_split cs_split3_index 3 2,2,55
+unset LOOM_TILE_ORDER
+
 # every shard must be there, once; time and voxels add up over the parts
 expect_exit cs_combine_missing 1 "$LOOM" scan --combine "$T/part0.json" "$T/part2.json"
 expect_err_contains cs_combine_missing_msg "2 of 4 shards missing: 1,3"

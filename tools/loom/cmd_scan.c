@@ -822,7 +822,9 @@ int cmd_scan(int argc, char **argv)
 	pool.progress = &prog_bar;
 	pool.progress_voxels = 1;
 	pool.index_order = tiles_index_order_wanted();
-	cli_progress_begin(&prog_bar, prog, "voxels", tiles_shard_voxels(&j), quiet);
+	/* the total walks the shard's order once more: only when it is shown */
+	cli_progress_begin(&prog_bar, prog, "voxels", quiet ? 0 : tiles_shard_voxels(&j),
+	                   quiet);
 	t0 = cli_now();
 	cpu0 = tiles_cpu_seconds();
 	if (tiles_run(&pool) != 0) {
