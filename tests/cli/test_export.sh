@@ -237,6 +237,7 @@ if [ "$(ls "$T/ref" | grep -v manifest)" = "$(ls "$T/sh" | grep -v manifest)" ] 
 	pass shard_union; else fail shard_union "shards' files differ from the whole"; fi
 expect_ok shard_partial "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
 	--shard 0/2 --quiet -o "$T/sh2"
+: >"$T/sh2/manifest-1-of-2.json.tmp.999999" # a dead run's temporary is no manifest
 expect_exit merge_missing 1 "$LOOM" export --merge "$T/sh2"
 expect_err_contains merge_missing_msg "1 of 2 shards not complete: 1 (no manifest: 1)"
 

@@ -462,9 +462,13 @@ static uint32_t shard_files(const char *prog, const char *dir, uint8_t **seen)
 		cli_fail(prog, "cannot open %s: %s", dir, strerror(errno));
 	while ((de = readdir(dp)) != NULL) {
 		unsigned si, sn;
-		char tail[8];
+		char tail[8], exact[64];
 		if (sscanf(de->d_name, "manifest-%u-of-%u.jso%1s", &si, &sn, tail) != 3 ||
 		    strcmp(tail, "n") != 0 || sn < 2 || si >= sn)
+			continue;
+		/* exactly the name (not a temporary "....json.tmp.PID") */
+		snprintf(exact, sizeof exact, "manifest-%u-of-%u.json", si, sn);
+		if (strcmp(de->d_name, exact) != 0)
 			continue;
 		if (n == 0) {
 			n = sn;
@@ -684,6 +688,9 @@ int export_status(const char *prog, const char *dir, int json, int quiet, int ve
 		unsigned long long idx = ml[t].index;
 		char w[600];
 		int bad = 0;
+		if (idx >= total)
+			cli_fail(prog, "%s: tile %llu is outside the region's %llu tiles", dir, idx,
+			         total);
 		if (listed[idx / 8] & (1u << (idx % 8))) {
 			snprintf(w, sizeof w, "listed twice");
 			bad = 1;
