@@ -5,6 +5,7 @@
 #   make test       build with -Werror and run every test; ends "N passed, N failed"
 #   make sanitize   the same suite under AddressSanitizer + UBSan
 #   make tsan       the same suite under ThreadSanitizer
+#   make test-slurm export and scan job arrays on a private Slurm (root)
 #   make bench      run the benchmarks (figures, never pass/fail)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text
@@ -85,11 +86,11 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz
+.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz test-slurm
 all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
-	@sed -n '3,12p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '3,13p' Makefile | sed 's/^# \{0,1\}//'
 
 $(DEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
@@ -192,6 +193,11 @@ demo: all
 
 test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK)
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
+
+# tools/slurm/ on a real single-node Slurm that the script starts and stops
+# (installs slurm-wlm and munge through tools/deps.sh slurm; needs root).
+test-slurm: all
+	$(Q)BUILD=$(BUILD) bash tests/slurm/run.sh
 
 sanitize:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/asan OPT=-O1 \

@@ -3,6 +3,8 @@
 #
 #   tools/deps.sh build   libraries and headers needed to compile loom
 #   tools/deps.sh test    build + independent readers used by the tests
+#   tools/deps.sh slurm   a real single-node Slurm for tests/slurm/run.sh
+#                         (slurmctld, slurmd, the client commands, munge)
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -19,14 +21,23 @@ need() { # need PACKAGE TEST-COMMAND...
 }
 has_header() { [ -f "/usr/include/$1" ]; }
 
-need pkg-config      command -v pkg-config
-need libdeflate-dev  has_header libdeflate.h
-need libpng-dev      has_header png.h
-need libopenexr-dev  has_header OpenEXR/openexr.h
-need libembree-dev   has_header embree3/rtcore.h
-# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
-need libmicrohttpd-dev has_header microhttpd.h
-need npm             command -v npm
+if [ "$what" = slurm ]; then
+	# only the scheduler: tests/slurm/run.sh runs it on localhost (its
+	# daemons are started by the test, never by the packages' services)
+	need slurmctld    command -v slurmctld
+	need slurmd       command -v slurmd
+	need slurm-client command -v sbatch
+	need munge        command -v munged
+else
+	need pkg-config      command -v pkg-config
+	need libdeflate-dev  has_header libdeflate.h
+	need libpng-dev      has_header png.h
+	need libopenexr-dev  has_header OpenEXR/openexr.h
+	need libembree-dev   has_header embree3/rtcore.h
+	# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
+	need libmicrohttpd-dev has_header microhttpd.h
+	need npm             command -v npm
+fi
 if [ "$what" = test ]; then
 	need openexr     command -v exrheader
 	need teem-apps   command -v teem-unu

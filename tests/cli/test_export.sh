@@ -218,6 +218,7 @@ if [ "$(ls "$T/ref")" = "$(ls "$T/kill")" ] &&
 # a corrupted tile file is rewritten by the next run
 printf 'x' | dd of="$T/kill/tile-2-1-0.density.vol" bs=1 seek=100 conv=notrunc 2>/dev/null
 expect_ok rerun "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --json -o "$T/kill"
+expect_out_contains rerun_json '"tiles_skipped": 11' 
 expect_out_contains rerun_one '"tiles_written": 1'
 expect_same rerun_fixed "$T/ref/tile-2-1-0.density.vol" "$T/kill/tile-2-1-0.density.vol"
 # another export into the same directory is refused
@@ -236,8 +237,131 @@ if [ "$(ls "$T/ref" | grep -v manifest)" = "$(ls "$T/sh" | grep -v manifest)" ] 
 	pass shard_union; else fail shard_union "shards' files differ from the whole"; fi
 expect_ok shard_partial "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
 	--shard 0/2 --quiet -o "$T/sh2"
+: >"$T/sh2/manifest-1-of-2.json.tmp.999999" # a dead run's temporary is no manifest
 expect_exit merge_missing 1 "$LOOM" export --merge "$T/sh2"
-expect_err_contains merge_missing_msg "shard 1/2 has no manifest"
+expect_err_contains merge_missing_msg "1 of 2 shards not complete: 1 (no manifest: 1)"
+
+# --status: complete, missing and damaged tiles, the shards to run again
+expect_exit status_partial 1 "$LOOM" export --status "$T/sh2" --json
+cp "$T/out" "$T/st_partial.json"
+expect_ok status_whole "$LOOM" export --status "$T/sh" --verify
+expect_out_contains status_whole_text "12 tiles: 12 complete, 0 missing, 0 damaged"
+expect_ok status_quiet "$LOOM" export --status "$T/sh" --quiet
+if [ -s "$T/out" ] || [ -s "$T/err" ]; then fail status_quiet_silent "output with --quiet"
+else pass status_quiet_silent; fi
+cp -r "$T/sh" "$T/shd"
+rm "$T/shd/manifest.json"
+rm -f "$T/shd/tile-1-1-0.orientation.vol"
+printf 'x' | dd of="$T/shd/tile-3-2-0.density.vol" bs=1 seek=77 conv=notrunc 2>/dev/null
+expect_exit status_size_ok 1 "$LOOM" export --status "$T/shd" --json
+cp "$T/out" "$T/st_size.json"
+expect_exit status_crc 1 "$LOOM" export --status "$T/shd" --verify --json
+cp "$T/out" "$T/st_crc.json"
+expect_exit merge_damaged 1 "$LOOM" export --merge "$T/shd"
+expect_err_contains merge_damaged_msg "the files of tile 5 are missing or have another size: run shard"
+expect_exit status_nothing 1 "$LOOM" export --status "$T/afile_dir_none"
+expect_exit status_and_merge 2 "$LOOM" export --status "$T/sh" --merge "$T/sh"
+expect_exit verify_alone 2 "$LOOM" export "$F" --region $R2 --format vol --verify -o "$T/v"
+if python3 - "$T" >"$T/py" 2>&1 <<'EOF2'
+import json, os, sys
+d = sys.argv[1]
+p = json.load(open(os.path.join(d, "st_partial.json")))
+assert not p["complete"] and p["shards"] == 2 and p["tiles_total"] == 12, p
+assert p["shards_to_run"] == "1" and p["shards_complete"] == "0", p
+assert p["tiles_complete"] == 6 and p["tiles_missing"] == 6 and p["tiles_damaged"] == 0, p
+assert len(p["missing"]) == 6 and not p["lists_truncated"], p
+sm = p["shard_manifests"]
+assert [s["manifest"] for s in sm] == [True, False] and not any(s["running"] for s in sm), sm
+s = json.load(open(os.path.join(d, "st_size.json")))
+# tile-1-1-0 (index 5) lost a file: damaged by size; the flipped byte is
+# seen only with --verify
+assert s["tiles_damaged"] == 1 and s["damaged"][0]["index"] == 5, s
+assert "tile-1-1-0.orientation.vol is missing" in s["damaged"][0]["why"], s
+c = json.load(open(os.path.join(d, "st_crc.json")))
+assert c["tiles_damaged"] == 2 and c["verified_crc32"], c
+assert sorted(x["index"] for x in c["damaged"]) == [5, 11], c
+assert "CRC-32" in [x for x in c["damaged"] if x["index"] == 11][0]["why"], c
+assert c["tiles_complete"] == 10 and c["tiles_missing"] == 0 and not c["merged"], c
+# the shards to run again hold the damaged tiles (and are runnable lists)
+assert c["shards_to_run"] and all(ch.isdigit() or ch in ",-" for ch in c["shards_to_run"]), c
+print("ok")
+EOF2
+then pass status_json; else fail status_json "$(tail -5 "$T/py")"; fi
+# running the shards named again repairs the export
+for s in $(sed -n 's/.*"shards_to_run": "\([0-9,-]*\)".*/\1/p' "$T/st_crc.json" | tr ',' ' '); do
+	"$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --shard $s/3 --quiet -o "$T/shd" ||
+		fail status_rerun "shard $s failed"
+done
+expect_ok status_repaired "$LOOM" export --status "$T/shd" --verify
+expect_ok merge_repaired "$LOOM" export --merge "$T/shd" --quiet
+expect_same merge_repaired_manifest "$T/ref/manifest.json" "$T/shd/manifest.json"
+
+# --shard auto: I and N from a Slurm array task's or the generic variables
+expect_ok auto_slurm env SLURM_ARRAY_TASK_ID=1 SLURM_ARRAY_TASK_COUNT=3 SLURM_ARRAY_TASK_MIN=0 \
+	SLURM_ARRAY_TASK_MAX=2 "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+	--shard auto --quiet -o "$T/auto"
+if [ -f "$T/auto/manifest-1-of-3.json" ] && cmp -s "$T/auto/manifest-1-of-3.json" "$T/sh/manifest-1-of-3.json"
+then pass auto_slurm_manifest; else fail auto_slurm_manifest "not shard 1/3's manifest"; fi
+expect_ok auto_generic env LOOM_SHARD_INDEX=2 LOOM_SHARD_COUNT=3 "$LOOM" export "$F" --region $R2 \
+	--format vol --tile 32,32 --shard auto --quiet -o "$T/auto"
+# a resubmitted task (--array=0 alone) takes N from LOOM_SHARD_COUNT
+expect_ok auto_resubmit env SLURM_ARRAY_TASK_ID=0 SLURM_ARRAY_TASK_COUNT=1 SLURM_ARRAY_TASK_MIN=0 \
+	SLURM_ARRAY_TASK_MAX=0 LOOM_SHARD_COUNT=3 "$LOOM" export "$F" --region $R2 --format vol \
+	--tile 32,32 --shard auto --quiet -o "$T/auto"
+expect_ok auto_merge "$LOOM" export --merge "$T/auto" --quiet
+expect_same auto_merge_manifest "$T/ref/manifest.json" "$T/auto/manifest.json"
+expect_exit auto_resubmit_no_count 2 env SLURM_ARRAY_TASK_ID=3 SLURM_ARRAY_TASK_COUNT=1 \
+	SLURM_ARRAY_TASK_MIN=3 SLURM_ARRAY_TASK_MAX=3 "$LOOM" export "$F" --region $R2 --format vol \
+	--shard auto -o "$T/auto2"
+expect_err_contains auto_resubmit_msg "set LOOM_SHARD_COUNT"
+expect_exit auto_absent 2 env -u SLURM_ARRAY_TASK_ID -u SLURM_ARRAY_TASK_COUNT -u LOOM_SHARD_INDEX \
+	-u LOOM_SHARD_COUNT "$LOOM" scan "$F" --region $R2 --reduce checksum --shard auto
+expect_err_contains auto_absent_msg "--shard auto: \$SLURM_ARRAY_TASK_ID and \$SLURM_ARRAY_TASK_COUNT"
+expect_exit auto_range 2 env LOOM_SHARD_INDEX=3 LOOM_SHARD_COUNT=3 "$LOOM" scan "$F" --region $R2 \
+	--reduce checksum --shard auto
+expect_exit auto_bad 2 env LOOM_SHARD_INDEX=x LOOM_SHARD_COUNT=3 "$LOOM" scan "$F" --region $R2 \
+	--reduce checksum --shard auto
+
+# two runs of one shard at once: the second is refused and nothing is damaged
+# (the first run takes 4 tiles x 1.5 s; it holds its lock from the start)
+LOOM_EXPORT_TILE_DELAY_MS=1500 "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+	--shard 1/3 --quiet -o "$T/conc" >"$T/conc1.out" 2>&1 &
+pid=$!
+i=0
+while [ $i -lt 100 ] && ! [ -f "$T/conc/.loom-export.lock" ]; do sleep 0.05; i=$((i + 1)); done
+sleep 0.3
+expect_exit conc_second 1 "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --shard 1/3 \
+	--quiet -o "$T/conc"
+expect_err_contains conc_second_msg "shard 1/3 of $T/conc is being written by another run (process $pid)"
+expect_exit conc_other_split 1 "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 \
+	--shard 0/2 --quiet -o "$T/conc"
+expect_err_contains conc_other_split_msg "is being written by a differently sharded export (process $pid)"
+expect_ok conc_other_shard "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --shard 0/3 \
+	--quiet -o "$T/conc"
+expect_exit conc_merge_running 1 "$LOOM" export --merge "$T/conc"
+expect_exit conc_status_running 1 "$LOOM" export --status "$T/conc" --json
+expect_out_contains conc_status_running_shard '"shards_running": "1"'
+if wait $pid; then pass conc_first; else fail conc_first "the first run failed: $(cat "$T/conc1.out")"; fi
+expect_ok conc_last "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --shard 2/3 \
+	--quiet -o "$T/conc"
+expect_ok conc_merge "$LOOM" export --merge "$T/conc" --quiet
+expect_same conc_manifest "$T/ref/manifest.json" "$T/conc/manifest.json"
+if ! (cd "$T/ref" && for f in tile-*; do cmp -s "$f" "$T/conc/$f" || echo "$f"; done) | grep -q .; then
+	pass conc_bytes; else fail conc_bytes "files differ after concurrent runs"; fi
+# a dead writer's temporary files of the shard are removed by its next run,
+# another shard's are left alone
+: >"$T/conc/manifest-0-of-3.json.tmp.999999"
+idx_other=$(python3 -c "import json;print(json.load(open('$T/conc/manifest-1-of-3.json'))['tiles'][0]['tile'])" |
+	tr -d '[] ' | tr ',' '-')
+: >"$T/conc/tile-$idx_other.density.vol.tmp.999999.0"
+own=$(python3 -c "import json;t=[x['tile'] for x in json.load(open('$T/conc/manifest-0-of-3.json'))['tiles']];print('-'.join(map(str,t[0])))")
+: >"$T/conc/tile-$own.kind.vol.tmp.999999.3"
+expect_ok conc_sweep "$LOOM" export "$F" --region $R2 --format vol --tile 32,32 --shard 0/3 \
+	--quiet -o "$T/conc"
+if [ -e "$T/conc/tile-$own.kind.vol.tmp.999999.3" ] || [ -e "$T/conc/manifest-0-of-3.json.tmp.999999" ]
+then fail conc_sweep_own "shard 0's temporaries are still there"; else pass conc_sweep_own; fi
+if [ -e "$T/conc/tile-$idx_other.density.vol.tmp.999999.0" ]; then pass conc_sweep_other
+else fail conc_sweep_other "another shard's temporary was removed"; fi
 
 # --all exports the repeat (a few big tiles, density only, shard 5 of 40)
 expect_ok all_shard "$LOOM" export "$F" --all --format vol --channels density --tile 512,512 \

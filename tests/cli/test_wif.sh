@@ -111,6 +111,6 @@ for f in table-no-equals untied-treadle zero-based; do
 	p1_bits "$W/$f.expected.pbm" >"$T/$f.want"
 	expect_same "forgive_${f}_bits" "$T/$f.got" "$T/$f.want"
 done
-expect_ok zero_based_colours "$LOOM" pattern info "$W/zero-based.wif" -q
+expect_ok zero_based_colours "$LOOM" pattern info "$W/zero-based.wif"
 expect_out_contains zero_based_warp "warp #ffffff"
 expect_out_contains zero_based_weft "weft #c80000"

@@ -297,6 +297,8 @@ static void stage_write(demo_ctx *ctx)
 
 static void stage_table(demo_ctx *ctx)
 {
+	if (ctx->quiet) /* --quiet: nothing on success */
+		return;
 	printf("%-20s %-11s %-9s %-11s %-5s %s\n", "name", "size", "repeat",
 	       "max floats", "types", "source");
 	for (int k = 0; k < ctx->n_items; k++) {
@@ -688,7 +690,7 @@ static void stage_files(demo_ctx *ctx)
 {
 	uint64_t total = 0;
 
-	if (ctx->n_files == 0)
+	if (ctx->n_files == 0 || ctx->quiet)
 		return;
 	printf("\n%-44s %10s  %s\n", "file", "bytes", "what");
 	for (int k = 0; k < ctx->n_files; k++) {
@@ -746,7 +748,7 @@ int cmd_demo(int argc, char **argv)
 			           "created)"),
 			OPT_DB(&ctx->db_opt, "exemplar database (default: $LOOM_DB, then "
 			       "default.ldb in the data directory)"),
-			OPT_QUIET(&ctx->quiet, "no progress or warnings on stderr"),
+			OPT_QUIET(&ctx->quiet, "nothing on success (no progress, warnings nor report)"),
 			OPT_END()
 		};
 		opts_cmd c = {.prog = "loom demo", .usage = "loom demo [-o DIR] [--db DB] "

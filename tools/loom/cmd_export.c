@@ -22,13 +22,16 @@ static const char usage[] =
 	"            --format vol|nrrd|exr -o DIR [--channels LIST]\n"
 	"            [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
 	"            [--threads N] [--db DB] [--quiet] [--json]\n"
-	"loom export --merge DIR [--json]\n";
+	"loom export --merge DIR [--quiet] [--json]\n"
+	"loom export --status DIR [--verify] [--quiet] [--json]\n";
 
 static const char about[] =
 	"Write a region of the fabric's virtual texture as tiles of files other\n"
 	"tools read, with a manifest (DIR/manifest.json) listing every tile's box,\n"
 	"files, sizes and CRC-32s (docs/batch.md).  Re-running the same command\n"
-	"skips the tiles already complete and verified, so a killed job resumes.\n";
+	"skips the tiles already complete and verified, so a killed job resumes.\n"
+	"Runs of one shard at once are refused (a lock in DIR); --status reports the\n"
+	"complete, missing and damaged tiles and the shards to run again.\n";
 
 static const opt_choice format_names[] = {
 	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {NULL, 0}};
@@ -44,11 +47,11 @@ static void stem_of(const tiles_job *j, uint64_t index, char *out, size_t n)
 
 /* ---- tiles -------------------------------------------------------------------- */
 
-static int export_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
+static int export_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char *msg,
+                       size_t msz)
 {
 	struct export_ctx *c = vctx;
 	struct ewstate *w = &c->w[wi];
-	uint64_t index = tiles_index(c->j, k);
 	int64_t lo[3], hi[3], t[3];
 	loom_texture_region r;
 	char stem[128], *line;
@@ -146,8 +149,8 @@ static void make_dir(const char *prog, const char *dir)
 int cmd_export(int argc, char **argv)
 {
 	const char *prog = "loom export";
-	const char *path = NULL, *out = NULL, *merge_dir = NULL;
-	int json = 0, quiet = 0;
+	const char *path = NULL, *out = NULL, *merge_dir = NULL, *status_dir = NULL;
+	int json = 0, quiet = 0, verify = 0;
 	tiles_job j;
 	struct export_ctx c;
 	tiles_pool pool;
@@ -172,20 +175,28 @@ int cmd_export(int argc, char **argv)
 		             "density,orientation)"),
 		TILES_OPT_TILE(&j, "tile size in voxels (default 64,64 and the region's whole "
 		               "thickness)"),
-		TILES_OPT_SHARD(&j, "only the tiles whose index mod N is I; writes "
-		                "DIR/manifest-I-of-N.json"),
+		TILES_OPT_SHARD(&j, "only shard I of N (0-based; each shard reads about 1/N of "
+		                "the database); writes DIR/manifest-I-of-N.json"
+		                TILES_SHARD_AUTO_HELP),
 		OPT_STRING(0, "merge", &merge_dir, "DIR",
-		           "merge DIR's shard manifests into DIR/manifest.json"),
+		           "merge DIR's shard manifests into DIR/manifest.json (all shards "
+		           "complete, else exit 1 naming those to run again)"),
+		OPT_STRING(0, "status", &status_dir, "DIR", "report DIR's complete, missing and "
+		           "damaged tiles and the shards to run again; exit 0 when complete, 1 "
+		           "when not"),
+		OPT_FLAG(0, "verify", &verify, "with --status: read every file back and check "
+		         "its CRC-32 (else its size)"),
 		TILES_OPT_BUDGET(&j, "all memory for tile buffers and bricks, MiB (default 64)"),
 		TILES_OPT_THREADS(&j),
 		TILES_OPT_DB(&j),
 		OPT_OUTPUT(&out, "DIR", "output directory (made if missing)"),
 		OPT_JSON(&json, "print a summary as JSON"),
-		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_QUIET(&quiet, "nothing on success (no progress, no summary)"),
 		OPT_END()
 	};
 	opts_cmd cmd = {.prog = prog, .usage = usage, .about = about,
-	                .exit1 = "bad input or failed write", .opts = opts,
+	                .exit1 = "bad input, failed write or incomplete",
+	                .opts = opts,
 	                .pos_name = "FABRIC", .pos_max = 1, .pos = &path};
 
 	tiles_init(&j);
@@ -193,12 +204,22 @@ int cmd_export(int argc, char **argv)
 	c.format = -1;
 	c.chmask = 1u << CH_DENSITY | 1u << CH_ORIENT;
 	opts_parse(&cmd, argc, argv);
-	if (merge_dir) {
+	if (merge_dir || status_dir) {
+		const char *what = merge_dir ? "--merge" : "--status";
+		if (merge_dir && status_dir)
+			opts_usage(&cmd, "give --merge DIR or --status DIR, not both");
 		if (path || c.format >= 0 || opt_given(&cmd, &c.chmask) || out || j.region_s ||
-		    j.all || j.shard_s || j.tile_s)
-			opts_usage(&cmd, "--merge DIR takes no FABRIC nor export options");
-		return export_merge(prog, merge_dir, json);
+		    j.all || j.shard_s || j.tile_s || opt_given(&cmd, &j.bolt) ||
+		    opt_given(&cmd, &j.threads) || opt_given(&cmd, &j.budget_mb) || j.db_s)
+			opts_usage(&cmd, "%s DIR takes no FABRIC nor export options", what);
+		if (verify && merge_dir)
+			opts_usage(&cmd, "--verify goes with --status");
+		if (merge_dir)
+			return export_merge(prog, merge_dir, json, quiet);
+		return export_status(prog, status_dir, json, quiet, verify);
 	}
+	if (verify)
+		opts_usage(&cmd, "--verify goes with --status");
 	if (!path)
 		opts_usage(&cmd, "missing FABRIC");
 	tiles_parse(&cmd, &j, 1);
@@ -221,6 +242,7 @@ int cmd_export(int argc, char **argv)
 	c.j = &j;
 	c.dir = out;
 	c.n = tiles_in_shard(&j);
+	c.lock_dir.fd = -1;
 	d = loom_fabric_design(j.f);
 	for (uint32_t t = 0; t < d->n_types && t < 256; t++)
 		memcpy(c.albedo[t], d->types[t].albedo, sizeof c.albedo[t]);
@@ -258,22 +280,28 @@ int cmd_export(int argc, char **argv)
 	      (c.format == F_EXR ? (size_t)j.tsize[0] * 16 * 9 * 4 * 3 : 0);
 	/* the manifest lines, held until the end: per tile of the shard about
 	   256 bytes of index and box and 128 per file (an upper estimate), its
-	   pointer, skip flag and allocation header */
+	   pointer, skip flag and allocation header, and its place in the
+	   shard's order and by index (16 bytes) */
 	{
 		size_t files = 0;
 		for (int ch = 0; ch < N_CH; ch++)
 			files += (c.chmask >> ch) & 1u;
 		if (c.format == F_EXR)
 			files = (size_t)j.tsize[2];
-		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16);
+		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16 + 16);
 	}
 	tiles_open_texture(&j, prog, per);
 
 	c.lines = calloc(c.n ? c.n : 1, sizeof *c.lines);
 	c.skip = calloc(c.n ? c.n : 1, 1);
+	c.order = malloc((c.n ? c.n : 1) * sizeof *c.order);
+	c.byidx = malloc((c.n ? c.n : 1) * sizeof *c.byidx);
 	c.w = calloc(j.threads, sizeof *c.w);
-	if (!c.lines || !c.skip || !c.w)
+	if (!c.lines || !c.skip || !c.order || !c.byidx || !c.w)
 		cli_fail(prog, "out of memory");
+	if (tiles_shard_list(&j, tiles_index_order_wanted(), c.order) != 0)
+		cli_fail(prog, "cannot order the tiles (out of memory)");
+	export_sort_by_index(&c);
 	for (unsigned w = 0; w < j.threads; w++) {
 		struct ewstate *ws = &c.w[w];
 		ws->d = malloc(voxels);
@@ -288,6 +316,11 @@ int cmd_export(int argc, char **argv)
 			cli_fail(prog, "out of memory");
 	}
 	pthread_mutex_init(&c.lock, NULL);
+	{
+		char msg[LOOM_DIAG_MSG_MAX + 4096];
+		if (shard_lock_shard(&c.lock_dir, out, j.shard_i, j.shard_n, msg, sizeof msg))
+			cli_fail(prog, "%s", msg);
+	}
 	export_remove_stale(&c);
 	kept = export_resume(&c, prog);
 	if (kept && !quiet)
@@ -299,10 +332,11 @@ int cmd_export(int argc, char **argv)
 	pool.job = &j;
 	pool.fn = export_tile;
 	pool.ctx = &c;
+	pool.list = c.order;
 	pool.skip = c.skip;
 	pool.tick = export_tick;
 	pool.progress = &bar;
-	pool.source_order = tiles_source_order_wanted();
+	pool.index_order = tiles_index_order_wanted();
 	c.last_write = cli_now();
 	cli_progress_begin(&bar, prog, "tiles", c.n, quiet);
 	t0 = cli_now();
@@ -322,12 +356,9 @@ int cmd_export(int argc, char **argv)
 		uint64_t wt = atomic_load(&c.written_tiles), bytes = atomic_load(&c.bytes);
 		uint64_t vox = 0;
 		for (uint64_t k = 0; k < c.n; k++) {
-			int64_t lo[3], hi[3];
 			if (c.skip[k])
 				continue;
-			tiles_box(&j, tiles_index(&j, k), lo, hi, NULL);
-			vox += (uint64_t)(hi[0] - lo[0]) * (uint64_t)(hi[1] - lo[1]) *
-			       (uint64_t)(hi[2] - lo[2]);
+			vox += tiles_voxels(&j, c.order[k]);
 		}
 		if (json) {
 			json_w w;
@@ -347,7 +378,7 @@ int cmd_export(int argc, char **argv)
 			jw_num(&w, "budget_mb", j.budget_mb);
 			jw_uint(&w, "peak_rss_bytes", tiles_peak_rss());
 			jw_end(&w);
-		} else {
+		} else if (!quiet) {
 			printf("%s: %llu tiles (%llu written, %llu already complete), %llu files, "
 			       "%.1f MiB in %.3f s; manifest %s\n", out, (unsigned long long)c.n,
 			       (unsigned long long)wt, (unsigned long long)kept,
@@ -368,7 +399,10 @@ int cmd_export(int argc, char **argv)
 		free(c.lines[k]);
 	free(c.lines);
 	free(c.skip);
+	free(c.order);
+	free(c.byidx);
 	free(c.w);
+	shard_lock_release(&c.lock_dir);
 	pthread_mutex_destroy(&c.lock);
 	tiles_close(&j);
 	return 0;

@@ -48,7 +48,8 @@ typedef struct pat_opts {
 	           "also write the warp-type map (.pgm or .png)"), \
 	OPT_STRING(0, "write-weft-map", &(o)->weft_out, "FILE", \
 	           "also write the weft-type map (.pgm or .png)")
-#define PAT_OPT_QUIET(o) OPT_QUIET(&(o)->quiet, "no warnings")
+#define PAT_OPT_QUIET(o) OPT_QUIET(&(o)->quiet, "nothing on success (no warnings, no " \
+	                                          "text report)")
 
 static const char about_pattern[] =
 	"Make, convert and inspect weave patterns.  A weave image has one pixel\n"
@@ -559,7 +560,7 @@ static int pattern_info(int argc, char **argv)
 	types_in_use(d, used);
 	if (o.json)
 		info_json(&o, d, &st, used);
-	else
+	else if (!o.quiet) /* --quiet: nothing on success; --json still prints */
 		info_text(&o, d, &st, used);
 	loom_design_free(d);
 	return 0;

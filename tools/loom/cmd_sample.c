@@ -226,7 +226,7 @@ static int run_random(const char *prog, loom_texture *t, const loom_fabric *f,
 		jw_str(&w, "checksum", cs);
 		jw_uint(&w, "errors", st.errors);
 		jw_end(&w);
-	} else {
+	} else if (!quiet) {
 		printf("%llu random lookups on %u thread%s in %.3f s: %.0f lookups/s\n",
 		       (unsigned long long)n, threads, threads == 1 ? "" : "s", secs, rate);
 		printf("  budget %.1f MiB: %u brick frames of %llu bytes, peak %.2f MiB "
@@ -255,7 +255,7 @@ static int run_random(const char *prog, loom_texture *t, const loom_fabric *f,
 /* ---- --at ------------------------------------------------------------------- */
 
 static int run_at(const char *prog, loom_texture *t, const loom_fabric *f,
-                  const at_pos *at, int filter, int json)
+                  const at_pos *at, int filter, int json, int quiet)
 {
 	const loom_design *d = loom_fabric_design(f);
 	const double *v = at->v;
@@ -305,7 +305,7 @@ static int run_at(const char *prog, loom_texture *t, const loom_fabric *f,
 		jw_num(&w, "alignment", tx.alignment);
 		jw_int(&w, "label", tx.label);
 		jw_end(&w);
-	} else {
+	} else if (!quiet) {
 		printf("voxel at %g,%g,%g (%s)\n", v[0], v[1], v[2],
 		       filter == LOOM_FILTER_NEAREST ? "nearest" : "trilinear");
 		printf("  density      %.6f\n", tx.density);
@@ -354,7 +354,8 @@ int cmd_sample(int argc, char **argv)
 		OPT_DB(&db_opt, "the exemplar database (default: the path recorded in the "
 		       "fabric)"),
 		OPT_JSON(&json, "print the result as JSON"),
-		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_QUIET(&quiet, "nothing on success (no progress, no text result; --json "
+		          "still prints)"),
 		OPT_END()
 	};
 	opts_cmd c = {.prog = prog, .usage = usage, .about = about,
@@ -384,7 +385,7 @@ int cmd_sample(int argc, char **argv)
 		cli_fail(prog, "%s", diag.message);
 	}
 	if (opt_given(&c, &at))
-		rc = run_at(prog, t, f, &at, filter, json);
+		rc = run_at(prog, t, f, &at, filter, json, quiet);
 	else
 		rc = run_random(prog, t, f, n, seed, threads, json, quiet, budget_mb);
 	loom_texture_close(t);

@@ -20,8 +20,11 @@
 #include "commands.h"
 #include "tiles.h"
 
+#include "io/core/file.h" /* io/: atomic output files (-o) */
+
 #include <errno.h>
 #include <immintrin.h>
+#include <libdeflate.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -29,8 +32,8 @@ static const char usage[] =
 	"loom scan FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
 	"          --reduce checksum|histogram|coverage [--bins B]\n"
 	"          [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
-	"          [--threads N] [--db DB] [--quiet] [--json]\n"
-	"loom scan --combine PART.json... [--json]\n";
+	"          [--threads N] [--db DB] [-o RESULT] [--quiet] [--json]\n"
+	"loom scan --combine PART.json... [-o RESULT] [--quiet] [--json]\n";
 
 static const char about[] =
 	"Stream every voxel of a region of the fabric's virtual texture through a\n"
@@ -138,7 +141,11 @@ typedef struct scan_result {
 	char (*names)[LOOM_YARN_NAME_MAX];
 	/* where it came from */
 	int64_t lo[3], hi[3];
+	int64_t tile[3];
 	uint32_t shard_i, shard_n;
+	uint64_t fabric_bytes;
+	char fabric_crc[9];    /* CRC-32 of the fabric file, hex ("" unknown) */
+	uint64_t bytes_read;   /* --combine: the parts' sum */
 } scan_result;
 
 struct wstate {
@@ -163,7 +170,8 @@ struct scan_ctx {
 	struct wstate *w;
 };
 
-static int scan_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
+static int scan_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char *msg,
+                     size_t msz)
 {
 	struct scan_ctx *c = vctx;
 	struct wstate *w = &c->w[wi];
@@ -172,7 +180,8 @@ static int scan_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
 	loom_texture_region r;
 	int rc;
 
-	tiles_box(c->j, tiles_index(c->j, k), lo, hi, NULL);
+	(void)k;
+	tiles_box(c->j, index, lo, hi, NULL);
 	if (lo[2] < c->zlo)
 		lo[2] = c->zlo;
 	if (hi[2] > c->zhi)
@@ -196,7 +205,7 @@ static int scan_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
 		r.orientation = w->o;
 	rc = loom_texture_read_region(c->j->t, lo, hi, &r);
 	if (rc != LOOM_OK) {
-		snprintf(msg, msz, "tile %llu: %s", (unsigned long long)tiles_index(c->j, k),
+		snprintf(msg, msz, "tile %llu: %s", (unsigned long long)index,
 		         loom_texture_errmsg(c->j->t));
 		return -1;
 	}
@@ -251,7 +260,9 @@ static int scan_tile(void *vctx, unsigned wi, uint64_t k, char *msg, size_t msz)
 	return 0;
 }
 
-static void print_result(const scan_result *r, int json, double secs, double cpu,
+/* The result as text or JSON on fp.  j and st: a scan's job and texture
+   statistics; NULL for --combine (r's parts, seconds, cpu). */
+static void print_result(FILE *fp, const scan_result *r, int json, double secs, double cpu,
                          uint64_t rss,
                          const tiles_job *j, const loom_texture_stats *st,
                          uint32_t n_parts)
@@ -263,15 +274,19 @@ static void print_result(const scan_result *r, int json, double secs, double cpu
 	snprintf(cs, sizeof cs, "%016llx", (unsigned long long)r->checksum);
 	if (json) {
 		json_w w;
-		jw_begin(&w, stdout);
+		jw_begin(&w, fp);
 		jw_str(&w, "reduce", reduce_names[r->reduce]);
 		jw_uint(&w, "voxels", r->voxels);
 		jw_num(&w, "seconds", secs);
 		jw_num(&w, "voxels_per_second", rate);
 		jw_uint(&w, "peak_rss_bytes", rss);
+		jw_num(&w, "cpu_seconds", cpu);
+		jw_num(&w, "voxels_per_cpu_second", cpu > 0 ? (double)r->voxels / cpu : 0);
+		if (r->fabric_crc[0]) {
+			jw_uint(&w, "fabric_bytes", r->fabric_bytes);
+			jw_str(&w, "fabric_crc32", r->fabric_crc);
+		}
 		if (j) {
-			jw_num(&w, "cpu_seconds", cpu);
-			jw_num(&w, "voxels_per_cpu_second", cpu > 0 ? (double)r->voxels / cpu : 0);
 			jw_arr(&w, "region_lo");
 			for (int a = 0; a < 3; a++)
 				jw_int(&w, NULL, r->lo[a]);
@@ -300,7 +315,22 @@ static void print_result(const scan_result *r, int json, double secs, double cpu
 			jw_uint(&w, "peak_cache_bytes", st->peak_bytes);
 			jw_uint(&w, "errors", st->errors);
 		} else {
+			/* --combine: seconds and cpu_seconds are the parts' sums (the
+			   work, not the wall time of a parallel run) */
 			jw_uint(&w, "parts", n_parts);
+			jw_uint(&w, "bytes_read", r->bytes_read);
+			if (r->shard_n > 1) {
+				jw_uint(&w, "shards", r->shard_n);
+				jw_bool(&w, "complete", 1);
+				jw_arr(&w, "region_lo");
+				for (int a = 0; a < 3; a++)
+					jw_int(&w, NULL, r->lo[a]);
+				jw_close(&w);
+				jw_arr(&w, "region_hi");
+				for (int a = 0; a < 3; a++)
+					jw_int(&w, NULL, r->hi[a]);
+				jw_close(&w);
+			}
 		}
 		if (r->reduce == R_CHECKSUM) {
 			jw_str(&w, "checksum", cs);
@@ -343,27 +373,29 @@ static void print_result(const scan_result *r, int json, double secs, double cpu
 		return;
 	}
 	if (j)
-		printf("%llu voxels in %llu tiles on %u thread%s in %.3f s (%.3f s CPU): %.4g "
+		fprintf(fp, "%llu voxels in %llu tiles on %u thread%s in %.3f s (%.3f s CPU): %.4g "
 		       "voxels/s, peak RSS %.1f MiB (budget %.1f MiB)\n",
 		       (unsigned long long)r->voxels, (unsigned long long)r->tiles, j->threads,
 		       j->threads == 1 ? "" : "s", secs, cpu, rate, (double)rss / 1048576.0,
 		       j->budget_mb);
 	else
-		printf("%u parts, %llu voxels\n", n_parts, (unsigned long long)r->voxels);
+		fprintf(fp, "%u parts%s, %llu voxels in %.3f s of work (%.3f s CPU)\n", n_parts,
+		        r->shard_n > 1 ? " (every shard)" : "", (unsigned long long)r->voxels, secs,
+		        cpu);
 	if (r->reduce == R_CHECKSUM) {
-		printf("checksum %s\n", cs);
+		fprintf(fp, "checksum %s\n", cs);
 	} else if (r->reduce == R_HISTOGRAM) {
-		printf("density histogram (%u bins over 0..1) of %llu voxels with a yarn "
+		fprintf(fp, "density histogram (%u bins over 0..1) of %llu voxels with a yarn "
 		       "(%llu empty):\n", r->bins, (unsigned long long)r->nonempty,
 		       (unsigned long long)(r->voxels - r->nonempty));
 		for (uint32_t t = 0; t < r->n_types; t++) {
-			printf("  type %u %-12s", t, r->names[t]);
+			fprintf(fp, "  type %u %-12s", t, r->names[t]);
 			for (uint32_t b = 0; b < r->bins; b++)
-				printf(" %llu", (unsigned long long)r->hist[(size_t)t * r->bins + b]);
-			printf("\n");
+				fprintf(fp, " %llu", (unsigned long long)r->hist[(size_t)t * r->bins + b]);
+			fprintf(fp, "\n");
 		}
 	} else {
-		printf("coverage from above, %llu columns: warp %.6f, weft %.6f, none %.6f "
+		fprintf(fp, "coverage from above, %llu columns: warp %.6f, weft %.6f, none %.6f "
 		       "(warp share of covered %.6f)\n", (unsigned long long)cols,
 		       cols ? (double)r->cov[1] / (double)cols : 0,
 		       cols ? (double)r->cov[2] / (double)cols : 0,
@@ -443,21 +475,59 @@ static int get_arr(const char *p, uint64_t *v, size_t n, size_t *got)
 	}
 }
 
-static int combine(const char *prog, int nfiles, const char **files, int json)
+static int get_num(const char *text, const char *key, double *v)
+{
+	const char *p = find_key(text, key);
+	char *end;
+
+	if (!p)
+		return -1;
+	*v = strtod(p, &end);
+	return end == p ? -1 : 0;
+}
+
+/* Print the result to stdout, or to out (atomically: a temporary file
+   renamed when complete).  0, or exit 1. */
+static int emit(const char *prog, const char *out, const scan_result *r, int json,
+                int quiet, double secs, double cpu, const tiles_job *j,
+                const loom_texture_stats *st, uint32_t n_parts)
+{
+	loom__atomic a;
+	loom_diag diag;
+
+	if (!out) {
+		if (json || !quiet)
+			print_result(stdout, r, json, secs, cpu, tiles_peak_rss(), j, st, n_parts);
+		return 0;
+	}
+	cli_diag_init(&diag, NULL);
+	if (loom__atomic_open(&a, out, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	print_result(a.fp, r, json, secs, cpu, tiles_peak_rss(), j, st, n_parts);
+	if (loom__atomic_commit(&a, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	return 0;
+}
+
+static int combine(const char *prog, int nfiles, const char **files, int json, int quiet,
+                   const char *out)
 {
 	scan_result r;
 	uint8_t *seen = NULL;
-	uint64_t tile_lo[3] = {0}, tile_hi[3] = {0};
-	int have_shard = 0;
+	uint64_t tile_lo[3] = {0}, tile_hi[3] = {0}, tile_sz[3] = {0};
+	int sharded = -1, have_tile = 0;
+	double secs = 0, cpu = 0;
 
 	memset(&r, 0, sizeof r);
 	r.reduce = -1;
+	r.shard_n = 1;
 	for (int f = 0; f < nfiles; f++) {
 		char *text;
-		char red[32], cs[32];
-		uint64_t v, sh[2], lo[3], hi[3];
-		size_t got;
-		int ri = -1;
+		char red[32], cs[32], fc[16];
+		uint64_t v, sh[2], lo[3], hi[3], tl[3];
+		size_t got, got_t = 0;
+		double x;
+		int ri = -1, is_shard;
 
 		text = tiles_read_text(files[f], 64u << 20, NULL);
 		if (!text)
@@ -476,12 +546,38 @@ static int combine(const char *prog, int nfiles, const char **files, int json)
 		if (get_u64(text, "voxels", &v))
 			cli_fail(prog, "%s: no \"voxels\"", files[f]);
 		r.voxels += v;
-		if (get_arr(find_key(text, "shard"), sh, 2, &got) == 0 && got == 2 &&
-		    get_arr(find_key(text, "region_lo"), lo, 3, &got) == 0 && got == 3 &&
-		    get_arr(find_key(text, "region_hi"), hi, 3, &got) == 0 && got == 3 &&
-		    sh[1] > 1) {
-			if (!have_shard) {
-				have_shard = 1;
+		if (get_num(text, "seconds", &x) == 0)
+			secs += x;
+		if (get_num(text, "cpu_seconds", &x) == 0)
+			cpu += x;
+		if (get_u64(text, "bytes_read", &v) == 0)
+			r.bytes_read += v;
+		if (get_str(text, "fabric_crc32", fc, sizeof fc) == 0) {
+			uint64_t fb = 0;
+			get_u64(text, "fabric_bytes", &fb);
+			if (!r.fabric_crc[0]) {
+				snprintf(r.fabric_crc, sizeof r.fabric_crc, "%.8s", fc);
+				r.fabric_bytes = fb;
+			} else if (strcmp(fc, r.fabric_crc) != 0 || fb != r.fabric_bytes)
+				cli_fail(prog, "%s: a scan of another fabric (CRC-32 %s, the first "
+				         "part's %s)", files[f], fc, r.fabric_crc);
+		}
+		is_shard = get_arr(find_key(text, "shard"), sh, 2, &got) == 0 && got == 2 &&
+		           get_arr(find_key(text, "region_lo"), lo, 3, &got) == 0 && got == 3 &&
+		           get_arr(find_key(text, "region_hi"), hi, 3, &got) == 0 && got == 3 &&
+		           sh[1] > 1;
+		if (get_arr(find_key(text, "tile"), tl, 3, &got_t) != 0 || got_t != 3)
+			got_t = 0;
+		if (sharded >= 0 && is_shard != sharded)
+			cli_fail(prog, "%s: %s, the first part %s: give the shards of one split, or "
+			         "results of disjoint regions", files[f], is_shard ? "a shard" :
+			         "not a shard", sharded ? "is a shard" : "is not");
+		sharded = is_shard;
+		if (is_shard) {
+			if (!seen) {
+				if (sh[1] > UINT32_MAX)
+					cli_fail(prog, "%s: a split into %llu shards", files[f],
+					         (unsigned long long)sh[1]);
 				r.shard_n = (uint32_t)sh[1];
 				memcpy(tile_lo, lo, sizeof lo);
 				memcpy(tile_hi, hi, sizeof hi);
@@ -494,6 +590,19 @@ static int combine(const char *prog, int nfiles, const char **files, int json)
 				cli_fail(prog, "%s: shard %llu/%llu of another region or split than "
 				         "the first shard's", files[f], (unsigned long long)sh[0],
 				         (unsigned long long)sh[1]);
+			/* shards hold the tiles of one tiling: another --tile splits
+			   otherwise */
+			if (got_t == 3 && have_tile && memcmp(tl, tile_sz, sizeof tl))
+				cli_fail(prog, "%s: shard %llu/%llu of tiles %llux%llux%llu, the first "
+				         "shard's are %llux%llux%llu (shards must use the same --tile)",
+				         files[f], (unsigned long long)sh[0], (unsigned long long)sh[1],
+				         (unsigned long long)tl[0], (unsigned long long)tl[1],
+				         (unsigned long long)tl[2], (unsigned long long)tile_sz[0],
+				         (unsigned long long)tile_sz[1], (unsigned long long)tile_sz[2]);
+			if (got_t == 3 && !have_tile) {
+				memcpy(tile_sz, tl, sizeof tl);
+				have_tile = 1;
+			}
 			if (seen[sh[0]]++)
 				cli_fail(prog, "%s: shard %llu/%llu given twice", files[f],
 				         (unsigned long long)sh[0], (unsigned long long)sh[1]);
@@ -554,15 +663,25 @@ static int combine(const char *prog, int nfiles, const char **files, int json)
 		}
 		free(text);
 	}
-	if (have_shard) {
+	if (sharded == 1) {
 		uint32_t missing = 0;
-		for (uint32_t i = 0; i < r.shard_n; i++)
+		for (uint32_t i = 0; i < r.shard_n; i++) {
 			missing += !seen[i];
-		if (missing)
-			fprintf(stderr, "loom: warning: %u of %u shards missing: the result "
-			        "covers part of the region\n", missing, r.shard_n);
+			seen[i] = !seen[i];
+		}
+		if (missing) {
+			char *list = tiles_list_text(seen, r.shard_n);
+			cli_fail(prog, "%u of %u shards missing: %s (run them again, e.g. sbatch "
+			         "--array=%s with LOOM_SHARD_COUNT=%u, or --shard I/%u; then combine "
+			         "all %u parts)", missing, r.shard_n, list ? list : "?",
+			         list ? list : "?", r.shard_n, r.shard_n, r.shard_n);
+		}
+		for (int a = 0; a < 3; a++) {
+			r.lo[a] = (int64_t)tile_lo[a];
+			r.hi[a] = (int64_t)tile_hi[a];
+		}
 	}
-	print_result(&r, json, 0, 0, tiles_peak_rss(), NULL, NULL, (uint32_t)nfiles);
+	emit(prog, out, &r, json, quiet, secs, cpu, NULL, NULL, (uint32_t)nfiles);
 	free(seen);
 	free(r.hist);
 	free(r.names);
@@ -572,7 +691,7 @@ static int combine(const char *prog, int nfiles, const char **files, int json)
 int cmd_scan(int argc, char **argv)
 {
 	const char *prog = "loom scan";
-	const char *path;
+	const char *path, *out = NULL;
 	int json = 0, quiet = 0, combine_mode = 0, nfiles;
 	const char **files = calloc((size_t)argc + 1, sizeof *files);
 	uint32_t bins = 16;
@@ -599,14 +718,19 @@ int cmd_scan(int argc, char **argv)
 		        "histogram bins over density 0..1 (default 16, %r)"),
 		TILES_OPT_TILE(&j, "tile size in voxels (default 32,32 and the whole region's "
 		               "thickness; coverage needs whole columns)"),
-		TILES_OPT_SHARD(&j, "only the tiles whose index mod N is I (0-based)"),
+		TILES_OPT_SHARD(&j, "only shard I of N (0-based; docs/batch.md: each shard "
+		                "reads about 1/N of the database)" TILES_SHARD_AUTO_HELP),
 		TILES_OPT_BUDGET(&j, "all memory for tiles and bricks, MiB (default 64)"),
 		TILES_OPT_THREADS(&j),
 		TILES_OPT_DB(&j),
 		OPT_FLAG(0, "combine", &combine_mode, "add up the --json results of shards (or "
-		         "of disjoint regions) of one reducer, given as PART.json..."),
+		         "of disjoint regions) of one reducer, given as PART.json...; every shard "
+		         "of the split must be there once (else exit 1 naming the missing)"),
+		OPT_OUTPUT(&out, "RESULT", "write the result (text, or JSON with --json) to "
+		           "RESULT, atomically, instead of stdout"),
 		OPT_JSON(&json, "print the result as JSON"),
-		OPT_QUIET(&quiet, "no progress on stderr"),
+		OPT_QUIET(&quiet, "nothing on success (no progress, and no result on stdout "
+		          "unless --json)"),
 		OPT_END()
 	};
 	opts_cmd cmd = {.prog = prog, .usage = usage, .about = about,
@@ -625,7 +749,7 @@ int cmd_scan(int argc, char **argv)
 			opts_usage(&cmd, "--combine needs the JSON results to add up");
 		if (j.region_s || j.all || c.reduce >= 0 || j.tile_s || j.shard_s)
 			opts_usage(&cmd, "--combine takes only JSON files (and --json)");
-		rc = combine(prog, nfiles, files, json);
+		rc = combine(prog, nfiles, files, json, quiet, out);
 		free(files);
 		return rc;
 	}
@@ -697,8 +821,10 @@ int cmd_scan(int argc, char **argv)
 	pool.ctx = &c;
 	pool.progress = &prog_bar;
 	pool.progress_voxels = 1;
-	pool.source_order = tiles_source_order_wanted();
-	cli_progress_begin(&prog_bar, prog, "voxels", tiles_shard_voxels(&j), quiet);
+	pool.index_order = tiles_index_order_wanted();
+	/* the total walks the shard's order once more: only when it is shown */
+	cli_progress_begin(&prog_bar, prog, "voxels", quiet ? 0 : tiles_shard_voxels(&j),
+	                   quiet);
 	t0 = cli_now();
 	cpu0 = tiles_cpu_seconds();
 	if (tiles_run(&pool) != 0) {
@@ -737,7 +863,18 @@ int cmd_scan(int argc, char **argv)
 				r.nonempty += n;
 			}
 	}
-	print_result(&r, json, secs, cpu, tiles_peak_rss(), &j, &st, 1);
+	memcpy(r.tile, j.tsize, sizeof r.tile);
+	{
+		size_t flen;
+		char *ftext = tiles_read_text(path, (size_t)1 << 34, &flen);
+		if (ftext) { /* the fabric's identity, for --combine */
+			r.fabric_bytes = flen;
+			snprintf(r.fabric_crc, sizeof r.fabric_crc, "%08x",
+			         libdeflate_crc32(0, ftext, flen));
+			free(ftext);
+		}
+	}
+	emit(prog, out, &r, json, quiet, secs, cpu, &j, &st, 1);
 	for (unsigned w = 0; w < j.threads; w++) {
 		free(c.w[w].d);
 		free(c.w[w].k);

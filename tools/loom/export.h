@@ -12,6 +12,7 @@
 #define LOOM_EXPORT_H
 
 #include "cli.h"
+#include "shard_lock.h"
 #include "tiles.h"
 
 #include <pthread.h>
@@ -44,9 +45,12 @@ struct export_ctx {
 	const char *dir;
 	char *params;          /* the manifest's "params" value (one line) */
 	char manifest[4096];   /* its path */
-	char **lines;          /* per shard tile: manifest line, NULL if not done */
+	char **lines;          /* per shard tile k: manifest line, NULL if not done */
 	uint8_t *skip;         /* tiles found complete at start */
 	uint64_t n;            /* tiles in the shard */
+	uint64_t *order;       /* order[k]: index of the shard's k-th tile */
+	uint64_t *byidx;       /* the k of the shard's tiles, by increasing index */
+	shard_lock lock_dir;   /* this shard of DIR, held for the run */
 	uint64_t ndone, nlisted_written;
 	double last_write;
 	double write_cost;     /* seconds the last manifest write took */
@@ -76,6 +80,10 @@ int export_file_crc(const char *path, uint8_t *buf, uint32_t *crc, uint64_t *byt
 /* Record the written file DIR/name (its size and CRC-32) in the tile's line. */
 int export_record_file(struct export_ctx *c, struct ewstate *w, const char *name,
                        char *msg, size_t msz);
+/* Fill c->byidx from c->order (c->n entries). */
+void export_sort_by_index(struct export_ctx *c);
+/* The k of the shard's tile `index`, or UINT64_MAX when not in the shard. */
+uint64_t export_k_of(const struct export_ctx *c, uint64_t index);
 /* Rewrite the manifest (final: say complete when every tile is done). */
 int export_manifest_flush(struct export_ctx *c, int final);
 /* The pool's tick: rewrite the manifest when due. */
@@ -83,9 +91,12 @@ void export_tick(void *vctx);
 /* Keep the tiles of an earlier manifest of this shard whose files verify;
    returns their count.  A manifest of another export: exit 1. */
 uint64_t export_resume(struct export_ctx *c, const char *prog);
-/* Remove temporary files a killed run of this shard left behind. */
+/* Remove the temporary files of this shard's tiles and manifest (a dead
+   run's: the caller holds the shard's lock, shard_lock.h). */
 void export_remove_stale(struct export_ctx *c);
 /* loom export --merge DIR. */
-int export_merge(const char *prog, const char *dir, int json);
+int export_merge(const char *prog, const char *dir, int json, int quiet);
+/* loom export --status DIR: 0 complete, 1 not (or bad input). */
+int export_status(const char *prog, const char *dir, int json, int quiet, int verify);
 
 #endif

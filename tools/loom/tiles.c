@@ -175,9 +175,84 @@ const char *tiles_opt_shard(const char *text, void *job)
 	tiles_job *j = job;
 
 	j->shard_s = text;
+	j->shard_auto = strcmp(text, "auto") == 0;
+	if (j->shard_auto) {
+		j->shard_i = 0; /* resolved by tiles_parse */
+		j->shard_n = 1;
+		return NULL;
+	}
 	if (tiles_parse_shard(text, &j->shard_i, &j->shard_n))
-		return "I/N with 0 <= I < N (e.g. 0/4)";
+		return "I/N with 0 <= I < N (e.g. 0/4), or auto";
 	return NULL;
+}
+
+/* The value of environment variable `name` as a u32: 1, 0 when unset,
+   -1 when set but not a number (msg says so). */
+static int env_u32(const char *name, uint32_t *v, char *msg, size_t msz)
+{
+	const char *e = getenv(name);
+
+	if (!e || !*e)
+		return 0;
+	if (cli_parse_u32(e, v)) {
+		snprintf(msg, msz, "$%s is '%.40s', not a number", name, e);
+		return -1;
+	}
+	return 1;
+}
+
+int tiles_shard_auto(uint32_t *i, uint32_t *n, char *from, size_t fsz, char *msg,
+                     size_t msz)
+{
+	const char *iname = "LOOM_SHARD_INDEX", *nname = "LOOM_SHARD_COUNT";
+	int hi, hn;
+
+	if ((hi = env_u32(iname, i, msg, msz)) < 0)
+		return -1;
+	if (hi == 0) {
+		iname = "SLURM_ARRAY_TASK_ID";
+		if ((hi = env_u32(iname, i, msg, msz)) < 0)
+			return -1;
+	}
+	if ((hn = env_u32(nname, n, msg, msz)) < 0)
+		return -1;
+	if (hn == 0) {
+		uint32_t lo = 0, top = 0;
+		int hl, ht;
+		nname = "SLURM_ARRAY_TASK_COUNT";
+		if ((hn = env_u32(nname, n, msg, msz)) < 0)
+			return -1;
+		if ((hl = env_u32("SLURM_ARRAY_TASK_MIN", &lo, msg, msz)) < 0 ||
+		    (ht = env_u32("SLURM_ARRAY_TASK_MAX", &top, msg, msz)) < 0)
+			return -1;
+		/* a resubmitted part of an array (--array=3) counts 1 task: N must
+		   then come from $LOOM_SHARD_COUNT */
+		if (hn > 0 && ((hl > 0 && lo != 0) || (ht > 0 && top + 1 != *n))) {
+			snprintf(msg, msz, "this job array has %u task%s numbered %u..%u, not "
+			         "0..%u: set LOOM_SHARD_COUNT to the number of shards (e.g. "
+			         "sbatch --export=ALL,LOOM_SHARD_COUNT=N; tools/slurm/submit.sh "
+			         "does)", *n, *n == 1 ? "" : "s", lo, top, *n ? *n - 1 : 0);
+			return -1;
+		}
+	}
+	if (hi == 0 && hn == 0) {
+		snprintf(msg, msz, "$SLURM_ARRAY_TASK_ID and $SLURM_ARRAY_TASK_COUNT (or "
+		         "$LOOM_SHARD_INDEX and $LOOM_SHARD_COUNT) are not set: not a job array "
+		         "task? (or give --shard I/N)");
+		return -1;
+	}
+	if (hi == 0 || hn == 0) {
+		snprintf(msg, msz, "%s is not set", hi == 0 ? "$SLURM_ARRAY_TASK_ID (or "
+		         "$LOOM_SHARD_INDEX)" : "$SLURM_ARRAY_TASK_COUNT (or $LOOM_SHARD_COUNT)");
+		return -1;
+	}
+	if (*n == 0 || *i >= *n) {
+		snprintf(msg, msz, "$%s = %u and $%s = %u: expected 0 <= I < N", iname, *i,
+		         nname, *n);
+		return -1;
+	}
+	snprintf(from, fsz, "$%s, $%s", iname, nname);
+	return 0;
 }
 
 void tiles_parse(const opts_cmd *c, tiles_job *j, int need_region)
@@ -193,6 +268,12 @@ void tiles_parse(const opts_cmd *c, tiles_job *j, int need_region)
 		           "below 2^62 in magnitude)", j->region_s);
 	if (j->bolt.text && !j->all)
 		opts_usage(c, "--bolt goes with --all");
+	if (j->shard_auto) {
+		char msg[512];
+		if (tiles_shard_auto(&j->shard_i, &j->shard_n, j->shard_from,
+		                     sizeof j->shard_from, msg, sizeof msg) != 0)
+			opts_usage(c, "--shard auto: %s", msg);
+	}
 }
 
 void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
@@ -302,16 +383,48 @@ void tiles_close(tiles_job *j)
 	j->db = NULL;
 }
 
-uint64_t tiles_in_shard(const tiles_job *j)
+/* ---- source order and shards (tiles.h) ------------------------------------ */
+
+/* Chunks: cw tiles of a row by cr rows (cr * cw <= TILES_CHUNK_TILES), cpr
+   chunks across a band of rows, cpl bands per z layer. */
+static void chunk_geom(const tiles_job *j, uint64_t *cr, uint64_t *cw, uint64_t *cpr,
+                       uint64_t *cpl)
 {
-	if (j->total <= j->shard_i)
-		return 0;
-	return (j->total - j->shard_i - 1) / j->shard_n + 1;
+	*cw = j->nt[0] < TILES_CHUNK_TILES ? j->nt[0] : TILES_CHUNK_TILES;
+	if (*cw < 1)
+		*cw = 1;
+	*cr = TILES_CHUNK_TILES / *cw;
+	*cpr = (j->nt[0] + *cw - 1) / *cw;
+	*cpl = (j->nt[1] + *cr - 1) / *cr;
 }
 
-uint64_t tiles_index(const tiles_job *j, uint64_t k)
+/* Start of part i of N of a chunk of n tiles (n <= TILES_CHUNK_TILES). */
+static uint64_t part_at(uint64_t n, uint32_t i, uint32_t N)
 {
-	return j->shard_i + k * j->shard_n;
+	return n * i / N;
+}
+
+uint64_t tiles_in_shard(const tiles_job *j)
+{
+	uint64_t cr, cw, cpr, cpl, sum = 0;
+
+	if (j->shard_n <= 1)
+		return j->total;
+	if (j->total == 0)
+		return 0;
+	chunk_geom(j, &cr, &cw, &cpr, &cpl);
+	/* four kinds of chunk: full, last of a band (narrower), last band
+	   (fewer rows), both */
+	for (int a = 0; a < 2; a++)
+		for (int b = 0; b < 2; b++) {
+			uint64_t na = a ? 1 : cpr - 1, nb = b ? 1 : cpl - 1;
+			uint64_t w = a ? j->nt[0] - (cpr - 1) * cw : cw;
+			uint64_t r = b ? j->nt[1] - (cpl - 1) * cr : cr;
+			uint64_t n = w * r;
+			sum += na * nb * j->nt[2] *
+			       (part_at(n, j->shard_i + 1, j->shard_n) - part_at(n, j->shard_i, j->shard_n));
+		}
+	return sum;
 }
 
 void tiles_box(const tiles_job *j, uint64_t index, int64_t lo[3], int64_t hi[3],
@@ -330,9 +443,127 @@ void tiles_box(const tiles_job *j, uint64_t index, int64_t lo[3], int64_t hi[3],
 	}
 }
 
+uint64_t tiles_voxels(const tiles_job *j, uint64_t index)
+{
+	int64_t lo[3], hi[3];
+
+	tiles_box(j, index, lo, hi, NULL);
+	return (uint64_t)(hi[0] - lo[0]) * (uint64_t)(hi[1] - lo[1]) * (uint64_t)(hi[2] - lo[2]);
+}
+
+static int ord_cmp(const void *a, const void *b)
+{
+	const struct tiles_ord *x = a, *y = b;
+	if (x->key != y->key)
+		return x->key < y->key ? -1 : 1;
+	return x->index < y->index ? -1 : x->index > y->index;
+}
+
+static int ord_cmp_index(const void *a, const void *b)
+{
+	const struct tiles_ord *x = a, *y = b;
+	return x->index < y->index ? -1 : x->index > y->index;
+}
+
+int tiles_iter_init(tiles_iter *it, const tiles_job *j, int index_order)
+{
+	loom_db_info di;
+
+	memset(it, 0, sizeof *it);
+	it->j = j;
+	it->index_order = index_order;
+	if (j->total == 0)
+		return 0;
+	chunk_geom(j, &it->chunk_rows, &it->chunk_cols, &it->cpr, &it->cpl);
+	it->n_chunks = it->cpr * it->cpl * j->nt[2];
+	it->ord = malloc(sizeof *it->ord * it->chunk_rows * it->chunk_cols);
+	if (!it->ord)
+		return -1;
+	if (loom_db_get_info(loom_fabric_db(j->f), &di) != LOOM_OK) {
+		free(it->ord);
+		it->ord = NULL;
+		return -1;
+	}
+	it->block[0] = di.block[0];
+	it->block[1] = di.block[1];
+	return 0;
+}
+
+/* Fill the order of chunk c and select this shard's part of it. */
+static int iter_load(tiles_iter *it, uint64_t c)
+{
+	const tiles_job *j = it->j;
+	uint64_t cr = it->chunk_rows, cw = it->chunk_cols;
+	uint64_t t2 = c / (it->cpr * it->cpl), band = c / it->cpr % it->cpl, cc = c % it->cpr;
+	uint64_t row0 = band * cr, col0 = cc * cw;
+	uint64_t nr = j->nt[1] - row0 < cr ? j->nt[1] - row0 : cr;
+	uint64_t w = j->nt[0] - col0 < cw ? j->nt[0] - col0 : cw;
+	/* keys are needed to sort, and to find a shard's part */
+	int keyed = !it->index_order || j->shard_n > 1;
+	uint64_t n = 0;
+
+	for (uint64_t t1 = row0; t1 < row0 + nr; t1++)
+		for (uint64_t t0 = col0; t0 < col0 + w; t0++) {
+			uint64_t idx = t0 + j->nt[0] * (t1 + j->nt[1] * t2);
+			uint32_t key = 0;
+			if (keyed) {
+				int64_t lo[3], hi[3];
+				loom_fabric_source src;
+				tiles_box(j, idx, lo, hi, NULL);
+				int64_t J = loom_synth_floordiv(lo[0] + (hi[0] - lo[0]) / 2, it->block[0]);
+				int64_t I = loom_synth_floordiv(lo[1] + (hi[1] - lo[1]) / 2, it->block[1]);
+				if (loom_fabric_source_at(j->f, I, J, &src) != LOOM_OK)
+					return -1;
+				key = src.block;
+			}
+			it->ord[n].index = idx;
+			it->ord[n++].key = key;
+		}
+	if (keyed)
+		qsort(it->ord, n, sizeof *it->ord, ord_cmp);
+	it->pos = part_at(n, j->shard_i, j->shard_n);
+	it->end = part_at(n, j->shard_i + 1, j->shard_n);
+	if (it->index_order && keyed)
+		qsort(it->ord + it->pos, it->end - it->pos, sizeof *it->ord, ord_cmp_index);
+	return 0;
+}
+
+int tiles_iter_next(tiles_iter *it, uint64_t *index)
+{
+	while (it->pos >= it->end) {
+		if (it->chunk >= it->n_chunks)
+			return 0;
+		if (iter_load(it, it->chunk++) != 0)
+			return -1;
+	}
+	*index = it->ord[it->pos++].index;
+	return 1;
+}
+
+void tiles_iter_free(tiles_iter *it)
+{
+	free(it->ord);
+	it->ord = NULL;
+}
+
+int tiles_shard_list(const tiles_job *j, int index_order, uint64_t *list)
+{
+	tiles_iter it;
+	uint64_t n = 0, max = tiles_in_shard(j), idx;
+	int r;
+
+	if (tiles_iter_init(&it, j, index_order) != 0)
+		return -1;
+	while ((r = tiles_iter_next(&it, &idx)) == 1 && n < max)
+		list[n++] = idx;
+	tiles_iter_free(&it);
+	return r < 0 || n != max ? -1 : 0;
+}
+
 uint64_t tiles_shard_voxels(const tiles_job *j)
 {
-	uint64_t full[3], last[3], sum = 0;
+	tiles_iter it;
+	uint64_t sum = 0, idx;
 
 	if (j->shard_n == 1) {
 		uint64_t v = 1;
@@ -340,20 +571,11 @@ uint64_t tiles_shard_voxels(const tiles_job *j)
 			v *= (uint64_t)(j->hi[a] - j->lo[a]);
 		return v;
 	}
-	for (int a = 0; a < 3; a++) {
-		full[a] = (uint64_t)j->tsize[a];
-		last[a] = (uint64_t)(j->hi[a] - j->lo[a]) - (j->nt[a] - 1) * full[a];
-	}
-	/* tiles of a shard: sum their sizes (O(tiles); only for progress) */
-	for (uint64_t k = 0, n = tiles_in_shard(j); k < n; k++) {
-		uint64_t idx = tiles_index(j, k), t[3], v = 1;
-		t[0] = idx % j->nt[0];
-		t[1] = idx / j->nt[0] % j->nt[1];
-		t[2] = idx / j->nt[0] / j->nt[1];
-		for (int a = 0; a < 3; a++)
-			v *= t[a] == j->nt[a] - 1 ? last[a] : full[a];
-		sum += v;
-	}
+	if (tiles_iter_init(&it, j, 1) != 0)
+		return 0;
+	while (tiles_iter_next(&it, &idx) == 1)
+		sum += tiles_voxels(j, idx);
+	tiles_iter_free(&it);
 	return sum;
 }
 
@@ -364,103 +586,40 @@ struct worker {
 	unsigned w;
 };
 
-/* ---- source order ---------------------------------------------------------
-
-   Tiles are taken in chunks of chunk_rows x chunk_cols tiles (one z layer;
-   whole rows when a row has at most TILES_CHUNK_TILES tiles);
-   inside a chunk, by the source block that the crossing under the tile's
-   centre copies, then by index.  Neighbouring output crossings mostly copy
-   unrelated source blocks (randomisation), so row order revisits a block's
-   bricks after the cache has dropped them; sorted, a chunk touches each
-   block's bricks in one go.  The orders of the last few chunks are kept
-   (threads finish one chunk while others start the next). */
-
-static int ord_cmp(const void *a, const void *b)
-{
-	const struct tiles_ord *x = a, *y = b;
-	if (x->key != y->key)
-		return x->key < y->key ? -1 : 1;
-	return x->index < y->index ? -1 : x->index > y->index;
-}
-
-/* Under p->lock: the tile index at position q of the source order, or
-   UINT64_MAX when out of memory (or no database is bound: cannot happen
-   once the texture is open). */
-static uint64_t source_index(tiles_pool *p, uint64_t q)
-{
-	const tiles_job *j = p->job;
-	uint64_t layer = j->nt[0] * j->nt[1], t2 = q / layer, rq = q % layer;
-	uint64_t cr = p->chunk_rows, cw = p->chunk_cols;
-	uint64_t r = rq / (cr * j->nt[0]), sq = rq % (cr * j->nt[0]);
-	uint64_t row0 = r * cr, nr = j->nt[1] - row0 < cr ? j->nt[1] - row0 : cr;
-	uint64_t cc = sq / (nr * cw), pos = sq % (nr * cw);
-	uint64_t col0 = cc * cw, w = j->nt[0] - col0 < cw ? j->nt[0] - col0 : cw;
-	uint64_t cpr = (j->nt[0] + cw - 1) / cw, cpl = (j->nt[1] + cr - 1) / cr;
-	uint64_t id = (t2 * cpl + r) * cpr + cc + 1;
-	struct tiles_chunk *c = NULL;
-
-	for (unsigned s = 0; s < TILES_CHUNK_SLOTS; s++)
-		if (p->chunk[s].id == id)
-			c = &p->chunk[s];
-	if (!c) {
-		loom_db_info di;
-		c = &p->chunk[p->chunk_next];
-		p->chunk_next = (p->chunk_next + 1) % TILES_CHUNK_SLOTS;
-		if (!c->ord && !(c->ord = malloc(sizeof *c->ord * cr * cw)))
-			return UINT64_MAX;
-		if (loom_db_get_info(loom_fabric_db(j->f), &di) != LOOM_OK)
-			return UINT64_MAX;
-		c->id = id;
-		c->n = 0;
-		for (uint64_t t1 = row0; t1 < row0 + nr; t1++)
-			for (uint64_t t0 = col0; t0 < col0 + w; t0++) {
-				uint64_t idx = t0 + j->nt[0] * (t1 + j->nt[1] * t2);
-				int64_t lo[3], hi[3], I, J;
-				loom_fabric_source src;
-				tiles_box(j, idx, lo, hi, NULL);
-				J = loom_synth_floordiv(lo[0] + (hi[0] - lo[0]) / 2, di.block[0]);
-				I = loom_synth_floordiv(lo[1] + (hi[1] - lo[1]) / 2, di.block[1]);
-				c->ord[c->n].key = loom_fabric_source_at(j->f, I, J, &src) == LOOM_OK
-				                           ? src.block : 0;
-				c->ord[c->n++].index = idx;
-			}
-		qsort(c->ord, c->n, sizeof *c->ord, ord_cmp);
-	}
-	return c->ord[pos].index;
-}
-
 static void *worker_main(void *arg)
 {
 	struct worker *wk = arg;
 	tiles_pool *p = wk->p;
 	tiles_job *j = p->job;
-	uint64_t n = p->source_order ? j->total : tiles_in_shard(j);
+	uint64_t n = tiles_in_shard(j);
 	char msg[sizeof p->msg];
 
 	while (!atomic_load_explicit(&p->stop, memory_order_relaxed)) {
-		uint64_t k = atomic_fetch_add(&p->next, 1);
-		int64_t lo[3], hi[3];
-		if (k >= n)
-			break;
-		if (p->source_order) { /* k counts all tiles; keep this shard's */
-			uint64_t idx;
-			pthread_mutex_lock(&p->lock);
-			idx = source_index(p, k);
-			if (idx == UINT64_MAX && !atomic_load(&p->stop)) {
-				snprintf(p->msg, sizeof p->msg, "out of memory");
+		uint64_t k, idx = 0;
+		int got = 1;
+		/* the next tile of the shard's order */
+		pthread_mutex_lock(&p->lock);
+		if (p->list) {
+			got = p->next < n;
+			if (got)
+				idx = p->list[p->next];
+		} else {
+			got = tiles_iter_next(&p->it, &idx);
+			if (got < 0 && !atomic_load(&p->stop)) {
+				snprintf(p->msg, sizeof p->msg, "cannot order the tiles (out of "
+				         "memory, or the fabric has no database)");
 				atomic_store(&p->stop, 1);
 			}
-			pthread_mutex_unlock(&p->lock);
-			if (idx == UINT64_MAX)
-				break;
-			if (idx % j->shard_n != j->shard_i)
-				continue;
-			k = idx / j->shard_n;
 		}
-		tiles_box(j, tiles_index(j, k), lo, hi, NULL);
+		k = p->next;
+		if (got == 1)
+			p->next++;
+		pthread_mutex_unlock(&p->lock);
+		if (got != 1)
+			break;
 		if (!p->skip || !p->skip[k]) {
 			msg[0] = 0;
-			if (p->fn(p->ctx, wk->w, k, msg, sizeof msg) != 0) {
+			if (p->fn(p->ctx, wk->w, k, idx, msg, sizeof msg) != 0) {
 				pthread_mutex_lock(&p->lock);
 				if (!atomic_load(&p->stop)) {
 					snprintf(p->msg, sizeof p->msg, "%s", msg[0] ? msg : "failed");
@@ -470,9 +629,7 @@ static void *worker_main(void *arg)
 				break;
 			}
 		}
-		atomic_fetch_add(&p->done_voxels, (unsigned long long)(hi[0] - lo[0]) *
-		                                  (unsigned long long)(hi[1] - lo[1]) *
-		                                  (unsigned long long)(hi[2] - lo[2]));
+		atomic_fetch_add(&p->done_voxels, (unsigned long long)tiles_voxels(j, idx));
 		atomic_fetch_add(&p->done_tiles, 1);
 	}
 	loom_texture_thread_done(j->t);
@@ -483,10 +640,10 @@ static void *worker_main(void *arg)
 	return NULL;
 }
 
-int tiles_source_order_wanted(void)
+int tiles_index_order_wanted(void)
 {
 	const char *e = getenv("LOOM_TILE_ORDER");
-	return !(e && strcmp(e, "index") == 0);
+	return e && strcmp(e, "index") == 0;
 }
 
 int tiles_run(tiles_pool *p)
@@ -499,24 +656,18 @@ int tiles_run(tiles_pool *p)
 	atomic_init(&p->done_tiles, 0);
 	atomic_init(&p->done_voxels, 0);
 	atomic_init(&p->stop, 0);
-	atomic_init(&p->next, 0);
+	p->next = 0;
 	p->msg[0] = 0;
 	p->finished = 0;
-	memset(p->chunk, 0, sizeof p->chunk);
-	p->chunk_next = 0;
-	/* chunks of at most TILES_CHUNK_TILES tiles: whole rows when they fit */
-	p->chunk_cols = j->nt[0] < TILES_CHUNK_TILES ? j->nt[0] : TILES_CHUNK_TILES;
-	if (p->chunk_cols < 1)
-		p->chunk_cols = 1;
-	p->chunk_rows = TILES_CHUNK_TILES / p->chunk_cols;
-	pthread_mutex_init(&p->lock, NULL);
-	pthread_cond_init(&p->cond, NULL);
-	if (!th || !wk) {
+	memset(&p->it, 0, sizeof p->it);
+	if (!th || !wk || (!p->list && tiles_iter_init(&p->it, j, p->index_order) != 0)) {
 		snprintf(p->msg, sizeof p->msg, "out of memory");
 		free(th);
 		free(wk);
 		return -1;
 	}
+	pthread_mutex_init(&p->lock, NULL);
+	pthread_cond_init(&p->cond, NULL);
 	for (unsigned w = 0; w < j->threads; w++) {
 		wk[w].p = p;
 		wk[w].w = w;
@@ -561,10 +712,7 @@ int tiles_run(tiles_pool *p)
 		cli_progress_end(p->progress);
 	pthread_mutex_destroy(&p->lock);
 	pthread_cond_destroy(&p->cond);
-	for (unsigned s = 0; s < TILES_CHUNK_SLOTS; s++) {
-		free(p->chunk[s].ord);
-		p->chunk[s].ord = NULL;
-	}
+	tiles_iter_free(&p->it);
 	free(th);
 	free(wk);
 	return atomic_load(&p->stop) ? -1 : 0;
@@ -587,6 +735,41 @@ double tiles_cpu_seconds(void)
 		return 0;
 	return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
 	       (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
+char *tiles_list_text(const uint8_t *flag, uint32_t n)
+{
+	size_t cap = 64, len = 0;
+	char *s = malloc(cap);
+
+	if (!s)
+		return NULL;
+	s[0] = 0;
+	for (uint32_t i = 0; i < n; i++) {
+		uint32_t e = i;
+		char item[32];
+		int k;
+		if (!flag[i])
+			continue;
+		while (e + 1 < n && flag[e + 1])
+			e++;
+		k = e == i ? snprintf(item, sizeof item, "%s%u", len ? "," : "", i)
+		           : snprintf(item, sizeof item, "%s%u-%u", len ? "," : "", i, e);
+		if (len + (size_t)k + 1 > cap) {
+			char *ns;
+			cap = 2 * cap + (size_t)k;
+			ns = realloc(s, cap);
+			if (!ns) {
+				free(s);
+				return NULL;
+			}
+			s = ns;
+		}
+		memcpy(s + len, item, (size_t)k + 1);
+		len += (size_t)k;
+		i = e;
+	}
+	return s;
 }
 
 uint64_t tiles_mix(uint64_t x)

@@ -1,17 +1,39 @@
 /*
  * tools/loom/tiles.h - what `loom export` and `loom scan` share: the region
  * and tiling options, opening the fabric and its texture inside one memory
- * budget, and a pool of worker threads that pulls tiles from an atomic
- * counter.  docs/batch.md describes the options.
+ * budget, the tile order and the shards, and a pool of worker threads.
+ * docs/batch.md describes the options.
  *
  * Tiles.  The region [lo, hi) is cut into tiles of tsize voxels (the last
  * tile along an axis is shorter); tile (tx, ty, tz) has the index
- * (tz*nt[1] + ty)*nt[0] + tx (x fastest).  Shard I of N holds the tiles
- * whose index mod N is I; its k-th tile is I + k*N.
+ * (tz*nt[1] + ty)*nt[0] + tx (x fastest).  File names and manifests use
+ * the index; the work follows the source order below.
+ *
+ * Source order and shards.  The tiles are grouped in chunks: one z layer,
+ * chunk_rows whole tile rows (or chunk_cols tiles of a row wider than
+ * TILES_CHUNK_TILES), about TILES_CHUNK_TILES tiles each, chunks in index
+ * order.  Inside a chunk the tiles are sorted by the source block that the
+ * crossing under the tile's centre copies (then by index):
+ *
+ *     chunk 0: [blk 0 0 0 | 1 1 | 2 2 2 | ... | 199 199]   chunk 1: [...]
+ *               shard 0       shard 1   ...     shard N-1
+ *
+ * Shard I of N takes the I-th of N equal contiguous parts of every
+ * chunk's sorted order (positions [I*n/N, (I+1)*n/N) of a chunk of n
+ * tiles).  Every chunk holds about every source block, so a shard's parts
+ * cover about the same 1/N of the blocks chunk after chunk: each shard
+ * inflates about 1/N of the database instead of all of it (round-robin
+ * shards did), and its cache keeps them between chunks.  The parts of the
+ * N shards are disjoint and cover every tile once.  A shard's k-th tile is
+ * its k-th in this order (chunk by chunk, part by part);
+ * LOOM_TILE_ORDER=index processes each part in index order instead
+ * (membership is unchanged; results never depend on the order).
  *
  * Memory.  --budget MB is everything: the worker buffers (threads x the
  * caller's bytes per worker) are taken off it first and the texture gets
- * the rest; a tile too big for the budget is a usage error.
+ * the rest; a tile too big for the budget is a usage error.  The order
+ * costs one chunk (16 bytes a tile of it); an export's list of its
+ * shard's tiles is counted by the export (job_bytes).
  */
 #ifndef LOOM_TILES_H
 #define LOOM_TILES_H
@@ -39,6 +61,8 @@ typedef struct tiles_job {
 	const char *region_s;      /* --region as given, NULL when absent */
 	const char *tile_s;        /* --tile, --shard as given (NULL: absent) */
 	const char *shard_s;
+	int shard_auto;            /* --shard auto: I/N from the environment */
+	char shard_from[96];       /* auto: where I and N came from */
 	const char *db_s;          /* --db */
 	int all;                   /* --all */
 	tiles_bolt bolt;           /* --bolt (1x1 when absent) */
@@ -77,7 +101,10 @@ void tiles_init(tiles_job *j);
 	             "LENGTH (along the warps, y) by WIDTH (x), in repeats or with mm, cm " \
 	             "or m (e.g. 2x1, 1.5mx90cm)")
 #define TILES_OPT_TILE(j, h) OPT_CALLBACK(0, "tile", (j), "TX,TY[,TZ]", tiles_opt_tile, h)
-#define TILES_OPT_SHARD(j, h) OPT_CALLBACK(0, "shard", (j), "I/N", tiles_opt_shard, h)
+#define TILES_OPT_SHARD(j, h) OPT_CALLBACK(0, "shard", (j), "I/N|auto", tiles_opt_shard, h)
+/* --help text of --shard auto (both commands) */
+#define TILES_SHARD_AUTO_HELP "; auto: I from $SLURM_ARRAY_TASK_ID, N from " \
+	"$SLURM_ARRAY_TASK_COUNT (or $LOOM_SHARD_INDEX, $LOOM_SHARD_COUNT, which win)"
 #define TILES_OPT_BUDGET(j, h) OPT_BUDGET(&(j)->budget_mb, h)
 #define TILES_OPT_THREADS(j) \
 	OPT_THREADS(&(j)->threads, TILES_THREADS_MAX, "worker threads (default 1)")
@@ -91,14 +118,23 @@ const char *tiles_opt_bolt(const char *text, void *bolt);
 const char *tiles_opt_tile(const char *text, void *job);
 const char *tiles_opt_shard(const char *text, void *job);
 
-/* Check the options that go together (usage errors exit 2) and parse
-   --region.  need_region: --region or --all is required. */
+/* Check the options that go together (usage errors exit 2), parse
+   --region and resolve --shard auto (tiles_shard_auto).  need_region:
+   --region or --all is required. */
 void tiles_parse(const opts_cmd *c, tiles_job *j, int need_region);
 
 /* Text parsers (0 ok, -1 bad text). */
 int tiles_parse_region(const char *s, int64_t lo[3], int64_t hi[3]);
 int tiles_parse_tile(const char *s, int64_t t[3]);
 int tiles_parse_shard(const char *s, uint32_t *i, uint32_t *n);
+/* --shard auto: I and N from the environment: I from $LOOM_SHARD_INDEX,
+   else $SLURM_ARRAY_TASK_ID; N from $LOOM_SHARD_COUNT, else
+   $SLURM_ARRAY_TASK_COUNT, which is only taken for an array 0..N-1
+   ($SLURM_ARRAY_TASK_MIN 0, $SLURM_ARRAY_TASK_MAX N-1: a resubmitted
+   part of an array, --array=3, must say N in $LOOM_SHARD_COUNT).  0, or
+   -1 with the reason in msg. */
+int tiles_shard_auto(uint32_t *i, uint32_t *n, char *from, size_t from_size,
+                     char *msg, size_t msg_size);
 int tiles_parse_bolt(const char *s, double *len, int *len_mm, double *wid,
                      int *wid_mm);
 
@@ -112,38 +148,68 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes);
 void tiles_close(tiles_job *j);
 
-/* Tiles of this shard, and the k-th one's index and box. */
+/* Tiles of this shard (arithmetic, no order needed). */
 uint64_t tiles_in_shard(const tiles_job *j);
-uint64_t tiles_index(const tiles_job *j, uint64_t k);
+/* The box of tile `index`, and its tile coordinates (tile may be NULL). */
 void tiles_box(const tiles_job *j, uint64_t index, int64_t lo[3], int64_t hi[3],
                int64_t tile[3]);
-/* The voxels of all tiles of this shard. */
+/* Voxels of tile `index`. */
+uint64_t tiles_voxels(const tiles_job *j, uint64_t index);
+
+/* ---- the source order ------------------------------------------------------ */
+
+#define TILES_CHUNK_TILES 4096 /* tiles per chunk of the source order (about) */
+
+struct tiles_ord {
+	uint64_t index;            /* tile index */
+	uint32_t key;              /* source block under the tile's centre */
+};
+
+/* Walks this shard's tiles in its order (fixed memory: one chunk). */
+typedef struct tiles_iter {
+	const tiles_job *j;
+	int index_order;           /* each part in index order */
+	uint64_t chunk_rows, chunk_cols;
+	uint64_t cpr, cpl;         /* chunks per band of rows, bands per layer */
+	uint64_t chunk, n_chunks;  /* next chunk, chunks in all */
+	struct tiles_ord *ord;     /* the current chunk's part */
+	uint64_t pos, end;         /* its entries still to hand out */
+	uint32_t block[2];         /* source block size (b1, b2) */
+} tiles_iter;
+
+/* Start walking j's shard (j's fabric must be attached: after
+   tiles_open_texture).  index_order: see tiles_source_order_wanted.
+   0, or -1 (out of memory). */
+int tiles_iter_init(tiles_iter *it, const tiles_job *j, int index_order);
+/* The next tile's index: 1, 0 at the end, -1 on a failure (no memory, a
+   detached fabric). */
+int tiles_iter_next(tiles_iter *it, uint64_t *index);
+void tiles_iter_free(tiles_iter *it);
+
+/* All this shard's tile indices in its order into list[0 .. tiles_in_shard)
+   (export keeps them: 8 bytes a tile).  0, or -1. */
+int tiles_shard_list(const tiles_job *j, int index_order, uint64_t *list);
+/* The voxels of all tiles of this shard (walks the order: O(tiles)). */
 uint64_t tiles_shard_voxels(const tiles_job *j);
 
 /* ---- worker pool ---------------------------------------------------------- */
 
-/* Work on shard-local tile k (index tiles_index(j, k)) as worker w.
-   Returns 0, or nonzero after writing a message into msg (stops the pool). */
-typedef int (*tiles_fn)(void *ctx, unsigned w, uint64_t k, char *msg,
+/* Work on the shard's k-th tile (its index: index) as worker w.  Returns
+   0, or nonzero after writing a message into msg (stops the pool). */
+typedef int (*tiles_fn)(void *ctx, unsigned w, uint64_t k, uint64_t index, char *msg,
                         size_t msg_size);
-
-#define TILES_CHUNK_SLOTS 4
-#define TILES_CHUNK_TILES 4096 /* tiles per chunk of the source order (about) */
 
 typedef struct tiles_pool {
 	tiles_job *job;
 	tiles_fn fn;
 	void *ctx;
-	const uint8_t *skip;       /* skip[k] != 0: tile k is done already */
+	const uint64_t *list;      /* the shard's tiles in order (tiles_shard_list),
+	                              or NULL: walked by an iterator */
+	const uint8_t *skip;       /* skip[k] != 0: the k-th tile is done already */
 	void (*tick)(void *ctx);   /* called by the main thread while waiting */
 	cli_progress *progress;    /* may be NULL */
 	int progress_voxels;       /* 1: report voxels, else tiles */
-	int source_order;          /* 1: tiles in chunks of tile rows, each
-	                              chunk's tiles sorted by the source block
-	                              their centre copies, so that a block's
-	                              bricks are decompressed once per chunk
-	                              (any shard; a result that does not
-	                              depend on the order); 0: index order */
+	int index_order;           /* 1: each part in index order (see above) */
 	/* results */
 	atomic_ullong done_tiles, done_voxels;
 	atomic_int stop;
@@ -151,25 +217,13 @@ typedef struct tiles_pool {
 	pthread_mutex_t lock;
 	pthread_cond_t cond;       /* signalled when a worker ends */
 	unsigned finished;         /* workers ended (under lock) */
-	atomic_ullong next;
-	/* source order (under lock): chunks of chunk_rows x chunk_cols tiles,
-	   the orders of the last TILES_CHUNK_SLOTS chunks kept (fixed memory:
-	   16 bytes per tile of a chunk) */
-	uint64_t chunk_rows, chunk_cols;
-	struct tiles_chunk {
-		uint64_t id;           /* chunk number + 1 (0: empty slot) */
-		uint64_t n;
-		struct tiles_ord {
-			uint64_t index;    /* tile index */
-			uint32_t key;      /* source block under the tile's centre */
-		} *ord;                /* sorted by (key, index) */
-	} chunk[TILES_CHUNK_SLOTS];
-	unsigned chunk_next;       /* slot to refill next */
+	uint64_t next;             /* tiles handed out (under lock) */
+	tiles_iter it;             /* without a list (under lock) */
 } tiles_pool;
 
-/* Tiles grouped by source block (tiles_pool.source_order) unless
-   $LOOM_TILE_ORDER is "index" (for comparisons; results are the same). */
-int tiles_source_order_wanted(void);
+/* 1 when $LOOM_TILE_ORDER is "index": each shard part in index order (for
+   comparisons; results are the same), else 0 (source order). */
+int tiles_index_order_wanted(void);
 
 /* Run fn over the tiles of the shard on job->threads threads.  Returns 0,
    or -1 with pool->msg set. */
@@ -181,6 +235,9 @@ uint64_t tiles_peak_rss(void);
 char *tiles_read_text(const char *path, size_t max, size_t *len);
 /* User + system CPU seconds of the process so far. */
 double tiles_cpu_seconds(void);
+/* The i < n with flag[i] as a Slurm --array list ("3,5-7"; "" when
+   none), malloc'ed; NULL when out of memory. */
+char *tiles_list_text(const uint8_t *flag, uint32_t n);
 /* splitmix64 finaliser. */
 uint64_t tiles_mix(uint64_t x);
 
