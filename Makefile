@@ -38,6 +38,10 @@ SOVER   := 0
 PKGS      := libdeflate libpng
 DEP_CFLAGS = $(shell pkg-config --cflags $(PKGS) OpenEXR 2>/dev/null)
 DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 -lm -lpthread -ldl
+# The loom command alone links the HTTP server of `loom serve` (Debian's
+# libmicrohttpd); libloom does not.
+TOOL_CFLAGS = $(shell pkg-config --cflags libmicrohttpd 2>/dev/null)
+TOOL_LIBS   = $(shell pkg-config --libs libmicrohttpd 2>/dev/null)
 
 WARN    := -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes -Wno-unused-parameter
 CFLAGS  ?= $(OPT) -g
@@ -79,10 +83,11 @@ TESTDEPS_OK := $(BUILD)/.testdeps-ok
 DATA_DIR := $(BUILD)/share/loom
 DATA     := $(DATA_DIR)/README
 DEFAULT_DB := $(DATA_DIR)/default.ldb
+WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
 .PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz test-slurm
-all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB)
+all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
 	@sed -n '3,13p' Makefile | sed 's/^# \{0,1\}//'
@@ -102,6 +107,11 @@ $(BUILD)/obj/engine/%.o: engine/%.c | $(DEPS_OK)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(BASE_CFLAGS) $(ENGINE_INC) -MMD -MP -c $< -o $@
 
+$(BUILD)/obj/tools/%.o: tools/%.c | $(DEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<")
+	$(Q)$(CC) $(ALL_CFLAGS) $(TOOL_CFLAGS) -MMD -MP -c $< -o $@
+
 $(BUILD)/obj/%.o: %.c | $(DEPS_OK)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<")
@@ -119,7 +129,7 @@ $(SHARED): $(LIB_OBJ)
 
 $(LOOM): $(TOOL_OBJ) $(STATIC)
 	@$(if $(Q),echo "  LD      $@")
-	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(STATIC) $(DEP_LIBS)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $(TOOL_OBJ) $(STATIC) $(DEP_LIBS) $(TOOL_LIBS)
 
 $(DATA): $(wildcard data/*)
 	@mkdir -p $(@D)
@@ -131,6 +141,27 @@ $(DEFAULT_DB): $(LOOM) | $(DATA)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  GEN     $@")
 	$(Q)$(LOOM) exemplar generate --preset small --seed 1 --quiet -o $@
+
+# The page of `loom serve` (tools/web): OpenSeadragon from npm, installed
+# into the build tree by `npm ci` from the committed package-lock.json when
+# node_modules is missing (never at run time), then copied with the page
+# into the data directory, which `make install` installs.  playwright-core
+# (the browser test's driver; it downloads no browser) comes with it.
+WEB_SRC := $(wildcard tools/web/*.html tools/web/*.js tools/web/*.css)
+$(BUILD)/web/node_modules/.package-lock.json: tools/web/package.json tools/web/package-lock.json | $(DEPS_OK)
+	@mkdir -p $(BUILD)/web
+	@$(if $(Q),echo "  NPM     $(BUILD)/web (openseadragon, playwright-core)")
+	$(Q)cp tools/web/package.json tools/web/package-lock.json $(BUILD)/web/
+	$(Q)cd $(BUILD)/web && npm ci --no-audit --no-fund --loglevel=error >/dev/null || \
+	    { echo "loom: npm ci failed in $(BUILD)/web: the viewer of loom serve needs it" >&2; exit 1; }
+$(WEB_OK): $(BUILD)/web/node_modules/.package-lock.json $(WEB_SRC) | $(DATA)
+	@mkdir -p $(DATA_DIR)/web/images
+	$(Q)cp $(WEB_SRC) $(DATA_DIR)/web/
+	$(Q)cp $(BUILD)/web/node_modules/openseadragon/build/openseadragon/openseadragon.min.js \
+	    $(DATA_DIR)/web/
+	$(Q)cp $(BUILD)/web/node_modules/openseadragon/build/openseadragon/images/*.png \
+	    $(DATA_DIR)/web/images/
+	@touch $@
 
 # Unit tests: one program per module, linked against the static library.
 $(BUILD)/tests/%: $(BUILD)/obj/tests/unit/%.o $(STATIC)

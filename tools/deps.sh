@@ -34,12 +34,18 @@ else
 	need libpng-dev      has_header png.h
 	need libopenexr-dev  has_header OpenEXR/openexr.h
 	need libembree-dev   has_header embree3/rtcore.h
+	# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
+	need libmicrohttpd-dev has_header microhttpd.h
+	need npm             command -v npm
 fi
 if [ "$what" = test ]; then
 	need openexr     command -v exrheader
 	need teem-apps   command -v teem-unu
 	# the CLI tests read loom's --json output with python3's json module
 	need python3     command -v python3
+	# the viewer's end-to-end test: Debian's chromium driven by playwright-core
+	need chromium    command -v chromium
+	need curl        command -v curl
 fi
 
 [ -z "$missing" ] && exit 0

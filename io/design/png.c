@@ -337,3 +337,150 @@ int loom__png_write(FILE *fp, const loom__raster *r, const char *name,
 	free(c.buf);
 	return rc;
 }
+
+/* ---- streaming writer (loom_png_writer_*, loom/io.h) ---------------------- */
+
+#include "io/core/file.h"
+
+struct loom_png_writer {
+	png_ctx c;
+	loom__atomic out;
+	uint32_t width, height, channels, rows_done;
+	char *path;
+	int failed;
+};
+
+static int start_png(loom_png_writer *w)
+{
+	png_ctx *c = &w->c;
+	if (setjmp(png_jmpbuf(c->png)))
+		return c->code;
+	png_set_write_fn(c->png, c, on_write, on_flush);
+	png_set_IHDR(c->png, c->info, w->width, w->height, 8,
+	             w->channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY,
+	             PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+	             PNG_FILTER_TYPE_DEFAULT);
+	png_write_info(c->png, c->info);
+	return LOOM_OK;
+}
+
+static int rows_png(loom_png_writer *w, const uint8_t *pixels, uint32_t n)
+{
+	png_ctx *c = &w->c;
+	size_t stride = (size_t)w->width * w->channels;
+	if (setjmp(png_jmpbuf(c->png)))
+		return c->code;
+	for (uint32_t y = 0; y < n; y++)
+		png_write_row(c->png, (png_const_bytep)(pixels + (size_t)y * stride));
+	return LOOM_OK;
+}
+
+static int end_png(loom_png_writer *w)
+{
+	png_ctx *c = &w->c;
+	if (setjmp(png_jmpbuf(c->png)))
+		return c->code;
+	png_write_end(c->png, NULL);
+	return LOOM_OK;
+}
+
+LOOM_API int loom_png_writer_open(const char *path, uint32_t width, uint32_t height,
+                                  uint32_t channels, loom_png_writer **out,
+                                  loom_diag *diag)
+{
+	loom_png_writer *w;
+	int rc;
+
+	if (out)
+		*out = NULL;
+	if (!path || !out || width == 0 || height == 0 || width > PNG_MAX_SIDE ||
+	    height > PNG_MAX_SIDE || (channels != 1 && channels != 3))
+		return loom__fail(diag, LOOM_EINVAL, "loom_png_writer_open: bad argument");
+	w = calloc(1, sizeof *w);
+	if (!w || !(w->path = strdup(path))) {
+		free(w);
+		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+	}
+	w->width = width;
+	w->height = height;
+	w->channels = channels;
+	w->c.name = w->path;
+	w->c.code = LOOM_EIO;
+	if ((rc = loom__atomic_open(&w->out, path, diag)) != LOOM_OK) {
+		free(w->path);
+		free(w);
+		return rc;
+	}
+	w->c.fp = w->out.fp;
+	w->c.png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &w->c, on_error,
+	                                   on_warning);
+	if (w->c.png)
+		w->c.info = png_create_info_struct(w->c.png);
+	if (!w->c.png || !w->c.info) {
+		loom_png_writer_abort(w);
+		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
+	}
+	if ((rc = start_png(w)) != LOOM_OK) {
+		loom__fail(diag, rc, "%s: PNG write failed: %s", path, w->c.msg);
+		loom_png_writer_abort(w);
+		return rc;
+	}
+	*out = w;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_png_writer_put_rows(loom_png_writer *w, const uint8_t *pixels,
+                                      uint32_t n_rows, loom_diag *diag)
+{
+	int rc;
+
+	if (!w || (!pixels && n_rows))
+		return loom__fail(diag, LOOM_EINVAL, "loom_png_writer_put_rows: NULL");
+	if (w->failed)
+		return loom__fail(diag, LOOM_EUNUSABLE, "%s: writer failed earlier", w->path);
+	if (n_rows > w->height - w->rows_done)
+		return loom__fail(diag, LOOM_ERANGE, "%s: %u rows given, %u left", w->path,
+		                  n_rows, w->height - w->rows_done);
+	if ((rc = rows_png(w, pixels, n_rows)) != LOOM_OK) {
+		w->failed = 1;
+		return loom__fail(diag, rc, "%s: PNG write failed: %s", w->path, w->c.msg);
+	}
+	w->rows_done += n_rows;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_png_writer_finish(loom_png_writer *w, loom_diag *diag)
+{
+	int rc;
+
+	if (!w)
+		return loom__fail(diag, LOOM_EINVAL, "loom_png_writer_finish: NULL");
+	if (w->failed || w->rows_done != w->height) {
+		rc = w->failed ? LOOM_EUNUSABLE : LOOM_ETRUNCATED;
+		loom__fail(diag, rc, "%s: %u of %u rows written; nothing kept", w->path,
+		           w->rows_done, w->height);
+		loom_png_writer_abort(w);
+		return rc;
+	}
+	if ((rc = end_png(w)) != LOOM_OK) {
+		loom__fail(diag, rc, "%s: PNG write failed: %s", w->path, w->c.msg);
+		loom_png_writer_abort(w);
+		return rc;
+	}
+	png_destroy_write_struct(&w->c.png, &w->c.info);
+	rc = loom__atomic_commit(&w->out, diag);
+	free(w->path);
+	free(w);
+	return rc;
+}
+
+LOOM_API void loom_png_writer_abort(loom_png_writer *w)
+{
+	if (!w)
+		return;
+	if (w->c.png)
+		png_destroy_write_struct(&w->c.png, w->c.info ? &w->c.info : NULL);
+	loom__atomic_abort(&w->out);
+	free(w->path);
+	free(w);
+}

@@ -119,7 +119,8 @@ typedef struct wif_list {
 	uint32_t max_key, max_key_line;     /* highest key and where */
 	uint32_t max_val, max_val_line;     /* highest value and where */
 	uint32_t header_line;               /* first [SECTION] line; 0 = absent */
-	int zero_key_warned;
+	uint32_t zero_key_line;             /* first entry numbered 0; 0 = none */
+	int has_zero_val;                   /* a value 0 was kept (K_INTS, K_ONE) */
 } wif_list;
 
 typedef struct wif_val { /* a scalar KEY=VALUE, value trimmed */
@@ -141,6 +142,7 @@ typedef struct wif_parser {
 	wif_list list[L_COUNT];
 	wif_val version, shafts, treadles, rising, range, form;
 	wif_val threads[2], color[2], thick[2], units[2]; /* [0] warp, [1] weft */
+	int color_shift;    /* colour indices counted from 0: add one */
 } wif_parser;
 
 /* ---- messages ---------------------------------------------------------- */
@@ -345,6 +347,7 @@ static int parse_ints(wif_parser *p, wif_list *l, const struct list_info *li,
 	uint32_t kept = 0;
 	char b[64];
 
+	(void)keep_zero;
 	while (i < n) {
 		size_t start;
 		uint64_t x = 0;
@@ -371,8 +374,10 @@ static int parse_ints(wif_parser *p, wif_list *l, const struct list_info *li,
 				            show(b, sizeof b, v + start, i - start),
 				            li->val_max);
 		}
+		/* 0 means "unused" in a 1-based draft and is dropped in Step 2
+		   (normalise_numbers); in a draft numbered from 0 it is a number */
 		if (x == 0 && !keep_zero)
-			continue; /* 0 = unused */
+			l->has_zero_val = 1;
 		if ((rc = push_value(p, (uint32_t)x)) != LOOM_OK)
 			return rc;
 		kept++;
@@ -383,6 +388,14 @@ static int parse_ints(wif_parser *p, wif_list *l, const struct list_info *li,
 	}
 	*count = kept;
 	return LOOM_OK;
+}
+
+static uint32_t nonzero(const uint32_t *v, uint32_t n)
+{
+	uint32_t k = 0;
+	for (uint32_t i = 0; i < n; i++)
+		k += v[i] != 0;
+	return k;
 }
 
 /* One KEY=VALUE line of a numeric table. */
@@ -410,13 +423,8 @@ static int list_line(wif_parser *p, int li_idx, const char *key, size_t kn,
 			            "%s: %s number %s too large (at most %u)", li->section,
 			            li->key_what, show(b, sizeof b, key, kn), li->key_max);
 	}
-	if (k == 0) {
-		if (!l->zero_key_warned)
-			pwarn(p, line, "%s: %s 0 ignored (WIF numbers %ss from 1)",
-			      li->section, li->key_what, li->key_what);
-		l->zero_key_warned = 1;
-		return LOOM_OK;
-	}
+	if (k == 0 && !l->zero_key_line)
+		l->zero_key_line = line; /* decided in Step 2 (normalise_numbers) */
 	e.key = (uint32_t)k;
 	e.line = line;
 	e.n = 0;
@@ -432,7 +440,7 @@ static int list_line(wif_parser *p, int li_idx, const char *key, size_t kn,
 		rc = parse_ints(p, l, li, val, vn, line, 0, &e.n);
 		if (rc)
 			return rc;
-		if (e.n > 1)
+		if (e.n > 1 && nonzero(p->pool + e.off, e.n) > 1)
 			return perr(p, line, LOOM_EFORMAT, "%s: expected one colour "
 			            "index, got '%s'", li->section, show(b, sizeof b, val, vn));
 		break;
@@ -585,10 +593,11 @@ static int parse_line(wif_parser *p, const char *s, size_t n, uint32_t line,
 		return LOOM_OK;
 	eq = memchr(s, '=', n);
 	if (!eq) {
-		if (*sec >= SEC_LIST)
-			return perr(p, line, LOOM_EFORMAT, "%s: expected NUMBER=VALUES, "
-			            "got '%s'", lists[*sec - SEC_LIST].section,
-			            show(b, sizeof b, s, n));
+		if (*sec >= SEC_LIST) {
+			pwarn(p, line, "%s: expected NUMBER=VALUES, got '%s'; line ignored",
+			      lists[*sec - SEC_LIST].section, show(b, sizeof b, s, n));
+			return LOOM_OK;
+		}
 		pwarn(p, line, "expected KEY=VALUE, got '%s'; line ignored",
 		      show(b, sizeof b, s, n));
 		return LOOM_OK;
@@ -672,6 +681,100 @@ static int index_list(wif_parser *p, int li_idx, uint32_t size, int32_t **out)
 	return LOOM_OK;
 }
 
+/*
+ * Step 2a: what the numbers count from.  WIF numbers ends, picks,
+ * treadles, shafts and colours from 1, and a value 0 means "unused".  A
+ * file whose threading and picks both have an entry numbered 0 was
+ * written counting from 0 (generated files do): then every end and pick
+ * number, and the treadle, shaft and colour numbers of the tables that
+ * use 0, is read one higher, with one warning saying so.  Otherwise an
+ * entry numbered 0 is ignored (a warning per table) and values 0 are
+ * dropped.  Highest keys and values are counted afresh.
+ */
+static void shift_keys(wif_list *l)
+{
+	for (size_t k = 0; k < l->n; k++)
+		l->e[k].key++;
+	l->zero_key_line = 0;
+}
+
+static void shift_vals(wif_parser *p, wif_list *l)
+{
+	for (size_t k = 0; k < l->n; k++)
+		for (uint32_t v = 0; v < l->e[k].n; v++)
+			p->pool[l->e[k].off + v]++;
+	l->has_zero_val = 0;
+}
+
+static void normalise_numbers(wif_parser *p)
+{
+	wif_list *L = p->list;
+	int picks = L[L_LIFTPLAN].n > 0 ? L_LIFTPLAN : L_TREADLING;
+	char what[96] = "ends, picks";
+	uint32_t end0 = L[L_THREADING].zero_key_line, pick0 = L[picks].zero_key_line;
+
+	if (end0 && pick0) {
+		static const int ends_picks[] = {L_THREADING, L_TREADLING, L_LIFTPLAN,
+		                                 L_WARP_COLORS, L_WEFT_COLORS, L_WARP_THICK,
+		                                 L_WEFT_THICK};
+		for (size_t k = 0; k < sizeof ends_picks / sizeof *ends_picks; k++)
+			shift_keys(&L[ends_picks[k]]);
+		if (L[L_TIEUP].zero_key_line) {
+			shift_keys(&L[L_TIEUP]);
+			shift_vals(p, &L[L_TREADLING]);
+			strcat(what, ", treadles");
+		}
+		if (L[L_THREADING].has_zero_val) {
+			shift_vals(p, &L[L_THREADING]);
+			shift_vals(p, &L[L_TIEUP]);
+			shift_vals(p, &L[L_LIFTPLAN]);
+			strcat(what, ", shafts");
+		}
+		if (L[L_COLOR_TABLE].zero_key_line) {
+			shift_keys(&L[L_COLOR_TABLE]);
+			shift_vals(p, &L[L_WARP_COLORS]);
+			shift_vals(p, &L[L_WEFT_COLORS]);
+			p->color_shift = 1;
+			strcat(what, ", colours");
+		}
+		pwarn(p, end0, "the draft numbers from 0 (end 0 here, pick 0 on line %u), "
+		      "WIF from 1: reading every number one higher (%s)", pick0, what);
+	}
+	for (int li = 0; li < L_COUNT; li++) {
+		wif_list *l = &L[li];
+		size_t m = 0;
+		if (l->zero_key_line)
+			pwarn(p, l->zero_key_line, "%s: %s 0 ignored (WIF numbers %ss from 1)",
+			      lists[li].section, lists[li].key_what, lists[li].key_what);
+		l->max_key = l->max_val = 0;
+		l->max_key_line = l->max_val_line = 0;
+		for (size_t k = 0; k < l->n; k++) {
+			wif_entry e = l->e[k];
+			if (e.key == 0)
+				continue;
+			if (lists[li].kind == K_INTS || lists[li].kind == K_ONE) {
+				uint32_t *v = p->pool + e.off, kept = 0;
+				for (uint32_t q = 0; q < e.n; q++)
+					if (v[q] != 0)
+						v[kept++] = v[q];
+				e.n = kept;
+			}
+			if (lists[li].kind != K_REAL)
+				for (uint32_t q = 0; q < e.n; q++)
+					if (p->pool[e.off + q] > l->max_val) {
+						l->max_val = p->pool[e.off + q];
+						l->max_val_line = e.line;
+					}
+			if (e.key > l->max_key) {
+				l->max_key = e.key;
+				l->max_key_line = e.line;
+			}
+			l->e[m++] = e;
+		}
+		l->n = m;
+	}
+}
+
 /* WIF booleans: true/yes/on/1 and false/no/off/0 (any case). */
 static int parse_bool(const wif_val *v, int *out)
 {
@@ -753,6 +856,31 @@ static uint64_t hash_values(const uint32_t *v, uint32_t n)
 	return h;
 }
 
+/* A treadle pressed on some pick but with no [TIEUP] line lifts no shaft:
+   say so, once per treadle (the first few), with the first pick using it. */
+static void untied_treadles(wif_parser *p, const wif_build *b, uint32_t rows,
+                            uint32_t ntr)
+{
+	const wif_list *tr = &p->list[L_TREADLING];
+	uint8_t seen[WIF_MAX_TREADLES + 1];
+	uint32_t warned = 0;
+
+	memset(seen, 0, sizeof seen);
+	for (uint32_t i = 0; i < rows && warned < 8; i++) {
+		const wif_entry *e = b->pick_e[i] >= 0 ? &tr->e[b->pick_e[i]] : NULL;
+		for (uint32_t k = 0; e && k < e->n && warned < 8; k++) {
+			uint32_t t = p->pool[e->off + k];
+			if ((t <= ntr && b->tie_e[t - 1] >= 0) || seen[t])
+				continue;
+			seen[t] = 1;
+			pwarn(p, e->line, "[TREADLING]: treadle %u (first pressed on pick %u) "
+			      "has no [TIEUP] line, so it lifts no shaft: on its picks only the "
+			      "other treadles' shafts rise%s", t, i + 1,
+			      ++warned == 8 ? " (further untied treadles not listed)" : "");
+		}
+	}
+}
+
 /* Drawdown rows into d->weave.  b->end_e and b->pick_e are indexed. */
 static int drawdown(wif_parser *p, wif_build *b, loom_design *d, int use_lift,
                     int rising)
@@ -824,6 +952,7 @@ static int drawdown(wif_parser *p, wif_build *b, loom_design *d, int use_lift,
 					b->tie[(size_t)t * words + c / 64] |= 1ull << (c % 64);
 			}
 		}
+		untied_treadles(p, b, rows, ntr);
 	}
 
 	for (uint32_t i = 0; i < rows; i++) {
@@ -1092,6 +1221,8 @@ static int side_types(wif_parser *p, wif_build *b, wif_palette *pal,
 			return perr(p, v->line, LOOM_EFORMAT, "%s: expected Color=INDEX or "
 			            "Color=INDEX,R,G,B, got '%s'", what[side],
 			            show(bb, sizeof bb, v->s, v->n));
+		if (p->color_shift)
+			c[0]++;
 		if (c[0] != 0 && !table_color(p, b, pal, c[0], &def)) {
 			if (nc != 4)
 				return bad_color(p, v->line, c[0]);
@@ -1226,11 +1357,14 @@ static int build(wif_parser *p, loom_design **out)
 	wif_build b;
 	loom_design *d = NULL;
 	uint32_t rows, cols, nshafts = 0, ntreadles = 0, nthreads;
-	int use_lift = lp->n > 0, rising = 1, have, rc;
-	wif_list *pk = use_lift ? lp : tr;
+	int use_lift, rising = 1, have, rc;
+	wif_list *pk;
 	char s[64];
 
 	memset(&b, 0, sizeof b);
+	normalise_numbers(p);
+	use_lift = lp->n > 0;
+	pk = use_lift ? lp : tr;
 	if (p->version.s && p->version.n && !(p->version.n >= 2 &&
 	    p->version.s[0] == '1' && p->version.s[1] == '.'))
 		pwarn(p, p->version.line, "WIF Version=%s; reading it as WIF 1.1",

@@ -100,3 +100,17 @@ for f in "$LOOM_TOP"/data/*.wif; do
 done
 expect_ok info_overshot "$LOOM" pattern info "$LOOM_TOP/data/overshot-sampler.wif"
 expect_out_contains info_overshot_type "weft #801c2e"
+
+# forgiving reads (issue 16): a line without '=' inside a table, an untied
+# treadle and a draft numbered from 0 are read with a warning naming the line
+for f in table-no-equals untied-treadle zero-based; do
+	expect_ok "forgive_$f" "$LOOM" pattern convert "$W/$f.wif" -o "$T/$f.pbm"
+	want=$(sed -n 's/^; expect-warning: //p' "$W/$f.wif" | head -1)
+	expect_err_contains "forgive_${f}_warning" "/$want"
+	p4_bits "$T/$f.pbm" >"$T/$f.got"
+	p1_bits "$W/$f.expected.pbm" >"$T/$f.want"
+	expect_same "forgive_${f}_bits" "$T/$f.got" "$T/$f.want"
+done
+expect_ok zero_based_colours "$LOOM" pattern info "$W/zero-based.wif"
+expect_out_contains zero_based_warp "warp #ffffff"
+expect_out_contains zero_based_weft "weft #c80000"

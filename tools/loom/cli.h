@@ -56,6 +56,12 @@ const char *cli_data_dir(void);
 const char *cli_db_path(const char *opt);
 const char *cli_db_require(const char *opt, const char *prog);
 
+/* Before long work (tools/loom/outcheck.c): fail (exit 1) when path is a
+   directory or its directory is missing or not writable; for an output
+   directory, when it is not a directory or cannot be made or written. */
+void cli_check_output(const char *prog, const char *path);
+void cli_check_output_dir(const char *prog, const char *dir);
+
 /* 1 if s ends in ext, compared without regard to case (".PNG" is ".png"). */
 int cli_ends_with(const char *s, const char *ext);
 

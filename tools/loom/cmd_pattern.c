@@ -67,10 +67,16 @@ static const char about_make[] =
 static const char about_convert[] =
 	"Read a design and write its weave pattern as an image: black = warp\n"
 	"over, first row = first pick, first column = first end.  For a WIF\n"
-	"draft that is exactly its drawdown.\n"
+	"draft that is exactly its drawdown.  --color writes the colour drawdown\n"
+	"instead (the warp's colour where it is on top, the weft's elsewhere);\n"
+	"--draft the draft diagram (threading, tie-up, treadling or liftplan and\n"
+	"the colour drawdown, as weaving programs print it; the draft is recovered\n"
+	"from the drawdown: one shaft per distinct end, one treadle per distinct\n"
+	"pick, a liftplan when more than 24 treadles would be needed).\n"
 	"\n"
 	"IN is a WIF draft (.wif) or a weave image (.pbm, .png, .pgm: two\n"
-	"levels, the darker one warp over).  OUT is .pbm (P4) or .png (1-bit).\n";
+	"levels, the darker one warp over).  OUT is .pbm (P4) or .png (1-bit);\n"
+	".png or .ppm with --color or --draft.\n";
 
 static const char about_from_image[] =
 	"Build a design from a posterized image (paper 5.2): every colour of\n"
@@ -107,6 +113,8 @@ static void check_common(const opts_cmd *c, const pat_opts *o, int need_out)
 {
 	if (need_out && !o->out)
 		opts_usage(c, "missing -o OUT");
+	if (o->out)
+		cli_check_output(c->prog, o->out);
 	if (o->out && !ends_with(o->out, weave_exts))
 		opts_usage(c, "output '%s': expected a .pbm or .png file name", o->out);
 	if ((o->warp_out && !ends_with(o->warp_out, map_exts)) ||
@@ -326,23 +334,79 @@ static int pattern_make(int argc, char **argv)
 
 /* ---- convert, from-image -------------------------------------------------- */
 
+#define DRAFT_MAX_TREADLES 24u  /* more distinct picks: a liftplan */
+#define DRAFT_MAX_THREADS 600u  /* ends and picks drawn in a draft diagram */
+
 static int pattern_convert(int argc, char **argv)
 {
 	pat_opts o = {0};
 	loom_diag diag;
+	int color = 0, draft = 0;
+	uint32_t cell = 0;
 	opt_entry opts[] = {
 		PAT_OPT_OUT(&o, "the weave image to write"),
+		OPT_FLAG(0, "color", &color, "write the colour drawdown (.png or .ppm, RGB): "
+		         "warp colour where the warp is over, weft colour elsewhere"),
+		OPT_FLAG(0, "draft", &draft, "write the draft diagram (.png or .ppm): "
+		         "threading, tie-up, treadling or liftplan, colour drawdown"),
+		OPT_U32(0, "cell", &cell, "PX", 1, 64, "pixels per crossing with --color "
+		        "(default 1) or per cell with --draft (default: about 1100 px in all), "
+		        "%r"),
+		PAT_OPT_MAP(&o, "IN is a posterized image: map it as from-image does"),
 		PAT_OPT_MAPS_IN(&o),
 		PAT_OPT_MAPS_OUT(&o),
 		PAT_OPT_QUIET(&o),
 		OPT_END()
 	};
 	opts_cmd c = {.prog = "loom pattern convert",
-	              .usage = "loom pattern convert IN -o OUT [OPTIONS]",
+	              .usage = "loom pattern convert IN -o OUT [--color | --draft] [OPTIONS]",
 	              .about = about_convert, .opts = opts, .pos_name = "IN", .pos_min = 1,
 	              .pos_max = 1, .pos = &o.in};
+	static const char *const pic_exts[] = {".png", ".ppm", NULL};
 
 	opts_parse(&c, argc, argv);
+	if (color && draft)
+		opts_usage(&c, "--color and --draft make different pictures: give one");
+	if (opt_given(&c, &cell) && !color && !draft)
+		opts_usage(&c, "--cell needs --color or --draft");
+	if (color || draft) {
+		loom_design *d;
+		int rc;
+		if (!o.out)
+			opts_usage(&c, "missing -o OUT");
+		cli_check_output(c.prog, o.out);
+		if (!ends_with(o.out, pic_exts))
+			opts_usage(&c, "output '%s': expected a .png or .ppm file name with %s",
+			           o.out, color ? "--color" : "--draft");
+		check_common(&c, &(pat_opts){.warp_out = o.warp_out, .weft_out = o.weft_out}, 0);
+		cli_diag_init(&diag, &o.quiet);
+		d = load(c.prog, &o, &diag);
+		if (color) {
+			rc = loom_color_drawdown_write(o.out, d, cell ? cell : 1, &diag);
+		} else {
+			loom_draft *dr = NULL;
+			rc = loom_draft_from_design(d, DRAFT_MAX_TREADLES, &dr, &diag);
+			if (!rc && (d->cols > DRAFT_MAX_THREADS || d->rows > DRAFT_MAX_THREADS))
+				cli_warn_sink(&o.quiet, "the draft diagram shows the first 600 ends "
+				              "and picks of the design");
+			if (!rc)
+				rc = loom_draft_write(o.out, d, dr, cell, DRAFT_MAX_THREADS, &diag);
+			if (!rc && !o.quiet)
+				fprintf(stderr, "loom pattern convert: %s: %u shafts, %s%u%s\n", o.out,
+				        dr->shafts, dr->treadles ? "" : "liftplan of ",
+				        dr->treadles ? dr->treadles : d->rows,
+				        dr->treadles ? " treadles" : " picks");
+			loom_draft_free(dr);
+		}
+		if (!rc && o.warp_out)
+			rc = loom_type_map_write(o.warp_out, d, LOOM_MAP_WARP, &diag);
+		if (!rc && o.weft_out)
+			rc = loom_type_map_write(o.weft_out, d, LOOM_MAP_WEFT, &diag);
+		loom_design_free(d);
+		if (rc)
+			cli_fail(c.prog, "%s", diag.message);
+		return 0;
+	}
 	check_common(&c, &o, 1);
 	cli_diag_init(&diag, &o.quiet);
 	save(c.prog, &o, load(c.prog, &o, &diag), &diag);

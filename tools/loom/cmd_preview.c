@@ -6,6 +6,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "opts.h"
+#include "picture.h"
 #include "progress.h"
 
 #include <stdlib.h>
@@ -15,14 +16,21 @@ static const char usage[] =
 	"loom preview FABRIC [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]\n"
 	"             [--width PX] [--height PX] [--budget MB] [--db DB]\n"
 	"             [--threads N] [--threshold D] [--exposure STOPS]\n"
+	"             [--filter auto|exact|blocks] [--scale-bar]\n"
 	"             [--height-map FILE] [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
-	"Draw the fabric from straight above (orthographic): per pixel the top-most\n"
-	"voxel of the column under its centre, shaded from the height map and the\n"
-	"fibre direction with one light, coloured by the yarn albedo\n"
-	"(docs/preview.md).  Reads are streamed through the virtual texture in\n"
-	"bounded memory; a 4096-pixel preview of a whole large fabric takes seconds.\n";
+	"Draw the fabric from straight above (orthographic), pick 1 at the top and\n"
+	"end 1 at the left as in the drawdown: per pixel the mean of the voxel\n"
+	"columns under it (an area average, so a whole repeat shows its motif at\n"
+	"any width), each shaded from its top surface and fibre direction with one\n"
+	"light and coloured by its yarn (docs/preview.md).  Streamed through the\n"
+	"virtual texture in bounded memory and written band by band; a 4096-pixel\n"
+	"preview of a whole large fabric takes seconds.\n";
+
+static const opt_choice filter_names[] = {
+	{"auto", LOOM_PREVIEW_AUTO}, {"exact", LOOM_PREVIEW_EXACT},
+	{"blocks", LOOM_PREVIEW_BLOCKS}, {NULL, 0}};
 
 /* "X0,Y0:X1,Y1" or "X0,Y0,Z0:X1,Y1,Z1" */
 static int parse_box(const char *s, int64_t lo[3], int64_t hi[3], int *has_z)
@@ -90,49 +98,26 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	cli_progress_update(user, done);
 }
 
-static int write_height(const char *path, const float *hm, uint32_t w, uint32_t h,
-                        int64_t z0, int64_t z1, loom_diag *diag)
-{
-	if (cli_ends_with(path, ".exr")) {
-		static const loom_exr_channel ch[1] = {{"height", LOOM_EXR_FLOAT}};
-		return cli_write_exr(path, w, h, ch, 1, hm, diag);
-	} else {
-		loom_image *img = NULL;
-		double span = (double)(z1 - z0);
-		int rc = loom_image_new(w, h, 1, &img);
-		if (rc != LOOM_OK)
-			return rc;
-		for (size_t p = 0; p < (size_t)w * h; p++) {
-			double v = hm[p] > 0 ? ((double)hm[p] - (double)z0) / span : 0;
-			v = v < 0 ? 0 : v > 1 ? 1 : v;
-			img->pixels[p] = (uint8_t)(v * 255.0 + 0.5);
-		}
-		rc = loom_image_write(path, img, diag);
-		loom_image_free(img);
-		return rc;
-	}
-}
-
 int cmd_preview(int argc, char **argv)
 {
 	const char *prog = "loom preview";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *hmap_path = NULL;
-	int quiet = 0, json = 0, has_z, rc;
-	double budget_mb = 64, exposure = 0, thr = 0.2;
+	int quiet = 0, json = 0, has_z, rc, filter = LOOM_PREVIEW_AUTO, bar = 0;
+	double budget_mb = 64, exposure = 0, thr = 0.2, mm_w, mm_h, vox_mm;
 	uint32_t width = 0, height = 0, threads = 0, W, H;
 	struct box box = {{0, 0, 0}, {0, 0, 0}, 0};
 	int64_t *lo = box.lo, *hi = box.hi;
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_preview_options po = LOOM_PREVIEW_OPTIONS_INIT;
 	loom_preview_stats st;
-	loom_preview_maps maps;
 	loom_fabric_db_identity id;
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
 	loom_texture *t = NULL;
 	cli_progress pr;
-	float *rgb = NULL, *hm = NULL;
+	pic_out pic;
 	loom_diag diag;
+	size_t budget, own;
 	double t0;
 	opt_entry opts[] = {
 		OPT_CALLBACK(0, "region", &box, "BOX", opt_region, "voxels, half-open: x across "
@@ -142,14 +127,21 @@ int cmd_preview(int argc, char **argv)
 		OPT_U32(0, "width", &width, "PX", 1, LOOM_PREVIEW_MAX_SIDE, "output width, "
 		        "%r (default: the region's width, at most 1024)"),
 		OPT_U32(0, "height", &height, "PX", 1, LOOM_PREVIEW_MAX_SIDE, "output height, "
-		        "%r (default: keep the region's aspect)"),
-		OPT_BUDGET(&budget_mb, "texture cache budget in MiB (default 64)"),
+		        "%r (default: keep the region's aspect, which is the cloth's: voxels "
+		        "are cubes)"),
+		OPT_BUDGET(&budget_mb, "memory budget in MiB (default 64): the texture cache "
+		           "and, a quarter of it up to 16 MiB, the preview's own buffers"),
 		OPT_DB(&db_opt, "exemplar database (default: the one the fabric names)"),
 		OPT_THREADS(&threads, 256, "worker threads (default: all CPUs)"),
 		OPT_DOUBLE(0, "threshold", &thr, "D", "(]", 0, 1, "a density", "density at "
 		           "which a voxel counts as surface, in %r (default 0.2)"),
 		OPT_DOUBLE(0, "exposure", &exposure, "STOPS", "[]", -64, 64, "stops",
 		           "PNG only: scale by 2^STOPS before the sRGB curve (0)"),
+		OPT_ENUM(0, "filter", &filter, "F", filter_names, "auto (default: exact up to 16 "
+		         "voxel columns per pixel, else blocks), exact (read every column) or "
+		         "blocks (per-source-block tables; docs/preview.md)"),
+		OPT_FLAG(0, "scale-bar", &bar, "draw a scale bar (a round length in mm or cm) "
+		         "at the bottom left"),
 		OPT_STRING(0, "height-map", &hmap_path, "FILE", "also write the surface height: "
 		           ".exr (float channel 'height', voxels) or .png (grey, 0 = z0 .. 255 = "
 		           "top)"),
@@ -169,6 +161,9 @@ int cmd_preview(int argc, char **argv)
 		opts_usage(&c, "output '%s' must end in .png or .exr", out);
 	if (hmap_path && !cli_ends_with(hmap_path, ".png") && !cli_ends_with(hmap_path, ".exr"))
 		opts_usage(&c, "height map '%s' must end in .png or .exr", hmap_path);
+	cli_check_output(prog, out);
+	if (hmap_path)
+		cli_check_output(prog, hmap_path);
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
@@ -186,7 +181,9 @@ int cmd_preview(int argc, char **argv)
 	}
 	if (!width)
 		width = hi[0] - lo[0] < 1024 ? (uint32_t)(hi[0] - lo[0]) : 1024;
-	to.budget_bytes = (size_t)(budget_mb * 1048576.0);
+	budget = (size_t)(budget_mb * 1048576.0);
+	own = budget / 4 < ((size_t)16 << 20) ? budget / 4 : (size_t)16 << 20;
+	to.budget_bytes = budget - own;
 	to.max_threads = threads ? threads : 16;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
 		loom_fabric_free(f);
@@ -199,43 +196,45 @@ int cmd_preview(int argc, char **argv)
 	po.height = height;
 	po.threads = threads;
 	po.threshold = (float)thr;
+	po.filter = filter;
+	po.memory_bytes = own;
 	rc = loom_preview_size(&po, &W, &H);
 	if (rc != LOOM_OK) {
 		cli_error(prog, "cannot make a %ux%u preview of that region: %s", width,
 		          height, loom_strerror(rc));
 		goto fail;
 	}
-	rgb = malloc((size_t)W * H * 3 * sizeof *rgb);
-	hm = malloc((size_t)W * H * sizeof *hm);
-	if (!rgb || !hm) {
-		cli_error(prog, "out of memory for a %ux%u preview", W, H);
+	vox_mm = id.voxel_size_um * 1e-3;
+	mm_w = (double)(hi[0] - lo[0]) * vox_mm;
+	mm_h = (double)(hi[1] - lo[1]) * vox_mm;
+	memset(&pic, 0, sizeof pic);
+	pic.path = out;
+	pic.height_path = hmap_path;
+	pic.exposure = exposure;
+	pic.scale_bar = bar;
+	pic.mm_per_px = mm_w / W;
+	pic.z0 = has_z && lo[2] > 0 ? lo[2] : 0;
+	pic.z1 = has_z && hi[2] < (int64_t)id.block[2] ? hi[2] : (int64_t)id.block[2];
+	if (pic.z1 <= pic.z0)
+		pic.z1 = pic.z0 + 1;
+	if (pic_open(&pic, W, H, &diag) != LOOM_OK) {
+		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}
-	memset(&maps, 0, sizeof maps);
-	maps.height = hm;
 	cli_progress_begin(&pr, prog, "pixels", (uint64_t)W * H, quiet);
 	po.progress = progress_cb;
 	po.progress_user = &pr;
 	t0 = cli_now();
-	rc = loom_preview(t, f, &po, rgb, &maps, &st, &diag);
+	rc = loom_preview_stream(t, f, &po, pic_band, &pic, &st, &diag);
 	cli_progress_end(&pr);
 	if (rc != LOOM_OK) {
+		pic_abort(&pic);
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}
-	if (cli_write_rgb(out, rgb, W, H, exposure, &diag) != LOOM_OK) {
+	if (pic_finish(&pic) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto fail;
-	}
-	if (hmap_path) {
-		int64_t z0 = has_z && lo[2] > 0 ? lo[2] : 0;
-		int64_t z1 = has_z && hi[2] < (int64_t)id.block[2] ? hi[2] : (int64_t)id.block[2];
-		if (z1 <= z0)
-			z1 = z0 + 1;
-		if (write_height(hmap_path, hm, W, H, z0, z1, &diag) != LOOM_OK) {
-			cli_error(prog, "%s", diag.message);
-			goto fail;
-		}
 	}
 	if (json) {
 		json_w w;
@@ -249,27 +248,35 @@ int cmd_preview(int argc, char **argv)
 		for (int k = 0; k < 3; k++)
 			jw_int(&w, NULL, k == 2 && !has_z ? (long long)id.block[2] : hi[k]);
 		jw_close(&w);
+		jw_arr(&w, "size_mm");
+		jw_num(&w, NULL, mm_w);
+		jw_num(&w, NULL, mm_h);
+		jw_close(&w);
+		jw_num(&w, "um_per_pixel", 1000.0 * mm_w / W);
+		if (pic.bar_mm > 0)
+			jw_num(&w, "scale_bar_mm", pic.bar_mm);
+		jw_str(&w, "filter", st.filter == LOOM_PREVIEW_EXACT ? "exact" : "blocks");
 		jw_uint(&w, "columns", st.columns);
 		jw_uint(&w, "region_reads", st.region_reads);
 		jw_uint(&w, "empty_pixels", st.empty);
+		jw_uint(&w, "blocks", st.blocks);
+		jw_uint(&w, "texel", st.texel);
+		jw_uint(&w, "preview_bytes", st.memory_bytes);
 		jw_num(&w, "seconds", st.seconds);
 		jw_num(&w, "seconds_total", cli_now() - t0);
 		jw_end(&w);
 	} else if (!quiet) {
-		fprintf(stderr, "loom preview: %s: %ux%u pixels of %lld x %lld voxel columns "
-		        "in %.2f s (%llu columns read)\n", out, W, H,
-		        (long long)(hi[0] - lo[0]), (long long)(hi[1] - lo[1]), st.seconds,
+		fprintf(stderr, "loom preview: %s: %ux%u pixels, %.1f x %.1f mm of cloth "
+		        "(%.1f um per pixel), %s filter, in %.2f s (%llu columns read)\n",
+		        out, W, H, mm_w, mm_h, 1000.0 * mm_w / W,
+		        st.filter == LOOM_PREVIEW_EXACT ? "exact" : "blocks", st.seconds,
 		        (unsigned long long)st.columns);
 	}
-	free(rgb);
-	free(hm);
 	loom_texture_close(t);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
 fail:
-	free(rgb);
-	free(hm);
 	loom_texture_close(t);
 	loom_fabric_free(f);
 	loom_db_close(db);

@@ -12,5 +12,7 @@ int cmd_export(int argc, char **argv);   /* cmd_export.c */
 int cmd_scan(int argc, char **argv);     /* cmd_scan.c */
 int cmd_preview(int argc, char **argv);  /* cmd_preview.c */
 int cmd_render(int argc, char **argv);   /* cmd_render.c */
+int cmd_look(int argc, char **argv);     /* cmd_look.c */
+int cmd_serve(int argc, char **argv);    /* cmd_serve.c */
 
 #endif

@@ -22,6 +22,8 @@ static const struct command {
 	{"scan", cmd_scan, "stream voxels through a reducer (checksum, histogram, coverage)"},
 	{"preview", cmd_preview, "picture of a fabric from above (PNG or EXR)"},
 	{"render", cmd_render, "path-trace a fabric, flat or mapped onto a mesh"},
+	{"look", cmd_look, "one draft -> drawdown, draft, previews, progressive render"},
+	{"serve", cmd_serve, "deep-zoom viewer of a fabric or draft in the browser"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

@@ -165,6 +165,39 @@ typedef struct loom_design_stats {
    size); LOOM_ENOMEM.  O(rows*cols) time, O(rows + cols) memory. */
 LOOM_API int loom_design_analyze(const loom_design *d, loom_design_stats *st);
 
+/* ---- The draft behind a drawdown --------------------------------------- */
+
+#define LOOM_DRAFT_MAX_SHAFTS 4096u /* more distinct ends: no useful draft */
+
+/*
+ * A loom draft that weaves a design: threading (the shaft of each end),
+ * and either a tie-up and treadling (one treadle per pick) or a liftplan.
+ * Shafts and treadles are numbered from 0 here (1 in a printed draft).
+ * Recovered from the drawdown: one shaft per distinct end (column of W),
+ * in order of first use, and one treadle per distinct pick (row of the
+ * liftplan), in order of first use, when at most max_treadles are needed;
+ * otherwise no treadles and the liftplan stands alone.  Weaving the draft
+ * (rising shed) gives W back exactly.
+ */
+typedef struct loom_draft {
+	uint32_t rows, cols;     /* picks, ends (as the design) */
+	uint32_t shafts;         /* distinct ends */
+	uint32_t treadles;       /* distinct picks; 0 = liftplan only */
+	uint32_t *threading;     /* [cols] shaft of each end */
+	uint8_t *liftplan;       /* [rows * shafts] 1 = shaft lifted on the pick */
+	uint8_t *tieup;          /* [shafts * treadles] 1 = treadle lifts shaft
+	                            (row = shaft); NULL when treadles is 0 */
+	uint32_t *treadling;     /* [rows] treadle of each pick; NULL when 0 */
+} loom_draft;
+
+/* Recover the draft of d.  LOOM_OK; LOOM_EINVAL (NULL, empty design);
+   LOOM_EUNSUPPORTED (more than LOOM_DRAFT_MAX_SHAFTS distinct ends: a
+   jacquard design); LOOM_ENOMEM.  O(rows x cols).  Thread-safe. */
+LOOM_API int loom_draft_from_design(const loom_design *d, uint32_t max_treadles,
+                                    loom_draft **out, loom_diag *diag);
+/* Free a draft; NULL is a no-op. */
+LOOM_API void loom_draft_free(loom_draft *dr);
+
 #ifdef __cplusplus
 }
 #endif

@@ -83,6 +83,26 @@ LOOM_API int loom_image_parse(const uint8_t *data, size_t len, const char *name,
 LOOM_API int loom_image_write(const char *path, const loom_image *img,
                               loom_diag *diag);
 
+/*
+ * Streaming PNG writer (8-bit grey or RGB, rows top to bottom), for images
+ * too large to hold: open, put the rows in order (any number per call),
+ * finish.  Written to a temporary name and renamed by finish; abort (or a
+ * finish with rows missing) leaves nothing.  open: LOOM_OK, LOOM_EINVAL
+ * (NULL, zero or huge size, channels not 1 or 3), LOOM_EIO, LOOM_ENOMEM.
+ * put_rows: LOOM_OK, LOOM_EINVAL, LOOM_ERANGE (more rows than the height),
+ * LOOM_EIO, LOOM_EUNUSABLE (after a failure).  finish: LOOM_OK,
+ * LOOM_ETRUNCATED (rows missing), LOOM_EIO; it frees the writer whatever
+ * it returns.  abort accepts NULL.  One writer per thread.
+ */
+typedef struct loom_png_writer loom_png_writer;
+LOOM_API int loom_png_writer_open(const char *path, uint32_t width, uint32_t height,
+                                  uint32_t channels, loom_png_writer **out,
+                                  loom_diag *diag);
+LOOM_API int loom_png_writer_put_rows(loom_png_writer *w, const uint8_t *pixels,
+                                      uint32_t n_rows, loom_diag *diag);
+LOOM_API int loom_png_writer_finish(loom_png_writer *w, loom_diag *diag);
+LOOM_API void loom_png_writer_abort(loom_png_writer *w);
+
 /* ---- Designs as files -------------------------------------------------- */
 
 /* Read a weave pattern: .wif (WIF), .pbm, .png, .pgm, .ppm, .pnm (dark =
@@ -102,6 +122,32 @@ LOOM_API int loom_design_read(const char *path, loom_design **out,
    LOOM_ENOMEM. */
 LOOM_API int loom_weave_write(const char *path, const loom_design *d,
                               loom_diag *diag);
+
+/*
+ * The colour drawdown: one cell of `cell` x `cell` pixels (1..64) per
+ * crossing, in the sRGB colour of the warp's yarn type where the warp is
+ * over and of the weft's elsewhere; first row = pick 0, first column =
+ * end 0.  .png or .ppm (RGB), written row by row, atomic.  LOOM_OK;
+ * LOOM_EINVAL (NULL, empty design, bad cell size, another extension);
+ * LOOM_ERANGE (a side above 2^24 pixels); LOOM_EIO; LOOM_ENOMEM.
+ */
+LOOM_API int loom_color_drawdown_write(const char *path, const loom_design *d,
+                                       uint32_t cell, loom_diag *diag);
+
+/*
+ * The draft diagram of d and its draft dr (loom_draft_from_design) as
+ * weaving programs print it: warp colours and threading on top (shaft 1
+ * nearest the drawdown), the tie-up to their right, the colour drawdown
+ * below with the treadling (or liftplan, beside a direct tie-up) and the
+ * weft colours on its right; end 1 at the left, pick 1 at the top.  `cell`
+ * pixels per cell (0 = fit about 1100 px, at most 16); at most max_threads
+ * ends and picks are drawn (0 = all).  .png or .ppm, atomic.  LOOM_OK;
+ * LOOM_EINVAL (NULL, a draft of another size, another extension);
+ * LOOM_ERANGE (a side above 16384 pixels); LOOM_EIO; LOOM_ENOMEM.
+ */
+LOOM_API int loom_draft_write(const char *path, const loom_design *d,
+                              const loom_draft *dr, uint32_t cell,
+                              uint32_t max_threads, loom_diag *diag);
 
 /*
  * Yarn-type maps as images: one grey pixel per cell, pixel value = type ID

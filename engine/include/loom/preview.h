@@ -18,6 +18,19 @@ extern "C" {
 
 #define LOOM_PREVIEW_MAX_SIDE 65536u /* largest output width or height */
 
+/* How a pixel's colour is made (loom_preview_options.filter). */
+enum loom_preview_filter {
+	LOOM_PREVIEW_AUTO = 0,   /* EXACT when the box has at most 16 voxel
+	                            columns per pixel, else BLOCKS */
+	LOOM_PREVIEW_EXACT = 1,  /* every column under the pixel is read through
+	                            the texture, shaded and averaged */
+	LOOM_PREVIEW_BLOCKS = 2  /* area average from per-source-block tables:
+	                            each source block used is read and shaded
+	                            once (at its first crossing), and a pixel
+	                            integrates the tables of the crossings it
+	                            covers, in their yarn colours */
+};
+
 /* Options of loom_preview.  Initialise with LOOM_PREVIEW_OPTIONS_INIT. */
 typedef struct loom_preview_options {
 	size_t size;            /* sizeof(loom_preview_options) */
@@ -33,36 +46,68 @@ typedef struct loom_preview_options {
 	                           (compared in the raw byte: density*255 >=
 	                           ceil(threshold*255 - 1e-3), at least 1);
 	                           <= 0 = 0.2 */
-	double light[3];        /* direction towards the light (any length);
-	                           all zero = (-0.4, 0.5, 0.77) */
+	double light[3];        /* direction towards the light in voxel space
+	                           (any length); all zero = (-0.4, -0.5, 0.77),
+	                           from the upper left of the picture */
 	float background[3];    /* linear RGB of columns with no surface */
 	void (*progress)(void *user, uint64_t done, uint64_t total);
-	                        /* optional: pixels looked up so far; called
-	                           from worker threads, one at a time */
+	                        /* optional: work done of total (units: voxel
+	                           columns read plus pixels made); called from
+	                           worker threads, one at a time */
 	void *progress_user;
+	int filter;             /* enum loom_preview_filter */
+	size_t memory_bytes;    /* cap on the preview's own working memory
+	                           (row buffers, block tables); 0 = 16 MiB */
+	const loom_yarn_type *types; /* yarn table to colour by (type IDs as
+	                           the design's: a colour change needs no new
+	                           synthesis); NULL = the fabric's design */
+	uint32_t n_types;       /* entries of types */
 } loom_preview_options;
 
 #define LOOM_PREVIEW_OPTIONS_INIT                                          \
 	{sizeof(loom_preview_options), {0, 0, 0}, {0, 0, 0}, 512, 0, 0, 0.2f, \
-	 {0.0, 0.0, 0.0}, {0.0f, 0.0f, 0.0f}, NULL, NULL}
+	 {0.0, 0.0, 0.0}, {0.0f, 0.0f, 0.0f}, NULL, NULL, LOOM_PREVIEW_AUTO, 0, \
+	 NULL, 0}
 
 /* Optional per-pixel outputs of loom_preview (width * height entries each,
-   row 0 at the top = largest y; NULL = not wanted). */
+   row 0 at the top = smallest y, pick 0; NULL = not wanted). */
 typedef struct loom_preview_maps {
-	float *height;          /* top of the surface voxel, z + 1 in voxels
-	                           (absolute z); 0 where the column is empty */
-	float *albedo;          /* 3 per pixel: the surface voxel's yarn albedo
-	                           (linear RGB); the background where empty */
-	uint8_t *kind;          /* 0 empty, 1 warp, 2 weft on top */
+	float *height;          /* mean top of the surface voxel, z + 1 in
+	                           voxels (absolute z), over the pixel's
+	                           non-empty columns; 0 when all are empty */
+	float *albedo;          /* 3 per pixel: mean yarn albedo of the pixel's
+	                           columns (linear RGB; the background where
+	                           empty) */
+	uint8_t *kind;          /* 0 all empty, else 1 (warp) or 2 (weft),
+	                           whichever tops more of the pixel's columns
+	                           (warp on a tie) */
 } loom_preview_maps;
+
+/* One band of output rows, handed to a loom_preview_stream callback. */
+typedef struct loom_preview_band {
+	uint32_t row0, rows;    /* rows [row0, row0 + rows) of the picture */
+	uint32_t width;
+	const float *rgb;       /* rows * width * 3, linear RGB */
+	const float *height;    /* rows * width, as loom_preview_maps.height */
+	const float *albedo;    /* rows * width * 3 */
+	const uint8_t *kind;    /* rows * width */
+} loom_preview_band;
+
+/* Called with the bands in order, from the thread that called
+   loom_preview_stream; the arrays are valid during the call only.  A
+   non-zero return stops the preview, which then returns that value. */
+typedef int (*loom_preview_band_fn)(void *user, const loom_preview_band *band);
 
 typedef struct loom_preview_stats {
 	uint64_t pixels;        /* width * height */
-	uint64_t columns;       /* voxel columns read (one per pixel, fewer
-	                           when pixels share a column) */
+	uint64_t columns;       /* voxel columns read through the texture */
 	uint64_t region_reads;  /* loom_texture_read_region calls */
-	uint64_t empty;         /* pixels with no surface */
-	double seconds;         /* wall time of loom_preview */
+	uint64_t empty;         /* pixels with no surface in any column */
+	double seconds;         /* wall time of the preview */
+	int filter;             /* the filter used (EXACT or BLOCKS) */
+	uint32_t blocks;        /* BLOCKS: source blocks tabulated */
+	uint32_t texel;         /* BLOCKS: voxels per table texel side */
+	size_t memory_bytes;    /* peak working memory of the preview */
 } loom_preview_stats;
 
 /*
@@ -75,29 +120,51 @@ LOOM_API int loom_preview_size(const loom_preview_options *opt, uint32_t *w,
                                uint32_t *h);
 
 /*
- * Orthographic top view of the box of fabric f through its texture t.
- * Pixel (i, j) (column i, row j from the top) shows the voxel column
- *   x = lo0 + floor((i + 0.5) nx / W),  y = hi1 - 1 - floor((j + 0.5) ny / H)
- * (its centre; no filtering).  Per column the top-most voxel with density
- * at or above the threshold is the surface: its height z + 1, its fibre
- * orientation and its yarn's albedo.  Shading (linear RGB into rgb, 3 floats
- * per pixel, caller-allocated):
- *   n  = normalize(-dh/dx, -dh/dy, 1) from central differences of the
- *        height map (in voxels per voxel of distance),
- *   t  = fibre direction, L = light, H = normalize(L + (0,0,1)),
- *   rgb = albedo * (0.12 + 0.88 * max(0, n.L) * (0.3 + 0.7 sqrt(1-(t.L)^2)))
- *         * occlusion + 0.25 (1 - alignment) sqrt(1-(t.H)^2)^24 max(0, n.L)
- *   occlusion = 0.45 + 0.55 (h - lo2) / (hi2 - lo2).
- * Reads are streamed: pixels are ordered by the source block of their
- * crossing (so the bricks of one exemplar block are decompressed once,
- * whatever the cache budget) and read as runs of up to 64 neighbouring
- * columns per loom_texture_read_region call (z fastest).  Memory besides
- * the caller's buffers: 4 bytes per pixel, plus 4 when maps->height is
- * NULL, plus a few KiB per thread.  Deterministic: the result depends on
- * the inputs only, not on the thread count.  maps and stats may be NULL.
+ * Orthographic top view of the box of fabric f through its texture t,
+ * streamed: the picture is made in bands of rows and each band is handed
+ * to fn as soon as it is done, so memory does not grow with the picture.
+ * Orientation: row 0 at the top is the smallest y (pick 0), column 0 the
+ * smallest x (end 0), as a drawdown; so image down = +y.
+ * Pixel (i, j) covers the voxel columns whose centres fall in it,
+ *   x in [lo0 + ceil(i nx / W - 1/2), lo0 + ceil((i+1) nx / W - 1/2)),
+ * the same along y; when that is empty (magnifying) the column under the
+ * pixel's centre, lo0 + floor((i + 1/2) nx / W).  Its colour is the mean
+ * of those columns' shaded colours (an area average: no aliasing at any
+ * minification).  Per column, the top-most voxel with density at or above
+ * the threshold is the surface: its height h = z + 1, fibre direction t
+ * and yarn's albedo.  With L the light and H = normalize(L + (0,0,1)):
+ *   n   = normalize(-dh/dx, -dh/dy, 1), central differences of the
+ *         neighbouring columns' heights (empty ones count as lo2),
+ *   rgb = albedo * (0.12 + 0.88 max(0, n.L) (0.3 + 0.7 sqrt(1-(t.L)^2)))
+ *         * (0.45 + 0.55 (h - lo2) / (hi2 - lo2))
+ *         + 0.25 (1 - alignment) sqrt(1-(t.H)^2)^24 max(0, n.L);
+ * an empty column is the background.  opt->filter chooses how: EXACT reads
+ * every column (ordered by source block within each band of rows, so the
+ * texture's working set stays small); BLOCKS shades each source block the
+ * fabric uses once, at its first crossing in the box (row-major), and
+ * integrates those tables over each pixel's footprint, in the yarn colours
+ * of each crossing it covers (exact but for the edge-fix offsets and
+ * borders of that one crossing; a pixel covering more than 4 crossings
+ * along an axis samples 4 evenly spaced ones).  Working memory (row
+ * buffers, block tables, one band of output) stays under
+ * opt->memory_bytes; LOOM_EBUDGET when it cannot (an EXACT preview needs
+ * (voxel rows per pixel + 2) x (nx + 2) x 8 bytes at least).
+ * Deterministic: the result depends on the inputs only, not on the thread
+ * count.  stats may be NULL.
  * Returns LOOM_OK; errors of loom_preview_size; LOOM_EINVAL (NULL t, f or
- * rgb); LOOM_ENOMEM; a region read's error code (brick read failures;
- * the message in diag).
+ * fn, unknown filter, detached fabric); LOOM_EBUDGET; LOOM_ENOMEM; a
+ * region read's error code (brick read failures; the message in diag); or
+ * fn's non-zero return.
+ */
+LOOM_API int loom_preview_stream(loom_texture *t, const loom_fabric *f,
+                                 const loom_preview_options *opt,
+                                 loom_preview_band_fn fn, void *user,
+                                 loom_preview_stats *stats, loom_diag *diag);
+
+/*
+ * loom_preview_stream into caller-allocated arrays: rgb (width * height *
+ * 3 floats, linear RGB, row 0 at the top) and the non-NULL arrays of maps
+ * (maps may be NULL).  Same pixels, errors and determinism.
  */
 LOOM_API int loom_preview(loom_texture *t, const loom_fabric *f,
                           const loom_preview_options *opt, float *rgb,

@@ -1,0 +1,171 @@
+/*
+ * tools/web/viewer.js - the page of `loom serve`: the cloth as a deep-zoom
+ * picture (OpenSeadragon over the server's /tile/L/X/Y.png pyramid), the
+ * colour drawdown beside it drawn on a canvas for exactly the region the
+ * cloth shows (one repeat from /drawdown.png, tiled as a canvas pattern),
+ * yarn colours editable (POST /api/color; tiles are re-made in the new
+ * colours without new synthesis), and a render of the view
+ * (/api/render).  window.loomStats counts tiles for the browser test.
+ */
+'use strict';
+window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
+
+(async function main() {
+  const status = document.getElementById('status');
+  const info = await (await fetch('/api/info')).json();
+  let version = info.version;
+  document.getElementById('title').textContent =
+    `loom: ${info.design[0]} picks x ${info.design[1]} ends, ` +
+    `${info.repeats[0]} x ${info.repeats[1]} repeats`;
+
+  const clothSource = () => ({
+    width: info.width, height: info.height, tileSize: info.tile_size,
+    tileOverlap: 0, minLevel: 0, maxLevel: info.max_level,
+    getTileUrl: (l, x, y) => `/tile/${l}/${x}/${y}.png?v=${version}`,
+  });
+  const cloth = OpenSeadragon({
+    id: 'cloth', prefixUrl: '/images/', tileSources: clothSource(),
+    showNavigator: true, navigatorPosition: 'BOTTOM_RIGHT',
+    maxZoomPixelRatio: 4, visibilityRatio: 0.5, imageLoaderLimit: 4,
+    timeout: 120000, animationTime: 0.6,
+  });
+  window.loomViewer = cloth;
+  cloth.addHandler('tile-loaded', () => { window.loomStats.tilesLoaded++; });
+  cloth.addHandler('tile-load-failed', () => { window.loomStats.tilesFailed++; });
+  cloth.addHandler('open', () => { window.loomStats.ready = true; });
+
+  /* voxels of the window: picture pixels / pixels_per_voxel */
+  const ppv = info.pixels_per_voxel;
+  const view = () => {
+    const b = cloth.viewport.getBounds(true);   /* x, y in picture widths */
+    const k = info.width / ppv;                  /* voxels per picture width */
+    return { x0: b.x * k, y0: b.y * k, x1: (b.x + b.width) * k, y1: (b.y + b.height) * k };
+  };
+
+  /* the drawdown: the same region, cell per crossing */
+  const canvas = document.getElementById('drawdown');
+  const ctx = canvas.getContext('2d');
+  let repeat = null;
+  const loadDrawdown = () => new Promise((ok) => {
+    const img = new Image();
+    img.onload = () => { repeat = img; ok(); };
+    img.src = `/drawdown.png?v=${version}`;
+  });
+  const drawDrawdown = () => {
+    const el = document.getElementById('cloth');
+    canvas.width = canvas.clientWidth;
+    canvas.height = Math.max(1, Math.round(canvas.width * el.clientHeight / el.clientWidth));
+    if (!repeat) return;
+    const v = view();
+    const cx0 = v.x0 / info.block[0], cy0 = v.y0 / info.block[1];
+    const sx = canvas.width / ((v.x1 - v.x0) / info.block[0]);
+    const sy = canvas.height / ((v.y1 - v.y0) / info.block[1]);
+    ctx.setTransform(1, 0, 0, 1, 0, 0);
+    ctx.fillStyle = '#050505';
+    ctx.fillRect(0, 0, canvas.width, canvas.height);
+    /* minified, the repeat is first scaled down with the browser's good
+       filter (a pattern alone would sample it and alias); magnified, cells
+       stay crisp */
+    let src = repeat;
+    if (sx < 1 || sy < 1) {
+      const off = document.createElement('canvas');
+      off.width = Math.max(1, Math.round(repeat.width * Math.min(1, sx)));
+      off.height = Math.max(1, Math.round(repeat.height * Math.min(1, sy)));
+      const o = off.getContext('2d');
+      o.imageSmoothingEnabled = true;
+      o.imageSmoothingQuality = 'high';
+      o.drawImage(repeat, 0, 0, off.width, off.height);
+      src = off;
+    }
+    ctx.imageSmoothingEnabled = src !== repeat;
+    const pattern = ctx.createPattern(src, 'repeat');
+    if (src !== repeat)   /* pattern pixels back to crossing units */
+      pattern.setTransform(new DOMMatrix([repeat.width / src.width, 0, 0,
+                                          repeat.height / src.height, 0, 0]));
+    ctx.setTransform(sx, 0, 0, sy, -cx0 * sx, -cy0 * sy);
+    ctx.fillStyle = pattern;
+    /* the window only: repeats x repeats of the design */
+    const x0 = Math.max(0, cx0), y0 = Math.max(0, cy0);
+    const x1 = Math.min(info.design[1] * info.repeats[0], v.x1 / info.block[0]);
+    const y1 = Math.min(info.design[0] * info.repeats[1], v.y1 / info.block[1]);
+    if (x1 > x0 && y1 > y0) ctx.fillRect(x0, y0, x1 - x0, y1 - y0);
+    ctx.setTransform(1, 0, 0, 1, 0, 0);
+    const mm = (v.x1 - v.x0) * info.voxel_um / 1000;
+    document.getElementById('scale').textContent = `${mm.toFixed(mm < 10 ? 2 : 1)} mm across`;
+  };
+  cloth.addHandler('animation', drawDrawdown);
+  cloth.addHandler('open', drawDrawdown);
+  cloth.addHandler('resize', drawDrawdown);
+  window.addEventListener('resize', drawDrawdown);
+  /* dragging and wheeling the drawdown moves the cloth too */
+  let drag = null;
+  canvas.addEventListener('mousedown', (e) => { drag = { x: e.clientX, y: e.clientY }; });
+  window.addEventListener('mouseup', () => { drag = null; });
+  window.addEventListener('mousemove', (e) => {
+    if (!drag) return;
+    const b = cloth.viewport.getBounds(true);
+    const dx = (e.clientX - drag.x) / canvas.clientWidth * b.width;
+    const dy = (e.clientY - drag.y) / canvas.clientHeight * b.height;
+    cloth.viewport.panBy(new OpenSeadragon.Point(-dx, -dy), true);
+    drag = { x: e.clientX, y: e.clientY };
+  });
+  canvas.addEventListener('wheel', (e) => {
+    e.preventDefault();
+    cloth.viewport.zoomBy(e.deltaY < 0 ? 1.25 : 0.8);
+  }, { passive: false });
+  await loadDrawdown();
+  drawDrawdown();
+
+  /* yarn colours */
+  const yarns = document.getElementById('yarns');
+  info.yarns.forEach((y) => {
+    const label = document.createElement('label');
+    const input = document.createElement('input');
+    input.type = 'color';
+    input.value = y.rgb;
+    input.dataset.type = y.id;
+    input.title = y.name;
+    input.addEventListener('change', async () => {
+      status.textContent = `recolouring ${y.name}...`;
+      const r = await fetch(`/api/color?type=${y.id}&rgb=${input.value.slice(1)}`,
+                            { method: 'POST' });
+      if (!r.ok) { status.textContent = `colour refused (${r.status})`; return; }
+      version = (await r.json()).version;
+      window.loomStats.version = version;
+      const keep = cloth.viewport.getBounds(true);
+      cloth.addTiledImage({
+        tileSource: clothSource(), index: 0, replace: true,
+        success: () => { cloth.viewport.fitBounds(keep, true); drawDrawdown(); },
+      });
+      await loadDrawdown();
+      drawDrawdown();
+      status.textContent = `${y.name} is now ${input.value}`;
+    });
+    label.appendChild(input);
+    label.appendChild(document.createTextNode(y.name));
+    yarns.appendChild(label);
+  });
+
+  /* a render of the view */
+  const panel = document.getElementById('render-panel');
+  document.getElementById('close-render').onclick = () => { panel.hidden = true; };
+  document.getElementById('render').onclick = async () => {
+    const v = view();
+    const wx = info.window_voxels[0], wy = info.window_voxels[1];
+    const clamp = (t) => Math.min(1, Math.max(0, t));
+    const q = `x0=${clamp(v.x0 / wx)}&y0=${clamp(v.y0 / wy)}&x1=${clamp(v.x1 / wx)}` +
+              `&y1=${clamp(v.y1 / wy)}&w=${window.loomRenderWidth || 320}`;
+    status.textContent = 'rendering the view...';
+    const t0 = performance.now();
+    const r = await fetch(`/api/render?${q}`);
+    if (!r.ok) { status.textContent = `render refused (${r.status})`; return; }
+    const url = URL.createObjectURL(await r.blob());
+    document.getElementById('render-img').src = url;
+    panel.hidden = false;
+    status.textContent = `rendered in ${((performance.now() - t0) / 1000).toFixed(1)} s`;
+  };
+  status.textContent = 'drag to pan, wheel to zoom';
+})().catch((e) => {
+  document.getElementById('status').textContent = `error: ${e}`;
+  window.loomStats.error = String(e);
+});
