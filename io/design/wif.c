@@ -1447,6 +1447,45 @@ static int build(wif_parser *p, loom_design **out)
 
 /* ---- entry points ------------------------------------------------------ */
 
+/*
+ * What a non-WIF input looks like, from its first bytes, or NULL when it
+ * may be text.  A WIF draft is an INI-style text file; a picture or an
+ * archive given by mistake (a PNG renamed .wif) is named as such instead
+ * of being parsed into "no threading" at some line of binary garbage.
+ */
+static const char *sniff_binary(const unsigned char *t, size_t len)
+{
+	static const struct {
+		const char *magic;
+		size_t n;
+		const char *what;
+	} known[] = {
+		{"\x89PNG\r\n\x1a\n", 8, "a PNG image"},
+		{"\xff\xd8\xff", 3, "a JPEG image"},
+		{"GIF8", 4, "a GIF image"},
+		{"v/1\x01", 4, "an OpenEXR image"},
+		{"%PDF", 4, "a PDF document"},
+		{"PK\x03\x04", 4, "a ZIP archive"},
+		{"\x1f\x8b", 2, "gzip data"},
+		{"VOL\x03", 4, "a Mitsuba volume"},
+		{"NRRD", 4, "an NRRD volume"},
+		{"\x7f" "ELF", 4, "a program"},
+	};
+	size_t head = len < 4096 ? len : 4096;
+
+	for (size_t k = 0; k < sizeof known / sizeof known[0]; k++)
+		if (len >= known[k].n && memcmp(t, known[k].magic, known[k].n) == 0)
+			return known[k].what;
+	if (len >= 2 && t[0] == 'P' && t[1] >= '1' && t[1] <= '6' &&
+	    (len == 2 || t[2] == '\n' || t[2] == '\r' || t[2] == ' ' ||
+	     t[2] == '\t'))
+		return "a PBM/PGM/PPM image";
+	for (size_t i = 0; i < head; i++)
+		if (t[i] == 0)
+			return "binary data";
+	return NULL;
+}
+
 int loom__wif_parse_limited(const char *text, size_t len, const char *name,
                             uint64_t max_cells, loom_design **out,
                             loom_diag *diag)
@@ -1461,6 +1500,13 @@ int loom__wif_parse_limited(const char *text, size_t len, const char *name,
 	if (!out || (!text && len))
 		return loom__fail(diag, LOOM_EINVAL, "%s: NULL argument", name);
 	memset(&p, 0, sizeof p);
+	if (text) {
+		const char *what = sniff_binary((const unsigned char *)text, len);
+		if (what)
+			return loom__fail(diag, LOOM_EFORMAT,
+			                  "%s: not a WIF draft (looks like %s)", name,
+			                  what);
+	}
 	p.name = name;
 	p.diag = diag;
 	p.max_cells = max_cells < LOOM_DESIGN_MAX_CELLS ? max_cells

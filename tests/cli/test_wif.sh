@@ -114,3 +114,18 @@ done
 expect_ok zero_based_colours "$LOOM" pattern info "$W/zero-based.wif"
 expect_out_contains zero_based_warp "warp #ffffff"
 expect_out_contains zero_based_weft "weft #c80000"
+
+# misnamed input (issue 16): a picture, a volume or random bytes named .wif
+# is recognised before parsing and named, never parsed into line errors
+cp "$LOOM_TOP/docs/images/demo.png" "$T/png.wif"
+printf 'NRRD0004\ntype: uchar\n' >"$T/nrrd.wif"
+printf 'P4\n8 8\n\377\377\377\377\377\377\377\377' >"$T/pbm.wif"
+printf '[WIF]\nVersion=1.1\n\000\001\002' >"$T/nul.wif"
+for k in png:"a PNG image" nrrd:"an NRRD volume" pbm:"a PBM/PGM/PPM image" \
+	nul:"binary data"; do
+	f=${k%%:*}; what=${k#*:}
+	expect_exit "misnamed_$f" 1 "$LOOM" pattern convert "$T/$f.wif" -o "$T/mis.pbm"
+	expect_err_contains "misnamed_${f}_message" "$f.wif: not a WIF draft (looks like $what)"
+done
+if [ -e "$T/mis.pbm" ]; then fail misnamed_no_output "output written"
+else pass misnamed_no_output; fi
