@@ -39,6 +39,12 @@ expect_exit thickness_without_mesh 2 "$LOOM" render "$F" --thickness 1 -o x.png
 expect_exit unknown_opt 2 "$LOOM" render "$F" --frob -o x.png
 expect_exit missing_fabric 1 "$LOOM" render "$T/nope.loomf" -o "$T/x.png"
 expect_err_contains missing_fabric_msg "nope.loomf"
+# the output is checked before any rendering (a missing directory, -o DIR)
+expect_exit missing_out_dir 1 "$LOOM" render "$F" -o "$T/nodir/x.png"
+expect_err_contains missing_out_dir_message "nodir"
+mkdir -p "$T/adir.png"
+expect_exit out_is_dir 1 "$LOOM" render "$F" -o "$T/adir.png"
+expect_err_contains out_is_dir_message "is a directory"
 
 expect_ok make_db "$LOOM" exemplar generate --preset tiny --seed 3 --quiet -o "$DB"
 expect_ok pattern "$LOOM" pattern make twill --over 2 --under 3 --size 10x10 -o "$T/tw.pbm"

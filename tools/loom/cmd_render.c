@@ -161,6 +161,7 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "missing -o OUT.png|OUT.exr");
 	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
 		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
+	cli_check_output(prog, out); /* before minutes of rendering */
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats)))
