@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "opts.h"
+#include "paintfile.h"
 #include "progress.h"
 
 #include <math.h>
@@ -36,7 +37,9 @@ static const char about[] =
 	"a mesh without UVs (or with --warp-dir) is clothed along a smooth\n"
 	"warp-direction field, one rigid field-aligned map per triangle continuing\n"
 	"its neighbours' (no stretch, seams only where the field turns).\n"
-	"Same inputs and seed give the same bytes for any thread count.\n";
+	"FABRIC may be a paint file (loom paint): its regions are applied at\n"
+	"lookup time.  Same inputs and seed give the same bytes for any thread\n"
+	"count.\n";
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
@@ -137,6 +140,7 @@ int cmd_render(int argc, char **argv)
 	uint64_t rep[3];
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
+	loom_paint *paint = NULL;
 	loom_texture *t = NULL;
 	loom_mesh *mesh = NULL;
 	loom_shell *shell = NULL;
@@ -204,7 +208,7 @@ int cmd_render(int argc, char **argv)
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
-	if (loom_fabric_open(path, db, 0, &f, &diag) != LOOM_OK) {
+	if (cli_open_painted(path, db, &f, &paint, &diag) != LOOM_OK) {
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
@@ -217,7 +221,11 @@ int cmd_render(int argc, char **argv)
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	loom_texture_volume_source(t, f, filter, &src);
+	if (paint ? loom_paint_volume_source(paint, t, f, filter, &src) != LOOM_OK
+	          : loom_texture_volume_source(t, f, filter, &src) != LOOM_OK) {
+		cli_error(prog, "%s: cannot make the volume source", path);
+		goto fail;
+	}
 
 	ro.width = width;
 	ro.height = height;
@@ -375,6 +383,7 @@ int cmd_render(int argc, char **argv)
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
@@ -383,6 +392,7 @@ fail:
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return EXIT_BAD_INPUT;
