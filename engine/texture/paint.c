@@ -529,7 +529,6 @@ static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
 	double dx = fmax(fmax(v->x0 - cx, cx - v->x1), 0.0);
 	double dy = fmax(fmax(v->y0 - cy, cy - v->y1), 0.0);
 	double best = INFINITY;
-	int64_t ci, cj, rx, ry;
 
 	if (dx > limit || dy > limit)
 		return INFINITY;
@@ -538,29 +537,33 @@ static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
 			return 0;
 		return sqrt(dx * dx + dy * dy);
 	}
-	ci = (int64_t)floor((cx - v->x0) / v->cw);
-	cj = (int64_t)floor((cy - v->y0) / v->ch);
-	if (ci >= 0 && cj >= 0 && ci < (int64_t)r->mask_w && cj < (int64_t)r->mask_h &&
-	    r->mask[(size_t)cj * r->mask_w + (size_t)ci])
-		return 0;
-	if (!(limit > 0))
-		return INFINITY;
-	rx = (int64_t)ceil(limit / v->cw) + 1;
-	ry = (int64_t)ceil(limit / v->ch) + 1;
-	for (int64_t j = cj - ry; j <= cj + ry; j++) {
-		if (j < 0 || j >= (int64_t)r->mask_h)
-			continue;
-		for (int64_t k = ci - rx; k <= ci + rx; k++) {
-			double ax, ay, ex, ey;
-			if (k < 0 || k >= (int64_t)r->mask_w ||
-			    !r->mask[(size_t)j * r->mask_w + (size_t)k])
-				continue;
-			ax = v->x0 + (double)k * v->cw;
-			ay = v->y0 + (double)j * v->ch;
-			ex = fmax(fmax(ax - cx, cx - (ax + v->cw)), 0.0);
-			ey = fmax(fmax(ay - cy, cy - (ay + v->ch)), 0.0);
-			best = fmin(best, sqrt(ex * ex + ey * ey));
-		}
+	{
+		/* the cell of c and the cells within limit, clamped to the mask
+		   in floating point before any conversion */
+		double fi = floor((cx - v->x0) / v->cw), fj = floor((cy - v->y0) / v->ch);
+		double ri = ceil(limit / v->cw) + 1, rj = ceil(limit / v->ch) + 1;
+		double mw = (double)r->mask_w, mh = (double)r->mask_h;
+		int64_t i0, i1, j0, j1;
+		if (fi >= 0 && fj >= 0 && fi < mw && fj < mh &&
+		    r->mask[(size_t)fj * r->mask_w + (size_t)fi])
+			return 0;
+		if (!(limit > 0))
+			return INFINITY;
+		i0 = (int64_t)fmax(0.0, fmin(mw, fi - ri));
+		i1 = (int64_t)fmax(-1.0, fmin(mw - 1, fi + ri));
+		j0 = (int64_t)fmax(0.0, fmin(mh, fj - rj));
+		j1 = (int64_t)fmax(-1.0, fmin(mh - 1, fj + rj));
+		for (int64_t j = j0; j <= j1; j++)
+			for (int64_t k = i0; k <= i1; k++) {
+				double ax, ay, ex, ey;
+				if (!r->mask[(size_t)j * r->mask_w + (size_t)k])
+					continue;
+				ax = v->x0 + (double)k * v->cw;
+				ay = v->y0 + (double)j * v->ch;
+				ex = fmax(fmax(ax - cx, cx - (ax + v->cw)), 0.0);
+				ey = fmax(fmax(ay - cy, cy - (ay + v->ch)), 0.0);
+				best = fmin(best, sqrt(ex * ex + ey * ey));
+			}
 	}
 	return best;
 }
