@@ -22,5 +22,6 @@
 #include "loom/scan.h"
 #include "loom/render.h"
 #include "loom/preview.h"
+#include "loom/paint.h"
 
 #endif /* LOOM_H */

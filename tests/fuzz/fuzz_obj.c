@@ -1,7 +1,9 @@
 /*
  * tests/fuzz/fuzz_obj.c - fuzz target of the Wavefront OBJ reader
  * (io/mesh/obj.c) and, for small meshes with texture coordinates, of shell
- * construction and queries (engine/render/shell.c) on whatever it accepted.
+ * construction and queries (engine/render/shell.c) on whatever it accepted,
+ * and of field-aligned UVs (engine/render/surface_field.c) with their
+ * measures.
  *
  *   make fuzz && build/fuzz/fuzz_obj -max_total_time=60 tests/fuzz/corpus/obj
  *
@@ -73,6 +75,38 @@ static void try_shell(const loom_mesh *m)
 	loom_shell_free(s);
 }
 
+/* Field UVs of small meshes: every triangle gets three in-range texture
+   coordinates, finite; the measure accepts the result. */
+static void try_field(const loom_mesh *m)
+{
+	loom_field_uv_params p = LOOM_FIELD_UV_PARAMS_INIT;
+	loom_mesh *o = NULL;
+	loom_mesh_uv_stats st;
+	double per[2] = {0.5, 0.25};
+	int rc;
+
+	if (m->n_triangles == 0 || m->n_triangles > 256)
+		return;
+	p.period[0] = per[0];
+	p.period[1] = per[1];
+	rc = loom_mesh_field_uv(m, &p, &o, NULL);
+	if (rc != LOOM_OK) {
+		if (o || rc >= LOOM_RESULT_COUNT_)
+			abort();
+		return;
+	}
+	if (!o || o->n_triangles != m->n_triangles || o->n_texcoords != 3 * m->n_triangles)
+		abort();
+	check_mesh(o);
+	for (size_t i = 0; i < 2 * (size_t)o->n_texcoords; i++)
+		if (!(o->texcoords[i] == o->texcoords[i]))
+			abort();
+	rc = loom_mesh_measure_uv(o, per, 1e-3, &st);
+	if (rc != LOOM_OK && rc != LOOM_EINVAL)
+		abort();
+	loom_mesh_free(o);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
 	loom_mesh *m = NULL;
@@ -86,6 +120,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 			abort();
 		check_mesh(m);
 		try_shell(m);
+		try_field(m);
 		loom_mesh_free(m);
 	} else if (m || rc < 0 || rc >= LOOM_RESULT_COUNT_ ||
 	           memchr(diag.message, 0, sizeof diag.message) == NULL ||

@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "opts.h"
+#include "paintfile.h"
 #include "progress.h"
 
 #include <math.h>
@@ -24,15 +25,21 @@ static const char usage[] =
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
 	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
-	"            [--uv-repeats R] [--json] [--quiet] -o OUT.png|OUT.exr\n";
+	"            [--uv-repeats R] [--warp-dir X,Y,Z] [--field-smooth N]\n"
+	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
 	"Render the fabric with the microflake volume path tracer\n"
 	"(docs/rendering.md).  Without --mesh: a flat patch of the unbounded bolt\n"
 	"seen through a pinhole camera from above at an angle, framed on --region\n"
 	"(default one design repeat).  With --mesh: the cloth is mapped onto the\n"
-	"mesh's UV layout as a shell (shell mapping) and seen from above the mesh.\n"
-	"Same inputs and seed give the same bytes for any thread count.\n";
+	"mesh's UV layout as a shell (shell mapping) and seen from above the mesh;\n"
+	"a mesh without UVs (or with --warp-dir) is clothed along a smooth\n"
+	"warp-direction field, one rigid field-aligned map per triangle continuing\n"
+	"its neighbours' (no stretch, seams only where the field turns).\n"
+	"FABRIC may be a paint file (loom paint): its regions are applied at\n"
+	"lookup time.  Same inputs and seed give the same bytes for any thread\n"
+	"count.\n";
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
@@ -77,6 +84,25 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	pthread_mutex_unlock(&r->lock);
 }
 
+/* --warp-dir X,Y,Z into double[3], not all zero. */
+static const char *opt_dir3(const char *text, void *dest)
+{
+	double *d = dest;
+	char *end;
+	const char *q = text;
+
+	for (int k = 0; k < 3; k++) {
+		d[k] = strtod(q, &end);
+		if (end == q || !isfinite(d[k]) || (k < 2 && *end != ',') ||
+		    (k == 2 && *end))
+			return "X,Y,Z: three finite numbers, not all zero";
+		q = end + 1;
+	}
+	if (d[0] == 0 && d[1] == 0 && d[2] == 0)
+		return "X,Y,Z: three finite numbers, not all zero";
+	return NULL;
+}
+
 /* Pinhole camera at elevation el, azimuth az (radians) looking at target
    from distance dist. */
 static void place_camera(loom_camera *c, const double target[3], double dist,
@@ -101,7 +127,10 @@ int cmd_render(int argc, char **argv)
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
-	double thickness = 0, uv_repeats = 1;
+	double thickness = 0, uv_repeats = 1, warp_dir[3] = {0, 0, 1};
+	uint32_t field_smooth = 32;
+	int have_uv_stats = 0, field = 0;
+	loom_mesh_uv_stats uvst;
 	int64_t box[4] = {0, 0, 0, 0}, *lo = box, *hi = box + 2;
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
@@ -111,6 +140,7 @@ int cmd_render(int argc, char **argv)
 	uint64_t rep[3];
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
+	loom_paint *paint = NULL;
 	loom_texture *t = NULL;
 	loom_mesh *mesh = NULL;
 	loom_shell *shell = NULL;
@@ -142,12 +172,19 @@ int cmd_render(int argc, char **argv)
 		OPT_ENUM(0, "filter", &filter, "F", filter_names,
 		         "texture lookups: nearest (default) or trilinear"),
 		OPT_STRING(0, "mesh", &mesh_path, "OBJ",
-		           "map the cloth onto this mesh (needs texture coordinates)"),
+		           "map the cloth onto this mesh (its UVs; without UVs along a "
+		           "warp-direction field, see --warp-dir)"),
+		OPT_CALLBACK(0, "warp-dir", warp_dir, "X,Y,Z", opt_dir3, "mesh: lay the "
+		             "warps along this world direction projected onto the surface "
+		             "(a smooth field; default 0,0,1); also ignores the mesh's UVs"),
+		OPT_U32(0, "field-smooth", &field_smooth, "N", 0, 100000, "mesh without "
+		        "UVs: rounds of warp-field smoothing, %r (default 32)"),
 		OPT_DOUBLE(0, "thickness", &thickness, "T", "()", 0, INFINITY, NULL, "shell "
 		           "thickness in mesh units (default 1.5% of the mesh's bounding-box "
 		           "diagonal)"),
 		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
-		           "design repeats per UV unit along u (default 1)"),
+		           "design repeats per UV unit along u (default 1; without UVs a "
+		           "UV unit is the mesh's bounding-box diagonal)"),
 		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB)"),
 		OPT_JSON(&json, "print figures as JSON on stdout"),
 		OPT_QUIET(&quiet, "no progress or summary"),
@@ -164,13 +201,15 @@ int cmd_render(int argc, char **argv)
 	cli_check_output(prog, out); /* before minutes of rendering */
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
-	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats)))
-		opts_usage(&cmd, "--thickness and --uv-repeats go with --mesh");
+	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats) ||
+	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth)))
+		opts_usage(&cmd, "--thickness, --uv-repeats, --warp-dir and --field-smooth "
+		           "go with --mesh");
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
-	if (loom_fabric_open(path, db, 0, &f, &diag) != LOOM_OK) {
+	if (cli_open_painted(path, db, &f, &paint, &diag) != LOOM_OK) {
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
@@ -183,7 +222,11 @@ int cmd_render(int argc, char **argv)
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	loom_texture_volume_source(t, f, filter, &src);
+	if (paint ? loom_paint_volume_source(paint, t, f, filter, &src) != LOOM_OK
+	          : loom_texture_volume_source(t, f, filter, &src) != LOOM_OK) {
+		cli_error(prog, "%s: cannot make the volume source", path);
+		goto fail;
+	}
 
 	ro.width = width;
 	ro.height = height;
@@ -226,6 +269,31 @@ int cmd_render(int argc, char **argv)
 		sp.offset = -sp.thickness / 2;
 		sp.voxels_per_uv = (double)rep[0] * uv_repeats;
 		sp.nz = src.nz;
+		{
+			/* the UVs' distortion and seams, modulo one design repeat;
+			   a seam: a mismatch over half a voxel */
+			double per[2] = {1.0 / uv_repeats,
+			                 (double)rep[1] / sp.voxels_per_uv};
+			field = !mesh->tri_vt || opt_given(&cmd, warp_dir);
+			if (field) {
+				loom_field_uv_params fp = LOOM_FIELD_UV_PARAMS_INIT;
+				loom_mesh *fm = NULL;
+				memcpy(fp.warp_dir, warp_dir, sizeof warp_dir);
+				fp.uv_per_world = 1.0 / diag_len;
+				fp.period[0] = per[0];
+				fp.period[1] = per[1];
+				fp.smooth_iters = field_smooth;
+				if (loom_mesh_field_uv(mesh, &fp, &fm, &diag) != LOOM_OK) {
+					cli_error(prog, "%s: %s", mesh_path, diag.message);
+					goto fail;
+				}
+				loom_mesh_free(mesh);
+				mesh = fm;
+			}
+			have_uv_stats = loom_mesh_measure_uv(mesh, per,
+			                                     0.5 / sp.voxels_per_uv,
+			                                     &uvst) == LOOM_OK;
+		}
 		if (loom_shell_new(mesh, &sp, &shell, &diag) != LOOM_OK) {
 			cli_error(prog, "%s", diag.message);
 			goto fail;
@@ -291,6 +359,19 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "lookups", st.lookups);
 		jw_uint(&w, "scatterings", st.scatterings);
 		jw_uint(&w, "shell_queries", st.shell_queries);
+		if (have_uv_stats) {
+			jw_obj(&w, "uv");
+			jw_str(&w, "source", field ? "field" : "mesh");
+			jw_num(&w, "stretch_max", uvst.stretch_max);
+			jw_num(&w, "stretch_mean", uvst.stretch_mean);
+			jw_uint(&w, "interior_edges", uvst.interior_edges);
+			jw_uint(&w, "seam_edges", uvst.seam_edges);
+			jw_num(&w, "seam_mean_voxels", uvst.seam_mean * (double)rep[0] *
+			       uv_repeats);
+			jw_num(&w, "seam_max_voxels", uvst.seam_max * (double)rep[0] *
+			       uv_repeats);
+			jw_close(&w);
+		}
 		jw_num(&w, "seconds", st.seconds);
 		jw_end(&w);
 	} else if (!quiet) {
@@ -303,6 +384,7 @@ int cmd_render(int argc, char **argv)
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
@@ -311,6 +393,7 @@ fail:
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return EXIT_BAD_INPUT;

@@ -14,5 +14,6 @@ int cmd_preview(int argc, char **argv);  /* cmd_preview.c */
 int cmd_render(int argc, char **argv);   /* cmd_render.c */
 int cmd_look(int argc, char **argv);     /* cmd_look.c */
 int cmd_serve(int argc, char **argv);    /* cmd_serve.c */
+int cmd_paint(int argc, char **argv);    /* cmd_paint.c */
 
 #endif

@@ -255,6 +255,57 @@ LOOM_API double loom_shell_voxel_length(const loom_shell *s);
 LOOM_API uint32_t loom_shell_triangle_count(const loom_shell *s);
 
 /* ======================================================================
+ * Meshes without texture coordinates (engine/render/surface_field.c)
+ * ======================================================================
+ *
+ * A smooth warp-direction field over the surface (warp_dir projected onto
+ * each triangle, smoothed over edge neighbours) and one rigid planar map
+ * per triangle aligned with it (warps along v), translated breadth-first
+ * to continue its placed neighbours (Magda and Kriegman 2003); with a
+ * period the continuation is taken modulo whole periods.  The result is a
+ * copy of the mesh with three texture coordinates per triangle, ready for
+ * loom_shell_new.  Its UV triangles overlap, so loom_shell_voxel_to_world
+ * on it returns one of the points with that voxel.
+ */
+typedef struct loom_field_uv_params {
+	size_t size;            /* sizeof(loom_field_uv_params) */
+	double warp_dir[3];     /* world direction the warps follow, != 0 */
+	double uv_per_world;    /* UV units per world length, > 0 */
+	double period[2];       /* UV period of the cloth (one design repeat)
+	                           along u and v; 0 = none */
+	uint32_t smooth_iters;  /* field smoothing rounds (<= 100000) */
+} loom_field_uv_params;
+
+#define LOOM_FIELD_UV_PARAMS_INIT \
+	{sizeof(loom_field_uv_params), {0.0, 1.0, 0.0}, 1.0, {0.0, 0.0}, 32u}
+
+/* Returns LOOM_OK with *out a new mesh (free with loom_mesh_free);
+   LOOM_EINVAL (bad params, no triangles) with the reason in diag;
+   LOOM_ENOMEM; LOOM_ERANGE. */
+LOOM_API int loom_mesh_field_uv(const loom_mesh *m,
+                                const loom_field_uv_params *p,
+                                loom_mesh **out, loom_diag *diag);
+
+/* Distortion and seams of a mesh's texture coordinates. */
+typedef struct loom_mesh_uv_stats {
+	double uv_per_world;    /* sqrt(UV area / surface area): the scale */
+	double stretch_max;     /* max over triangles of max(s1, 1/s2), s1 >= s2
+	                           the singular values of d(uv)/d(surface) over
+	                           the scale: 1 = crossings keep their size */
+	double stretch_mean;    /* the same, area-weighted mean */
+	uint32_t interior_edges;/* edges shared by exactly two triangles */
+	uint32_t seam_edges;    /* of those, UV mismatch > seam_tol */
+	double seam_mean;       /* UV mismatch at the edge ends, modulo the
+	                           period: mean and max over interior edges */
+	double seam_max;
+} loom_mesh_uv_stats;
+
+/* Measure m (which must have texture coordinates): LOOM_OK, LOOM_EINVAL
+   (no UVs or zero area), LOOM_ENOMEM.  period may be NULL. */
+LOOM_API int loom_mesh_measure_uv(const loom_mesh *m, const double period[2],
+                                 double seam_tol, loom_mesh_uv_stats *st);
+
+/* ======================================================================
  * Volume path tracer
  * ====================================================================== */
 

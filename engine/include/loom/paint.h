@@ -1,0 +1,92 @@
+/*
+ * loom/paint.h - painted regions of a fabric (engine/texture/paint.c,
+ * docs/fabric.md "Painted regions", docs/formats.md "Paint file"):
+ * rectangles or masks in cloth millimetres that recolour a yarn kind, stain
+ * the cloth, or add a defect (slub, broken end, missing pick, pulled
+ * thread), evaluated at lookup time over a fabric's texture.  Include
+ * <loom.h>, not this file.
+ */
+#ifndef LOOM_PAINT_H
+#define LOOM_PAINT_H
+
+#include "common.h"
+#include "render.h"
+#include "texture.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum loom_paint_effect {
+	LOOM_PAINT_YARN = 1,         /* yarns of `kind` take colour rgb */
+	LOOM_PAINT_STAIN = 2,        /* albedo times lerp(1, rgb, strength) */
+	LOOM_PAINT_SLUB = 3,         /* yarns of `kind` thicker by `amount` voxels */
+	LOOM_PAINT_BROKEN_END = 4,   /* warp voxels removed */
+	LOOM_PAINT_MISSING_PICK = 5, /* weft voxels removed */
+	LOOM_PAINT_PULL = 6          /* yarns of `kind` lifted `amount` voxels */
+};
+
+#define LOOM_PAINT_MAX_REGIONS 4096u
+#define LOOM_PAINT_MAX_MASK 4096u    /* mask width and height limit */
+#define LOOM_PAINT_MAX_FILE (16u << 20) /* paint file size limit, bytes */
+
+typedef struct loom_paint_region {
+	int effect;             /* enum loom_paint_effect */
+	double x0, y0, x1, y1;  /* cloth mm: x across (ends), y along the
+	                           warps; x0 < x1, y0 < y1 */
+	uint32_t mask_w, mask_h;/* 0: the whole rectangle; else a mask of
+	                           mask_w x mask_h cells over it, row 0 at y0 */
+	const uint8_t *mask;    /* mask_w * mask_h bytes, 0 or 1 (owned by the
+	                           paint; copied by loom_paint_add) */
+	int kind;               /* 0 any, LOOM_YARN_WARP, LOOM_YARN_WEFT */
+	float rgb[3];           /* yarn colour / stain tint, linear 0..1 */
+	float strength;         /* stain strength 0..1 */
+	double blend_mm;        /* colour effects: soft edge outside the region */
+	uint32_t amount;        /* slub radius 1..16, pull lift 1..64 voxels */
+} loom_paint_region;
+
+typedef struct loom_paint loom_paint;
+
+/* A new empty paint layer over the fabric file `fabric` (a path, copied). */
+LOOM_API int loom_paint_new(const char *fabric, loom_paint **out, loom_diag *diag);
+LOOM_API void loom_paint_free(loom_paint *p);
+/* Check and append a region (its mask copied).  LOOM_EINVAL with the
+   reason; LOOM_ERANGE past LOOM_PAINT_MAX_REGIONS. */
+LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag *diag);
+LOOM_API uint32_t loom_paint_count(const loom_paint *p);
+LOOM_API const loom_paint_region *loom_paint_get(const loom_paint *p, uint32_t i);
+LOOM_API const char *loom_paint_fabric(const loom_paint *p);
+
+/* Parse paint-file text (len bytes; name for "name:line:" messages):
+   LOOM_EFORMAT naming the line, LOOM_ERANGE, LOOM_ENOMEM. */
+LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
+                              loom_paint **out, loom_diag *diag);
+/* The paint file's text (malloc'ed, NUL-terminated; *len its length). */
+LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len);
+/* Effect names as in the file: "yarn", "stain", "slub", "broken-end",
+   "missing-pick", "pull"; NULL for others. */
+LOOM_API const char *loom_paint_effect_name(int effect);
+LOOM_API int loom_paint_effect_parse(const char *name);
+
+/*
+ * A volume source over texture t (of fabric f) with the paint applied at
+ * lookup time: first the structural effects (slub, broken end, missing
+ * pick, pull; inside their regions only, seeing the unpainted cloth),
+ * then the colour effects (yarn, stain; inside and, fading linearly, up
+ * to blend_mm outside).  A voxel column belongs to a region when its
+ * centre does.  p must outlive the source and is bound to t (one binding
+ * at a time).  LOOM_EINVAL for NULL or a bad filter.
+ */
+LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
+                                      const loom_fabric *f, int filter,
+                                      loom_volume_source *src);
+/* One lookup of that source as a texel (kind and type kept; type 0 and
+   kind 0 where a defect emptied the voxel).  Thread-safe like
+   loom_texture_sample. */
+LOOM_API int loom_paint_sample(const loom_paint *p, const double pos[3],
+                               loom_texel *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* LOOM_PAINT_H */

@@ -1,0 +1,741 @@
+/*
+ * engine/texture/paint.c - painted regions of a fabric (loom/paint.h):
+ * the paint layer, its text file format, and a volume source that applies
+ * it at lookup time over the texture (public texture API only).
+ *
+ * Memory is O(regions + mask cells), never O(bolt): a lookup scans the
+ * regions (their voxel bounds, widened by the blend band, are checked
+ * first), and a mask cell is one byte.
+ *
+ * Lookup of voxel point q (column centre c = floor(q.xy) + 0.5):
+ *   1. tx = the texture's sample at q (the unpainted cloth).
+ *   2. Structural effects, in file order, for regions containing c:
+ *      broken end: a warp voxel becomes empty; missing pick: a weft voxel;
+ *      pull: tx = sample(q - lift z) when that is of the kind, else empty
+ *      where tx is of the kind; slub: a voxel not of the kind takes the
+ *      first of sample(q +- k across the yarn), sample(q +- k z),
+ *      k = 1..radius, that is of the kind (the yarn grows by `radius`
+ *      voxels across and up/down).
+ *   3. Colour effects, in file order, with weight w = 1 inside and
+ *      1 - d / blend at distance d (voxels) outside, 0 beyond: yarn:
+ *      albedo = lerp(albedo, rgb, w) for voxels of the kind; stain:
+ *      albedo *= lerp(1, rgb, strength w) for voxels with yarn.
+ */
+#include "core/internal.h"
+#include "loom/paint.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct vreg {           /* a region in voxels, for lookups */
+	double x0, y0, x1, y1;      /* the rectangle */
+	double band;                /* blend in voxels (colour effects) */
+	double cw, ch;              /* mask cell size */
+} vreg;
+
+struct loom_paint {
+	char *fabric;
+	loom_paint_region *r;
+	uint32_t n, cap;
+	/* binding (loom_paint_volume_source) */
+	loom_texture *t;
+	int filter;
+	vreg *v;
+};
+
+static const char *const effect_names[] = {
+	NULL, "yarn", "stain", "slub", "broken-end", "missing-pick", "pull"};
+
+LOOM_API const char *loom_paint_effect_name(int effect)
+{
+	return effect >= 1 && effect <= 6 ? effect_names[effect] : NULL;
+}
+
+LOOM_API int loom_paint_effect_parse(const char *name)
+{
+	for (int e = 1; e <= 6; e++)
+		if (name && !strcmp(name, effect_names[e]))
+			return e;
+	return 0;
+}
+
+LOOM_API int loom_paint_new(const char *fabric, loom_paint **out, loom_diag *diag)
+{
+	loom_paint *p;
+
+	if (out)
+		*out = NULL;
+	if (!fabric || !out)
+		return loom__fail(diag, LOOM_EINVAL, "loom_paint_new: NULL argument");
+	if (!fabric[0] || strchr(fabric, '\n') || strchr(fabric, '\r'))
+		return loom__fail(diag, LOOM_EINVAL, "paint: the fabric path must be "
+		                  "non-empty and on one line");
+	p = calloc(1, sizeof *p);
+	if (!p || !(p->fabric = strdup(fabric))) {
+		free(p);
+		return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+	}
+	*out = p;
+	return LOOM_OK;
+}
+
+LOOM_API void loom_paint_free(loom_paint *p)
+{
+	if (!p)
+		return;
+	for (uint32_t i = 0; i < p->n; i++)
+		free((void *)p->r[i].mask);
+	free(p->r);
+	free(p->v);
+	free(p->fabric);
+	free(p);
+}
+
+LOOM_API uint32_t loom_paint_count(const loom_paint *p)
+{
+	return p ? p->n : 0;
+}
+
+LOOM_API const loom_paint_region *loom_paint_get(const loom_paint *p, uint32_t i)
+{
+	return p && i < p->n ? &p->r[i] : NULL;
+}
+
+LOOM_API const char *loom_paint_fabric(const loom_paint *p)
+{
+	return p ? p->fabric : NULL;
+}
+
+static int fin(double x)
+{
+	return isfinite(x) && fabs(x) < 1e9;
+}
+
+LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag *diag)
+{
+	loom_paint_region c;
+	size_t cells;
+
+	if (!p || !r)
+		return loom__fail(diag, LOOM_EINVAL, "loom_paint_add: NULL argument");
+	if (!loom_paint_effect_name(r->effect))
+		return loom__fail(diag, LOOM_EINVAL, "paint: unknown effect %d", r->effect);
+	if (!fin(r->x0) || !fin(r->y0) || !fin(r->x1) || !fin(r->y1) ||
+	    !(r->x0 < r->x1) || !(r->y0 < r->y1))
+		return loom__fail(diag, LOOM_EINVAL, "paint: the rectangle needs finite "
+		                  "x0 < x1 and y0 < y1 (mm, |value| < 1e9)");
+	if ((r->mask_w == 0) != (r->mask_h == 0) || r->mask_w > LOOM_PAINT_MAX_MASK ||
+	    r->mask_h > LOOM_PAINT_MAX_MASK || (r->mask_w && !r->mask))
+		return loom__fail(diag, LOOM_EINVAL, "paint: a mask needs 1..%u x 1..%u "
+		                  "cells and its data", LOOM_PAINT_MAX_MASK,
+		                  LOOM_PAINT_MAX_MASK);
+	if (r->kind < 0 || r->kind > LOOM_YARN_WEFT)
+		return loom__fail(diag, LOOM_EINVAL, "paint: kind must be any, warp or weft");
+	if ((r->effect == LOOM_PAINT_SLUB || r->effect == LOOM_PAINT_PULL) && !r->kind)
+		return loom__fail(diag, LOOM_EINVAL, "paint: %s needs kind warp or weft",
+		                  loom_paint_effect_name(r->effect));
+	for (int k = 0; k < 3; k++)
+		if (!(r->rgb[k] >= 0 && r->rgb[k] <= 1))
+			return loom__fail(diag, LOOM_EINVAL, "paint: rgb values must be in "
+			                  "[0, 1]");
+	if (!(r->strength >= 0 && r->strength <= 1))
+		return loom__fail(diag, LOOM_EINVAL, "paint: strength must be in [0, 1]");
+	if (!(r->blend_mm >= 0 && r->blend_mm <= 1e3))
+		return loom__fail(diag, LOOM_EINVAL, "paint: blend must be in [0, 1000] mm");
+	if (r->effect == LOOM_PAINT_SLUB && (r->amount < 1 || r->amount > 16))
+		return loom__fail(diag, LOOM_EINVAL, "paint: slub radius must be 1..16 voxels");
+	if (r->effect == LOOM_PAINT_PULL && (r->amount < 1 || r->amount > 64))
+		return loom__fail(diag, LOOM_EINVAL, "paint: pull lift must be 1..64 voxels");
+	if (p->n >= LOOM_PAINT_MAX_REGIONS)
+		return loom__fail(diag, LOOM_ERANGE, "paint: more than %u regions",
+		                  LOOM_PAINT_MAX_REGIONS);
+	if (p->n == p->cap) {
+		uint32_t nc = p->cap ? 2 * p->cap : 8;
+		loom_paint_region *nr = realloc(p->r, nc * sizeof *nr);
+		if (!nr)
+			return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+		p->r = nr;
+		p->cap = nc;
+	}
+	c = *r;
+	c.mask = NULL;
+	if (r->mask_w) {
+		uint8_t *m;
+		cells = (size_t)r->mask_w * r->mask_h;
+		m = malloc(cells);
+		if (!m)
+			return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+		for (size_t i = 0; i < cells; i++)
+			m[i] = r->mask[i] ? 1 : 0;
+		c.mask = m;
+	}
+	p->r[p->n++] = c;
+	return LOOM_OK;
+}
+
+/* ---- the text format ---------------------------------------------------- */
+
+#define MAGIC "loom-paint 1"
+
+typedef struct growbuf {
+	char *s;
+	size_t n, cap;
+	int oom;
+} growbuf;
+
+static void put(growbuf *b, const char *fmt, ...) LOOM_PRINTF(2, 3);
+static void put(growbuf *b, const char *fmt, ...)
+{
+	va_list ap;
+	int k;
+
+	if (b->oom)
+		return;
+	for (;;) {
+		size_t room = b->cap - b->n;
+		va_start(ap, fmt);
+		k = vsnprintf(b->s ? b->s + b->n : NULL, room, fmt, ap);
+		va_end(ap);
+		if (k < 0) {
+			b->oom = 1;
+			return;
+		}
+		if ((size_t)k < room) {
+			b->n += (size_t)k;
+			return;
+		}
+		{
+			size_t nc = (b->cap + (size_t)k + 1) * 2;
+			char *ns = realloc(b->s, nc);
+			if (!ns) {
+				b->oom = 1;
+				return;
+			}
+			b->s = ns;
+			b->cap = nc;
+		}
+	}
+}
+
+LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len)
+{
+	growbuf b = {NULL, 0, 0, 0};
+	static const char *const kinds[] = {"any", "warp", "weft"};
+
+	if (!p || !text)
+		return LOOM_EINVAL;
+	put(&b, "%s\nfabric %s\n", MAGIC, p->fabric);
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		put(&b, "region %s %.15g %.15g %.15g %.15g kind=%s rgb=%.6g,%.6g,%.6g "
+		    "strength=%.6g blend=%.15g amount=%u\n",
+		    loom_paint_effect_name(r->effect), r->x0, r->y0, r->x1, r->y1,
+		    kinds[r->kind], (double)r->rgb[0], (double)r->rgb[1],
+		    (double)r->rgb[2], (double)r->strength, r->blend_mm, r->amount);
+		if (r->mask_w) {
+			put(&b, "mask %u %u\n", r->mask_w, r->mask_h);
+			for (uint32_t y = 0; y < r->mask_h; y++) {
+				for (uint32_t x = 0; x < r->mask_w && !b.oom; x++)
+					put(&b, "%c", r->mask[(size_t)y * r->mask_w + x] ? '#' : '.');
+				put(&b, "\n");
+			}
+		}
+	}
+	if (b.oom) {
+		free(b.s);
+		return LOOM_ENOMEM;
+	}
+	*text = b.s;
+	if (len)
+		*len = b.n;
+	return LOOM_OK;
+}
+
+typedef struct lines {
+	const char *s, *end;
+	const char *name;
+	unsigned line;
+	loom_diag *diag;
+} lines;
+
+/* Next line into buf (without the newline); 0 at the end, -1 too long or
+   a NUL byte. */
+static int next_line(lines *L, char *buf, size_t cap)
+{
+	size_t n = 0;
+
+	if (L->s >= L->end)
+		return 0;
+	L->line++;
+	while (L->s < L->end && *L->s != '\n') {
+		if (*L->s == 0 || n + 1 >= cap)
+			return -1;
+		buf[n++] = *L->s++;
+	}
+	if (L->s < L->end)
+		L->s++;
+	if (n && buf[n - 1] == '\r')
+		n--;
+	buf[n] = 0;
+	return 1;
+}
+
+static int bad(lines *L, int code, const char *what, const char *got)
+{
+	return loom__fail(L->diag, code, "%s:%u: %s%s%.60s%s", L->name, L->line, what,
+	                  got ? ", got '" : "", got ? got : "", got ? "'" : "");
+}
+
+static int num(const char *s, double *out)
+{
+	char *e;
+	double v;
+	if (!s || !*s)
+		return 0;
+	v = strtod(s, &e);
+	if (*e || !isfinite(v))
+		return 0;
+	*out = v;
+	return 1;
+}
+
+/* A region rejected by loom_paint_add: its message again with the line. */
+static int bad_region(lines *L, int rc)
+{
+	char msg[sizeof L->diag->message];
+	if (!L->diag)
+		return bad(L, rc, "bad region", NULL);
+	memcpy(msg, L->diag->message, sizeof msg);
+	msg[sizeof msg - 1] = 0;
+	return bad(L, rc, msg, NULL);
+}
+
+/* key=value options of a region line */
+static int region_opts(lines *L, char *rest, loom_paint_region *r)
+{
+	char *save = NULL, *tok;
+
+	for (tok = strtok_r(rest, " \t", &save); tok; tok = strtok_r(NULL, " \t", &save)) {
+		char *eq = strchr(tok, '=');
+		double v;
+		if (!eq)
+			return bad(L, LOOM_EFORMAT, "expected key=value", tok);
+		*eq++ = 0;
+		if (!strcmp(tok, "kind")) {
+			if (!strcmp(eq, "any"))
+				r->kind = 0;
+			else if (!strcmp(eq, "warp"))
+				r->kind = LOOM_YARN_WARP;
+			else if (!strcmp(eq, "weft"))
+				r->kind = LOOM_YARN_WEFT;
+			else
+				return bad(L, LOOM_EFORMAT, "kind must be any, warp or weft", eq);
+		} else if (!strcmp(tok, "rgb")) {
+			char *a = eq, *c1 = strchr(a, ','), *c2 = c1 ? strchr(c1 + 1, ',') : NULL;
+			double x[3];
+			if (!c1 || !c2)
+				return bad(L, LOOM_EFORMAT, "rgb needs R,G,B", eq);
+			*c1 = *c2 = 0;
+			if (!num(a, &x[0]) || !num(c1 + 1, &x[1]) || !num(c2 + 1, &x[2]))
+				return bad(L, LOOM_EFORMAT, "rgb needs three numbers", NULL);
+			for (int k = 0; k < 3; k++)
+				r->rgb[k] = (float)x[k];
+		} else if (!strcmp(tok, "strength") || !strcmp(tok, "blend") ||
+		           !strcmp(tok, "amount")) {
+			if (!num(eq, &v))
+				return bad(L, LOOM_EFORMAT, "expected a finite number", eq);
+			if (tok[0] == 's')
+				r->strength = (float)v;
+			else if (tok[0] == 'b')
+				r->blend_mm = v;
+			else if (v >= 0 && v <= 1e6 && v == floor(v))
+				r->amount = (uint32_t)v;
+			else
+				return bad(L, LOOM_EFORMAT, "amount must be a whole number", eq);
+		} else {
+			return bad(L, LOOM_EFORMAT, "unknown key (kind, rgb, strength, "
+			           "blend, amount)", tok);
+		}
+	}
+	return LOOM_OK;
+}
+
+LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
+                              loom_paint **out, loom_diag *diag)
+{
+	lines L = {text, text + len, name ? name : "paint", 0, diag};
+	char *buf;
+	loom_paint *p = NULL;
+	int rc, k;
+	const size_t cap = LOOM_PAINT_MAX_MASK + 4096;
+	loom_paint_region pend;
+	int have_pend = 0;
+	unsigned pend_line = 0;
+
+	if (out)
+		*out = NULL;
+	if (!out || (!text && len))
+		return loom__fail(diag, LOOM_EINVAL, "loom_paint_parse: NULL argument");
+	if (len > LOOM_PAINT_MAX_FILE)
+		return loom__fail(diag, LOOM_ERANGE, "%s: %zu bytes, more than the %u a "
+		                  "paint file may have", L.name, len, LOOM_PAINT_MAX_FILE);
+	if (len < sizeof MAGIC - 1 || memcmp(text, MAGIC, sizeof MAGIC - 1) ||
+	    (len > sizeof MAGIC - 1 && text[sizeof MAGIC - 1] != '\n' &&
+	     text[sizeof MAGIC - 1] != '\r'))
+		return loom__fail(diag, LOOM_EFORMAT, "%s: not a loom paint file (the "
+		                  "first line must be '%s')", L.name, MAGIC);
+	buf = malloc(cap);
+	if (!buf)
+		return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+	next_line(&L, buf, cap); /* the magic */
+	while ((k = next_line(&L, buf, cap)) != 0) {
+		char *s = buf;
+		if (k < 0) {
+			rc = bad(&L, LOOM_EFORMAT, "line too long or holds a NUL byte", NULL);
+			goto fail;
+		}
+		while (*s == ' ' || *s == '\t')
+			s++;
+		if (!*s || *s == '#')
+			continue;
+		if (!strncmp(s, "fabric ", 7)) {
+			if (p) {
+				rc = bad(&L, LOOM_EFORMAT, "a second 'fabric' line", NULL);
+				goto fail;
+			}
+			if ((rc = loom_paint_new(s + 7, &p, diag)))
+				goto fail;
+			continue;
+		}
+		if (!p) {
+			rc = bad(&L, LOOM_EFORMAT, "expected 'fabric PATH' first", s);
+			goto fail;
+		}
+		if (have_pend) {
+			/* a region line may be followed by its mask */
+			if (!strncmp(s, "mask ", 5)) {
+				double w, h;
+				char *sp = strchr(s + 5, ' ');
+				uint8_t *m;
+				if (!sp) {
+					rc = bad(&L, LOOM_EFORMAT, "expected 'mask W H'", s);
+					goto fail;
+				}
+				*sp = 0;
+				if (!num(s + 5, &w) || !num(sp + 1, &h) || w != floor(w) ||
+				    h != floor(h) || w < 1 || h < 1 || w > LOOM_PAINT_MAX_MASK ||
+				    h > LOOM_PAINT_MAX_MASK) {
+					rc = bad(&L, LOOM_EFORMAT, "mask size must be 1..4096 x 1..4096",
+					         NULL);
+					goto fail;
+				}
+				m = malloc((size_t)w * (size_t)h);
+				if (!m) {
+					rc = loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+					goto fail;
+				}
+				for (uint32_t y = 0; y < (uint32_t)h; y++) {
+					size_t n;
+					if (next_line(&L, buf, cap) != 1 ||
+					    (n = strlen(buf)) != (size_t)w ||
+					    strspn(buf, ".#") != n) {
+						free(m);
+						rc = bad(&L, LOOM_EFORMAT, "expected a mask row of W "
+						         "characters '.' or '#'", NULL);
+						goto fail;
+					}
+					for (uint32_t x = 0; x < (uint32_t)w; x++)
+						m[(size_t)y * (size_t)w + x] = buf[x] == '#';
+				}
+				pend.mask_w = (uint32_t)w;
+				pend.mask_h = (uint32_t)h;
+				pend.mask = m;
+				rc = loom_paint_add(p, &pend, diag);
+				free(m);
+				have_pend = 0;
+				if (rc) {
+					bad_region(&L, rc);
+					goto fail;
+				}
+				continue;
+			}
+			if ((rc = loom_paint_add(p, &pend, diag))) {
+				L.line = pend_line;
+				bad_region(&L, rc);
+				goto fail;
+			}
+			have_pend = 0;
+		}
+		if (!strncmp(s, "region ", 7)) {
+			char *save = NULL, *tok[5];
+			double v[4];
+			memset(&pend, 0, sizeof pend);
+			pend.strength = 1;
+			for (int i = 0; i < 5; i++)
+				tok[i] = strtok_r(i ? NULL : s + 7, " \t", &save);
+			if (!tok[4] || !(pend.effect = loom_paint_effect_parse(tok[0]))) {
+				rc = bad(&L, LOOM_EFORMAT, "expected 'region EFFECT X0 Y0 X1 Y1 "
+				         "[key=value...]' with EFFECT yarn, stain, slub, "
+				         "broken-end, missing-pick or pull", tok[0]);
+				goto fail;
+			}
+			for (int i = 0; i < 4; i++)
+				if (!num(tok[i + 1], &v[i])) {
+					rc = bad(&L, LOOM_EFORMAT, "expected a finite number (mm)",
+					         tok[i + 1]);
+					goto fail;
+				}
+			pend.x0 = v[0];
+			pend.y0 = v[1];
+			pend.x1 = v[2];
+			pend.y1 = v[3];
+			if ((rc = region_opts(&L, save ? save : (char *)"", &pend)))
+				goto fail;
+			have_pend = 1;
+			pend_line = L.line;
+			continue;
+		}
+		rc = bad(&L, LOOM_EFORMAT, "expected 'region' or 'mask'", s);
+		goto fail;
+	}
+	if (!p) {
+		rc = bad(&L, LOOM_EFORMAT, "no 'fabric PATH' line", NULL);
+		goto fail;
+	}
+	if (have_pend && (rc = loom_paint_add(p, &pend, diag))) {
+		L.line = pend_line;
+		bad_region(&L, rc);
+		goto fail;
+	}
+	free(buf);
+	*out = p;
+	return LOOM_OK;
+fail:
+	free(buf);
+	loom_paint_free(p);
+	return rc;
+}
+
+/* ---- lookups ------------------------------------------------------------ */
+
+/* Distance (voxels) from column centre (cx, cy) to region i's painted
+   area: 0 inside. */
+static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
+                          double limit)
+{
+	const loom_paint_region *r = &p->r[i];
+	const vreg *v = &p->v[i];
+	double dx = fmax(fmax(v->x0 - cx, cx - v->x1), 0.0);
+	double dy = fmax(fmax(v->y0 - cy, cy - v->y1), 0.0);
+	double best = INFINITY;
+
+	if (dx > limit || dy > limit)
+		return INFINITY;
+	if (!r->mask_w) {
+		if (cx >= v->x0 && cx < v->x1 && cy >= v->y0 && cy < v->y1)
+			return 0;
+		return sqrt(dx * dx + dy * dy);
+	}
+	{
+		/* the cell of c and the cells within limit, clamped to the mask
+		   in floating point before any conversion */
+		double fi = floor((cx - v->x0) / v->cw), fj = floor((cy - v->y0) / v->ch);
+		double ri = ceil(limit / v->cw) + 1, rj = ceil(limit / v->ch) + 1;
+		double mw = (double)r->mask_w, mh = (double)r->mask_h;
+		int64_t i0, i1, j0, j1;
+		if (fi >= 0 && fj >= 0 && fi < mw && fj < mh &&
+		    r->mask[(size_t)fj * r->mask_w + (size_t)fi])
+			return 0;
+		if (!(limit > 0))
+			return INFINITY;
+		i0 = (int64_t)fmax(0.0, fmin(mw, fi - ri));
+		i1 = (int64_t)fmax(-1.0, fmin(mw - 1, fi + ri));
+		j0 = (int64_t)fmax(0.0, fmin(mh, fj - rj));
+		j1 = (int64_t)fmax(-1.0, fmin(mh - 1, fj + rj));
+		for (int64_t j = j0; j <= j1; j++)
+			for (int64_t k = i0; k <= i1; k++) {
+				double ax, ay, ex, ey;
+				if (!r->mask[(size_t)j * r->mask_w + (size_t)k])
+					continue;
+				ax = v->x0 + (double)k * v->cw;
+				ay = v->y0 + (double)j * v->ch;
+				ex = fmax(fmax(ax - cx, cx - (ax + v->cw)), 0.0);
+				ey = fmax(fmax(ay - cy, cy - (ay + v->ch)), 0.0);
+				best = fmin(best, sqrt(ex * ex + ey * ey));
+			}
+	}
+	return best;
+}
+
+static int base(const loom_paint *p, const double q[3], loom_texel *o)
+{
+	return loom_texture_sample(p->t, q, p->filter, o);
+}
+
+static void empty(loom_texel *o)
+{
+	memset(o, 0, sizeof *o);
+}
+
+LOOM_API int loom_paint_sample(const loom_paint *p, const double q[3], loom_texel *out)
+{
+	loom_texel tx;
+	double cx, cy;
+	int rc;
+
+	if (!p || !q || !out || !p->t)
+		return LOOM_EINVAL;
+	if ((rc = base(p, q, &tx)) != LOOM_OK) {
+		*out = tx;
+		return rc;
+	}
+	cx = floor(q[0]) + 0.5;
+	cy = floor(q[1]) + 0.5;
+	/* structural effects: inside only, seeing the unpainted cloth */
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		loom_texel nb;
+		if (r->effect == LOOM_PAINT_YARN || r->effect == LOOM_PAINT_STAIN)
+			continue;
+		if (region_dist(p, i, cx, cy, 0.0) != 0)
+			continue;
+		switch (r->effect) {
+		case LOOM_PAINT_BROKEN_END:
+			if (tx.kind == LOOM_YARN_WARP)
+				empty(&tx);
+			break;
+		case LOOM_PAINT_MISSING_PICK:
+			if (tx.kind == LOOM_YARN_WEFT)
+				empty(&tx);
+			break;
+		case LOOM_PAINT_PULL: {
+			double s[3] = {q[0], q[1], q[2] - (double)r->amount};
+			if ((rc = base(p, s, &nb)) != LOOM_OK)
+				return rc;
+			if (nb.kind == r->kind)
+				tx = nb;
+			else if (tx.kind == r->kind)
+				empty(&tx);
+			break;
+		}
+		case LOOM_PAINT_SLUB:
+			if (tx.kind == r->kind)
+				break;
+			/* across the yarn: x for warps (they run along y), y for wefts */
+			for (uint32_t k = 1; k <= r->amount; k++) {
+				int a = r->kind == LOOM_YARN_WARP ? 0 : 1, found = 0;
+				for (int d = 0; d < 4 && !found; d++) {
+					double s[3] = {q[0], q[1], q[2]};
+					if (d < 2)
+						s[a] += d ? -(double)k : (double)k;
+					else
+						s[2] += d == 3 ? -(double)k : (double)k;
+					if ((rc = base(p, s, &nb)) != LOOM_OK)
+						return rc;
+					if (nb.kind == r->kind) {
+						tx = nb;
+						found = 1;
+					}
+				}
+				if (found)
+					break;
+			}
+			break;
+		default:
+			break;
+		}
+	}
+	/* colour effects, soft-edged */
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		double d, w;
+		if (r->effect != LOOM_PAINT_YARN && r->effect != LOOM_PAINT_STAIN)
+			continue;
+		if (!tx.kind)
+			continue;
+		d = region_dist(p, i, cx, cy, p->v[i].band);
+		if (d == 0)
+			w = 1;
+		else if (d < p->v[i].band)
+			w = 1 - d / p->v[i].band;
+		else
+			continue;
+		if (r->effect == LOOM_PAINT_YARN) {
+			if (r->kind && tx.kind != r->kind)
+				continue;
+			for (int k = 0; k < 3; k++)
+				tx.albedo[k] = (float)((1 - w) * tx.albedo[k] + w * r->rgb[k]);
+		} else {
+			double sw = w * r->strength;
+			for (int k = 0; k < 3; k++)
+				tx.albedo[k] = (float)(tx.albedo[k] * (1 - sw + sw * r->rgb[k]));
+		}
+	}
+	*out = tx;
+	return LOOM_OK;
+}
+
+static int src_lookup(void *ctx, const double q[3], loom_medium_sample *out)
+{
+	loom_texel tx;
+	int rc = loom_paint_sample(ctx, q, &tx);
+
+	if (rc != LOOM_OK)
+		return rc;
+	out->density = tx.density;
+	memcpy(out->orient, tx.orientation, sizeof out->orient);
+	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
+	out->alignment = tx.alignment;
+	return LOOM_OK;
+}
+
+static void *src_thread_init(void *ctx)
+{
+	return ctx;
+}
+
+static void src_thread_done(void *ctx, void *thread_ctx)
+{
+	(void)thread_ctx;
+	loom_texture_thread_done(((loom_paint *)ctx)->t);
+}
+
+LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
+                                      const loom_fabric *f, int filter,
+                                      loom_volume_source *src)
+{
+	loom_fabric_db_identity id;
+	double vmm;
+	vreg *v;
+
+	if (!p || !t || !f || !src ||
+	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+		return LOOM_EINVAL;
+	if (loom_texture_volume_source(t, f, filter, src) != LOOM_OK ||
+	    loom_fabric_get_db_identity(f, &id) != LOOM_OK || !(id.voxel_size_um > 0))
+		return LOOM_EINVAL;
+	vmm = (double)id.voxel_size_um * 1e-3;
+	v = malloc((p->n ? p->n : 1) * sizeof *v);
+	if (!v)
+		return LOOM_ENOMEM;
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		v[i].x0 = r->x0 / vmm;
+		v[i].y0 = r->y0 / vmm;
+		v[i].x1 = r->x1 / vmm;
+		v[i].y1 = r->y1 / vmm;
+		v[i].band = r->blend_mm / vmm;
+		v[i].cw = r->mask_w ? (v[i].x1 - v[i].x0) / r->mask_w : 0;
+		v[i].ch = r->mask_h ? (v[i].y1 - v[i].y0) / r->mask_h : 0;
+	}
+	free(p->v);
+	p->v = v;
+	p->t = t;
+	p->filter = filter;
+	src->lookup = src_lookup;
+	src->ctx = p;
+	src->thread_init = src_thread_init;
+	src->thread_done = src_thread_done;
+	return LOOM_OK;
+}

@@ -1,0 +1,375 @@
+/*
+ * tests/unit/test_paint.c - painted regions (engine/texture/paint.c): the
+ * paint file text round trip and its errors; brute force over every voxel
+ * of a box around each region against the unpainted texture: a region
+ * changes only voxels whose column centre is inside it (defects) or
+ * within its blend band (colours), and does change some; a slub only adds
+ * voxels of its kind and raises their count; a broken end leaves no warp
+ * voxel in its columns; a pull moves its kind up by the lift.
+ */
+#include "loom.h"
+#include "check.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static char tmpdir[512], db_path[600];
+static loom_db *g_db;
+static loom_fabric *g_fab;
+static loom_texture *g_tex;
+static double g_vmm;
+static uint32_t g_b[3];
+
+static void setup(void)
+{
+	const char *base = getenv("LOOM_TEST_TMP");
+	loom_exgen_params p;
+	loom_diag d;
+	loom_design *des = NULL;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_fabric_db_identity id;
+
+	memset(&d, 0, sizeof d);
+	snprintf(tmpdir, sizeof tmpdir, "%s/test_paint.XXXXXX", base ? base : "/tmp");
+	if (!mkdtemp(tmpdir)) {
+		printf("  mkdtemp: %s\n", strerror(errno));
+		return;
+	}
+	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
+	CHECK_EQ_INT(loom_exgen_preset("tiny", &p), LOOM_OK);
+	p.seed = 5;
+	p.threads = 1;
+	CHECK_EQ_INT(loom_exgen_write_db(db_path, &p, NULL, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(db_path, &g_db, NULL), LOOM_OK);
+	if (!g_db || loom_design_new(6, 8, &des) || loom_design_set_types(des, 2))
+		return;
+	for (uint32_t i = 0; i < 6; i++)
+		for (uint32_t j = 0; j < 8; j++) {
+			des->weave[i * 8 + j] = (uint8_t)((i + j) % 2);
+			des->warp_type[i * 8 + j] = 0;
+			des->weft_type[i * 8 + j] = 1;
+		}
+	des->types[0].albedo[0] = des->types[0].albedo[1] = des->types[0].albedo[2] = 0.8f;
+	des->types[1].albedo[2] = 0.6f;
+	des->types[0].alignment = des->types[1].alignment = 0.5f;
+	if (loom_fabric_synthesize(des, g_db, db_path, NULL, &g_fab, &d) != LOOM_OK)
+		printf("  synthesize: %s\n", d.message);
+	loom_design_free(des);
+	if (!g_fab)
+		return;
+	o.max_threads = 4;
+	CHECK_EQ_INT(loom_texture_open(g_fab, g_db, &o, &g_tex, &d), LOOM_OK);
+	loom_fabric_get_db_identity(g_fab, &id);
+	g_vmm = id.voxel_size_um * 1e-3;
+	memcpy(g_b, id.block, sizeof g_b);
+}
+
+static const char *const texts[] = {
+	"loom-paint 1\nfabric /x/y.loomf\n"
+	"# a comment\n"
+	"region stain 0.5 0.25 1.5 1 kind=any rgb=0.3,0.2,0.1 strength=0.5 blend=0.1\n"
+	"region slub 0 0 2 0.5 kind=weft amount=2\n"
+	"region yarn 1 1 2 2 kind=warp rgb=1,0,0 blend=0\n"
+	"mask 3 2\n#.#\n.#.\n",
+};
+
+static void test_text_round_trip(void)
+{
+	loom_paint *p = NULL, *q = NULL;
+	loom_diag d;
+	char *a = NULL, *b = NULL;
+	size_t na = 0, nb = 0;
+	const loom_paint_region *r;
+
+	memset(&d, 0, sizeof d);
+	CHECK_EQ_INT(loom_paint_parse(texts[0], strlen(texts[0]), "t.loomp", &p, &d), LOOM_OK);
+	if (!p) {
+		printf("  %s\n", d.message);
+		return;
+	}
+	CHECK_EQ_INT(loom_paint_count(p), 3);
+	CHECK(!strcmp(loom_paint_fabric(p), "/x/y.loomf"));
+	r = loom_paint_get(p, 0);
+	CHECK(r && r->effect == LOOM_PAINT_STAIN && r->x0 == 0.5 && r->y1 == 1 &&
+	      fabs(r->rgb[1] - 0.2f) < 1e-7 && r->strength == 0.5f && r->blend_mm == 0.1);
+	r = loom_paint_get(p, 1);
+	CHECK(r && r->effect == LOOM_PAINT_SLUB && r->kind == LOOM_YARN_WEFT && r->amount == 2);
+	r = loom_paint_get(p, 2);
+	CHECK(r && r->mask_w == 3 && r->mask_h == 2 && r->mask[0] == 1 && r->mask[1] == 0 &&
+	      r->mask[4] == 1 && r->kind == LOOM_YARN_WARP);
+	CHECK(loom_paint_get(p, 3) == NULL);
+	CHECK_EQ_INT(loom_paint_format(p, &a, &na), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_parse(a, na, "a", &q, &d), LOOM_OK);
+	if (q)
+		CHECK_EQ_INT(loom_paint_format(q, &b, &nb), LOOM_OK);
+	CHECK(a && b && na == nb && !memcmp(a, b, na));
+	free(a);
+	free(b);
+	loom_paint_free(p);
+	loom_paint_free(q);
+}
+
+static void test_text_errors(void)
+{
+	static const struct {
+		const char *text, *msg;
+	} cases[] = {
+		{"loom-paint 2\nfabric f\n", "not a loom paint file"},
+		{"LOOM-paint 1\n", "not a loom paint file"},
+		{"loom-paint 1\nregion stain 0 0 1 1\n", "t:2: expected 'fabric PATH' first"},
+		{"loom-paint 1\n", "t:1: no 'fabric PATH' line"},
+		{"loom-paint 1\nfabric f\nfabric g\n", "t:3: a second 'fabric' line"},
+		{"loom-paint 1\nfabric f\nregion glitter 0 0 1 1\n", "t:3: expected 'region EFFECT"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 nan 1\n", "t:3: expected a finite number"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1\n", "t:3: expected 'region EFFECT"},
+		{"loom-paint 1\nfabric f\nregion stain 1 0 0 1\n", "t:3: paint: the rectangle"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1 color=1\n", "t:3: unknown key"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1 rgb=1,2,0\n", "t:3: paint: rgb"},
+		{"loom-paint 1\nfabric f\nregion slub 0 0 1 1 amount=2\n", "needs kind warp or weft"},
+		{"loom-paint 1\nfabric f\nregion pull 0 0 1 1 kind=warp amount=65\n", "lift must be 1..64"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 2 2\n#.\n#\n", "t:6: expected a mask row"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 5000 1\n", "mask size"},
+		{"loom-paint 1\nfabric f\nmask 1 1\n#\n", "t:3: expected 'region' or 'mask'"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\n\nbogus\n", "t:5: expected 'region' or 'mask'"},
+	};
+	for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+		loom_paint *p = NULL;
+		loom_diag d;
+		memset(&d, 0, sizeof d);
+		CHECK(loom_paint_parse(cases[i].text, strlen(cases[i].text), "t", &p, &d) != LOOM_OK);
+		CHECK(p == NULL);
+		CHECK_STR_CONTAINS(d.message, cases[i].msg);
+	}
+	{
+		/* a NUL byte, and the size limit */
+		const char t[] = "loom-paint 1\nfabric f\0\n";
+		loom_paint *p = NULL;
+		loom_diag d;
+		memset(&d, 0, sizeof d);
+		CHECK_EQ_INT(loom_paint_parse(t, sizeof t - 1, "t", &p, &d), LOOM_EFORMAT);
+		CHECK_EQ_INT(loom_paint_parse(t, (size_t)LOOM_PAINT_MAX_FILE + 1, "t", &p, &d),
+		             LOOM_ERANGE);
+	}
+}
+
+static int same(const loom_texel *a, const loom_texel *b)
+{
+	return a->density == b->density && a->kind == b->kind && a->type == b->type &&
+	       !memcmp(a->albedo, b->albedo, sizeof a->albedo) &&
+	       !memcmp(a->orientation, b->orientation, sizeof a->orientation);
+}
+
+/*
+ * Region r (mm) alone over the texture: every voxel of a box reaching
+ * `margin` voxels beyond it compared with the unpainted texture.  Returns
+ * the number of changed voxels; fails a CHECK for a change outside the
+ * allowed area (inside, or within the blend band for colours).
+ */
+static uint64_t brute(const loom_paint_region *r, int64_t margin, uint64_t *kind_before,
+                      uint64_t *kind_after, int *pull_ok, int *broken_ok)
+{
+	loom_paint *p = NULL;
+	loom_volume_source src;
+	uint64_t changed = 0, outside = 0;
+	double x0 = r->x0 / g_vmm, x1 = r->x1 / g_vmm, y0 = r->y0 / g_vmm, y1 = r->y1 / g_vmm;
+	double band = r->blend_mm / g_vmm;
+	int64_t lo[2] = {(int64_t)floor(x0) - margin, (int64_t)floor(y0) - margin};
+	int64_t hi[2] = {(int64_t)ceil(x1) + margin, (int64_t)ceil(y1) + margin};
+
+	*kind_before = *kind_after = 0;
+	*pull_ok = *broken_ok = 1;
+	if (loom_paint_new("f", &p, NULL) || loom_paint_add(p, r, NULL) ||
+	    loom_paint_volume_source(p, g_tex, g_fab, LOOM_FILTER_NEAREST, &src)) {
+		CHECK(0);
+		loom_paint_free(p);
+		return 0;
+	}
+	for (int64_t y = lo[1]; y < hi[1]; y++)
+		for (int64_t x = lo[0]; x < hi[0]; x++) {
+			double cx = x + 0.5, cy = y + 0.5, dist = INFINITY;
+			int inside = 0, allowed;
+			/* the painted cells (the whole rectangle without a mask),
+			   brute force over all of them */
+			uint32_t mw = r->mask_w ? r->mask_w : 1, mh = r->mask_h ? r->mask_h : 1;
+			for (uint32_t j = 0; j < mh; j++)
+				for (uint32_t i = 0; i < mw; i++) {
+					double ax = x0 + (x1 - x0) * i / mw, bx = x0 + (x1 - x0) * (i + 1) / mw;
+					double ay = y0 + (y1 - y0) * j / mh, by = y0 + (y1 - y0) * (j + 1) / mh;
+					double dx = fmax(fmax(ax - cx, cx - bx), 0), dy = fmax(fmax(ay - cy, cy - by), 0);
+					if (r->mask_w && !r->mask[j * mw + i])
+						continue;
+					if (cx >= ax && cx < bx && cy >= ay && cy < by)
+						inside = 1;
+					dist = fmin(dist, sqrt(dx * dx + dy * dy));
+				}
+			allowed = inside || dist < band;
+			for (int64_t z = 0; z < (int64_t)g_b[2]; z++) {
+				double q[3] = {x + 0.5, y + 0.5, z + 0.5};
+				loom_texel a, b;
+				CHECK_EQ_INT(loom_texture_sample(g_tex, q, LOOM_FILTER_NEAREST, &a), LOOM_OK);
+				CHECK_EQ_INT(loom_paint_sample(p, q, &b), LOOM_OK);
+				if (!same(&a, &b)) {
+					changed++;
+					if (!allowed)
+						outside++;
+				}
+				if (inside && r->kind) {
+					*kind_before += a.kind == r->kind;
+					*kind_after += b.kind == r->kind;
+				}
+				if (inside && r->effect == LOOM_PAINT_BROKEN_END && b.kind == LOOM_YARN_WARP)
+					*broken_ok = 0;
+				if (inside && r->effect == LOOM_PAINT_PULL) {
+					loom_texel c;
+					double s[3] = {q[0], q[1], q[2] - r->amount};
+					loom_texture_sample(g_tex, s, LOOM_FILTER_NEAREST, &c);
+					if ((c.kind == r->kind) != (b.kind == r->kind))
+						*pull_ok = 0;
+				}
+				if (r->effect == LOOM_PAINT_SLUB && a.kind == r->kind && !same(&a, &b))
+					*pull_ok = 0; /* a slub only adds */
+			}
+		}
+	if (outside)
+		printf("  %s: %llu voxels changed outside the region and its band\n",
+		       loom_paint_effect_name(r->effect), (unsigned long long)outside);
+	CHECK(outside == 0);
+	loom_paint_free(p);
+	return changed;
+}
+
+static void test_regions_brute_force(void)
+{
+	loom_paint_region r;
+	uint64_t kb, ka, n;
+	int pull_ok, broken_ok;
+	double vx = g_vmm;
+
+	if (!g_tex) {
+		CHECK(0);
+		return;
+	}
+	/* stain, soft edge of 3 voxels */
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_STAIN;
+	r.x0 = 5.3 * vx;
+	r.y0 = 4.2 * vx;
+	r.x1 = 20.7 * vx;
+	r.y1 = 17.1 * vx;
+	r.rgb[0] = 0.5f;
+	r.strength = 0.8f;
+	r.blend_mm = 3 * vx;
+	n = brute(&r, 6, &kb, &ka, &pull_ok, &broken_ok);
+	printf("  stain: %llu voxels changed\n", (unsigned long long)n);
+	CHECK(n > 100);
+	/* yarn colour of the wefts, with a mask (a diagonal of cells) */
+	{
+		uint8_t m[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+		r.effect = LOOM_PAINT_YARN;
+		r.kind = LOOM_YARN_WEFT;
+		r.rgb[0] = 1;
+		r.rgb[1] = r.rgb[2] = 0;
+		r.mask_w = r.mask_h = 3;
+		r.mask = m;
+		r.blend_mm = 2 * vx;
+		r.x0 = 0;
+		r.y0 = 0;
+		r.x1 = 3.0 * g_b[0] * vx;
+		r.y1 = 3.0 * g_b[1] * vx;
+		n = brute(&r, 4, &kb, &ka, &pull_ok, &broken_ok);
+		printf("  weft colour (mask): %llu voxels changed\n", (unsigned long long)n);
+		CHECK(n > 50);
+		r.mask_w = r.mask_h = 0;
+		r.mask = NULL;
+	}
+	/* broken end over two crossings' width */
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_BROKEN_END;
+	r.x0 = (g_b[0] + 0.0) * vx;
+	r.x1 = (2 * g_b[0] + 0.0) * vx;
+	r.y0 = 0;
+	r.y1 = 4.0 * g_b[1] * vx;
+	n = brute(&r, 4, &kb, &ka, &pull_ok, &broken_ok);
+	printf("  broken end: %llu voxels emptied\n", (unsigned long long)n);
+	CHECK(n > 50);
+	CHECK(broken_ok);
+	/* slub on the wefts */
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_SLUB;
+	r.kind = LOOM_YARN_WEFT;
+	r.amount = 2;
+	r.x0 = 0;
+	r.x1 = 4.0 * g_b[0] * vx;
+	r.y0 = 0.5 * g_b[1] * vx;
+	r.y1 = 1.5 * g_b[1] * vx;
+	n = brute(&r, 4, &kb, &ka, &pull_ok, &broken_ok);
+	printf("  slub: weft voxels %llu -> %llu\n", (unsigned long long)kb,
+	       (unsigned long long)ka);
+	CHECK(ka > kb + kb / 10);
+	CHECK(pull_ok);
+	/* pull of the warps by 3 voxels */
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_PULL;
+	r.kind = LOOM_YARN_WARP;
+	r.amount = 3;
+	r.x0 = 2.0 * g_b[0] * vx;
+	r.x1 = 3.0 * g_b[0] * vx;
+	r.y0 = 0;
+	r.y1 = 3.0 * g_b[1] * vx;
+	n = brute(&r, 4, &kb, &ka, &pull_ok, &broken_ok);
+	printf("  pull: %llu voxels changed\n", (unsigned long long)n);
+	CHECK(n > 20);
+	CHECK(pull_ok);
+}
+
+static void test_bad_args(void)
+{
+	loom_paint *p = NULL;
+	loom_paint_region r;
+	loom_volume_source src;
+	loom_texel tx;
+	double q[3] = {0, 0, 0};
+	loom_diag d;
+
+	memset(&d, 0, sizeof d);
+	memset(&r, 0, sizeof r);
+	CHECK_EQ_INT(loom_paint_new(NULL, &p, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_paint_new("a\nb", &p, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_paint_new("f", &p, &d), LOOM_OK);
+	r.effect = 9;
+	CHECK_EQ_INT(loom_paint_add(p, &r, &d), LOOM_EINVAL);
+	r.effect = LOOM_PAINT_STAIN;
+	CHECK_EQ_INT(loom_paint_add(p, &r, &d), LOOM_EINVAL); /* empty rectangle */
+	r.x1 = r.y1 = 1;
+	r.mask_w = 2;
+	CHECK_EQ_INT(loom_paint_add(p, &r, &d), LOOM_EINVAL);
+	r.mask_w = 0;
+	CHECK_EQ_INT(loom_paint_add(p, &r, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_sample(p, q, &tx), LOOM_EINVAL); /* not bound */
+	CHECK_EQ_INT(loom_paint_volume_source(p, NULL, g_fab, LOOM_FILTER_NEAREST, &src),
+	             LOOM_EINVAL);
+	CHECK_EQ_INT(loom_paint_volume_source(p, g_tex, g_fab, 7, &src), LOOM_EINVAL);
+	CHECK(loom_paint_effect_name(0) == NULL);
+	CHECK_EQ_INT(loom_paint_effect_parse("pull"), LOOM_PAINT_PULL);
+	CHECK_EQ_INT(loom_paint_count(NULL), 0);
+	loom_paint_free(p);
+	loom_paint_free(NULL);
+}
+
+int main(void)
+{
+	CHECK_MAIN_BEGIN("test_paint");
+	RUN(setup);
+	RUN(test_text_round_trip);
+	RUN(test_text_errors);
+	RUN(test_regions_brute_force);
+	RUN(test_bad_args);
+	loom_texture_close(g_tex);
+	loom_fabric_free(g_fab);
+	loom_db_close(g_db);
+	remove(db_path);
+	remove(tmpdir);
+	CHECK_MAIN_END();
+}
