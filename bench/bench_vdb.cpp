@@ -24,8 +24,9 @@
  *   tri-ray  trilinear density along the rays
  *   do-rnd   density + orientation (decoded to a unit vector) at random
  *            voxels;  do-ray  the same along rays
- * loom answers through its public calls (loom_texture_voxel,
- * loom_texture_sample with LOOM_FILTER_TRILINEAR); OpenVDB through a
+ * loom answers through its public calls, asking for the channels each
+ * measure needs (loom_texture_voxel_ch, loom_texture_sample_ch with
+ * LOOM_FILTER_TRILINEAR); OpenVDB through a
  * ValueAccessor per grid (tools::BoxSampler for trilinear), NanoVDB through
  * its accessor (SampleFromVoxels order 1).  Every backend's looked-up
  * values are summed into checksums; the bench checks that loom's equal
@@ -471,21 +472,23 @@ Sum run_loom(const Ctx &c, Measure m)
 	loom_texture *t = c.t;
 	const int64_t *lo = c.S->lo;
 	int errors = 0;
+	/* the channel-masked calls: only the planes asked for */
+	const unsigned D = LOOM_CHANNEL_DENSITY, DO = D | LOOM_CHANNEL_ORIENTATION;
 	auto dens = [&](int32_t x, int32_t y, int32_t z) {
 		loom_texel tx;
-		errors += loom_texture_voxel(t, lo[0] + x, lo[1] + y, lo[2] + z, &tx) != LOOM_OK;
+		errors += loom_texture_voxel_ch(t, lo[0] + x, lo[1] + y, lo[2] + z, D, &tx) != LOOM_OK;
 		return tx.density;
 	};
 	auto dori = [&](int32_t x, int32_t y, int32_t z, float v[3]) {
 		loom_texel tx;
-		errors += loom_texture_voxel(t, lo[0] + x, lo[1] + y, lo[2] + z, &tx) != LOOM_OK;
+		errors += loom_texture_voxel_ch(t, lo[0] + x, lo[1] + y, lo[2] + z, DO, &tx) != LOOM_OK;
 		memcpy(v, tx.orientation, 3 * sizeof(float));
 		return tx.density;
 	};
 	auto tri = [&](const double *p) {
 		loom_texel tx;
 		double q[3] = {(double)lo[0] + p[0], (double)lo[1] + p[1], (double)lo[2] + p[2]};
-		errors += loom_texture_sample(t, q, LOOM_FILTER_TRILINEAR, &tx) != LOOM_OK;
+		errors += loom_texture_sample_ch(t, q, LOOM_FILTER_TRILINEAR, D, &tx) != LOOM_OK;
 		return (double)tx.density;
 	};
 	Sum s = run_generic(c, m, dens, dori, tri);
