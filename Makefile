@@ -72,6 +72,9 @@ UNIT_BIN  := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 FUZZ_BIN  := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=$(BUILD)/tests/replay_%)
 BENCH_BIN := $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
 SEED_DIRS := $(SEED_SRC:tests/fuzz/seeds/%.hex=$(BUILD)/fuzz-corpus/%/.made)
+# bench_vdb only when OpenVDB and NanoVDB are installed (tools/deps.sh openvdb)
+VDB_HDRS  := $(wildcard /usr/include/openvdb/openvdb.h /usr/include/nanovdb/NanoVDB.h)
+VDB_BIN   := $(if $(word 2,$(VDB_HDRS)),$(BUILD)/bench/bench_vdb)
 
 STATIC := $(BUILD)/libloom.a
 SHARED := $(BUILD)/libloom.so.$(VERSION)
@@ -191,7 +194,7 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 demo: all
 	$(LOOM) demo
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK)
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK) $(if $(SAN),,$(VDB_BIN))
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 # tools/slurm/ on a real single-node Slurm that the script starts and stops
@@ -207,7 +210,18 @@ tsan:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/tsan OPT=-O1 \
 	    SAN="-fsanitize=thread" test
 
-bench: all $(BENCH_BIN)
+# The peer benchmark (bench/bench_vdb.cpp, the only C++ in bench/): built
+# with g++ against OpenVDB and NanoVDB (no .pc file, so the libraries are
+# named here).
+$(BUILD)/bench/bench_vdb: bench/bench_vdb.cpp $(STATIC)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CXX     $<")
+	$(Q)$(CXX) -std=c++17 $(OPT) -g -Wall -Wextra -Werror -Wno-unused-parameter \
+	    -Wno-deprecated-declarations -Iengine/include $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) \
+	    -lopenvdb -lImath-3_1 -ltbb -lblosc -lz $(DEP_LIBS)
+
+bench: all $(BENCH_BIN) $(VDB_BIN)
+	$(Q)$(if $(VDB_BIN),,echo "bench_vdb: skipped (OpenVDB/NanoVDB not installed: tools/deps.sh openvdb)")
 	$(Q)BUILD=$(BUILD) sh bench/run.sh
 
 # libFuzzer builds (clang): make fuzz, then build/fuzz/fuzz_wif tests/fuzz/corpus/wif

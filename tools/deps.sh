@@ -5,6 +5,8 @@
 #   tools/deps.sh test    build + independent readers used by the tests
 #   tools/deps.sh slurm   a real single-node Slurm for tests/slurm/run.sh
 #                         (slurmctld, slurmd, the client commands, munge)
+#   tools/deps.sh openvdb the peer benchmark bench/bench_vdb.cpp (make bench):
+#                         OpenVDB, NanoVDB, the Boost headers they include, g++
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -28,6 +30,11 @@ if [ "$what" = slurm ]; then
 	need slurmd       command -v slurmd
 	need slurm-client command -v sbatch
 	need munge        command -v munged
+elif [ "$what" = openvdb ]; then
+	need g++            command -v g++
+	need libopenvdb-dev has_header openvdb/openvdb.h
+	need libnanovdb-dev has_header nanovdb/NanoVDB.h
+	need libboost-dev   has_header boost/version.hpp
 else
 	need pkg-config      command -v pkg-config
 	need libdeflate-dev  has_header libdeflate.h

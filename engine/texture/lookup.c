@@ -7,8 +7,9 @@
  *   Step 1.  z outside [0, b3): empty, done.
  *   Step 2.  Crossing: if (x, y) lies in the thread's current crossing
  *            entry, use it; else I = floor(y / b2), J = floor(x / b1) and
- *            find (I, J) among the thread's XENT entries, or set one up
- *            (evicting the least recently used): the crossing's sources
+ *            find (I, J) in its set of XENT_WAYS among the thread's n_ent
+ *            entries, or set one up (evicting the set's least recently
+ *            used): the crossing's sources
  *            and its neighbours' (loom__fabric_crossing: base assignment of
  *            (I mod M, J mod N) shifted by its group's symmetry), the
  *            yarn types of its warp and weft, the 4 (rh + rv) edge-fix
@@ -133,8 +134,12 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	struct xent *e = NULL;
 	loom__fabric_xing xg;
 
-	for (int k = 0; k < XENT; k++) {
-		struct xent *q = &s->ent[k];
+	/* the set of (I, J): a multiplicative hash, n_ent / XENT_WAYS sets */
+	uint64_t h = ((uint64_t)I * 0x9e3779b97f4a7c15ull) ^ ((uint64_t)J * 0xc2b2ae3d27d4eb4full);
+	struct xent *set = s->ent + (size_t)((h >> 32) & (t->n_ent / XENT_WAYS - 1)) * XENT_WAYS;
+
+	for (int k = 0; k < XENT_WAYS; k++) {
+		struct xent *q = &set[k];
 		if (q->valid && q->I == I && q->J == J) {
 			e = q;
 			goto found;
@@ -200,9 +205,32 @@ typedef struct rawvox {
 
 static const rawvox raw_empty;
 
-/* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked). */
+/* Planes a channel mask needs: density (also for orientation, which is
+   zero where the density is), the two orientation bytes, the label. */
+#define CH_D LOOM_CHANNEL_DENSITY
+#define CH_O LOOM_CHANNEL_ORIENTATION
+#define CH_M LOOM_CHANNEL_MATERIAL
+#define CH_ALL LOOM_CHANNEL_ALL
+
+/* Step 6 for the voxel at index i of brick p: only the planes of ch. */
+static inline void planes_read(const loom_texture *t, const struct xent *e,
+                               const uint8_t *p, size_t i, unsigned ch, rawvox *r)
+{
+	if (ch & (CH_D | CH_O))
+		r->d = p[i];
+	if ((ch & CH_O) && r->d)
+		r->o = (uint16_t)(p[t->bv + i] | p[2 * t->bv + i] << 8);
+	if (ch & CH_M) {
+		r->l = p[3 * t->bv + i];
+		r->k = e->ex->kind[r->l];
+		r->ty = e->tok[r->k];
+	}
+}
+
+/* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
+   reading only the planes of channel mask ch. */
 static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                            int64_t z, rawvox *r)
+                            int64_t z, unsigned ch, rawvox *r)
 {
 	struct xent *e = s->cur;
 	uint32_t lx, ly, sx, sy, sz;
@@ -240,20 +268,74 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		return LOOM_OK;
 	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
 	    in_brick(t, 2, sz); /* Step 6 */
-	r->d = p[i];
-	r->o = (uint16_t)(p[t->bv + i] | p[2 * t->bv + i] << 8);
-	r->l = p[3 * t->bv + i];
-	r->k = e->ex->kind[r->l];
-	r->ty = e->tok[r->k];
+	planes_read(t, e, p, i, ch, r);
 	return LOOM_OK;
 }
 
-static void texel_of(const loom_texture *t, const rawvox *r, loom_texel *out)
+/* Steps 1-6 for the two voxels (x, y, z0) and (x, y, z0 + 1) of one
+   column (a trilinear lookup's corner pair): the crossing, the offset and,
+   when both fall in one brick, the brick are resolved once.  Returns the
+   first error (the failed voxel stays empty). */
+static inline int column_pair(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                              int64_t z0, unsigned ch, rawvox r[2])
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly, sx, sy;
+	uint64_t col;
+	int64_t dz;
+	int rc = LOOM_OK;
+
+	r[0] = r[1] = raw_empty;
+	if (z0 + 1 < 0 || z0 >= (int64_t)t->b3) /* Step 1, both */
+		return LOOM_OK;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y); /* Step 2 */
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	dz = xent_dz(t, s, e, lx, ly); /* Step 3 */
+	sx = e->sx0 + lx;
+	sy = e->sy0 + ly;
+	col = e->ex->first_brick +
+	      ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) * e->ex->nb[2];
+	for (int k = 0; k < 2; k++) {
+		int64_t z = z0 + k, zs = z - dz;
+		uint64_t id;
+		const uint8_t *p;
+		if ((uint64_t)z >= t->b3 || (uint64_t)zs >= t->b3) /* Steps 1, 4 */
+			continue;
+		id = col + brick_of(t, 2, (uint32_t)zs);
+		if (id != s->memo_id) { /* Step 5 */
+			int e2 = loom__memo_switch(t, s, id);
+			if (e2 != LOOM_OK) {
+				if (rc == LOOM_OK)
+					rc = e2;
+				continue;
+			}
+		} else {
+			bump(&s->cnt.memo_hits, 1);
+		}
+		p = s->memo;
+		if (!p)
+			continue;
+		planes_read(t, e, p,
+		            ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) *
+		                            t->bs[2] +
+		                    in_brick(t, 2, (uint32_t)zs),
+		            ch, &r[k]);
+	}
+	return rc;
+}
+
+/* The texel of raw voxel r, the fields of the channels outside ch zero
+   (their planes were not read: r holds zeros there). */
+static void texel_of(const loom_texture *t, const rawvox *r, unsigned ch, loom_texel *out)
 {
 	memset(out, 0, sizeof *out);
 	if (r->d) {
-		out->density = t->dens[r->d];
-		loom__orient_decode(r->o, out->orientation);
+		if (ch & CH_D)
+			out->density = t->dens[r->d];
+		if (ch & CH_O)
+			loom__orient_decode(r->o, out->orientation);
 	}
 	out->label = r->l;
 	out->kind = r->k;
@@ -266,14 +348,14 @@ static void texel_of(const loom_texture *t, const rawvox *r, loom_texel *out)
 
 /* --------------------------------------------------------------- lookups */
 
-LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z,
-                                loom_texel *out)
+static int voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_t z, unsigned ch,
+                    loom_texel *out)
 {
 	struct tslot *s;
 	rawvox r;
 	int rc;
 
-	if (!t || !out) {
+	if (!t || !out || (ch & ~(unsigned)CH_ALL)) {
 		if (out)
 			memset(out, 0, sizeof *out);
 		return LOOM_EINVAL;
@@ -283,30 +365,44 @@ LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z
 		return LOOM_ERANGE;
 	}
 	s = slot_enter(t);
-	rc = voxel_raw(t, s, x, y, z, &r);
+	rc = voxel_raw(t, s, x, y, z, ch, &r);
 	bump(&s->cnt.lookups, 1);
 	slot_leave(t, s);
-	texel_of(t, &r, out);
+	texel_of(t, &r, ch, out);
 	return rc;
 }
 
-/* The calling thread's slot is s; p is finite and in range. */
+LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z,
+                                loom_texel *out)
+{
+	return voxel_ch(t, x, y, z, CH_ALL, out);
+}
+
+LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_t z,
+                                   unsigned channels, loom_texel *out)
+{
+	return voxel_ch(t, x, y, z, channels, out);
+}
+
+/* The calling thread's slot is s; p is finite and in range.  Only the
+   planes of channel mask ch are read: the 8 corners for density and
+   orientation, the label of the voxel containing p for the material. */
 static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int filter,
-                      loom_texel *out)
+                      unsigned ch, loom_texel *out)
 {
 	double u[3], f[3];
 	int64_t i0[3];
 	rawvox r[8];
 	float w[8], wd[8], v[8][3], dens = 0;
-	int rc = LOOM_OK, near = 0;
+	int rc = LOOM_OK, near;
 
 	if (filter == LOOM_FILTER_NEAREST) {
 		int64_t q[3];
 		for (int a = 0; a < 3; a++)
 			q[a] = (int64_t)floor(p[a]);
-		rc = voxel_raw(t, s, q[0], q[1], q[2], &r[0]);
+		rc = voxel_raw(t, s, q[0], q[1], q[2], ch, &r[0]);
 		bump(&s->cnt.lookups, 1);
-		texel_of(t, &r[0], out);
+		texel_of(t, &r[0], ch, out);
 		return rc;
 	}
 	for (int a = 0; a < 3; a++) {
@@ -314,12 +410,21 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 		i0[a] = (int64_t)floor(u[a]);
 		f[a] = u[a] - (double)i0[a];
 	}
-	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y */
-	for (int c = 0; c < 8; c++) {
-		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-		int e = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2] + dz, &r[c]);
+	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
+	   voxel containing p is corner near */
+	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	for (int c = 0; c < 8; c += 2) {
+		int dx = c >> 1 & 1, dy = c >> 2 & 1;
+		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
+		int e = cch ? column_pair(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c])
+		            : LOOM_OK;
+		if (!cch)
+			r[c] = r[c + 1] = raw_empty;
 		if (e != LOOM_OK && rc == LOOM_OK)
 			rc = e;
+	}
+	for (int c = 0; c < 8; c++) {
+		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
 		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
 		               (dz ? f[2] : 1 - f[2]));
 		wd[c] = 0;
@@ -328,14 +433,16 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 			float d = t->dens[r[c].d];
 			dens += w[c] * d;
 			wd[c] = w[c] * d;
-			loom__orient_decode(r[c].o, v[c]);
+			if (ch & CH_O)
+				loom__orient_decode(r[c].o, v[c]);
 		}
 	}
 	bump(&s->cnt.lookups, 8);
-	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
-	texel_of(t, &r[near], out);
-	out->density = dens;
-	loom__orient_blend(8, wd, (const float(*)[3])v, out->orientation);
+	texel_of(t, &r[near], ch & CH_M, out);
+	if (ch & CH_D)
+		out->density = dens;
+	if (ch & CH_O)
+		loom__orient_blend(8, wd, (const float(*)[3])v, out->orientation);
 	return rc;
 }
 
@@ -350,23 +457,35 @@ static int pos_check(const double p[3])
 	return LOOM_OK;
 }
 
-LOOM_API int loom_texture_sample(loom_texture *t, const double p[3], int filter,
-                                 loom_texel *out)
+static int sample_ch(loom_texture *t, const double p[3], int filter, unsigned ch,
+                     loom_texel *out)
 {
 	struct tslot *s;
 	int rc;
 
 	if (out)
 		memset(out, 0, sizeof *out);
-	if (!t || !p || !out ||
+	if (!t || !p || !out || (ch & ~(unsigned)CH_ALL) ||
 	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
 		return LOOM_EINVAL;
 	if ((rc = pos_check(p)) != LOOM_OK)
 		return rc;
 	s = slot_enter(t);
-	rc = sample_one(t, s, p, filter, out);
+	rc = sample_one(t, s, p, filter, ch, out);
 	slot_leave(t, s);
 	return rc;
+}
+
+LOOM_API int loom_texture_sample(loom_texture *t, const double p[3], int filter,
+                                 loom_texel *out)
+{
+	return sample_ch(t, p, filter, CH_ALL, out);
+}
+
+LOOM_API int loom_texture_sample_ch(loom_texture *t, const double p[3], int filter,
+                                    unsigned channels, loom_texel *out)
+{
+	return sample_ch(t, p, filter, channels, out);
 }
 
 LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *x,
@@ -374,6 +493,7 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
                                        const loom_texture_channels *out)
 {
 	struct tslot *s;
+	unsigned ch;
 	int rc = LOOM_OK;
 
 	if (!t || !out || (n && (!x || !y || !z)) ||
@@ -381,13 +501,16 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
 		return LOOM_EINVAL;
 	if (n == 0)
 		return LOOM_OK;
+	/* only the planes of the channels asked for */
+	ch = (out->density ? CH_D : 0u) | (out->orientation ? CH_O : 0u) |
+	     (out->kind || out->type || out->albedo ? CH_M : 0u);
 	s = slot_enter(t);
 	for (size_t i = 0; i < n; i++) {
 		double p[3] = {x[i], y[i], z[i]};
 		loom_texel tx;
 		int e = pos_check(p);
 		if (e == LOOM_OK)
-			e = sample_one(t, s, p, filter, &tx);
+			e = sample_one(t, s, p, filter, ch, &tx);
 		else
 			memset(&tx, 0, sizeof tx);
 		if (e != LOOM_OK && rc == LOOM_OK)
@@ -406,4 +529,3 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
 	slot_leave(t, s);
 	return rc;
 }
-

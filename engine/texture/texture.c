@@ -20,8 +20,9 @@
  *     kind), a bit per brick (stored empty), and max_threads + 1 thread
  *     slots, each holding its cache thread handle, its current brick, its
  *     error message, the region gather buffer (6 planes of RCOLS x RZ
- *     bytes) and XENT crossing entries (coefficients, label -> type table,
- *     column bitmap, dz of b1*b2 columns as int16);
+ *     bytes) and n_ent crossing entries (coefficients, label -> type table,
+ *     column bitmap, dz of b1*b2 columns as int16; n_ent = 4 .. 256, the
+ *     most whose total stays within budget / 8);
  *   - the brick cache, opened with budget - (that block): frames,
  *     bookkeeping, and one database reader (decompressor + scratch) per
  *     thread slot.
@@ -180,7 +181,9 @@ static void lay_out_slots(loom_texture *t)
 		s->next_free = i + 1 < t->n_slots - 1 ? i + 1 : t->n_slots;
 		s->rbuf = p;
 		p += 6 * RCOLS * RZ;
-		for (int k = 0; k < XENT; k++) {
+		s->ent = (struct xent *)p;
+		p += round_up(sizeof(struct xent) * t->n_ent, ALIGN);
+		for (uint32_t k = 0; k < t->n_ent; k++) {
 			s->ent[k].a = (float *)p;
 			p += a_bytes;
 			s->ent[k].have = (uint64_t *)p;
@@ -193,6 +196,18 @@ static void lay_out_slots(loom_texture *t)
 	atomic_init(&t->n_free, t->n_slots - 1);
 }
 
+/* The fixed part of the budget with n_ent crossing entries per slot (the
+   header and the block allocated at open); *slot_bytes: one slot. */
+static size_t fixed_bytes(unsigned T, uint32_t n_ent, size_t ent_bytes, size_t ex_bytes,
+                          size_t *slot_bytes)
+{
+	*slot_bytes = round_up(sizeof(struct tslot), ALIGN) + 6 * RCOLS * RZ +
+	              round_up(sizeof(struct xent) * n_ent, ALIGN) +
+	              n_ent * (ent_bytes - sizeof(struct xent));
+	return round_up(sizeof(struct loom_texture), ALIGN) + ex_bytes +
+	       (size_t)(T + 1) * *slot_bytes;
+}
+
 LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
                                const loom_texture_options *opts,
                                loom_texture **out, loom_diag *diag)
@@ -202,7 +217,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom__db_geom g;
 	loom__cache_opts co;
 	loom_texture *t;
-	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed;
+	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes;
+	uint32_t n_ent;
 	unsigned T;
 	int rc;
 
@@ -239,14 +255,15 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom__db_geometry(db, &g);
 
 	cols = (size_t)fabric->b1 * fabric->b2;
-	slot_bytes = round_up(sizeof(struct tslot), ALIGN) + 6 * RCOLS * RZ +
-	             XENT * (round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN) +
-	                     round_up((cols + 63) / 64 * 8, ALIGN) +
-	                     round_up(cols * sizeof(int16_t), ALIGN));
+	/* crossing entries per slot: XENT_WAYS, doubled (up to XENT_MAX) while
+	   all slots' entries stay within an eighth of the budget */
+	ent_bytes = sizeof(struct xent) +
+	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN) +
+	            round_up((cols + 63) / 64 * 8, ALIGN) + round_up(cols * sizeof(int16_t), ALIGN);
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN);
-	mem_bytes = ex_bytes + (size_t)(T + 1) * slot_bytes;
-	fixed = round_up(sizeof *t, ALIGN) + mem_bytes;
+	n_ent = XENT_WAYS;
+	fixed = fixed_bytes(T, n_ent, ent_bytes, ex_bytes, &slot_bytes);
 
 	memset(&co, 0, sizeof co);
 	co.brick_bytes = g.brick_bytes;
@@ -260,6 +277,20 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		size_t need = cache_min_budget(&co);
 		return budget_fail(diag, o.budget_bytes, fixed, need, T, g.brick_bytes);
 	}
+	/* more entries only while the smallest cache still fits beside them
+	   (so the minimum budget reported above always opens) */
+	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 8) {
+		size_t cmin = cache_min_budget(&co), sb, f2;
+		while (n_ent < XENT_MAX &&
+		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 8 &&
+		       (f2 = fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, &sb)) + cmin <=
+		               o.budget_bytes) {
+			n_ent *= 2;
+			fixed = f2;
+			slot_bytes = sb;
+		}
+	}
+	mem_bytes = fixed - round_up(sizeof *t, ALIGN);
 	co.budget_bytes = o.budget_bytes - fixed;
 
 	t = aligned_alloc(ALIGN, round_up(sizeof *t, ALIGN));
@@ -306,6 +337,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->slots = t->mem + ex_bytes;
 	t->n_slots = T + 1;
 	t->slot_bytes = slot_bytes;
+	t->n_ent = n_ent;
 	t->fixed_bytes = fixed;
 	t->budget = o.budget_bytes;
 	pthread_mutex_init(&t->pool_lock, NULL);

@@ -30,7 +30,8 @@
 #include <stdatomic.h>
 #include <string.h>
 
-#define XENT 4              /* crossing entries per thread slot */
+#define XENT_WAYS 4         /* crossing entries per set (LRU inside a set) */
+#define XENT_MAX 256        /* crossing entries per thread slot, at most */
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
 #define COORD_LIMIT ((int64_t)1 << 62) /* |x|, |y|, |z| below this */
@@ -82,7 +83,8 @@ struct tslot {
 	int shared;              /* the overflow slot */
 	uint32_t clock;          /* stamps for the entries' LRU */
 	uint32_t next_free;      /* pool free list */
-	struct xent ent[XENT];
+	struct xent *ent;        /* n_ent crossing entries: n_ent / XENT_WAYS
+	                            sets of XENT_WAYS, set = hash(I, J) */
 	uint8_t *rbuf;           /* region gather buffer: 6 planes of RCOLS*RZ */
 	struct counters cnt;
 	char msg[LOOM_DIAG_MSG_MAX]; /* last error of this slot */
@@ -111,6 +113,8 @@ struct loom_texture {
 	loom__cache *cache;
 	unsigned n_slots;        /* max_threads + 1 (the last is the overflow) */
 	size_t slot_bytes;
+	uint32_t n_ent;          /* crossing entries per slot (a power of two,
+	                            XENT_WAYS .. XENT_MAX, from the budget) */
 	uint8_t *mem;            /* the block allocated at open */
 	size_t fixed_bytes;      /* what the budget counts for it */
 	size_t budget;

@@ -1243,6 +1243,104 @@ done:
 	free(x), free(y), free(z), free(dens), free(ori), free(alb), free(kind), free(type);
 }
 
+/* t's fields outside channel mask ch zeroed (what the _ch calls return). */
+static loom_texel masked(loom_texel a, unsigned ch)
+{
+	if (!(ch & LOOM_CHANNEL_DENSITY))
+		a.density = 0;
+	if (!(ch & LOOM_CHANNEL_ORIENTATION))
+		a.orientation[0] = a.orientation[1] = a.orientation[2] = 0;
+	if (!(ch & LOOM_CHANNEL_MATERIAL)) {
+		a.albedo[0] = a.albedo[1] = a.albedo[2] = a.alignment = 0;
+		a.kind = a.type = a.label = 0;
+	}
+	return a;
+}
+
+/* Channel masks: every mask, point lookups against the brute-force
+   reference, nearest and trilinear samples against the full sample
+   (itself checked against the reference by filtered_lookups), batches
+   with one channel against single samples; at the smallest budget (the
+   bricks churn, corner pairs straddle bricks: 8-deep bricks) and a large
+   one, with the lookups of all masks interleaved on one thread state. */
+static void channel_masks(void)
+{
+	size_t budgets[2];
+	uint64_t bad = 0, nonempty = 0;
+
+	budgets[0] = min_budget(g_fab, g_db, 1);
+	budgets[1] = 8u << 20;
+	for (int b = 0; b < 2; b++) {
+		loom_texture *t = open_tex(g_fab, g_db, budgets[b], 1);
+		loom_texture *full = open_tex(g_fab, g_db, 8u << 20, 1);
+		loom_texel a, e;
+		if (!t || !full) {
+			loom_texture_close(t);
+			loom_texture_close(full);
+			return;
+		}
+		CHECK_EQ_INT(loom_texture_voxel_ch(t, 0, 0, 0, 8, &a), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_texture_sample_ch(t, (double[3]){0, 0, 0}, 0, 9, &a), LOOM_EINVAL);
+		for (int it = 0; it < 6000; it++) {
+			unsigned ch = (unsigned)(it % 8);
+			int64_t x = rnd_range(-300, 300), y = rnd_range(-200, 200),
+			        z = rnd_range(-2, g_ref.b3 + 2);
+			double p[3];
+			e = masked(ref_texel(&g_ref, x, y, z), ch);
+			CHECK_EQ_INT(loom_texture_voxel_ch(t, x, y, z, ch, &a), LOOM_OK);
+			bad += !texel_eq(&a, &e);
+			nonempty += e.density > 0;
+			p[0] = (double)x + (double)(rnd() % 1000) / 1000.0;
+			p[1] = (double)y + (double)(rnd() % 1000) / 1000.0;
+			p[2] = (double)z + (double)(rnd() % 1000) / 1000.0;
+			for (int filter = 0; filter < 2; filter++) {
+				CHECK_EQ_INT(loom_texture_sample(full, p, filter, &e), LOOM_OK);
+				e = masked(e, ch);
+				CHECK_EQ_INT(loom_texture_sample_ch(t, p, filter, ch, &a), LOOM_OK);
+				bad += !texel_eq(&a, &e);
+			}
+		}
+		/* batches of one channel each */
+		{
+			enum { n = 500 };
+			double x[n], y[n], z[n];
+			float dens[n], ori[3 * n];
+			uint8_t kind[n];
+			for (int i = 0; i < n; i++) {
+				x[i] = (double)rnd_range(-400, 400) + 0.29 * (i % 4);
+				y[i] = (double)rnd_range(-400, 400) + 0.13 * (i % 7);
+				z[i] = (double)rnd_range(-2, g_ref.b3 + 2) + 0.61;
+			}
+			for (int filter = 0; filter < 2; filter++)
+				for (int c = 0; c < 3; c++) {
+					loom_texture_channels chs = {NULL, NULL, NULL, NULL, NULL};
+					if (c == 0)
+						chs.density = dens;
+					else if (c == 1)
+						chs.orientation = ori;
+					else
+						chs.kind = kind;
+					CHECK_EQ_INT(loom_texture_sample_batch(t, n, x, y, z, filter, &chs),
+					             LOOM_OK);
+					for (int i = 0; i < n; i++) {
+						double p[3] = {x[i], y[i], z[i]};
+						loom_texture_sample(full, p, filter, &e);
+						if (c == 0)
+							bad += dens[i] != e.density;
+						else if (c == 1)
+							bad += memcmp(ori + 3 * i, e.orientation, 12) != 0;
+						else
+							bad += kind[i] != e.kind;
+					}
+				}
+		}
+		loom_texture_close(t);
+		loom_texture_close(full);
+	}
+	CHECK_EQ_INT(bad, 0);
+	CHECK(nonempty > 500);
+}
+
 /* Flip a byte of a stored brick in a copy of the database: the lookups
    that need that brick fail with LOOM_ECORRUPT naming it; all other voxels
    stay right; the failure repeats (retry) and the texture stays usable. */
@@ -1464,6 +1562,7 @@ int main(void)
 	RUN(labels_above_15);
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
+	RUN(channel_masks);
 	RUN(corrupt_brick);
 	RUN(warp_on_top_real_designs);
 	if (g_ok)

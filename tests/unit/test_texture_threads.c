@@ -143,18 +143,23 @@ struct job {
 	atomic_ulong *bad, *errors, *lookups;
 };
 
-static int check_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z)
+/* Voxel (x, y, z) through loom_texture_voxel_ch with mask ch (7: all):
+   the channels asked for equal the reference, the others are zero. */
+static int check_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z, unsigned ch)
 {
 	loom_texel a;
 	size_t i = widx(x, y, z);
-	if (loom_texture_voxel(t, x, y, z, &a) != LOOM_OK)
+	int md = ch & LOOM_CHANNEL_DENSITY, mo = ch & LOOM_CHANNEL_ORIENTATION,
+	    mm = ch & LOOM_CHANNEL_MATERIAL;
+	if (loom_texture_voxel_ch(t, x, y, z, ch, &a) != LOOM_OK)
 		return -1;
-	if (a.kind != R_k[i] || a.type != R_t[i] || a.label != R_l[i] ||
-	    a.density != (float)R_d[i] / 255.0f)
+	if (a.kind != (mm ? R_k[i] : 0) || a.type != (mm ? R_t[i] : 0) ||
+	    a.label != (mm ? R_l[i] : 0) || a.density != (md ? (float)R_d[i] / 255.0f : 0.0f))
 		return 1;
-	if (R_d[i]) {
-		float v[3];
-		loom_orientation_decode(R_o[i], v);
+	{
+		float v[3] = {0, 0, 0};
+		if (R_d[i] && mo)
+			loom_orientation_decode(R_o[i], v);
 		if (memcmp(v, a.orientation, sizeof v))
 			return 1;
 	}
@@ -179,7 +184,7 @@ static void *worker(void *arg)
 			int64_t x = W0[0] + (int64_t)(mix(s++) % Wn[0]);
 			int64_t y = W0[1] + (int64_t)(mix(s++) % Wn[1]);
 			int64_t z = W0[2] + (int64_t)(mix(s++) % Wn[2]);
-			int r = check_voxel(t, x, y, z);
+			int r = check_voxel(t, x, y, z, (unsigned)(h >> 8) & 7);
 			bad += r > 0;
 			errors += r < 0;
 			looked++;
@@ -201,7 +206,7 @@ static void *worker(void *arg)
 				if (!in)
 					break;
 				{
-					int r = check_voxel(t, q[0], q[1], q[2]);
+					int r = check_voxel(t, q[0], q[1], q[2], (unsigned)(h >> 8) & 7);
 					bad += r > 0;
 					errors += r < 0;
 					looked++;
@@ -238,10 +243,12 @@ static void *worker(void *arg)
 			loom_texel a;
 			if (x == W1[0] - 1 || y == W1[1] - 1)
 				continue;
-			if (loom_texture_sample(t, p, LOOM_FILTER_TRILINEAR, &a) != LOOM_OK)
+			unsigned ch = (unsigned)(h >> 8) & 7; /* 0: nothing asked */
+			if (loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a) != LOOM_OK)
 				errors++;
-			bad += a.density != (float)R_d[widx(x, y, z)] / 255.0f ||
-			       a.kind != R_k[widx(x, y, z)];
+			bad += a.density != ((ch & LOOM_CHANNEL_DENSITY) ? (float)R_d[widx(x, y, z)] / 255.0f
+			                                                 : 0.0f) ||
+			       a.kind != ((ch & LOOM_CHANNEL_MATERIAL) ? R_k[widx(x, y, z)] : 0);
 			looked++;
 		}
 	}

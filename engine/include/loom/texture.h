@@ -67,6 +67,17 @@ enum loom_texture_filter {
 	LOOM_FILTER_TRILINEAR = 1  /* the 8 voxels whose centres surround it */
 };
 
+/* Channel masks of loom_texture_voxel_ch and loom_texture_sample_ch: a
+   lookup reads only the byte planes of the channels asked for (density is
+   one plane, orientation two, the material one: the label, from which kind,
+   type, albedo and alignment follow).  Fields outside the mask are zero. */
+enum loom_texture_channel {
+	LOOM_CHANNEL_DENSITY = 1,     /* density */
+	LOOM_CHANNEL_ORIENTATION = 2, /* orientation */
+	LOOM_CHANNEL_MATERIAL = 4,    /* label, kind, type, albedo, alignment */
+	LOOM_CHANNEL_ALL = 7
+};
+
 /* One looked-up voxel.  An empty voxel is all zeros. */
 typedef struct loom_texel {
 	float density;        /* 0..1 */
@@ -195,6 +206,17 @@ LOOM_API int loom_texture_voxel(loom_texture *t, int64_t x, int64_t y,
                                 int64_t z, loom_texel *out);
 
 /*
+ * loom_texture_voxel reading only the channels of mask `channels` (enum
+ * loom_texture_channel, OR-ed; LOOM_CHANNEL_ALL is loom_texture_voxel):
+ * the fields of the other channels are zero, those asked for are equal to
+ * loom_texture_voxel's.  LOOM_EINVAL also for bits outside
+ * LOOM_CHANNEL_ALL.  Thread-safe.
+ */
+LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y,
+                                   int64_t z, unsigned channels,
+                                   loom_texel *out);
+
+/*
  * Filtered lookup at the real position p (voxel units, see the top of this
  * file).  LOOM_FILTER_NEAREST: the voxel containing p.
  * LOOM_FILTER_TRILINEAR: density is the trilinear blend of the 8 voxels
@@ -210,8 +232,22 @@ LOOM_API int loom_texture_sample(loom_texture *t, const double p[3],
                                  int filter, loom_texel *out);
 
 /*
+ * loom_texture_sample reading only the channels of mask `channels` (as
+ * loom_texture_voxel_ch): trilinear density and orientation read just
+ * their planes of the 8 corners (each column's two corners resolved
+ * together), the material just the label of the voxel containing p.  The
+ * fields asked for equal loom_texture_sample's; the others are zero.
+ * LOOM_EINVAL also for bits outside LOOM_CHANNEL_ALL.  Thread-safe.
+ */
+LOOM_API int loom_texture_sample_ch(loom_texture *t, const double p[3],
+                                    int filter, unsigned channels,
+                                    loom_texel *out);
+
+/*
  * loom_texture_sample for n points given as three arrays x, y, z; results
- * into the non-NULL channels of *out.  Every point is looked up; a point
+ * into the non-NULL channels of *out, reading only the planes those
+ * channels need (density; orientation; kind, type or albedo: the label).
+ * Every point is looked up; a point
  * that fails gets empty values and the first failure's code is returned
  * (loom_texture_errmsg has its message).  n = 0 is LOOM_OK.  Thread-safe.
  */
