@@ -5,6 +5,7 @@
 #   tools/deps.sh test    build + independent readers used by the tests
 #   tools/deps.sh slurm   a real single-node Slurm for tests/slurm/run.sh
 #                         (slurmctld, slurmd, the client commands, munge)
+#   tools/deps.sh fuzz    build + clang with libFuzzer (make fuzz, fuzz-run)
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -37,6 +38,9 @@ else
 	# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
 	need libmicrohttpd-dev has_header microhttpd.h
 	need npm             command -v npm
+fi
+if [ "$what" = fuzz ]; then
+	need clang       command -v clang
 fi
 if [ "$what" = test ]; then
 	need openexr     command -v exrheader

@@ -165,6 +165,7 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats)))
 		opts_usage(&cmd, "--thickness and --uv-repeats go with --mesh");
+	cli_check_output(prog, out);
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
