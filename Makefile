@@ -6,6 +6,7 @@
 #   make sanitize   the same suite under AddressSanitizer + UBSan
 #   make tsan       the same suite under ThreadSanitizer
 #   make test-slurm export and scan job arrays on a private Slurm (root)
+#   make fuzz       libFuzzer targets (clang); make fuzz-run SECONDS=N runs them
 #   make bench      run the benchmarks (figures, never pass/fail)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text
@@ -89,11 +90,11 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz test-slurm
+.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm
 all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
-	@sed -n '3,13p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '3,14p' Makefile | sed 's/^# \{0,1\}//'
 
 $(DEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
@@ -171,6 +172,11 @@ $(BUILD)/tests/%: $(BUILD)/obj/tests/unit/%.o $(STATIC)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) $(DEP_LIBS)
 
+# The child runner of the hostile-input table (tests/cli/test_hostile.sh).
+$(BUILD)/tests/childrun: $(BUILD)/obj/tests/cli/childrun.o $(STATIC)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $< $(STATIC) $(DEP_LIBS)
+
 # Fuzz targets replayed over their corpus as plain tests.
 $(BUILD)/tests/replay_%: $(BUILD)/obj/tests/fuzz/fuzz_%.o $(BUILD)/obj/tests/fuzz/replay_main.o $(STATIC)
 	@mkdir -p $(@D)
@@ -194,7 +200,7 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 demo: all
 	$(LOOM) demo
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK) $(if $(SAN),,$(VDB_BIN))
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(BUILD)/tests/childrun $(TESTDEPS_OK) $(if $(SAN),,$(VDB_BIN))
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 # tools/slurm/ on a real single-node Slurm that the script starts and stops
@@ -224,14 +230,61 @@ bench: all $(BENCH_BIN) $(VDB_BIN)
 	$(Q)$(if $(VDB_BIN),,echo "bench_vdb: skipped (OpenVDB/NanoVDB not installed: tools/deps.sh openvdb)")
 	$(Q)BUILD=$(BUILD) sh bench/run.sh
 
-# libFuzzer builds (clang): make fuzz, then build/fuzz/fuzz_wif tests/fuzz/corpus/wif
-# (the vol seeds: build/fuzz/fuzz_vol build/fuzz-corpus/vol, made by make test)
-fuzz: | $(DEPS_OK)
-	@mkdir -p $(BUILD)/fuzz
-	$(Q)for f in $(FUZZ_SRC); do n=$$(basename $$f .c); \
-	  clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined \
-	    $(ALL_INC) $(DEP_CFLAGS) $$f $(LIB_SRC) \
-	    -o $(BUILD)/fuzz/$$n $(DEP_LIBS) || exit 1; echo "  FUZZ    $(BUILD)/fuzz/$$n"; done
+# libFuzzer builds (clang, Debian's clang package: tools/deps.sh fuzz).
+# The library is compiled once into $(BUILD)/fuzz/libloom-fuzz.a with
+# ASan + UBSan, and any finding stops the fuzzer and saves a reproducer
+# (-fno-sanitize-recover=all); each target links against it.
+#   make fuzz                  build $(BUILD)/fuzz/fuzz_NAME for every target
+#   make fuzz-run SECONDS=N    run every target N s (default 60) from its
+#                              corpus (tests/fuzz/corpus/NAME and the seeds
+#                              of tests/fuzz/seeds/NAME.hex); fails on any
+#                              crash, leak, timeout (10 s per input) or
+#                              out-of-memory (2 GiB); reproducers go to
+#                              $(BUILD)/fuzz-artifacts/, new inputs to
+#                              $(BUILD)/fuzz-work/NAME (never into git)
+FUZZ_CC    ?= clang
+FUZZ_SAN   := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+FUZZ_FLAGS  = -std=c11 -D_GNU_SOURCE -g -O1 $(FUZZ_SAN) $(ALL_INC) $(DEP_CFLAGS) -DLOOM_BUILDING
+FUZZ_OBJ   := $(LIB_SRC:%.c=$(BUILD)/fuzz/obj/%.o)
+FUZZ_LIB   := $(BUILD)/fuzz/libloom-fuzz.a
+FUZZ_TGT   := $(FUZZ_SRC:tests/fuzz/%.c=$(BUILD)/fuzz/%)
+SECONDS    ?= 60
+
+FUZZDEPS_OK := $(BUILD)/.fuzzdeps-ok
+$(FUZZDEPS_OK): tools/deps.sh
+	@mkdir -p $(@D)
+	$(Q)sh tools/deps.sh fuzz
+	@touch $@
+
+$(BUILD)/fuzz/obj/%.o: %.c | $(DEPS_OK) $(FUZZDEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  FUZZCC  $<")
+	$(Q)$(FUZZ_CC) $(FUZZ_FLAGS) -fsanitize=fuzzer-no-link -MMD -MP -c $< -o $@
+
+$(FUZZ_LIB): $(FUZZ_OBJ)
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/fuzz/fuzz_%: tests/fuzz/fuzz_%.c $(FUZZ_LIB)
+	@$(if $(Q),echo "  FUZZ    $@")
+	$(Q)$(FUZZ_CC) $(FUZZ_FLAGS) -fsanitize=fuzzer $< $(FUZZ_LIB) -o $@ $(DEP_LIBS)
+
+fuzz: $(FUZZ_TGT)
+
+fuzz-run: $(FUZZ_TGT) $(SEED_DIRS)
+	$(Q)fails=""; for t in $(FUZZ_TGT); do n=$$(basename $$t | sed 's/^fuzz_//'); \
+	  work=$(BUILD)/fuzz-work/$$n; mkdir -p $$work $(BUILD)/fuzz-artifacts; \
+	  dirs=""; for d in tests/fuzz/corpus/$$n $(BUILD)/fuzz-corpus/$$n; do \
+	    [ -d $$d ] && dirs="$$dirs $$d"; done; \
+	  echo "  FUZZ    $$n: $(SECONDS) s"; \
+	  if ! $$t -max_total_time=$(SECONDS) -timeout=10 -rss_limit_mb=2048 \
+	      -print_final_stats=1 -artifact_prefix=$(BUILD)/fuzz-artifacts/$$n- \
+	      $$work $$dirs >$(BUILD)/fuzz-work/$$n.log 2>&1; then \
+	    echo "  FAIL    $$n (log $(BUILD)/fuzz-work/$$n.log)"; \
+	    grep -E "^(==[0-9]+==ERROR|SUMMARY|artifact_prefix|Test unit written)" \
+	      $(BUILD)/fuzz-work/$$n.log | head -n 8; fails="$$fails $$n"; \
+	  else grep -E "^stat::number_of_executed_units" $(BUILD)/fuzz-work/$$n.log | \
+	    sed "s/^/          /"; fi; done; \
+	  if [ -n "$$fails" ]; then echo "fuzz-run: failed:$$fails"; exit 1; fi
 
 install: all
 	install -d $(DESTDIR)$(PREFIX)/lib $(DESTDIR)$(PREFIX)/include/loom \
@@ -255,4 +308,4 @@ uninstall:
 clean:
 	rm -rf build
 
--include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)
+-include $(shell find $(BUILD)/obj $(BUILD)/fuzz/obj -name '*.d' 2>/dev/null)

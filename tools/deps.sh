@@ -7,6 +7,7 @@
 #                         (slurmctld, slurmd, the client commands, munge)
 #   tools/deps.sh openvdb the peer benchmark bench/bench_vdb.cpp (make bench):
 #                         OpenVDB, NanoVDB, the Boost headers they include, g++
+#   tools/deps.sh fuzz    build + clang with libFuzzer (make fuzz, fuzz-run)
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -44,6 +45,9 @@ else
 	# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
 	need libmicrohttpd-dev has_header microhttpd.h
 	need npm             command -v npm
+fi
+if [ "$what" = fuzz ]; then
+	need clang       command -v clang
 fi
 if [ "$what" = test ]; then
 	need openexr     command -v exrheader

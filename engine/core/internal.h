@@ -22,6 +22,28 @@ int loom__fail(loom_diag *diag, int code, const char *fmt, ...) LOOM_PRINTF(3, 4
 /* Report a warning through diag->warn (if any) and count it. */
 void loom__warn(loom_diag *diag, const char *fmt, ...) LOOM_PRINTF(2, 3);
 
+/*
+ * Open path read-only for a reader, safely: the open never blocks
+ * (O_NONBLOCK, cleared once the descriptor is known to be a regular file),
+ * anything but a regular file (FIFO, device, directory, socket) is refused
+ * with "PATH: not a regular file (a FIFO)" and the like, and *size is the
+ * size fstat reports.  LOOM_OK with *fd open (close it), else an error
+ * naming the path.  Every reader of loom opens its inputs through this.
+ */
+int loom__open_input(const char *path, int *fd, uint64_t *size, loom_diag *diag);
+/*
+ * Refuse an input of size bytes above the reader's limit (bytes; the
+ * environment variable LOOM_MAX_INPUT_BYTES, a byte count, replaces every
+ * such limit): LOOM_ERANGE "PATH: N bytes, more than the limit of M bytes
+ * for KIND files".  Readers call it before allocating anything.
+ */
+int loom__check_input_size(const char *path, uint64_t size, uint64_t limit,
+                           const char *kind, loom_diag *diag);
+
+/* A memory size for messages into buf (n >= 32): "12.3 MiB", or "10485
+   bytes" below 1 MiB, where a MiB figure would read 0.0.  Returns buf. */
+const char *loom__size_text(char *buf, size_t n, double bytes);
+
 /* sRGB-encoded component c in [0,1] to linear (IEC 61966-2-1).  Colours
    users type (#RRGGBB, WIF colour tables) are sRGB; albedo is linear. */
 /*

@@ -7,6 +7,8 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 static const char *const result_text[LOOM_RESULT_COUNT_] = {
@@ -63,6 +65,89 @@ void loom__warn(loom_diag *diag, const char *fmt, ...)
 	vsnprintf(buf, sizeof buf, fmt, ap);
 	va_end(ap);
 	diag->warn(diag->user, buf);
+}
+
+static const char *file_kind(mode_t m)
+{
+	if (S_ISDIR(m))
+		return "a directory";
+	if (S_ISFIFO(m))
+		return "a FIFO";
+	if (S_ISCHR(m))
+		return "a character device";
+	if (S_ISBLK(m))
+		return "a block device";
+	if (S_ISSOCK(m))
+		return "a socket";
+	return "not a file";
+}
+
+int loom__open_input(const char *path, int *fd, uint64_t *size, loom_diag *diag)
+{
+	struct stat st;
+	int f, fl, e;
+
+	*fd = -1;
+	*size = 0;
+	/* O_NONBLOCK: opening a FIFO without a writer (or a serial device)
+	   returns at once instead of waiting forever */
+	do
+		f = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+	while (f < 0 && errno == EINTR);
+	if (f < 0)
+		return loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
+		                  strerror(errno));
+	if (fstat(f, &st) != 0) {
+		e = errno;
+		close(f);
+		return loom__fail(diag, LOOM_EIO, "%s: cannot stat: %s", path,
+		                  strerror(e));
+	}
+	if (!S_ISREG(st.st_mode)) {
+		close(f);
+		return loom__fail(diag, LOOM_EIO, "%s: not a regular file (%s)", path,
+		                  file_kind(st.st_mode));
+	}
+	fl = fcntl(f, F_GETFL);
+	if (fl < 0 || fcntl(f, F_SETFL, fl & ~O_NONBLOCK) != 0) {
+		e = errno;
+		close(f);
+		return loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
+		                  strerror(e));
+	}
+	*fd = f;
+	*size = st.st_size > 0 ? (uint64_t)st.st_size : 0;
+	return LOOM_OK;
+}
+
+int loom__check_input_size(const char *path, uint64_t size, uint64_t limit,
+                           const char *kind, loom_diag *diag)
+{
+	const char *env = getenv("LOOM_MAX_INPUT_BYTES");
+
+	if (env && *env) {
+		char *end;
+		unsigned long long v;
+		errno = 0;
+		v = strtoull(env, &end, 10);
+		if (!errno && *end == 0 && env[0] != '-')
+			limit = v;
+	}
+	if (size > limit)
+		return loom__fail(diag, LOOM_ERANGE, "%s: %llu bytes, more than the "
+		                  "limit of %llu bytes for %s files (LOOM_MAX_INPUT_BYTES "
+		                  "raises it)", path, (unsigned long long)size,
+		                  (unsigned long long)limit, kind);
+	return LOOM_OK;
+}
+
+const char *loom__size_text(char *buf, size_t n, double bytes)
+{
+	if (bytes < 1048576.0)
+		snprintf(buf, n, "%.0f bytes", bytes < 0 ? 0 : bytes);
+	else
+		snprintf(buf, n, "%.1f MiB", bytes / 1048576.0);
+	return buf;
 }
 
 int loom__strieq(const char *a, const char *b)

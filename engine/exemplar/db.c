@@ -79,6 +79,20 @@ static int read_at(int fd, void *buf, size_t n, uint64_t off, size_t *got)
 
 #define FAILF(code, ...) loom__fail(diag, code, __VA_ARGS__)
 
+/* Reserved bytes must be zero (docs/formats.md). */
+static size_t first_nonzero(const uint8_t *b, size_t n)
+{
+	size_t i = 0;
+	while (i < n && b[i] == 0)
+		i++;
+	return i;
+}
+
+static int all_zero(const uint8_t *b, size_t n)
+{
+	return first_nonzero(b, n) == n;
+}
+
 static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 {
 	const char *p = db->path;
@@ -135,6 +149,15 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 	if (db->info.top_threshold > 255)
 		return FAILF(LOOM_EFORMAT, "%s: offset 52: top threshold %u > 255", p,
 		             db->info.top_threshold);
+	if (loom__le32(h + 56) > 12)
+		return FAILF(LOOM_EFORMAT, "%s: offset 56: deflate level %u, expected "
+		             "0..12", p, loom__le32(h + 56));
+	if (loom__le32(h + 60) & ~1u)
+		return FAILF(LOOM_EFORMAT, "%s: offset 60: flags 0x%x, only bit 0 is "
+		             "defined", p, loom__le32(h + 60));
+	if (!all_zero(h + 72, 52))
+		return FAILF(LOOM_EFORMAT, "%s: offset %zu: reserved header byte is not "
+		             "zero", p, 72 + first_nonzero(h + 72, 52));
 	db->info.seed = loom__le64(h + 64);
 	return LOOM_OK;
 }
@@ -164,6 +187,15 @@ static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
 		return XFAIL(LOOM_EFORMAT, "name", "%s", "not a NUL-terminated string");
 	if (memchr(x + 32, 0, 32) == NULL)
 		return XFAIL(LOOM_EFORMAT, "weave_name", "%s", "not a NUL-terminated string");
+	{
+		size_t nl = strlen((const char *)x), wl = strlen((const char *)x + 32);
+		if (!all_zero(x + nl, 32 - nl))
+			return XFAIL(LOOM_EFORMAT, "name", "%s", "not NUL-padded");
+		if (!all_zero(x + 32 + wl, 32 - wl))
+			return XFAIL(LOOM_EFORMAT, "weave_name", "%s", "not NUL-padded");
+	}
+	if (loom__le32(x + 124) != 0 || !all_zero(x + 176, 16))
+		return XFAIL(LOOM_EFORMAT, "reserved", "%s", "not zero (offsets 124, 176)");
 	memcpy(pub->name, x, 32);
 	memcpy(pub->weave_name, x + 32, 32);
 	pub->rows = loom__le32(x + 64);
@@ -254,11 +286,33 @@ static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
 		e->weave[i] = m[wo + i];
 	}
 	memset(e->yarns, 0, sizeof e->yarns);
+	if (!all_zero(m + yo, 4))
+		return XFAIL(LOOM_EFORMAT, "yarns", "%s", "entry 0 (the empty label) is "
+		             "not zero");
 	for (uint32_t l = 1; l <= pub->n_yarns; l++) {
 		const uint8_t *y = m + yo + 4 * (size_t)l;
+		int32_t idx = (int16_t)loom__le16(y + 2);
+		int32_t lim = y[0] == LOOM_YARN_WARP ? (int32_t)pub->cols
+		                                     : (int32_t)pub->rows;
+		int outside = (y[1] & LOOM_DB_YARN_OUTSIDE) != 0;
 		if (y[0] > LOOM_YARN_WEFT || y[1] > 3)
 			return XFAIL(LOOM_EFORMAT, "yarns", "label %u has kind %u flags %u", l,
 			             y[0], y[1]);
+		/* a yarn of the window has its end or pick; a yarn outside is the
+		   one just before (-1) or just after (cols or rows); a flyaway
+		   fibre has its yarn's index (either); no kind, no index */
+		if (y[0] == LOOM_YARN_NONE ? (idx != 0 || y[1] != 0)
+		    : outside ? (idx != -1 && idx != lim)
+		    : (y[1] & LOOM_DB_YARN_FLYAWAY) ? (idx < -1 || idx > lim)
+		                                    : (idx < 0 || idx >= lim))
+			return XFAIL(LOOM_ERANGE, "yarns", "label %u: %s index %d out of "
+			             "range (%s)", l, y[0] == LOOM_YARN_WARP ? "warp"
+			             : y[0] == LOOM_YARN_WEFT ? "weft" : "kindless", (int)idx,
+			             y[0] == LOOM_YARN_NONE ? "expected 0, no flags"
+			             : outside ? "outside: expected -1 or the count"
+			             : (y[1] & LOOM_DB_YARN_FLYAWAY) ? "flyaway: expected -1 .. "
+			                                               "the count"
+			                                             : "expected 0 .. count - 1");
 		e->yarns[l].kind = y[0];
 		e->yarns[l].flags = y[1];
 		e->yarns[l].index = (int16_t)loom__le16(y + 2);
@@ -269,18 +323,36 @@ static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
 		if (dx >= pub->cols || dy >= pub->rows)
 			return XFAIL(LOOM_EFORMAT, "symmetries", "entry %u (%u, %u) outside "
 			             "%ux%u", s, dx, dy, pub->rows, pub->cols);
+		if (s == 0 ? (dx || dy)
+		           : ((uint32_t)dy << 16 | dx) <=
+		             ((uint32_t)e->sym[2 * s - 1] << 16 | e->sym[2 * s - 2]))
+			return XFAIL(LOOM_EFORMAT, "symmetries", "entry %u (%u, %u) out of "
+			             "order ((0, 0) first, then by dy, then dx)", s, dx, dy);
 		e->sym[2 * s] = dx;
 		e->sym[2 * s + 1] = dy;
 	}
 	for (size_t i = 0; i < nblk; i++) {
 		const uint8_t *b = m + bo + i * esz;
 		float *f = e->bf + i * nf;
-		if (b[0] > 31 || b[1] > LOOM_YARN_WEFT)
-			return XFAIL(LOOM_EFORMAT, "blocks", "block %zu: code %u, centre kind %u",
-			             i, b[0], b[1]);
+		size_t r = i / pub->cols, c = i % pub->cols, R = pub->rows, C = pub->cols;
+		unsigned code = e->weave[i] | e->weave[(r + R - 1) % R * C + c] << 1 |
+		                e->weave[(r + 1) % R * C + c] << 2 |
+		                e->weave[r * C + (c + C - 1) % C] << 3 |
+		                e->weave[r * C + (c + 1) % C] << 4;
+		if (b[0] != code || b[1] > LOOM_YARN_WEFT ||
+		    loom__le16(b + 2) > (uint64_t)b1 * b2)
+			return XFAIL(LOOM_EFORMAT, "blocks", "block %zu: code %u (the weave "
+			             "gives %u), centre kind %u, gap columns %u", i, b[0], code,
+			             b[1], loom__le16(b + 2));
 		memcpy(e->bmeta + 4 * i, b, 4);
-		for (size_t j = 0; j < nf; j++)
+		for (size_t j = 0; j < nf; j++) {
 			f[j] = loom__lef32(b + 4 + 4 * j);
+			/* heights and mean steps are within the volume's depth */
+			if (!(f[j] >= 0.0f && f[j] <= (float)db->info.block[2]))
+				return XFAIL(LOOM_ERANGE, "blocks", "block %zu: value %zu is %g, "
+				             "expected 0..%u", i, j, (double)f[j],
+				             db->info.block[2]);
+		}
 	}
 	pub->weave = e->weave;
 	pub->yarns = e->yarns;
@@ -354,6 +426,47 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 	return LOOM_OK;
 }
 
+/* After the index: each exemplar's stored_bytes is the sum over its
+   bricks, and between the end of the last stored brick and the metadata
+   there are 0 to 7 zero bytes (the alignment to 8). */
+static int check_stored(loom_db *db, loom_diag *diag)
+{
+	uint64_t end = LOOM__DB_HEADER_BYTES;
+	uint8_t pad[8];
+	size_t got;
+
+	for (uint32_t k = 0; k < db->info.n_exemplars; k++) {
+		const loom_db_exemplar_info *x = &db->ex[k].pub;
+		uint64_t nb = (uint64_t)x->bricks[0] * x->bricks[1] * x->bricks[2], sum = 0;
+		for (uint64_t i = 0; i < nb; i++)
+			sum += db->bricks[x->first_brick + i].stored;
+		if (sum != x->stored_bytes)
+			return FAILF(LOOM_EFORMAT, "%s: exemplar %u at metadata offset %zu, "
+			             "field 'stored_bytes': %llu, its bricks store %llu",
+			             db->path, k, (size_t)LOOM__DB_META_HEADER_BYTES +
+			             (size_t)k * LOOM__DB_EXEMPLAR_BYTES,
+			             (unsigned long long)x->stored_bytes,
+			             (unsigned long long)sum);
+	}
+	for (uint32_t i = 0; i < db->n_bricks; i++)
+		if (db->bricks[i].stored && db->bricks[i].offset + db->bricks[i].stored > end)
+			end = db->bricks[i].offset + db->bricks[i].stored;
+	if (db->data_end - end >= 8)
+		return FAILF(LOOM_EFORMAT, "%s: offset %llu: %llu bytes between the brick "
+		             "data and the metadata, expected at most 7", db->path,
+		             (unsigned long long)end,
+		             (unsigned long long)(db->data_end - end));
+	if (read_at(db->fd, pad, (size_t)(db->data_end - end), end, &got) != 0 ||
+	    got != db->data_end - end)
+		return FAILF(LOOM_EIO, "%s: cannot read at offset %llu", db->path,
+		             (unsigned long long)end);
+	if (!all_zero(pad, got))
+		return FAILF(LOOM_EFORMAT, "%s: offset %llu: padding before the metadata "
+		             "is not zero", db->path,
+		             (unsigned long long)(end + first_nonzero(pad, got)));
+	return LOOM_OK;
+}
+
 static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
                           uint32_t trailer_bricks, loom_diag *diag)
 {
@@ -380,6 +493,9 @@ static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
 		             loom__le32(m + 24), LOOM__DB_EXEMPLAR_BYTES,
 		             LOOM__DB_INDEX_BYTES,
 		             loom__db_block_entry_bytes(db->info.block[0], db->info.block[1]));
+	if (loom__le32(m + 28) != 0 || !all_zero(m + 48, 16))
+		return FAILF(LOOM_EFORMAT, "%s: metadata offset %d: reserved field is not "
+		             "zero", p, loom__le32(m + 28) ? 28 : 48);
 	db->n_bricks = loom__le32(m + 16);
 	if (db->n_bricks != trailer_bricks)
 		return FAILF(LOOM_EFORMAT, "%s: metadata offset 16: %u bricks, the trailer "
@@ -412,7 +528,7 @@ static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
 	if (rc)
 		return rc;
 	db->info.n_bricks = db->n_bricks;
-	return LOOM_OK;
+	return check_stored(db, diag);
 }
 
 LOOM_API int loom_db_open(const char *path, loom_db **out, loom_diag *diag)
@@ -421,7 +537,6 @@ LOOM_API int loom_db_open(const char *path, loom_db **out, loom_diag *diag)
 	uint8_t h[LOOM__DB_HEADER_BYTES], t[LOOM__DB_TRAILER_BYTES];
 	uint8_t *meta = NULL;
 	uint64_t size, mo, ml, fb, hash;
-	struct stat st;
 	size_t got;
 	int rc;
 
@@ -438,16 +553,9 @@ LOOM_API int loom_db_open(const char *path, loom_db **out, loom_diag *diag)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	}
 	/* Step 1. */
-	db->fd = open(path, O_RDONLY | O_CLOEXEC);
-	if (db->fd < 0 || fstat(db->fd, &st) != 0) {
-		rc = FAILF(LOOM_EIO, "%s: cannot open: %s", path, strerror(errno));
+	rc = loom__open_input(path, &db->fd, &size, diag);
+	if (rc)
 		goto fail;
-	}
-	if (!S_ISREG(st.st_mode)) {
-		rc = FAILF(LOOM_EIO, "%s: not a regular file", path);
-		goto fail;
-	}
-	size = (uint64_t)st.st_size;
 	db->info.file_bytes = size;
 	if (size < LOOM__DB_HEADER_BYTES) {
 		/* a short file may still say what it is: check the magic we have */
@@ -488,6 +596,12 @@ LOOM_API int loom_db_open(const char *path, loom_db **out, loom_diag *diag)
 	if (loom__le32(t + 60) != libdeflate_crc32(0, t, 60)) {
 		rc = FAILF(LOOM_ECORRUPT, "%s: offset %llu: trailer CRC32 mismatch", path,
 		           (unsigned long long)(size - 4));
+		goto fail;
+	}
+	if (!all_zero(t + 48, 12)) {
+		rc = FAILF(LOOM_EFORMAT, "%s: offset %llu: reserved trailer byte is not "
+		           "zero", path, (unsigned long long)(size - sizeof t + 48 +
+		                                              first_nonzero(t + 48, 12)));
 		goto fail;
 	}
 	fb = loom__le64(t + 32);

@@ -538,11 +538,13 @@ static int run_exact(pv_ctx *c, loom_preview_band_fn fn, void *user)
 		if (fit > want)
 			fit = want;
 		if ((int64_t)fit < need) {
+			char s1[40], s2[40];
 			snprintf(c->msg, sizeof c->msg, "an exact preview of this box needs "
-			         "%.1f MiB of row buffers, more than the %.1f MiB allowed (use "
+			         "%s of row buffers, more than the %s allowed (use "
 			         "the blocks filter or a narrower box)",
-			         (double)((size_t)need * per_row + fixed) / 1048576.0,
-			         (double)c->cap / 1048576.0);
+			         loom__size_text(s1, sizeof s1,
+			                         (double)((size_t)need * per_row + fixed)),
+			         loom__size_text(s2, sizeof s2, (double)c->cap));
 			return LOOM_EBUDGET;
 		}
 		j.ring = (uint32_t)fit;
@@ -1032,10 +1034,12 @@ static int run_blocks(pv_ctx *c, loom_preview_band_fn fn, void *user,
 	                              RUN_MAX * (size_t)(c->z1 - c->z0) * 5);
 	c->mem = mem;
 	if (mem > c->cap) {
+		char s1[40], s2[40];
 		rc = LOOM_EBUDGET;
 		snprintf(c->msg, sizeof c->msg, "a block-filtered preview of this box needs "
-		         "%.1f MiB, more than the %.1f MiB allowed", (double)mem / 1048576.0,
-		         (double)c->cap / 1048576.0);
+		         "%s, more than the %s allowed",
+		         loom__size_text(s1, sizeof s1, (double)mem),
+		         loom__size_text(s2, sizeof s2, (double)c->cap));
 		goto done;
 	}
 	atomic_store(&j.next, 0);

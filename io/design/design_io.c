@@ -96,6 +96,15 @@ static int is_image(const uint8_t *data, size_t len)
 	       (len >= 2 && data[0] == 'P' && data[1] >= '1' && data[1] <= '6');
 }
 
+/* head check of a design of unknown extension: an image, else WIF text */
+static int design_head(const uint8_t *head, size_t n, const char *path,
+                       loom_diag *diag)
+{
+	if (is_image(head, n))
+		return LOOM_OK;
+	return loom__head_text(head, n, path, diag);
+}
+
 /* An image extension means an image; no known extension: sniff the content
    (an image, else a WIF, whose text may begin with anything). */
 static int design_from_bytes(const uint8_t *data, size_t len, const char *path,
@@ -128,7 +137,10 @@ LOOM_API int loom_design_read(const char *path, loom_design **out,
 		return loom__fail(diag, LOOM_EINVAL, "NULL path");
 	if (loom__path_format(path) == LOOM__FMT_WIF)
 		return loom_wif_read(path, out, diag);
-	rc = loom__read_file(path, LOOM__IMAGE_MAX_FILE_BYTES, &data, &len, diag);
+	rc = loom__read_file_checked(path, LOOM__IMAGE_MAX_FILE_BYTES, "design",
+	                             loom__path_format(path) == LOOM__FMT_UNKNOWN
+	                             ? design_head : loom__image_head,
+	                             &data, &len, diag);
 	if (rc)
 		return rc;
 	rc = design_from_bytes(data, len, path, out, diag);

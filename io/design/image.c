@@ -73,6 +73,20 @@ int loom__image_parse_ex(const uint8_t *data, size_t len, const char *name,
 	                  len > 1 ? data[1] : 0);
 }
 
+int loom__image_head(const uint8_t *head, size_t n, const char *path,
+                     loom_diag *diag)
+{
+	if (n == 0 || loom__is_png(head, n) ||
+	    (n >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '6') ||
+	    (n < 8 && !memcmp(head, "\x89PNG\r\n\x1a\n", n)) ||
+	    (n == 1 && head[0] == 'P'))
+		return LOOM_OK; /* empty or short: the parser says what is wrong */
+	return loom__fail(diag, LOOM_EFORMAT, "%s: not a PBM, PGM, PPM or PNG "
+	                  "image (starts with bytes 0x%02x 0x%02x; expected "
+	                  "'P1'..'P6' or the PNG signature)", path, head[0],
+	                  n > 1 ? head[1] : 0);
+}
+
 int loom__image_read_ex(const char *path, unsigned flags, loom_image **out,
                         loom_diag *diag)
 {
@@ -85,7 +99,8 @@ int loom__image_read_ex(const char *path, unsigned flags, loom_image **out,
 	*out = NULL;
 	if (!path)
 		return loom__fail(diag, LOOM_EINVAL, "NULL path");
-	rc = loom__read_file(path, LOOM__IMAGE_MAX_FILE_BYTES, &data, &len, diag);
+	rc = loom__read_file_checked(path, LOOM__IMAGE_MAX_FILE_BYTES, "image",
+	                             loom__image_head, &data, &len, diag);
 	if (rc)
 		return rc;
 	rc = loom__image_parse_ex(data, len, path, flags, out, diag);

@@ -36,6 +36,9 @@ int loom__is_png(const uint8_t *data, size_t len);
 int loom__image_parse_ex(const uint8_t *data, size_t len, const char *name,
                          unsigned flags, loom_image **out, loom_diag *diag);
 /* Read a file and parse it with loom__image_parse_ex. */
+/* loom__head_check of the image readers: PNG signature or 'P1'..'P6' */
+int loom__image_head(const uint8_t *head, size_t n, const char *path,
+                     loom_diag *diag);
 int loom__image_read_ex(const char *path, unsigned flags, loom_image **out,
                         loom_diag *diag);
 

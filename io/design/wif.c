@@ -1541,7 +1541,8 @@ LOOM_API int loom_wif_read(const char *path, loom_design **out, loom_diag *diag)
 		*out = NULL;
 	if (!path || !out)
 		return loom__fail(diag, LOOM_EINVAL, "loom_wif_read: NULL argument");
-	rc = loom__read_file(path, LOOM__WIF_MAX_FILE_BYTES, &data, &len, diag);
+	rc = loom__read_file_checked(path, LOOM__WIF_MAX_FILE_BYTES, "WIF",
+	                             loom__head_text, &data, &len, diag);
 	if (rc)
 		return rc;
 	rc = loom_wif_parse((const char *)data, len, path, out, diag);

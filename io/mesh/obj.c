@@ -485,7 +485,8 @@ LOOM_API int loom_obj_read(const char *path, loom_mesh **out, loom_diag *diag)
 		*out = NULL;
 	if (!path || !out)
 		return loom__fail(diag, LOOM_EINVAL, "loom_obj_read: NULL argument");
-	if ((rc = loom__read_file(path, OBJ_MAX_FILE, &data, &len, diag)))
+	if ((rc = loom__read_file_checked(path, OBJ_MAX_FILE, "OBJ", loom__head_text,
+	                                  &data, &len, diag)))
 		return rc;
 	rc = loom_obj_parse((const char *)data, len, path, out, diag);
 	free(data);

@@ -356,6 +356,19 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *d,
 	if (d->n_yarns > 255 || !d->yarns)
 		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar '%s': %u yarn labels "
 		                  "(at most 255)", w->out.path, d->name, d->n_yarns);
+	for (uint32_t l = 1; l <= d->n_yarns; l++) {
+		/* what readers accept (docs/formats.md, yarn table) */
+		const loom_db_yarn *y = &d->yarns[l];
+		int32_t lim = y->kind == LOOM_YARN_WARP ? (int32_t)d->cols : (int32_t)d->rows;
+		if (y->kind > LOOM_YARN_WEFT || y->flags > 3 ||
+		    (y->kind == LOOM_YARN_NONE ? (y->index != 0 || y->flags != 0)
+		     : (y->flags & LOOM_DB_YARN_OUTSIDE) ? (y->index != -1 && y->index != lim)
+		     : (y->flags & LOOM_DB_YARN_FLYAWAY) ? (y->index < -1 || y->index > lim)
+		                                         : (y->index < 0 || y->index >= lim)))
+			return loom__fail(diag, LOOM_EINVAL, "%s: exemplar '%s': yarn label %u: "
+			                  "kind %u, flags %u, index %d out of range", w->out.path,
+			                  d->name, l, y->kind, y->flags, (int)y->index);
+	}
 	if ((uint64_t)d->cols * w->p.block[0] > LOOM__DB_MAX_EXTENT ||
 	    (uint64_t)d->rows * w->p.block[1] > LOOM__DB_MAX_EXTENT)
 		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar '%s' larger than %u "

@@ -895,7 +895,6 @@ int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
 {
 	fab_reader r;
 	loom_fabric *f;
-	struct stat st;
 	int rc;
 
 	*out = NULL;
@@ -907,15 +906,9 @@ int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
 		r.mem = mem;
 		r.size = len;
 	} else {
-		r.fd = open(path, O_RDONLY | O_CLOEXEC);
-		if (r.fd < 0)
-			return loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
-			                  strerror(errno));
-		if (fstat(r.fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-			close(r.fd);
-			return loom__fail(diag, LOOM_EIO, "%s: not a regular file", path);
-		}
-		r.size = (uint64_t)st.st_size;
+		rc = loom__open_input(path, &r.fd, &r.size, diag);
+		if (rc)
+			return rc;
 	}
 	f = loom__fabric_alloc();
 	r.dec = libdeflate_alloc_decompressor();

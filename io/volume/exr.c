@@ -902,6 +902,18 @@ done:
 	return LOOM_OK;
 }
 
+/* an OpenEXR file starts with the magic number 20000630 (76 2f 31 01) */
+static int exr_head(const uint8_t *head, size_t n, const char *path,
+                    loom_diag *diag)
+{
+	if (n >= 4 && memcmp(head, "\x76\x2f\x31\x01", 4) == 0)
+		return LOOM_OK;
+	return loom__fail(diag, n < 4 ? LOOM_ETRUNCATED : LOOM_EFORMAT,
+	                  "%s: not an OpenEXR file (%s)", path,
+	                  n < 4 ? "shorter than the 4-byte magic number"
+	                        : "no magic number 76 2f 31 01 at byte 0");
+}
+
 LOOM_API int loom_exr_read(const char *path, loom_exr_image **out,
                            loom_diag *diag)
 {
@@ -912,7 +924,8 @@ LOOM_API int loom_exr_read(const char *path, loom_exr_image **out,
 	if (!path || !out)
 		return loom__fail(diag, LOOM_EINVAL, "loom_exr_read: NULL argument");
 	*out = NULL;
-	rc = loom__read_file(path, (size_t)1 << 36, &data, &len, diag);
+	rc = loom__read_file_checked(path, (size_t)1 << 36, "OpenEXR", exr_head,
+	                             &data, &len, diag);
 	if (rc)
 		return rc;
 	rc = loom_exr_parse(data, len, path, out, diag);

@@ -425,8 +425,7 @@ LOOM_API int loom_vol_open(const char *path, loom_vol_reader **out,
 {
 	loom_vol_reader *r;
 	uint8_t hdr[LOOM_VOL_HEADER_BYTES];
-	struct stat st;
-	uint64_t need;
+	uint64_t need, fsize;
 	ssize_t got;
 	int rc;
 
@@ -436,16 +435,10 @@ LOOM_API int loom_vol_open(const char *path, loom_vol_reader **out,
 	r = calloc(1, sizeof *r);
 	if (!r)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
-	r->fd = open(path, O_RDONLY | O_CLOEXEC);
-	if (r->fd < 0) {
-		rc = loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
-		                strerror(errno));
+	rc = loom__open_input(path, &r->fd, &fsize, diag);
+	if (rc) {
 		free(r);
 		return rc;
-	}
-	if (fstat(r->fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-		rc = loom__fail(diag, LOOM_EIO, "%s: not a readable regular file", path);
-		goto fail;
 	}
 	do
 		got = pread(r->fd, hdr, sizeof hdr, 0);
@@ -457,10 +450,10 @@ LOOM_API int loom_vol_open(const char *path, loom_vol_reader **out,
 	}
 	rc = loom_vol_header_parse(hdr, (size_t)got, path, &r->h, diag);
 	if (!rc)
-		rc = check_size(&r->h, (uint64_t)st.st_size, path, &need, diag);
+		rc = check_size(&r->h, fsize, path, &need, diag);
 	if (rc)
 		goto fail;
-	warn_trailing(path, (uint64_t)st.st_size, need, diag);
+	warn_trailing(path, fsize, need, diag);
 	r->vbytes = voxel_bytes(r->h.encoding, r->h.channels);
 	r->path = strdup(path);
 	/* xres*vbytes <= data bytes <= file size, so this is a sane size */

@@ -25,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #define HEADER_MAX (1u << 20)  /* longest header loom reads */
 #define FIELD_LINE_MAX 4096    /* longest field line loom parses */
@@ -818,21 +819,30 @@ LOOM_API int loom_nrrd_parse(const uint8_t *data, size_t len, const char *name,
 /* Read at most HEADER_MAX bytes of path and parse the header. */
 static int read_header(const char *path, loom_nrrd_info *I, loom_diag *diag)
 {
-	FILE *fp = fopen(path, "rb");
 	char *buf;
-	size_t n;
-	int rc;
+	size_t n = 0;
+	uint64_t size;
+	int rc, fd, err = 0;
+	FILE *fp;
 
-	if (!fp)
-		return loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
-		                  strerror(errno));
-	buf = malloc(HEADER_MAX);
+	rc = loom__open_input(path, &fd, &size, diag);
+	if (rc)
+		return rc;
+	fp = fdopen(fd, "rb");
+	buf = fp ? malloc(HEADER_MAX) : NULL;
 	if (!buf) {
-		fclose(fp);
+		if (fp)
+			fclose(fp);
+		else
+			close(fd);
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	}
-	n = fread(buf, 1, HEADER_MAX, fp);
-	if (ferror(fp)) {
+	/* the magic line first: a file that is not NRRD is not read further */
+	n = fread(buf, 1, 4, fp);
+	if (!ferror(fp) && n == 4 && memcmp(buf, "NRRD", 4) == 0)
+		n += fread(buf + 4, 1, HEADER_MAX - 4, fp);
+	err = ferror(fp);
+	if (err) {
 		rc = loom__fail(diag, LOOM_EIO, "%s: read error: %s", path,
 		                strerror(errno));
 	} else {
@@ -878,10 +888,18 @@ static int raw_data_offset(const char *dpath, const loom_nrrd_info *I,
 	*offset = pos;
 	if (lines == 0)
 		return LOOM_OK;
-	fp = fopen(dpath, "rb");
-	if (!fp)
-		return loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", dpath,
-		                  strerror(errno));
+	{
+		int fd, rc;
+		uint64_t size;
+		rc = loom__open_input(dpath, &fd, &size, diag);
+		if (rc)
+			return rc;
+		fp = fdopen(fd, "rb");
+		if (!fp) {
+			close(fd);
+			return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", dpath);
+		}
+	}
 	if (fseeko(fp, (off_t)pos, SEEK_SET) != 0) {
 		fclose(fp);
 		return loom__fail(diag, LOOM_EIO, "%s: cannot seek", dpath);
@@ -929,6 +947,34 @@ static int raw_params_for(const char *dpath, const loom_nrrd_info *I,
 	return LOOM_OK;
 }
 
+/*
+ * Largest file that can hold the gzip or ASCII data the header declares
+ * (docs/volumes.md): gzip never needs more than the data plus 1/64 of it
+ * (stored blocks cost 5 bytes per 64 KiB) and 1 MiB of gzip header, ASCII
+ * at most 64 bytes of text per value, both after the attached header.  A
+ * larger file is refused before it is read.
+ */
+static uint64_t encoded_limit(const loom_nrrd_info *I)
+{
+	uint64_t need = data_bytes_of(I), lim;
+	uint64_t skip = I->byte_skip > 0 ? (uint64_t)I->byte_skip : 0;
+
+	if (need == UINT64_MAX || need > ((uint64_t)1 << 50) ||
+	    skip > ((uint64_t)1 << 50))
+		return UINT64_MAX;
+	if (I->encoding == LOOM_NRRD_GZIP)
+		lim = need + skip + (need + skip) / 64;
+	else
+		lim = need / loom_scalar_size(I->type) * 64;
+	lim += (uint64_t)1 << 20;
+	if (!I->data_file[0])
+		lim += I->header_bytes;
+	if (I->line_skip > 0) /* lines of at most 4 KiB */
+		lim += (uint64_t)(I->line_skip < ((int64_t)1 << 20) ? I->line_skip
+		                                                    : (int64_t)1 << 20) * 4096;
+	return lim;
+}
+
 LOOM_API int loom_nrrd_read(const char *path, size_t max_bytes,
                             loom_nrrd_info *info, loom_volbuf **out,
                             loom_diag *diag)
@@ -954,7 +1000,10 @@ LOOM_API int loom_nrrd_read(const char *path, size_t max_bytes,
 	} else {
 		uint8_t *buf;
 		size_t len;
-		rc = loom__read_file(dpath, (size_t)1 << 40, &buf, &len, diag);
+		rc = loom__read_file_checked(dpath, encoded_limit(&I),
+		                             I.encoding == LOOM_NRRD_GZIP ? "gzip NRRD "
+		                             "data" : "ASCII NRRD data", NULL, &buf,
+		                             &len, diag);
 		if (!rc) {
 			size_t start = I.data_file[0] ? 0 : I.header_bytes;
 			if (start > len)

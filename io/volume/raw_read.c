@@ -435,7 +435,7 @@ LOOM_API int loom_raw_open(const char *path, const loom_raw_params *p,
                            loom_raw_reader **out, loom_diag *diag)
 {
 	loom_raw_reader *r;
-	struct stat st;
+	uint64_t fsize;
 	int rc;
 
 	if (!path || !out)
@@ -447,23 +447,12 @@ LOOM_API int loom_raw_open(const char *path, const loom_raw_params *p,
 	r = calloc(1, sizeof *r);
 	if (!r)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
-	r->fd = open(path, O_RDONLY | O_CLOEXEC);
-	if (r->fd < 0) {
-		rc = loom__fail(diag, LOOM_EIO, "%s: cannot open: %s", path,
-		                strerror(errno));
+	rc = loom__open_input(path, &r->fd, &fsize, diag);
+	if (rc) {
 		free(r);
 		return rc;
 	}
-	if (fstat(r->fd, &st) != 0) {
-		rc = loom__fail(diag, LOOM_EIO, "%s: cannot stat: %s", path,
-		                strerror(errno));
-		goto fail;
-	}
-	if (!S_ISREG(st.st_mode)) {
-		rc = loom__fail(diag, LOOM_EIO, "%s: not a regular file", path);
-		goto fail;
-	}
-	rc = layout_for(p, (uint64_t)st.st_size, path, &r->L, diag);
+	rc = layout_for(p, fsize, path, &r->L, diag);
 	if (rc)
 		goto fail;
 	r->p = *p;

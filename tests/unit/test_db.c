@@ -416,7 +416,7 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	memset(yarns, 0, sizeof yarns);
 	for (int l = 1; l < 256; l++) {
 		yarns[l].kind = LOOM_YARN_WEFT;
-		yarns[l].index = (int16_t)l;
+		yarns[l].index = (int16_t)(l % 2); /* a pick of the 2x2 window */
 	}
 	yarns[1].kind = LOOM_YARN_WARP;
 	yarns[1].index = 0;
@@ -831,6 +831,11 @@ static void test_size_mismatch(void)
 		memcpy(c + off, tmp, csz);
 		loom__put32(c + e + 8, (uint32_t)csz);
 		loom__put32(c + e + 16, libdeflate_crc32(0, tmp, csz));
+		{ /* exemplar 0's stored_bytes follows its brick's (an open check) */
+			uint64_t mo = loom__le64(c + n - 64 + 8);
+			loom__put64(c + mo + 64 + 168,
+			            loom__le64(c + mo + 64 + 168) - sz + csz);
+		}
 		reseal(c, n);
 		spit(tpath("size.ldb"), c, n);
 		db = NULL;

@@ -127,6 +127,7 @@ static int sub_generate(int argc, char **argv)
 	opts_parse(&c, argc, argv);
 	if (!out)
 		opts_usage(&c, "missing -o DB");
+	cli_check_output(prog, out);
 	if (loom_exgen_preset(preset, &p) != LOOM_OK)
 		opts_usage(&c, "--preset: expected small, paper or tiny, got '%s'", preset);
 	if (weaves) {

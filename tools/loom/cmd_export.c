@@ -146,6 +146,32 @@ static void make_dir(const char *prog, const char *dir)
 
 /* ---- the command -------------------------------------------------------------- */
 
+/* Free what the export allocated, release the shard lock (after success
+   or a failed run alike). */
+static void export_ctx_free(struct export_ctx *c, unsigned threads)
+{
+	for (unsigned w = 0; c->w && w < threads; w++) {
+		free(c->w[w].d);
+		free(c->w[w].k);
+		free(c->w[w].ty);
+		free(c->w[w].o);
+		free(c->w[w].row);
+		free(c->w[w].io);
+		free(c->w[w].line);
+	}
+	for (uint64_t k = 0; c->lines && k < c->n; k++)
+		free(c->lines[k]);
+	free(c->lines);
+	free(c->skip);
+	free(c->order);
+	free(c->byidx);
+	free(c->w);
+	c->w = NULL;
+	c->lines = NULL;
+	shard_lock_release(&c->lock_dir);
+	pthread_mutex_destroy(&c->lock);
+}
+
 int cmd_export(int argc, char **argv)
 {
 	const char *prog = "loom export";
@@ -343,12 +369,14 @@ int cmd_export(int argc, char **argv)
 	if (tiles_run(&pool) != 0) {
 		export_manifest_flush(&c, 0);
 		cli_error(prog, "%s", pool.msg);
+		export_ctx_free(&c, j.threads);
 		tiles_close(&j);
 		return EXIT_BAD_INPUT;
 	}
 	secs = cli_now() - t0;
 	if (export_manifest_flush(&c, 1) != 0) {
 		cli_error(prog, "%s", c.manifest_msg);
+		export_ctx_free(&c, j.threads);
 		tiles_close(&j);
 		return EXIT_BAD_INPUT;
 	}
@@ -386,24 +414,7 @@ int cmd_export(int argc, char **argv)
 			       secs, c.manifest);
 		}
 	}
-	for (unsigned w = 0; w < j.threads; w++) {
-		free(c.w[w].d);
-		free(c.w[w].k);
-		free(c.w[w].ty);
-		free(c.w[w].o);
-		free(c.w[w].row);
-		free(c.w[w].io);
-		free(c.w[w].line);
-	}
-	for (uint64_t k = 0; k < c.n; k++)
-		free(c.lines[k]);
-	free(c.lines);
-	free(c.skip);
-	free(c.order);
-	free(c.byidx);
-	free(c.w);
-	shard_lock_release(&c.lock_dir);
-	pthread_mutex_destroy(&c.lock);
+	export_ctx_free(&c, j.threads);
 	tiles_close(&j);
 	return 0;
 }

@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "opts.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <math.h>
@@ -127,36 +128,13 @@ static void check_common(const opts_cmd *c, const pat_opts *o, int need_out)
 /* Read a whole text file (at most MAP_FILE_MAX bytes); exit 1 on failure. */
 static char *read_text(const char *prog, const char *path, size_t *len)
 {
-	FILE *fp = fopen(path, "rb");
-	char *buf = NULL;
-	size_t cap = 0, got;
+	uint8_t *buf;
+	loom_diag diag = {0};
 
-	if (!fp)
-		cli_fail(prog, "%s: cannot open: %s", path, strerror(errno));
-	*len = 0;
-	do {
-		char *grown;
-		if (*len == cap) {
-			cap = cap ? 2 * cap : 4096;
-			grown = cap > 2 * MAP_FILE_MAX ? NULL : realloc(buf, cap);
-			if (!grown) {
-				free(buf);
-				fclose(fp);
-				cli_fail(prog, "%s: larger than 16 MiB or out of memory", path);
-			}
-			buf = grown;
-		}
-		got = fread(buf + *len, 1, cap - *len, fp);
-		*len += got;
-	} while (got > 0 && *len <= MAP_FILE_MAX);
-	if (ferror(fp) || *len > MAP_FILE_MAX) {
-		int e = ferror(fp);
-		fclose(fp);
-		free(buf);
-		cli_fail(prog, "%s: %s", path, e ? "read error" : "larger than 16 MiB");
-	}
-	fclose(fp);
-	return buf;
+	if (loom__read_file_checked(path, MAP_FILE_MAX, "mapping", loom__head_text,
+	                            &buf, len, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	return (char *)buf;
 }
 
 static int design_from_image_file(const char *prog, const pat_opts *o,

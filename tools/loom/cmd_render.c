@@ -198,13 +198,13 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "missing -o OUT.png|OUT.exr");
 	if (!cli_ends_with(out, ".png") && !cli_ends_with(out, ".exr"))
 		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
-	cli_check_output(prog, out); /* before minutes of rendering */
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats) ||
 	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth)))
 		opts_usage(&cmd, "--thickness, --uv-repeats, --warp-dir and --field-smooth "
 		           "go with --mesh");
+	cli_check_output(prog, out); /* before minutes of rendering */
 	cli_diag_init(&diag, &quiet);
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)

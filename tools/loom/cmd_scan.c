@@ -18,6 +18,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "export.h"
 #include "tiles.h"
 
 #include "io/core/file.h" /* io/: atomic output files (-o) */
@@ -169,6 +170,25 @@ struct scan_ctx {
 	unsigned n_types;
 	struct wstate *w;
 };
+
+/* Free what the scan allocated (after success or a failed run alike). */
+static void scan_ctx_free(struct scan_ctx *c, unsigned threads)
+{
+	for (unsigned w = 0; c->w && w < threads; w++) {
+		free(c->w[w].d);
+		free(c->w[w].k);
+		free(c->w[w].ty);
+		free(c->w[w].o);
+		free(c->w[w].hist);
+	}
+	free(c->w);
+	free(c->zk1);
+	free(c->zk2);
+	free(c->ep);
+	c->w = NULL;
+	c->zk1 = c->zk2 = NULL;
+	c->ep = NULL;
+}
 
 static int scan_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char *msg,
                      size_t msz)
@@ -763,6 +783,8 @@ int cmd_scan(int argc, char **argv)
 		opts_usage(&cmd, "missing --reduce checksum|histogram|coverage");
 	if (opt_given(&cmd, &bins) && c.reduce != R_HISTOGRAM)
 		opts_usage(&cmd, "--bins goes with --reduce histogram");
+	if (out)
+		cli_check_output(prog, out);
 
 	tiles_open_fabric(&j, prog, path, 32);
 	if (c.reduce == R_COVERAGE && j.tsize[2] < j.hi[2] - j.lo[2]) {
@@ -829,6 +851,8 @@ int cmd_scan(int argc, char **argv)
 	cpu0 = tiles_cpu_seconds();
 	if (tiles_run(&pool) != 0) {
 		cli_error(prog, "%s", pool.msg);
+		scan_ctx_free(&c, j.threads);
+		free(files);
 		tiles_close(&j);
 		return EXIT_BAD_INPUT;
 	}
@@ -864,28 +888,18 @@ int cmd_scan(int argc, char **argv)
 			}
 	}
 	memcpy(r.tile, j.tsize, sizeof r.tile);
-	{
-		size_t flen;
-		char *ftext = tiles_read_text(path, (size_t)1 << 34, &flen);
-		if (ftext) { /* the fabric's identity, for --combine */
+	{ /* the fabric's identity, for --combine (streamed, not loaded) */
+		uint8_t *fbuf = malloc(CRC_BUF);
+		uint32_t fcrc;
+		uint64_t flen;
+		if (fbuf && export_file_crc(path, fbuf, &fcrc, &flen) == 0) {
 			r.fabric_bytes = flen;
-			snprintf(r.fabric_crc, sizeof r.fabric_crc, "%08x",
-			         libdeflate_crc32(0, ftext, flen));
-			free(ftext);
+			snprintf(r.fabric_crc, sizeof r.fabric_crc, "%08x", fcrc);
 		}
+		free(fbuf);
 	}
 	emit(prog, out, &r, json, quiet, secs, cpu, &j, &st, 1);
-	for (unsigned w = 0; w < j.threads; w++) {
-		free(c.w[w].d);
-		free(c.w[w].k);
-		free(c.w[w].ty);
-		free(c.w[w].o);
-		free(c.w[w].hist);
-	}
-	free(c.w);
-	free(c.zk1);
-	free(c.zk2);
-	free(c.ep);
+	scan_ctx_free(&c, j.threads);
 	free(r.hist);
 	free(r.names);
 	free(files);

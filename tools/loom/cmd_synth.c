@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "opts.h"
+#include "io/core/file.h"
 
 #include <errno.h>
 #include <math.h>
@@ -47,21 +48,13 @@ static double now_s(void)
 
 static char *read_text(const char *prog, const char *path, size_t *len)
 {
-	FILE *fp = fopen(path, "rb");
-	char *buf;
-	size_t got;
+	uint8_t *buf;
+	loom_diag diag = {0};
 
-	if (!fp)
-		cli_fail(prog, "%s: cannot open: %s", path, strerror(errno));
-	buf = malloc(MAP_TEXT_MAX + 1);
-	if (!buf)
-		cli_fail(prog, "out of memory");
-	got = fread(buf, 1, MAP_TEXT_MAX + 1, fp);
-	if (ferror(fp) || got > MAP_TEXT_MAX)
-		cli_fail(prog, "%s: %s", path, ferror(fp) ? "read error" : "larger than 16 MiB");
-	fclose(fp);
-	*len = got;
-	return buf;
+	if (loom__read_file_checked(path, MAP_TEXT_MAX, "mapping", loom__head_text,
+	                            &buf, len, &diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag.message);
+	return (char *)buf;
 }
 
 static loom_design *load_design(const char *prog, const char *in, const char *map,
@@ -481,6 +474,11 @@ int cmd_synth(int argc, char **argv)
 	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
 	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
 		opts_usage(&c, "maps are written as .png (or .ppm) files");
+	cli_check_output(prog, out);
+	if (amap)
+		cli_check_output(prog, amap);
+	if (smap)
+		cli_check_output(prog, smap);
 	progress = !quiet && !json && isatty(2);
 	cli_diag_init(&diag, &quiet);
 

@@ -224,6 +224,7 @@ int exemplar_build(int argc, char **argv)
 	opts_parse(&c, argc, argv);
 	if (!db)
 		opts_usage(&c, "missing --db DB");
+	cli_check_output(prog, db);
 	if (!opt_given(&c, &p.n_warps) || !opt_given(&c, &p.n_wefts))
 		opts_usage(&c, "--warps N and --wefts N are required (yarns in the scan)");
 	if (opt_given(&c, block)) {

@@ -265,6 +265,7 @@ int exemplar_export(int argc, char **argv)
 		opts_usage(&c, "missing --exemplar K");
 	if (!out)
 		opts_usage(&c, "missing -o FILE");
+	cli_check_output(prog, out);
 	db = open_db(prog, pos, dbopt);
 	if (loom_db_find_exemplar(db, ex, &k) != LOOM_OK) {
 		loom_db_close(db);

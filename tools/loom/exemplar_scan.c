@@ -238,6 +238,7 @@ int exemplar_generate_scan(int argc, char **argv)
 		opts_usage(&c, "output '%s' must end in .vol or .nrrd", out);
 	if (nrrd && or_qdir)
 		opts_usage(&c, "--orient qdir needs a .vol output");
+	cli_check_output(prog, out);
 	if (loom_scan_sheet_preset(preset, &s) != LOOM_OK)
 		cli_fail(prog, "preset '%s': cannot set up the sheet", preset);
 	vs_mm = strcmp(preset, "small") == 0 ? 0.024 : 0.005 * 1000.0 / s.nx;

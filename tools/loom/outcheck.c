@@ -3,9 +3,12 @@
  * (cli_check_output, cli_check_output_dir): a directory where a file is
  * expected, a missing or unwritable parent directory.  The writers still
  * write a temporary file and rename it; this only moves the failure to
- * the start of the command.
+ * the start of the command.  cli_check_output also removes the stale
+ * temporaries of earlier runs that were killed while writing the same
+ * output (loom__atomic_sweep: "<path>.tmp.<pid>[.<n>]" of dead writers).
  */
 #include "cli.h"
+#include "io/core/file.h" /* io/: loom__atomic_sweep */
 
 #include <errno.h>
 #include <limits.h>
@@ -52,6 +55,8 @@ void cli_check_output(const char *prog, const char *path)
 	if (access(dir, W_OK | X_OK) != 0)
 		cli_fail(prog, "%s: cannot create it: directory %s: %s", path, dir,
 		         strerror(errno));
+	/* what an earlier run killed while writing path left behind */
+	loom__atomic_sweep(path);
 }
 
 void cli_check_output_dir(const char *prog, const char *dir)

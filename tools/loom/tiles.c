@@ -3,6 +3,7 @@
  * pool of `loom export` and `loom scan` (tiles.h).
  */
 #include "tiles.h"
+#include "io/core/file.h" /* io/: loom__open_input */
 
 #include <ctype.h>
 #include <errno.h>
@@ -11,6 +12,7 @@
 #include <string.h>
 #include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 void tiles_init(tiles_job *j)
 {
@@ -335,23 +337,28 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 
 	j->worker_bytes = worker_bytes;
 	cli_diag_init(&diag, NULL);
+	char s1[40], s2[40], s3[40], s4[40]; /* loom__size_text */
+
 	if (j->job_bytes && buffers >= budget) {
-		fprintf(stderr, "%s: %llu tiles need about %.1f MiB for the manifest and "
-		        "%.1f MiB of buffers on %u thread%s: more than --budget %.1f MiB (use "
+		fprintf(stderr, "%s: %llu tiles need about %s for the manifest and "
+		        "%s of buffers on %u thread%s: more than --budget %s (use "
 		        "a larger --tile, --shard I/N or a larger --budget)\n", prog,
-		        (unsigned long long)tiles_in_shard(j), (double)j->job_bytes / 1048576.0,
-		        (double)worker_bytes * j->threads / 1048576.0, j->threads,
-		        j->threads == 1 ? "" : "s", j->budget_mb);
+		        (unsigned long long)tiles_in_shard(j),
+		        loom__size_text(s1, sizeof s1, (double)j->job_bytes),
+		        loom__size_text(s2, sizeof s2, (double)worker_bytes * j->threads),
+		        j->threads, j->threads == 1 ? "" : "s",
+		        loom__size_text(s3, sizeof s3, budget));
 		tiles_close(j);
 		exit(EXIT_USAGE);
 	}
 	if (buffers >= budget) {
-		fprintf(stderr, "%s: tile %lld x %lld x %lld needs %.1f MiB of buffers per "
-		        "thread, %.1f MiB on %u thread%s: more than --budget %.1f MiB (use a "
+		fprintf(stderr, "%s: tile %lld x %lld x %lld needs %s of buffers per "
+		        "thread, %s on %u thread%s: more than --budget %s (use a "
 		        "smaller --tile, fewer --threads or a larger --budget)\n", prog,
 		        (long long)j->tsize[0], (long long)j->tsize[1], (long long)j->tsize[2],
-		        (double)worker_bytes / 1048576.0, buffers / 1048576.0, j->threads,
-		        j->threads == 1 ? "" : "s", j->budget_mb);
+		        loom__size_text(s1, sizeof s1, (double)worker_bytes),
+		        loom__size_text(s2, sizeof s2, buffers), j->threads,
+		        j->threads == 1 ? "" : "s", loom__size_text(s3, sizeof s3, budget));
 		tiles_close(j);
 		exit(EXIT_USAGE);
 	}
@@ -362,9 +369,11 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 	if (rc != LOOM_OK) {
 		int code = rc == LOOM_EBUDGET ? EXIT_USAGE : EXIT_BAD_INPUT;
 		if (rc == LOOM_EBUDGET)
-			fprintf(stderr, "%s: --budget %.1f MiB minus %.1f MiB of tile buffers (and manifest) "
-			        "leaves %.1f MiB for the texture: %s\n", prog, j->budget_mb,
-			        buffers / 1048576.0, (double)j->texture_budget / 1048576.0,
+			fprintf(stderr, "%s: --budget %s minus %s of tile buffers (and manifest) "
+			        "leaves %s for the texture: %s\n", prog,
+			        loom__size_text(s1, sizeof s1, budget),
+			        loom__size_text(s2, sizeof s2, buffers),
+			        loom__size_text(s4, sizeof s4, (double)j->texture_budget),
 			        diag.message);
 		else
 			fprintf(stderr, "%s: %s\n", prog, diag.message);
@@ -782,12 +791,26 @@ uint64_t tiles_mix(uint64_t x)
 
 char *tiles_read_text(const char *path, size_t max, size_t *len)
 {
-	FILE *fp = fopen(path, "rb");
 	char *buf = NULL;
 	size_t n = 0, cap = 0;
+	uint64_t size;
+	FILE *fp;
+	int fd;
 
-	if (!fp)
+	/* never blocks on a FIFO; anything but a regular file: EINVAL */
+	errno = EINVAL;
+	if (loom__open_input(path, &fd, &size, NULL) != LOOM_OK)
 		return NULL;
+	if (size > max) {
+		close(fd);
+		errno = EFBIG;
+		return NULL;
+	}
+	fp = fdopen(fd, "rb");
+	if (!fp) {
+		close(fd);
+		return NULL;
+	}
 	for (;;) {
 		size_t got;
 		if (cap - n < 65536) {
