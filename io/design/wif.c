@@ -1531,6 +1531,18 @@ LOOM_API int loom_wif_parse(const char *text, size_t len, const char *name,
 	                               diag);
 }
 
+/* head check of a WIF file: a known binary format is named, then text */
+static int wif_head(const uint8_t *head, size_t n, const char *path,
+                    loom_diag *diag)
+{
+	const char *what = sniff_binary(head, n);
+
+	if (what)
+		return loom__fail(diag, LOOM_EFORMAT,
+		                  "%s: not a WIF draft (looks like %s)", path, what);
+	return loom__head_text(head, n, path, diag);
+}
+
 LOOM_API int loom_wif_read(const char *path, loom_design **out, loom_diag *diag)
 {
 	uint8_t *data;
@@ -1542,7 +1554,7 @@ LOOM_API int loom_wif_read(const char *path, loom_design **out, loom_diag *diag)
 	if (!path || !out)
 		return loom__fail(diag, LOOM_EINVAL, "loom_wif_read: NULL argument");
 	rc = loom__read_file_checked(path, LOOM__WIF_MAX_FILE_BYTES, "WIF",
-	                             loom__head_text, &data, &len, diag);
+	                             wif_head, &data, &len, diag);
 	if (rc)
 		return rc;
 	rc = loom_wif_parse((const char *)data, len, path, out, diag);
