@@ -300,7 +300,8 @@ static int num(const char *s, double *out)
 	return 1;
 }
 
-/* A region rejected by loom_paint_add: its message again with the line. */
+/* A region (or fabric line) rejected by loom_paint_add (loom_paint_new):
+   its message again with the line. */
 static int bad_region(lines *L, int rc)
 {
 	char msg[sizeof L->diag->message];
@@ -404,8 +405,10 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 				rc = bad(&L, LOOM_EFORMAT, "a second 'fabric' line", NULL);
 				goto fail;
 			}
-			if ((rc = loom_paint_new(s + 7, &p, diag)))
+			if ((rc = loom_paint_new(s + 7, &p, diag))) {
+				bad_region(&L, rc);
 				goto fail;
+			}
 			continue;
 		}
 		if (!p) {
