@@ -7,6 +7,7 @@
 #   make tsan       the same suite under ThreadSanitizer
 #   make test-slurm export and scan job arrays on a private Slurm (root)
 #   make bench      run the benchmarks (figures, never pass/fail)
+#   make fidelity   synthesis against the woven ground truth (docs/fidelity.md)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text
 #
@@ -86,7 +87,7 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz test-slurm
+.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz test-slurm fidelity
 all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
@@ -209,6 +210,10 @@ tsan:
 
 bench: all $(BENCH_BIN)
 	$(Q)BUILD=$(BUILD) sh bench/run.sh
+
+# synthesis against the woven ground truth (docs/fidelity.md)
+fidelity: all
+	$(Q)sh bench/fidelity.sh $(BUILD)/loom $(DEFAULT_DB) $(BUILD)/fidelity
 
 # libFuzzer builds (clang): make fuzz, then build/fuzz/fuzz_wif tests/fuzz/corpus/wif
 # (the vol seeds: build/fuzz/fuzz_vol build/fuzz-corpus/vol, made by make test)

@@ -14,6 +14,7 @@ int cmd_preview(int argc, char **argv);  /* cmd_preview.c */
 int cmd_render(int argc, char **argv);   /* cmd_render.c */
 int cmd_look(int argc, char **argv);     /* cmd_look.c */
 int cmd_serve(int argc, char **argv);    /* cmd_serve.c */
+int cmd_compare(int argc, char **argv);  /* cmd_compare.c */
 
 
 /* Read DESIGN (WIF, weave image, or a posterized image with map) and the

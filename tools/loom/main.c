@@ -24,6 +24,7 @@ static const struct command {
 	{"render", cmd_render, "path-trace a fabric, flat or mapped onto a mesh"},
 	{"look", cmd_look, "one draft -> drawdown, draft, previews, progressive render"},
 	{"serve", cmd_serve, "deep-zoom viewer of a fabric or draft in the browser"},
+	{"compare", cmd_compare, "compare two cloths (fabrics, exemplars): top yarn, heights, seams"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 
