@@ -8,6 +8,7 @@
 #   make test-slurm export and scan job arrays on a private Slurm (root)
 #   make fuzz       libFuzzer targets (clang); make fuzz-run SECONDS=N runs them
 #   make bench      run the benchmarks (figures, never pass/fail)
+#   make fidelity   synthesis against the woven ground truth (docs/fidelity.md)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text
 #
@@ -90,11 +91,11 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm
+.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity
 all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
-	@sed -n '3,14p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '3,15p' Makefile | sed 's/^# \{0,1\}//'
 
 $(DEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
@@ -229,6 +230,10 @@ $(BUILD)/bench/bench_vdb: bench/bench_vdb.cpp $(STATIC)
 bench: all $(BENCH_BIN) $(VDB_BIN)
 	$(Q)$(if $(VDB_BIN),,echo "bench_vdb: skipped (OpenVDB/NanoVDB not installed: tools/deps.sh openvdb)")
 	$(Q)BUILD=$(BUILD) sh bench/run.sh
+
+# synthesis against the woven ground truth (docs/fidelity.md)
+fidelity: all
+	$(Q)sh bench/fidelity.sh $(BUILD)/loom $(DEFAULT_DB) $(BUILD)/fidelity
 
 # libFuzzer builds (clang, Debian's clang package: tools/deps.sh fuzz).
 # The library is compiled once into $(BUILD)/fuzz/libloom-fuzz.a with

@@ -56,6 +56,7 @@
 #define KIND_WEFT 2
 #define MAX_SIDE 64         /* crossings per side a generated window may have */
 #define MAX_FLY 16
+#define DESIGN_LABELS 119  /* labels per yarn kind when they must be shared */
 
 /* ---- hashing and noise ------------------------------------------------- */
 
@@ -643,12 +644,75 @@ static uint32_t auto_side(uint32_t repeat)
 	return m;
 }
 
+/* Geometry, seed and the weave array of a model whose rows, cols and
+   weave_name are set (the weave cells are filled by the caller). */
+static int model_init(loom__exgen *g, const loom_exgen_params *p,
+                      uint32_t variant, const char *key)
+{
+	g->b1 = p->block[0];
+	g->b2 = p->block[1];
+	g->b3 = p->block[2];
+	g->size[0] = g->cols * g->b1;
+	g->size[1] = g->rows * g->b2;
+	g->size[2] = g->b3;
+	g->vs = p->voxel_size_um;
+	g->Sx = (float)g->b1 * g->vs;
+	g->Sy = (float)g->b2 * g->vs;
+	g->seed = mix64(p->seed ^ loom__fnv1a64(LOOM__FNV_OFFSET, key, strlen(key)) ^
+	                mix64(variant + 0x5151));
+	g->weave = malloc((size_t)g->rows * g->cols);
+	return g->weave ? LOOM_OK : LOOM_ENOMEM;
+}
+
+/* Mid-plane, yarns, labels and flyaways of a model with its weave.  More
+   yarns than labels (a whole design, loom__exgen_new_design): the interior
+   labels are reused cyclically, so a label's kind is exact and its index
+   is that of one of the yarns sharing it. */
+static int model_yarns(loom__exgen *g)
+{
+	uint64_t h = mix64(g->seed ^ 0xabc);
+	uint32_t nw = g->cols + 2, nf = g->rows + 2, wl = nw, fl = nf;
+	int shared = 0;
+
+	/* mid-plane: centred, with a small per-exemplar offset (scans are not
+	   registered in z) */
+	g->z0 = (float)g->b3 * g->vs * (0.5f + 0.04f * (u01(mix64(h ^ 7)) - 0.5f));
+	set_kinds(g);
+	g->warps = calloc(g->cols + 2, sizeof *g->warps);
+	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
+	if (!g->warps || !g->wefts)
+		return LOOM_ENOMEM;
+	if (nw + nf + MAX_FLY > 255) {
+		wl = nw < DESIGN_LABELS ? nw : DESIGN_LABELS;
+		fl = nf < DESIGN_LABELS ? nf : DESIGN_LABELS;
+		shared = wl < nw || fl < nf;
+	}
+	for (int c = -1; c <= (int)g->cols; c++)
+		init_yarn(g, &g->warps[c + 1], KIND_WARP, c,
+		          (uint8_t)(1 + (uint32_t)(c + 1) % wl));
+	for (int r = -1; r <= (int)g->rows; r++)
+		init_yarn(g, &g->wefts[r + 1], KIND_WEFT, r,
+		          (uint8_t)(1 + wl + (uint32_t)(r + 1) % fl));
+	g->n_labels = wl + fl;
+	for (uint32_t l = 1; shared && l <= g->n_labels; l++)
+		g->table[l].flags = 0;
+	g->n_fly = g->rows * g->cols / 4;
+	if (g->n_fly < 2)
+		g->n_fly = 2;
+	if (g->n_fly > MAX_FLY)
+		g->n_fly = MAX_FLY;
+	for (uint32_t f = 0; f < g->n_fly; f++)
+		if (make_flyaway(g, f) != LOOM_OK)
+			return LOOM_ENOMEM;
+	return LOOM_OK;
+}
+
 int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
                     loom__exgen **out, loom_diag *diag)
 {
 	loom_weave_params wp;
 	loom__exgen *g;
-	uint32_t rr, rc, r0, c0, label;
+	uint32_t rr, rc, r0, c0;
 	uint64_t h;
 	int rcode;
 
@@ -692,58 +756,73 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 		snprintf(g->name + (n > 24 ? 24 : n), sizeof g->name - (n > 24 ? 24 : n),
 		         "-%u", variant + 1);
 	}
-	g->b1 = p->block[0];
-	g->b2 = p->block[1];
-	g->b3 = p->block[2];
-	g->size[0] = g->cols * g->b1;
-	g->size[1] = g->rows * g->b2;
-	g->size[2] = g->b3;
-	g->vs = p->voxel_size_um;
-	g->Sx = (float)g->b1 * g->vs;
-	g->Sy = (float)g->b2 * g->vs;
-	g->seed = mix64(p->seed ^ loom__fnv1a64(LOOM__FNV_OFFSET, g->weave_name,
-	                                         strlen(g->weave_name)) ^
-	                mix64(variant + 0x5151));
+	rcode = model_init(g, p, variant, g->weave_name);
+	if (rcode) {
+		loom__exgen_free(g);
+		return loom__fail(diag, rcode, "generator: out of memory");
+	}
 	h = mix64(g->seed ^ 0xabc);
 	r0 = (uint32_t)(h % rr);
 	c0 = (uint32_t)((h >> 32) % rc);
-	g->weave = malloc((size_t)g->rows * g->cols);
-	if (!g->weave) {
-		loom__exgen_free(g);
-		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
-	}
 	for (uint32_t r = 0; r < g->rows; r++)
 		for (uint32_t c = 0; c < g->cols; c++)
 			g->weave[(size_t)r * g->cols + c] =
 			        (uint8_t)loom_weave_cell(&wp, r + r0, c + c0);
-	/* mid-plane: centred, with a small per-exemplar offset (scans are not
-	   registered in z) */
-	g->z0 = (float)g->b3 * g->vs * (0.5f + 0.04f * (u01(mix64(h ^ 7)) - 0.5f));
-	set_kinds(g);
-	g->warps = calloc(g->cols + 2, sizeof *g->warps);
-	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
-	if (!g->warps || !g->wefts) {
+	rcode = model_yarns(g);
+	if (rcode) {
 		loom__exgen_free(g);
-		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+		return loom__fail(diag, rcode, "generator: out of memory");
 	}
-	label = 1;
-	for (int c = -1; c <= (int)g->cols; c++)
-		init_yarn(g, &g->warps[c + 1], KIND_WARP, c, (uint8_t)label++);
-	for (int r = -1; r <= (int)g->rows; r++)
-		init_yarn(g, &g->wefts[r + 1], KIND_WEFT, r, (uint8_t)label++);
-	g->n_labels = label - 1;
-	g->n_fly = g->rows * g->cols / 4;
-	if (g->n_fly < 2)
-		g->n_fly = 2;
-	if (g->n_fly > MAX_FLY)
-		g->n_fly = MAX_FLY;
-	for (uint32_t f = 0; f < g->n_fly; f++)
-		if (make_flyaway(g, f) != LOOM_OK) {
-			loom__exgen_free(g);
-			return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
-		}
 	*out = g;
 	return LOOM_OK;
+}
+
+int loom__exgen_new_design(const loom_exgen_params *p, const char *name,
+                           uint32_t rows, uint32_t cols, const uint8_t *weave,
+                           loom__exgen **out, loom_diag *diag)
+{
+	loom__exgen *g;
+	int rc;
+
+	*out = NULL;
+	rc = loom__exgen_check(p, diag);
+	if (rc)
+		return rc;
+	if (!weave || rows < 1 || cols < 1 || rows > LOOM_EXGEN_MAX_DESIGN ||
+	    cols > LOOM_EXGEN_MAX_DESIGN ||
+	    (uint64_t)cols * p->block[0] > LOOM__DB_MAX_EXTENT ||
+	    (uint64_t)rows * p->block[1] > LOOM__DB_MAX_EXTENT)
+		return loom__fail(diag, LOOM_ERANGE, "generator: a design of %ux%u crossings "
+		                  "(at most %u per side and %u voxels along x and y: %ux%u "
+		                  "crossings at block %ux%u)", rows, cols,
+		                  LOOM_EXGEN_MAX_DESIGN, LOOM__DB_MAX_EXTENT,
+		                  loom_exgen_design_limit(p->block[1]),
+		                  loom_exgen_design_limit(p->block[0]), p->block[0],
+		                  p->block[1]);
+	g = calloc(1, sizeof *g);
+	if (!g)
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	g->rows = rows;
+	g->cols = cols;
+	snprintf(g->name, sizeof g->name, "%s", name && *name ? name : "design");
+	snprintf(g->weave_name, sizeof g->weave_name, "design:%ux%u", rows, cols);
+	rc = model_init(g, p, 0, g->name);
+	if (!rc) {
+		memcpy(g->weave, weave, (size_t)rows * cols);
+		rc = model_yarns(g);
+	}
+	if (rc) {
+		loom__exgen_free(g);
+		return loom__fail(diag, rc, "generator: out of memory");
+	}
+	*out = g;
+	return LOOM_OK;
+}
+
+LOOM_API uint32_t loom_exgen_design_limit(uint32_t block)
+{
+	uint32_t n = LOOM__DB_MAX_EXTENT / (block ? block : 1);
+	return n < LOOM_EXGEN_MAX_DESIGN ? n : LOOM_EXGEN_MAX_DESIGN;
 }
 
 void loom__exgen_free(loom__exgen *g)

@@ -37,6 +37,17 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag);
  */
 int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
                     loom__exgen **out, loom_diag *diag);
+/*
+ * Model of a whole design as one exemplar (the woven ground truth,
+ * docs/fidelity.md): weave = rows x cols cells (1 = warp over), used as
+ * given (no offset), periodic with the window as every exemplar.  The seed
+ * is keyed on `name`.  At most LOOM_EXGEN_MAX_DESIGN crossings a side and
+ * LOOM__DB_MAX_EXTENT voxels along x and y (LOOM_ERANGE, message with the
+ * limit).
+ */
+int loom__exgen_new_design(const loom_exgen_params *p, const char *name,
+                           uint32_t rows, uint32_t cols, const uint8_t *weave,
+                           loom__exgen **out, loom_diag *diag);
 void loom__exgen_free(loom__exgen *g);
 void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d);
 

@@ -95,6 +95,32 @@ static void assign_simple(const loom_synth_set *s, const loom_design *d,
 		}
 }
 
+/* Identity: crossing (i, j) copies block (i, j) of exemplar 0 (base 0),
+   which must have the design's size and weave. */
+static int assign_identity(const loom_synth_set *s, const loom_design *d,
+                           uint16_t *base, loom_diag *diag)
+{
+	const ex_info *e = &s->ex[0];
+
+	if (e->rows != d->rows || e->cols != d->cols)
+		return loom__fail(diag, LOOM_EMISMATCH, "synth identity: the design has "
+		                  "%ux%u crossings, exemplar 0 of the database %ux%u (a ground "
+		                  "truth made from another design?)", d->rows, d->cols,
+		                  e->rows, e->cols);
+	for (uint32_t i = 0; i < d->rows; i++)
+		for (uint32_t j = 0; j < d->cols; j++) {
+			size_t c = (size_t)i * d->cols + j;
+			if ((d->weave[c] != 0) != (e->weave[c] != 0))
+				return loom__fail(diag, LOOM_EMISMATCH, "synth identity: crossing "
+				                  "(pick %u, end %u) is %s over in the design, %s over "
+				                  "in exemplar 0 of the database", i + 1, j + 1,
+				                  d->weave[c] ? "warp" : "weft",
+				                  e->weave[c] ? "warp" : "weft");
+			base[c] = (uint16_t)(e->base + c);
+		}
+	return LOOM_OK;
+}
+
 /* ---- the column DP ------------------------------------------------------ */
 
 #define ONE_V ((int64_t)1 << 32) /* one vertical link in a (V, H) value */
@@ -528,7 +554,7 @@ static int check_args(const loom_synth_set *s, const loom_design *d,
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "synth assign: options.size %zu, expected %zu",
 		                  o->size, sizeof(loom_synth_options));
-	if (o->algo < LOOM_SYNTH_NAIVE || o->algo > LOOM_SYNTH_DP)
+	if (o->algo < LOOM_SYNTH_NAIVE || o->algo > LOOM_SYNTH_IDENTITY)
 		return loom__fail(diag, LOOM_EINVAL, "synth assign: unknown algorithm %d",
 		                  o->algo);
 	if (!d->weave || d->rows == 0 || d->cols == 0)
@@ -555,6 +581,8 @@ LOOM_API int loom_synth_assign(const loom_synth_set *s, const loom_design *d,
 		return rc;
 	if (!base)
 		return loom__fail(diag, LOOM_EINVAL, "synth assign: NULL output");
+	if (o->algo == LOOM_SYNTH_IDENTITY)
+		return assign_identity(s, d, base, diag);
 	if (o->algo != LOOM_SYNTH_DP) {
 		assign_simple(s, d, o->algo == LOOM_SYNTH_GREEDY, o->seed, base);
 		return LOOM_OK;

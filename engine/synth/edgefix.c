@@ -113,11 +113,12 @@ static loom_edgefix *ef_alloc(uint32_t b1, uint32_t b2, uint32_t K,
 	ef->K = K;
 	ef->rh = rh;
 	ef->rv = rv;
-	ef->coef = malloc(sizeof(float) * K * (2 * (size_t)rh + 2 * rv));
-	ef->field_h = malloc(sizeof(float) * cells * rh);
-	ef->field_v = malloc(sizeof(float) * cells * rv);
-	ef->basis_h = malloc(sizeof(float) * b1 * rh);
-	ef->basis_v = malloc(sizeof(float) * (b2 - 2) * rv);
+	/* + 1: rank 0 (no fix) keeps every array non-NULL */
+	ef->coef = malloc(sizeof(float) * (K * (2 * (size_t)rh + 2 * rv) + 1));
+	ef->field_h = malloc(sizeof(float) * (cells * rh + 1));
+	ef->field_v = malloc(sizeof(float) * (cells * rv + 1));
+	ef->basis_h = malloc(sizeof(float) * ((size_t)b1 * rh + 1));
+	ef->basis_v = malloc(sizeof(float) * ((size_t)(b2 - 2) * rv + 1));
 	ef->mean_h = malloc(sizeof(float) * b1);
 	ef->mean_v = malloc(sizeof(float) * (b2 - 2));
 	if (!ef->coef || !ef->field_h || !ef->field_v || !ef->basis_h ||
@@ -207,10 +208,9 @@ LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
 	rc = loom__edgefix_check(p, diag);
 	if (rc)
 		return rc;
-	if (rank == 0 || rank > LOOM_EDGEFIX_MAX_RANK)
-		return loom__fail(diag, rank ? LOOM_ERANGE : LOOM_EINVAL,
-		                  "edge fix: rank %u, expected 1..%u", rank,
-		                  LOOM_EDGEFIX_MAX_RANK);
+	if (rank > LOOM_EDGEFIX_MAX_RANK)
+		return loom__fail(diag, LOOM_ERANGE, "edge fix: rank %u, expected 0..%u",
+		                  rank, LOOM_EDGEFIX_MAX_RANK);
 	b1 = p->b1;
 	b2 = p->b2;
 	K = p->n_blocks;
@@ -228,16 +228,16 @@ LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
 	G = malloc(sizeof(double) * ((size_t)nmax * nmax + nmax));
 	mh = malloc(sizeof(double) * b1);
 	mv = malloc(sizeof(double) * nv);
-	Bh = malloc(sizeof(double) * b1 * rh);
-	Bv = malloc(sizeof(double) * nv * rv);
+	Bh = malloc(sizeof(double) * ((size_t)b1 * rh + 1));
+	Bv = malloc(sizeof(double) * ((size_t)nv * rv + 1));
 	rc = LOOM_ENOMEM;
 	if (!ef || !G || !mh || !mv || !Bh || !Bv)
 		goto done;
 	gram(p, 0, 1, 0, b1, mh, G);
-	if (loom__top_eigen(G, b1, rh, Bh))
+	if (rh && loom__top_eigen(G, b1, rh, Bh))
 		goto done;
 	gram(p, 2, 3, 1, nv, mv, G);
-	if (loom__top_eigen(G, nv, rv, Bv))
+	if (rv && loom__top_eigen(G, nv, rv, Bv))
 		goto done;
 	for (uint32_t i = 0; i < b1; i++) {
 		ef->mean_h[i] = (float)mh[i];

@@ -230,13 +230,17 @@ static int check_options(const loom_fabric_options *o, loom_diag *diag)
 	if (o->size < sizeof *o)
 		return loom__fail(diag, LOOM_EINVAL, "synth: options.size %zu, expected %zu "
 		                  "(use LOOM_FABRIC_OPTIONS_INIT)", o->size, sizeof *o);
-	if (o->algo < LOOM_SYNTH_NAIVE || o->algo > LOOM_SYNTH_DP)
+	if (o->algo < LOOM_SYNTH_NAIVE || o->algo > LOOM_SYNTH_IDENTITY)
 		return loom__fail(diag, LOOM_EINVAL, "synth: unknown algorithm %d", o->algo);
+	if (o->algo == LOOM_SYNTH_IDENTITY && (o->group || o->rank))
+		return loom__fail(diag, LOOM_EINVAL, "synth: identity copies the ground truth "
+		                  "unchanged: it needs group 0 and rank 0 (got %u, %u)",
+		                  o->group, o->rank);
 	if (o->group > 65536)
 		return loom__fail(diag, LOOM_EINVAL, "synth: group %u, expected 0..65536",
 		                  o->group);
-	if (o->rank < 1 || o->rank > LOOM_EDGEFIX_MAX_RANK)
-		return loom__fail(diag, LOOM_EINVAL, "synth: rank %u, expected 1..%u",
+	if (o->rank > LOOM_EDGEFIX_MAX_RANK)
+		return loom__fail(diag, LOOM_EINVAL, "synth: rank %u, expected 0..%u",
 		                  o->rank, LOOM_EDGEFIX_MAX_RANK);
 	if (o->flags & ~(uint32_t)(LOOM_SYNTH_FULL_LISTS | LOOM_SYNTH_NO_HPREF))
 		return loom__fail(diag, LOOM_EINVAL, "synth: unknown flags 0x%x", o->flags);
@@ -549,18 +553,18 @@ LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I, int64_t J,
 
 /* ---- names --------------------------------------------------------------- */
 
-static const char *const algo_names[] = {"naive", "greedy", "dp"};
+static const char *const algo_names[] = {"naive", "greedy", "dp", "identity"};
 
 LOOM_API const char *loom_fabric_algo_name(int algo)
 {
-	return algo >= 0 && algo <= LOOM_SYNTH_DP ? algo_names[algo] : "?";
+	return algo >= 0 && algo <= LOOM_SYNTH_IDENTITY ? algo_names[algo] : "?";
 }
 
 LOOM_API int loom_fabric_algo_parse(const char *name, int *algo)
 {
 	if (!name || !algo)
 		return LOOM_EINVAL;
-	for (int k = 0; k <= LOOM_SYNTH_DP; k++)
+	for (int k = 0; k <= LOOM_SYNTH_IDENTITY; k++)
 		if (strcmp(name, algo_names[k]) == 0) {
 			*algo = k;
 			return LOOM_OK;

@@ -215,35 +215,54 @@ static void free_pipe(pipe *P)
 	free(P->solid);
 }
 
+/* Lay out the tasks of model k (P->models[k] set). */
+static void plan_model(pipe *P, const loom_exgen_params *p, uint32_t k)
+{
+	loom__exgen_desc d;
+	loom__exgen_describe(P->models[k], &d);
+	for (int a = 0; a < 3; a++)
+		P->nb[k][a] = (d.size[a] + p->brick[a] - 1) / (p->brick[a] ? p->brick[a] : 1);
+	if (P->nb[k][2] > P->nbz_max)
+		P->nbz_max = P->nb[k][2];
+	P->task_start[k + 1] = P->task_start[k] + (uint64_t)P->nb[k][0] * P->nb[k][1];
+	loom__db_solid_lut(d.yarns, d.n_yarns, P->solid[k]);
+}
+
+static int alloc_pipe(pipe *P, const loom_exgen_params *p, uint32_t n_models,
+                      loom_diag *diag)
+{
+	memset(P, 0, sizeof *P);
+	P->p = p;
+	P->n_models = n_models;
+	P->models = calloc(P->n_models, sizeof *P->models);
+	P->task_start = calloc(P->n_models + 1, sizeof *P->task_start);
+	P->nb = calloc(P->n_models, sizeof *P->nb);
+	P->solid = calloc(P->n_models, sizeof *P->solid);
+	if (!P->models || !P->task_start || !P->nb || !P->solid) {
+		free_pipe(P);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	return LOOM_OK;
+}
+
+static int run_pipe(const char *path, const loom_exgen_params *p, pipe *P,
+                    uint64_t *hash, loom_diag *diag);
+
 LOOM_API int loom_exgen_write_db(const char *path, const loom_exgen_params *p,
                                  uint64_t *hash, loom_diag *diag)
 {
 	pipe P;
-	loom__dbw_params wp;
-	loom__dbw *w = NULL;
-	pthread_t th[64];
-	unsigned nth, started = 0;
 	int rc;
 
-	memset(&P, 0, sizeof P);
 	if (!path)
 		return loom__fail(diag, LOOM_EINVAL, "generator: NULL path");
 	rc = loom__exgen_check(p, diag);
+	if (!rc)
+		rc = alloc_pipe(&P, p, p->n_weaves, diag);
 	if (rc)
 		return rc;
-	P.p = p;
-	P.n_models = p->n_weaves;
-	P.models = calloc(P.n_models, sizeof *P.models);
-	P.task_start = calloc(P.n_models + 1, sizeof *P.task_start);
-	P.nb = calloc(P.n_models, sizeof *P.nb);
-	P.solid = calloc(P.n_models, sizeof *P.solid);
-	if (!P.models || !P.task_start || !P.nb || !P.solid) {
-		free_pipe(&P);
-		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
-	}
 	for (uint32_t k = 0; k < P.n_models; k++) {
 		uint32_t variant = 0;
-		loom__exgen_desc d;
 		for (uint32_t j = 0; j < k; j++)
 			if (strcmp(p->weaves[j], p->weaves[k]) == 0)
 				variant++;
@@ -252,14 +271,52 @@ LOOM_API int loom_exgen_write_db(const char *path, const loom_exgen_params *p,
 			free_pipe(&P);
 			return rc;
 		}
-		loom__exgen_describe(P.models[k], &d);
-		for (int a = 0; a < 3; a++)
-			P.nb[k][a] = (d.size[a] + p->brick[a] - 1) / (p->brick[a] ? p->brick[a] : 1);
-		if (P.nb[k][2] > P.nbz_max)
-			P.nbz_max = P.nb[k][2];
-		P.task_start[k + 1] = P.task_start[k] + (uint64_t)P.nb[k][0] * P.nb[k][1];
-		loom__db_solid_lut(d.yarns, d.n_yarns, P.solid[k]);
+		plan_model(&P, p, k);
 	}
+	return run_pipe(path, p, &P, hash, diag);
+}
+
+LOOM_API int loom_exgen_write_design(const char *path, const loom_exgen_params *p,
+                                     const char *name, uint32_t rows,
+                                     uint32_t cols, const uint8_t *weave,
+                                     uint64_t *hash, loom_diag *diag)
+{
+	static const char *const one[1] = {"design"};
+	loom_exgen_params q;
+	pipe P;
+	int rc;
+
+	if (!path || !p || !weave)
+		return loom__fail(diag, LOOM_EINVAL, "generator: NULL %s",
+		                  !path ? "path" : !p ? "parameters" : "weave");
+	if (p->size != sizeof *p)
+		return loom__exgen_check(p, diag);
+	q = *p;
+	q.n_weaves = 1;
+	q.weaves[0] = one[0];
+	q.rows = q.cols = 0;
+	rc = alloc_pipe(&P, &q, 1, diag);
+	if (rc)
+		return rc;
+	rc = loom__exgen_new_design(&q, name, rows, cols, weave, &P.models[0], diag);
+	if (rc) {
+		free_pipe(&P);
+		return rc;
+	}
+	plan_model(&P, &q, 0);
+	return run_pipe(path, &q, &P, hash, diag);
+}
+
+static int run_pipe(const char *path, const loom_exgen_params *p, pipe *P_,
+                    uint64_t *hash, loom_diag *diag)
+{
+	pipe P = *P_;
+	loom__dbw_params wp;
+	loom__dbw *w = NULL;
+	pthread_t th[64];
+	unsigned nth, started = 0;
+	int rc;
+
 	memset(&wp, 0, sizeof wp);
 	wp.n_exemplars = P.n_models;
 	memcpy(wp.block, p->block, sizeof wp.block);

@@ -399,15 +399,15 @@ static int parse_parm(fab_reader *r, loom_fabric *f)
 	f->params.base_width = get32(p + 56);
 	pl = get32(p + 60);
 	rc = LOOM_EFORMAT;
-	if (get32(p) > LOOM_SYNTH_DP)
-		loom__fail(r->diag, rc, "%s: PARM: algorithm %u (expected 0..2)", r->name, get32(p));
+	if (get32(p) > LOOM_SYNTH_IDENTITY)
+		loom__fail(r->diag, rc, "%s: PARM: algorithm %u (expected 0..3)", r->name, get32(p));
 	else if (f->params.flags & ~3u)
 		loom__fail(r->diag, rc, "%s: PARM: flags 0x%x", r->name, f->params.flags);
 	else if (f->params.group > 65536)
 		loom__fail(r->diag, rc, "%s: PARM: group %u (expected 0..65536)", r->name,
 		           f->params.group);
-	else if (f->params.rank < 1 || f->params.rank > LOOM_EDGEFIX_MAX_RANK)
-		loom__fail(r->diag, rc, "%s: PARM: rank %u (expected 1..%u)", r->name,
+	else if (f->params.rank > LOOM_EDGEFIX_MAX_RANK)
+		loom__fail(r->diag, rc, "%s: PARM: rank %u (expected 0..%u)", r->name,
 		           f->params.rank, LOOM_EDGEFIX_MAX_RANK);
 	else if (f->n_exemplars < 1 || f->n_exemplars > 4096 || f->n_blocks < 1 ||
 	         f->n_blocks > LOOM_SYNTH_MAX_BLOCKS)
@@ -682,7 +682,8 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 	mode = get32(p);
 	rh = get32(p + 4);
 	rv = get32(p + 8);
-	if ((mode != 1 && mode != 2) || rh < 1 || rh > max_h || rv < 1 || rv > max_v ||
+	if ((mode != 1 && mode != 2) || (rank && (rh < 1 || rv < 1)) || rh > max_h ||
+	    rv > max_v ||
 	    get32(p + 12) != b1 || get32(p + 16) != b2 || get32(p + 20) != K ||
 	    !check_zero(p + 24, 8)) {
 		uint32_t fb1 = get32(p + 12), fb2 = get32(p + 16), fK = get32(p + 20);

@@ -117,7 +117,7 @@ expect_bad width_render "loom render: --width: expected an integer in 1..65536, 
 	"$LOOM" render f.loomf --width 0 -o x.png
 expect_bad seed_negative "loom synth: --seed: expected a non-negative integer, got '-1'" \
 	"$LOOM" synth d.wif --seed=-1 -o x.loomf
-expect_bad rank_range "loom synth: --rank: expected an integer in 1..128, got '129'" \
+expect_bad rank_range "loom synth: --rank: expected an integer in 0..128, got '129'" \
 	"$LOOM" synth d.wif --rank 129 -o x.loomf
 expect_bad enum_filter "loom render: --filter: expected nearest or trilinear, got 'cubic'" \
 	"$LOOM" render f.loomf --filter cubic -o x.png

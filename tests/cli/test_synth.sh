@@ -14,7 +14,8 @@ expect_out_contains help_info_text "--bolt"
 expect_exit synth_no_args 2 "$LOOM" synth
 expect_exit synth_no_output 2 "$LOOM" synth "$WIF"
 expect_exit synth_bad_algo 2 "$LOOM" synth "$WIF" --algo best -o "$T/x.loomf"
-expect_exit synth_bad_rank 2 "$LOOM" synth "$WIF" --rank 0 -o "$T/x.loomf"
+expect_exit synth_bad_rank 2 "$LOOM" synth "$WIF" --rank 129 -o "$T/x.loomf"
+expect_exit synth_bad_edge_fix 2 "$LOOM" synth "$WIF" --edge-fix maybe -o "$T/x.loomf"
 expect_exit synth_bad_group 2 "$LOOM" synth "$WIF" --group -1 -o "$T/x.loomf"
 expect_exit synth_bad_seed 2 "$LOOM" synth "$WIF" --seed x -o "$T/x.loomf"
 expect_exit synth_bad_map_ext 2 "$LOOM" synth "$WIF" --seam-map "$T/s.gif" -o "$T/x.loomf"
@@ -36,6 +37,22 @@ if [ -s "$T/err" ]; then fail synth_quiet_stderr "$(head -c 200 "$T/err")"; else
 expect_ok synth_wif_again "$LOOM" synth "$WIF" --quiet -o "$T/h8b.loomf"
 if [ -s "$T/out" ]; then fail synth_quiet_stdout "$(head -c 200 "$T/out")"; else pass synth_quiet_stdout; fi
 expect_same synth_deterministic "$T/h8.loomf" "$T/h8b.loomf"
+# --rank 0 and --edge-fix off: no edge fix (seams unchanged), the same bytes
+# as each other, a fabric every command opens; the default rank moves seams
+expect_ok synth_rank0 "$LOOM" synth "$WIF" --rank 0 --json -o "$T/r0.loomf"
+cp "$T/out" "$T/r0.json"
+expect_ok synth_edge_off "$LOOM" synth "$WIF" --edge-fix off --quiet -o "$T/off.loomf"
+expect_same synth_edge_off_is_rank0 "$T/r0.loomf" "$T/off.loomf"
+if python3 - "$T/r0.json" >"$T/py" 2>&1 <<'EOF'
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["rank"] == 0 and j["rank_h"] == 0 and j["rank_v"] == 0, j
+assert j["seam_before"] > 0 and j["seam_after"] == j["seam_before"], j
+EOF
+then pass synth_rank0_no_fix; else fail synth_rank0_no_fix "$(head -c 600 "$T/py")"; fi
+expect_ok synth_rank0_info "$LOOM" info "$T/r0.loomf"
+expect_out_contains synth_rank0_info_rank "rank 0"
+expect_ok synth_rank0_preview "$LOOM" preview "$T/r0.loomf" --width 64 -q -o "$T/r0.png"
 expect_ok synth_other_seed "$LOOM" synth "$WIF" --seed 2 --quiet -o "$T/h8s2.loomf"
 if cmp -s "$T/h8.loomf" "$T/h8s2.loomf"; then fail seed_changes_bytes "same bytes"; else pass seed_changes_bytes; fi
 

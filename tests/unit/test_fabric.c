@@ -822,14 +822,15 @@ static void test_bad_args(void)
 	CHECK(f == NULL);
 	CHECK_EQ_INT(loom_fabric_synthesize(d, NULL, "", &o, &f, &diag), LOOM_EINVAL);
 	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, NULL, &diag), LOOM_EINVAL);
-	o.rank = 0;
-	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, &f, &diag), LOOM_EINVAL);
-	CHECK_STR_CONTAINS(diag.message, "rank 0");
 	o.rank = 129;
 	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, &f, &diag), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(diag.message, "rank 129");
 	o.rank = 15;
-	o.algo = 3;
+	o.algo = 4;
 	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, &f, &diag), LOOM_EINVAL);
+	o.algo = LOOM_SYNTH_IDENTITY; /* needs group 0 and rank 0 */
+	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, &f, &diag), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(diag.message, "identity");
 	o.algo = LOOM_SYNTH_DP;
 	o.group = 70000;
 	CHECK_EQ_INT(loom_fabric_synthesize(d, db, "", &o, &f, &diag), LOOM_EINVAL);

@@ -32,13 +32,17 @@ static const char footer_main[] =
 
 static const char usage_generate[] =
 	"loom exemplar generate [--preset small|paper|tiny] [--weaves LIST]\n"
-	"                       [--seed N] [OPTIONS] -o DB\n";
+	"                       [--seed N] [OPTIONS] -o DB\n"
+	"loom exemplar generate --design DESIGN [--map MAPFILE]\n"
+	"                       [--preset P | --like DB] [--window R0,C0:R1,C1]\n"
+	"                       [--seed N] [OPTIONS] -o GT.ldb\n";
 
 static const char about_generate[] =
 	"Generate one procedural exemplar per weave and write the database DB\n"
 	"(atomically).  The output is the same for any thread count.  With\n"
 	"--scan, write a scan-like volume instead (loom exemplar generate --scan\n"
-	"--help).\n";
+	"--help).  With --design, write the woven ground truth of a design: one\n"
+	"exemplar whose weave is the whole design (docs/fidelity.md).\n";
 
 /* ---- generate ----------------------------------------------------------- */
 
@@ -80,10 +84,63 @@ static const char *opt_preset(const char *text, void *dest)
 	return loom_exgen_preset(text, &p) == LOOM_OK ? NULL : "small, paper or tiny";
 }
 
+/* --window R0,C0:R1,C1 (half-open crossings). */
+static const char *opt_window(const char *text, void *dest)
+{
+	uint32_t *w = dest;
+	char tail;
+
+	if (sscanf(text, "%u,%u:%u,%u%c", &w[0], &w[1], &w[2], &w[3], &tail) != 4 ||
+	    w[2] <= w[0] || w[3] <= w[1])
+		return "R0,C0:R1,C1 with R0 < R1 and C0 < C1 (crossings, half-open)";
+	return NULL;
+}
+
+/* The design (or its window) as the weave of one exemplar. */
+static uint8_t *design_weave(const char *prog, const char *path, const char *map,
+                             const uint32_t *win, int have_win,
+                             const loom_exgen_params *p, uint32_t *rows,
+                             uint32_t *cols, loom_diag *diag)
+{
+	loom_design *d = synth_load_design(prog, path, map, NULL, NULL, diag);
+	uint32_t r0 = 0, c0 = 0, r1 = d->rows, c1 = d->cols;
+	uint32_t lr = loom_exgen_design_limit(p->block[1]);
+	uint32_t lc = loom_exgen_design_limit(p->block[0]);
+	uint8_t *w;
+
+	if (have_win) {
+		if (win[2] > d->rows || win[3] > d->cols)
+			cli_fail(prog, "--window %u,%u:%u,%u: outside %s (%ux%u crossings)",
+			         win[0], win[1], win[2], win[3], path, d->rows, d->cols);
+		r0 = win[0];
+		c0 = win[1];
+		r1 = win[2];
+		c1 = win[3];
+	}
+	if (r1 - r0 > lr || c1 - c0 > lc)
+		cli_fail(prog, "%s%s: %ux%u crossings, but a ground truth at block %ux%u has "
+		         "at most %ux%u (picks x ends); choose a part with --window "
+		         "R0,C0:R1,C1", path, have_win ? " (window)" : "", r1 - r0, c1 - c0,
+		         p->block[0], p->block[1], lr, lc);
+	*rows = r1 - r0;
+	*cols = c1 - c0;
+	w = malloc((size_t)*rows * *cols);
+	if (!w)
+		cli_fail(prog, "out of memory");
+	for (uint32_t r = r0; r < r1; r++)
+		memcpy(w + (size_t)(r - r0) * *cols, d->weave + (size_t)r * d->cols + c0,
+		       *cols);
+	loom_design_free(d);
+	return w;
+}
+
 static int sub_generate(int argc, char **argv)
 {
 	const char *prog = "loom exemplar generate";
 	const char *out = NULL, *preset = "small", *weaves = NULL;
+	const char *design = NULL, *map = NULL, *like = NULL, *name = NULL;
+	uint32_t win[4] = {0}, drows = 0, dcols = 0;
+	uint8_t *dweave = NULL;
 	char *wbuf = NULL;
 	int quiet = 0, json = 0, scan = 0, rc;
 	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
@@ -114,6 +171,18 @@ static int sub_generate(int argc, char **argv)
 		          "brick shape (default 16x16x64)"),
 		OPT_U32(0, "level", &level, "L", 1, 12, "libdeflate level %r (default 6)"),
 		OPT_THREADS(&threads, 64, "worker threads (default 2; %r)"),
+		OPT_STRING(0, "design", &design, "DESIGN", "write the woven ground truth of "
+		           "DESIGN (WIF, weave image, or an image with --map): one exemplar "
+		           "whose weave is the whole design (docs/fidelity.md)"),
+		OPT_STRING(0, "map", &map, "MAPFILE", "with --design: DESIGN is a posterized "
+		           "image, MAPFILE maps its colours (docs/designs.md)"),
+		OPT_STRING(0, "like", &like, "DB", "with --design: the block, voxel size, "
+		           "brick shape and seed of database DB (instead of --preset)"),
+		OPT_CALLBACK(0, "window", win, "R0,C0:R1,C1", opt_window, "with --design: "
+		             "only picks R0..R1-1 and ends C0..C1-1 (for designs beyond the "
+		             "limit, 1024 a side and 65536 voxels)"),
+		OPT_STRING(0, "name", &name, "NAME", "with --design: the exemplar's name "
+		           "(default: design)"),
 		OPT_FLAG(0, "scan", &scan, "write a scan-like volume of a woven sheet instead, "
 		         "for loom exemplar build (its options: loom exemplar generate --scan "
 		         "--help)"),
@@ -130,6 +199,26 @@ static int sub_generate(int argc, char **argv)
 	cli_check_output(prog, out);
 	if (loom_exgen_preset(preset, &p) != LOOM_OK)
 		opts_usage(&c, "--preset: expected small, paper or tiny, got '%s'", preset);
+	if (!design && (map || like || opt_given(&c, win) || name))
+		opts_usage(&c, "--map, --like, --window and --name go with --design");
+	if (design && (weaves || opt_given(&c, cross)))
+		opts_usage(&c, "--design makes one exemplar of the whole design: no --weaves "
+		           "or --crossings");
+	if (like && opt_given(&c, &preset))
+		opts_usage(&c, "--like and --preset both set the geometry: give one");
+	if (like) {
+		loom_db *ldb;
+		loom_db_info li;
+		cli_diag_init(&diag, &quiet);
+		if (loom_db_open(like, &ldb, &diag) != LOOM_OK)
+			cli_fail(prog, "--like: %s", diag.message);
+		loom_db_get_info(ldb, &li);
+		memcpy(p.block, li.block, sizeof p.block);
+		memcpy(p.brick, li.brick, sizeof p.brick);
+		p.voxel_size_um = li.voxel_size_um;
+		p.seed = li.seed ? li.seed : 1;
+		loom_db_close(ldb);
+	}
 	if (weaves) {
 		char *s, *tok, *save = NULL;
 		wbuf = strdup(weaves);
@@ -168,7 +257,14 @@ static int sub_generate(int argc, char **argv)
 	p.progress = progress_cb;
 	p.user = &ps;
 	cli_diag_init(&diag, &quiet);
-	rc = loom_exgen_write_db(out, &p, &hash, &diag);
+	if (design) {
+		dweave = design_weave(prog, design, map, win, opt_given(&c, win) != 0, &p,
+		                      &drows, &dcols, &diag);
+		rc = loom_exgen_write_design(out, &p, name, drows, dcols, dweave, &hash, &diag);
+		free(dweave);
+	} else {
+		rc = loom_exgen_write_db(out, &p, &hash, &diag);
+	}
 	free(wbuf);
 	if (rc)
 		cli_fail(prog, "%s", diag.message);

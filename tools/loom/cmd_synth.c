@@ -3,7 +3,7 @@
  * fabric file (paper 5.3-5.5; docs/fabric.md).
  *
  *   loom synth DESIGN [--db DB] [--algo dp|greedy|naive] [--seed N]
- *              [--rank R] [--group M] [--map MAPFILE] [--warp-map F]
+ *              [--rank R] [--edge-fix on|off] [--identity] [--group M] [--map MAPFILE] [--warp-map F]
  *              [--weft-map F] -o FABRIC [--json] [--assignment-map PNG]
  *              [--seam-map PNG] [--edge-tables auto|store|rebuild] [--quiet]
  */
@@ -30,6 +30,7 @@ static const char about[] =
 static const opt_choice algo_names[] = {
 	{"dp", LOOM_SYNTH_DP}, {"greedy", LOOM_SYNTH_GREEDY}, {"naive", LOOM_SYNTH_NAIVE},
 	{NULL, 0}};
+static const opt_choice onoff_names[] = {{"on", 1}, {"off", 0}, {NULL, 0}};
 static const opt_choice edge_names[] = {
 	{"auto", LOOM_FABRIC_EDGE_AUTO}, {"store", LOOM_FABRIC_EDGE_STORE},
 	{"rebuild", LOOM_FABRIC_EDGE_REBUILD}, {NULL, 0}};
@@ -57,7 +58,7 @@ static char *read_text(const char *prog, const char *path, size_t *len)
 	return (char *)buf;
 }
 
-static loom_design *load_design(const char *prog, const char *in, const char *map,
+loom_design *synth_load_design(const char *prog, const char *in, const char *map,
                                 const char *warp, const char *weft, loom_diag *diag)
 {
 	loom_design *d = NULL;
@@ -431,7 +432,8 @@ int cmd_synth(int argc, char **argv)
 	const char *in = NULL, *out = NULL, *db_opt = NULL, *map = NULL;
 	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL;
 	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
-	int quiet = 0, json = 0, progress, edge = LOOM_FABRIC_EDGE_AUTO;
+	int quiet = 0, json = 0, progress, edge = LOOM_FABRIC_EDGE_AUTO, edge_fix = 1;
+	int identity = 0;
 	loom_design *d;
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
@@ -444,10 +446,16 @@ int cmd_synth(int argc, char **argv)
 		       "the data directory)"),
 		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
-		OPT_U32(0, "rank", &o.rank, "R", 1, LOOM_EDGEFIX_MAX_RANK,
-		        "edge-fix rank, %r (default 15)"),
+		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
+		        "edge-fix rank, %r (default 15; 0 = no edge fix)"),
+		OPT_ENUM(0, "edge-fix", &edge_fix, "on|off", onoff_names, "on (default) or "
+		         "off: no edge fix, the same as --rank 0 (to see what the fix does)"),
 		OPT_U32(0, "group", &o.group, "M", 0, 65536, "randomisation group side m^, %r "
 		        "(default 3; 0 = no randomisation)"),
+		OPT_FLAG(0, "identity", &identity, "copy the ground truth block by block: "
+		         "crossing (i, j) takes block (i, j) of exemplar 0 of DB (the ground "
+		         "truth loom exemplar generate makes of DESIGN), no randomisation, no edge fix "
+		         "(docs/fidelity.md)"),
 		OPT_STRING(0, "map", &map, "MAPFILE", "DESIGN is a posterized image: map its "
 		           "colours to weaves and yarns (docs/designs.md)"),
 		OPT_STRING(0, "warp-map", &warp, "FILE",
@@ -471,6 +479,17 @@ int cmd_synth(int argc, char **argv)
 	if (!out)
 		opts_usage(&c, "missing -o FABRIC");
 	o.edge_storage = (uint32_t)edge;
+	if (!edge_fix)
+		o.rank = 0;
+	if (identity) {
+		if (opt_given(&c, &o.algo) || (opt_given(&c, &o.rank) && o.rank) ||
+		    (opt_given(&c, &o.group) && o.group))
+			opts_usage(&c, "--identity copies the ground truth unchanged: no --algo, "
+			           "--group or --rank other than 0");
+		o.algo = LOOM_SYNTH_IDENTITY;
+		o.group = 0;
+		o.rank = 0;
+	}
 	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
 	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
 		opts_usage(&c, "maps are written as .png (or .ppm) files");
@@ -482,7 +501,7 @@ int cmd_synth(int argc, char **argv)
 	progress = !quiet && !json && isatty(2);
 	cli_diag_init(&diag, &quiet);
 
-	d = load_design(prog, in, map, warp, weft, &diag);
+	d = synth_load_design(prog, in, map, warp, weft, &diag);
 	memset(&r, 0, sizeof r);
 	r.db_path = cli_db_require(db_opt, prog);
 	if (loom_db_open(r.db_path, &db, &diag) != LOOM_OK)

@@ -15,5 +15,15 @@ int cmd_render(int argc, char **argv);   /* cmd_render.c */
 int cmd_look(int argc, char **argv);     /* cmd_look.c */
 int cmd_serve(int argc, char **argv);    /* cmd_serve.c */
 int cmd_paint(int argc, char **argv);    /* cmd_paint.c */
+int cmd_compare(int argc, char **argv);  /* cmd_compare.c */
+
+
+/* Read DESIGN (WIF, weave image, or a posterized image with map) and the
+   optional type maps; exits with a message on failure (cmd_synth.c). */
+struct loom_design;
+struct loom_diag;
+struct loom_design *synth_load_design(const char *prog, const char *in,
+                                      const char *map, const char *warp,
+                                      const char *weft, struct loom_diag *diag);
 
 #endif

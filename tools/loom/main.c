@@ -25,6 +25,7 @@ static const struct command {
 	{"look", cmd_look, "one draft -> drawdown, draft, previews, progressive render"},
 	{"serve", cmd_serve, "deep-zoom viewer of a fabric or draft in the browser"},
 	{"paint", cmd_paint, "paint a region: yarn colour, stain or defect (paint file)"},
+	{"compare", cmd_compare, "compare two cloths (fabrics, exemplars): top yarn, heights, seams"},
 	{"demo", cmd_demo, "run the main job on the built-in default data"},
 };
 

@@ -262,6 +262,26 @@ LOOM_API int loom_exgen_preset(const char *name, loom_exgen_params *p);
 LOOM_API int loom_exgen_write_db(const char *path, const loom_exgen_params *p,
                                  uint64_t *hash, loom_diag *diag);
 
+/*
+ * The woven ground truth of a design (docs/fidelity.md): one exemplar named
+ * `name` whose weave is the whole design (rows x cols cells, row-major,
+ * 1 = warp over), woven by the same generator with p's block, voxel size,
+ * seed, brick shape and level (p->weaves, rows, cols are not used).  At
+ * most LOOM_EXGEN_MAX_DESIGN crossings a side and 65536 voxels along x and
+ * y (LOOM_ERANGE; the message gives the limit for p's block).  Written like
+ * loom_exgen_write_db (atomically, brick column by brick column; the
+ * writer keeps a height map of 3 bytes per voxel column and the block
+ * tables until the end).
+ */
+#define LOOM_EXGEN_MAX_DESIGN 1024u
+LOOM_API int loom_exgen_write_design(const char *path, const loom_exgen_params *p,
+                                     const char *name, uint32_t rows,
+                                     uint32_t cols, const uint8_t *weave,
+                                     uint64_t *hash, loom_diag *diag);
+/* Largest design side (crossings) loom_exgen_write_design accepts along an
+   axis whose block side is `block` voxels: min(1024, 65536 / block). */
+LOOM_API uint32_t loom_exgen_design_limit(uint32_t block);
+
 #ifdef __cplusplus
 }
 #endif

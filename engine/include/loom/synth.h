@@ -155,8 +155,11 @@ static inline unsigned loom_synth_code(const loom_design *d, uint32_t i,
 enum loom_synth_algo {
 	LOOM_SYNTH_NAIVE = 0,  /* a random correct block */
 	LOOM_SYNTH_GREEDY = 1, /* a random block of maximal consistency */
-	LOOM_SYNTH_DP = 2      /* max consistency, then max continuity along
+	LOOM_SYNTH_DP = 2,     /* max consistency, then max continuity along
 	                          each column (Eq. 1), O(K) per crossing */
+	LOOM_SYNTH_IDENTITY = 3 /* crossing (i, j) copies block (i, j) of
+	                          exemplar 0, whose weave must equal the design
+	                          (a woven ground truth, docs/fidelity.md) */
 };
 
 /* Option flags (DP only). */
@@ -192,8 +195,10 @@ typedef struct loom_synth_options {
  * options => same bytes.  Thread-safe (the set is only read).
  * Working memory: loom_synth_assign_work_bytes(), O(rows * longest
  * candidate list), never O(rows * cols).
+ * identity: the design must have exemplar 0's size and weave
+ * (LOOM_EMISMATCH naming the first differing crossing otherwise).
  * Returns LOOM_OK, LOOM_EINVAL (NULL, bad algo, options.size too small),
- * LOOM_ENOMEM.  base is unspecified on failure.
+ * LOOM_EMISMATCH, LOOM_ENOMEM.  base is unspecified on failure.
  */
 LOOM_API int loom_synth_assign(const loom_synth_set *s, const loom_design *d,
                                const loom_synth_options *o, uint16_t *base,
@@ -389,7 +394,8 @@ typedef struct loom_edgefix loom_edgefix; /* opaque, immutable */
  * Memory (loom_edgefix_bytes): 4 (b1 b2 (rh + rv) + 2 K (rh + rv) +
  * b1 rh + (b2-2) rv + b1 + b2 - 2) bytes plus a small header, i.e. about
  * 8 b1 b2 r + 16 K r bytes when rh = rv = r; independent of any design.
- * LOOM_OK, LOOM_EINVAL (NULL, b1 or b2 < 3, K = 0, rank = 0, a non-finite
+ * Rank 0 builds tables with no basis: every dz is 0 (no edge fix).
+ * LOOM_OK, LOOM_EINVAL (NULL, b1 or b2 < 3, K = 0, a non-finite
  * height), LOOM_ERANGE (b1*b2 > 2^24, rank > LOOM_EDGEFIX_MAX_RANK),
  * LOOM_ENOMEM.
  */

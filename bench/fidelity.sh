@@ -1,0 +1,50 @@
+#!/bin/sh
+# bench/fidelity.sh - predictive fidelity of synthesis against the woven
+# ground truth (docs/fidelity.md).  For each design of the suite: weave the
+# whole design as one exemplar (loom exemplar generate --design, the
+# database's geometry, seed 1), the same with seed 2 (the floor: how far
+# two weavings of the same design differ), synthesize the design from the
+# default database with the edge fix (rank 15) and without (rank 0), and
+# compare each with the seed-1 reference.  Prints a markdown table.
+#   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR]
+set -eu
+LOOM=${1:-build/loom}
+DB=${2:-build/share/loom/default.ldb}
+W=${3:-build/fidelity}
+TOP=$(cd "$(dirname "$0")/.." && pwd)
+mkdir -p "$W"
+"$LOOM" pattern make herringbone --size 32x32 -q -o "$W/herringbone.pbm"
+"$LOOM" pattern make wavy-twill --size 32x32 -q -o "$W/wavy-twill.pbm"
+"$LOOM" pattern make broken-twill --size 32x32 -q -o "$W/broken-twill.pbm"
+"$LOOM" pattern make basket --size 32x32 -q -o "$W/basket.pbm"
+"$LOOM" pattern make satin:1/7 --size 32x32 -q -o "$W/satin-1-7.pbm"
+cp "$TOP/data/herringbone-8.wif" "$TOP/data/overshot-sampler.wif" "$W/"
+get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
+printf '| design | crossings | consistency | pair | top agreement (columns) | height RMSE debiased | block-offset SD | histogram L1 | seam ratio (ref %s) |\n' "->"
+printf '|---|---|---|---|---|---|---|---|---|\n'
+for d in herringbone wavy-twill broken-twill basket satin-1-7 herringbone-8 overshot-sampler; do
+	f=$W/$d.pbm
+	[ -e "$f" ] || f=$W/$d.wif
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 --quiet -o "$W/$d-gt1.ldb"
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 --quiet -o "$W/$d-gt2.ldb"
+	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
+	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
+	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")
+	cons=$(get "$W/$d-synth.json" consistency)
+	for pair in floor synth rank0; do
+		case $pair in
+		floor) b="$W/$d-gt2.ldb#0"; label="seed 2 vs seed 1 (floor)" ;;
+		synth) b="$W/$d.loomf"; label="synthesized, rank 15" ;;
+		rank0) b="$W/$d-r0.loomf"; label="synthesized, no edge fix" ;;
+		esac
+		pics=""
+		[ "$pair" = synth ] && pics="--pictures $W/$d-pictures"
+		# shellcheck disable=SC2086
+		"$LOOM" compare "$W/$d-gt1.ldb#0" "$b" --json $pics >"$W/$d-$pair.json"
+		j=$W/$d-$pair.json
+		printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s -> %s |\n' "$d" "$rows" "$cons" \
+			"$label" "$(get "$j" top_agreement_columns)" "$(get "$j" height_rmse_debiased)" \
+			"$(get "$j" block_offset_sd)" "$(get "$j" histogram_l1)" \
+			"$(get "$j" seam_ratio_a)" "$(get "$j" seam_ratio_b)"
+	done
+done

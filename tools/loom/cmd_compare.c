@@ -1,0 +1,668 @@
+/*
+ * tools/loom/cmd_compare.c - `loom compare A B`: how close two cloths are,
+ * column by column (docs/fidelity.md).
+ *
+ *   loom compare A B [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]
+ *                [--threshold D] [--json] [--pictures DIR] [--budget MB]
+ *
+ * A and B are fabrics (.loomf, read through the virtual texture's region
+ * reads) or exemplars (DB.ldb#K, K an index or a name, read with
+ * loom_db_read_box).  Both are streamed one block row at a time, in
+ * chunks of whole blocks along x that fit the budget; per column only the
+ * top surface (height, kind and top-yarn thickness) is kept, for the
+ * current and the previous row.  Definitions: docs/fidelity.md.
+ */
+#include "cli.h"
+#include "commands.h"
+#include "opts.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+static const char about[] =
+	"Compare two cloths voxel column by voxel column: the kind of the top\n"
+	"yarn, the height of the top surface (RMSE raw and with the mean\n"
+	"difference removed, per-block mean offsets), density histograms per\n"
+	"yarn kind, coverage, and each input's seam ratio (mean height jump\n"
+	"across block edges over the same inside blocks).  A and B are fabrics\n"
+	"(.loomf) or exemplars (DB.ldb#K, K an index or a name); they must have\n"
+	"the same voxel size, block size and extent.  Streamed in bounded\n"
+	"memory.  Definitions: docs/fidelity.md.\n";
+
+#define HIST_BINS 16
+#define PIC_MAX 1024u
+
+enum { SRC_FABRIC, SRC_EXEMPLAR };
+
+typedef struct src {
+	int type;
+	const char *arg;
+	loom_db *db;
+	loom_fabric *f;
+	loom_texture *t;
+	uint32_t ex;
+	uint8_t kind_of[256];   /* exemplar label -> kind */
+	uint64_t size[3];       /* extent: repeat or exemplar */
+	uint32_t b1, b2, b3;
+	float vs;
+	/* per chunk */
+	uint8_t *dens, *kind;
+	/* per column of the current and previous block row: height (NAN = no
+	   surface), kind, thickness */
+	float *h, *hprev;
+	uint8_t *k;
+	/* statistics */
+	double hist[3][HIST_BINS];
+	uint64_t surf, cols;
+	double thick_sum;
+	uint64_t thick_n;
+	double seam_sum, in_sum;
+	uint64_t seam_n, in_n;
+} src;
+
+static double now_s(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void open_src(const char *prog, src *s, const char *arg, size_t budget,
+                     loom_diag *diag)
+{
+	const char *hash = strrchr(arg, '#');
+
+	memset(s, 0, sizeof *s);
+	s->arg = arg;
+	if (hash && hash > arg) {
+		char *path = strndup(arg, (size_t)(hash - arg));
+		loom_db_info info;
+		loom_db_exemplar_info e;
+		if (!path)
+			cli_fail(prog, "out of memory");
+		s->type = SRC_EXEMPLAR;
+		if (loom_db_open(path, &s->db, diag) != LOOM_OK)
+			cli_fail(prog, "%s", diag->message);
+		if (loom_db_find_exemplar(s->db, hash + 1, &s->ex) != LOOM_OK)
+			cli_fail(prog, "%s: no exemplar '%s' in %s", arg, hash + 1, path);
+		free(path);
+		loom_db_get_info(s->db, &info);
+		loom_db_exemplar(s->db, s->ex, &e);
+		for (int a = 0; a < 3; a++)
+			s->size[a] = e.size[a];
+		for (uint32_t l = 1; l <= e.n_yarns && l < 256; l++)
+			s->kind_of[l] = (e.yarns[l].kind == LOOM_YARN_WARP ||
+			                 e.yarns[l].kind == LOOM_YARN_WEFT) ? e.yarns[l].kind : 0;
+		s->b1 = info.block[0];
+		s->b2 = info.block[1];
+		s->b3 = info.block[2];
+		s->vs = info.voxel_size_um;
+		return;
+	}
+	if (!cli_ends_with(arg, ".loomf"))
+		cli_fail(prog, "%s: expected a fabric (.loomf) or an exemplar DB.ldb#K", arg);
+	s->type = SRC_FABRIC;
+	{
+		loom_fabric_db_identity id;
+		loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
+		if (loom_fabric_open(arg, NULL, 0, &s->f, diag) != LOOM_OK)
+			cli_fail(prog, "%s", diag->message);
+		loom_fabric_get_db_identity(s->f, &id);
+		loom_fabric_repeat_voxels(s->f, s->size);
+		s->b1 = id.block[0];
+		s->b2 = id.block[1];
+		s->b3 = id.block[2];
+		s->vs = id.voxel_size_um;
+		to.budget_bytes = budget;
+		to.max_threads = 1;
+		if (loom_texture_open(s->f, NULL, &to, &s->t, diag) != LOOM_OK)
+			cli_fail(prog, "%s: %s", arg, diag->message);
+	}
+}
+
+static void close_src(src *s)
+{
+	loom_texture_close(s->t);
+	loom_fabric_free(s->f);
+	loom_db_close(s->db);
+	free(s->dens);
+	free(s->kind);
+	free(s->h);
+	free(s->hprev);
+	free(s->k);
+}
+
+/* Read box [x0,x0+nx) x [y0,y0+ny) x [z0,z0+nz) (x fastest) into dens and
+   kind. */
+static void read_box(const char *prog, src *s, int64_t x0, int64_t y0, int64_t z0,
+                     uint32_t nx, uint32_t ny, uint32_t nz, loom_diag *diag)
+{
+	size_t n = (size_t)nx * ny * nz;
+
+	if (s->type == SRC_FABRIC) {
+		int64_t lo[3] = {x0, y0, z0}, hi[3] = {x0 + nx, y0 + ny, z0 + nz};
+		loom_texture_region r = {0};
+		r.density = s->dens;
+		r.kind = s->kind;
+		r.layout = LOOM_REGION_X_FASTEST;
+		if (loom_texture_read_region(s->t, lo, hi, &r) != LOOM_OK)
+			cli_fail(prog, "%s: %s", s->arg, loom_texture_errmsg(s->t));
+	} else {
+		uint32_t org[3] = {(uint32_t)x0, (uint32_t)y0, (uint32_t)z0};
+		uint32_t sz[3] = {nx, ny, nz};
+		if (loom_db_read_box(s->db, s->ex, org, sz, s->dens, NULL, s->kind, diag) !=
+		    LOOM_OK)
+			cli_fail(prog, "%s: %s", s->arg, diag->message);
+		for (size_t i = 0; i < n; i++)
+			s->kind[i] = s->kind_of[s->kind[i]];
+	}
+}
+
+/* --region: X0,Y0:X1,Y1 or X0,Y0,Z0:X1,Y1,Z1. */
+typedef struct box {
+	int64_t lo[3], hi[3];
+	int has_z;
+} box;
+
+static const char *opt_region(const char *text, void *dest)
+{
+	box *b = dest;
+	long long v[6];
+	char tail;
+
+	if (sscanf(text, "%lld,%lld,%lld:%lld,%lld,%lld%c", &v[0], &v[1], &v[2], &v[3],
+	           &v[4], &v[5], &tail) == 6) {
+		b->lo[0] = v[0], b->lo[1] = v[1], b->lo[2] = v[2];
+		b->hi[0] = v[3], b->hi[1] = v[4], b->hi[2] = v[5];
+		b->has_z = 1;
+	} else if (sscanf(text, "%lld,%lld:%lld,%lld%c", &v[0], &v[1], &v[3], &v[4],
+	                  &tail) == 4) {
+		b->lo[0] = v[0], b->lo[1] = v[1];
+		b->hi[0] = v[3], b->hi[1] = v[4];
+		b->has_z = 0;
+	} else {
+		return "X0,Y0:X1,Y1 or X0,Y0,Z0:X1,Y1,Z1 (voxels, half-open)";
+	}
+	for (int a = 0; a < (b->has_z ? 3 : 2); a++)
+		if (b->lo[a] < 0 || b->hi[a] <= b->lo[a] || b->hi[a] > ((int64_t)1 << 40))
+			return "0 <= X0 < X1, 0 <= Y0 < Y1 (and Z) below 2^40";
+	return NULL;
+}
+
+/* ---- the comparison -------------------------------------------------------- */
+
+typedef struct acc {
+	uint64_t both, agree, centres, centres_agree;
+	double d_sum, d2_sum;
+	/* per block of the current block row: sum and count of dh */
+	double *blk_sum;
+	uint64_t *blk_n;
+	double bo_sum, bo2_sum;
+	uint64_t bo_n;
+	uint64_t voxels;
+} acc;
+
+/* Top surface of every column of the chunk into s->h/k (index x - xr0 +
+   (y - y0)*W where W is the region width). */
+static void tops(src *s, uint32_t nx, uint32_t ny, uint32_t nz, uint8_t thr,
+                 size_t off, size_t W, int64_t z0)
+{
+	for (uint32_t y = 0; y < ny; y++)
+		for (uint32_t x = 0; x < nx; x++) {
+			size_t col = off + (size_t)y * W + x;
+			int top = -1;
+			for (int z = (int)nz - 1; z >= 0; z--) {
+				size_t i = ((size_t)z * ny + y) * nx + x;
+				uint8_t d = s->dens[i];
+				if (d) {
+					uint8_t kk = s->kind[i] <= 2 ? s->kind[i] : 0;
+					int bin = (d - 1) * HIST_BINS / 255;
+					s->hist[kk][bin] += 1;
+				}
+				if (top < 0 && d >= thr && s->kind[i])
+					top = z;
+			}
+			s->cols++;
+			if (top < 0) {
+				s->h[col] = NAN;
+				s->k[col] = 0;
+				continue;
+			}
+			s->surf++;
+			s->h[col] = (float)(z0 + top + 1);
+			s->k[col] = s->kind[((size_t)top * ny + y) * nx + x];
+			{
+				int z = top;
+				while (z >= 0 && s->kind[((size_t)z * ny + y) * nx + x] == s->k[col] &&
+				       s->dens[((size_t)z * ny + y) * nx + x] >= thr)
+					z--;
+				s->thick_sum += top - z;
+				s->thick_n++;
+			}
+		}
+}
+
+static int is_edge(int64_t v, uint32_t b) /* v and v+1 in different blocks */
+{
+	return (v + 1) % b == 0;
+}
+
+/* Seam statistics of one input over a finished band of rows [0, ny) (and the
+   pair with the previous band's last row when have_prev). */
+static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
+                  int have_prev)
+{
+	for (uint32_t y = 0; y < ny; y++)
+		for (size_t x = 0; x < W; x++) {
+			float h0 = s->h[(size_t)y * W + x], h1;
+			int64_t gx = r->lo[0] + (int64_t)x, gy = y0 + y;
+			if (isnan(h0))
+				continue;
+			if (x + 1 < W && !isnan(h1 = s->h[(size_t)y * W + x + 1])) {
+				if (is_edge(gx, s->b1))
+					s->seam_sum += fabsf(h1 - h0), s->seam_n++;
+				else
+					s->in_sum += fabsf(h1 - h0), s->in_n++;
+			}
+			if (y == 0 && !have_prev)
+				continue;
+			h1 = y ? s->h[(size_t)(y - 1) * W + x] : s->hprev[x];
+			if (isnan(h1))
+				continue;
+			if (is_edge(gy - 1, s->b2))
+				s->seam_sum += fabsf(h1 - h0), s->seam_n++;
+			else
+				s->in_sum += fabsf(h1 - h0), s->in_n++;
+		}
+	memcpy(s->hprev, s->h + (size_t)(ny - 1) * W, W * sizeof *s->h);
+}
+
+/* ---- pictures ---------------------------------------------------------------- */
+
+typedef struct pics {
+	uint32_t w, h, scale;
+	double *ha, *hb, *n, *ka, *kb; /* per pixel sums */
+} pics;
+
+static void pic_add(pics *p, const box *r, int64_t y0, uint32_t ny, size_t W,
+                    const src *a, const src *b)
+{
+	for (uint32_t y = 0; y < ny; y++)
+		for (size_t x = 0; x < W; x++) {
+			size_t c = (size_t)y * W + x;
+			uint32_t px = (uint32_t)(x / p->scale);
+			uint32_t py = (uint32_t)((uint64_t)(y0 + y - r->lo[1]) / p->scale);
+			size_t i;
+			if (px >= p->w || py >= p->h || isnan(a->h[c]) || isnan(b->h[c]))
+				continue;
+			i = (size_t)py * p->w + px;
+			p->ha[i] += a->h[c];
+			p->hb[i] += b->h[c];
+			p->ka[i] += a->k[c] == LOOM_YARN_WARP;
+			p->kb[i] += b->k[c] == LOOM_YARN_WARP;
+			p->n[i] += 1;
+		}
+}
+
+/* Height-shaded kind colours: warp light grey, weft blue (as the preview's
+   default yarn types); brightness from the height. */
+static void shade(double kfrac, double h, double lo, double hi, uint8_t *rgb)
+{
+	static const double warp[3] = {225, 225, 218}, weft[3] = {92, 112, 176};
+	double t = hi > lo ? (h - lo) / (hi - lo) : 0.5, v = 0.35 + 0.65 * t;
+	for (int c = 0; c < 3; c++) {
+		double x = (kfrac * warp[c] + (1 - kfrac) * weft[c]) * v;
+		rgb[c] = (uint8_t)(x < 0 ? 0 : x > 255 ? 255 : lround(x));
+	}
+}
+
+static void pic_write(const char *prog, const pics *p, const char *dir, double bias,
+                      double deb, double *range, loom_diag *diag)
+{
+	loom_image *img = NULL, *dimg = NULL;
+	char path[4096];
+	double lo = INFINITY, hi = -INFINITY, dmax = 3 * deb;
+	uint32_t gap = 8;
+
+	for (size_t i = 0; i < (size_t)p->w * p->h; i++) {
+		double a, b;
+		if (!p->n[i])
+			continue;
+		a = p->ha[i] / p->n[i];
+		b = p->hb[i] / p->n[i];
+		lo = fmin(lo, fmin(a, b));
+		hi = fmax(hi, fmax(a, b));
+	}
+	if (dmax < 1)
+		dmax = 1;
+	*range = dmax;
+	if (loom_image_new(2 * p->w + gap, p->h, 3, &img) != LOOM_OK ||
+	    loom_image_new(p->w, p->h, 3, &dimg) != LOOM_OK)
+		cli_fail(prog, "out of memory for the pictures");
+	memset(img->pixels, 255, (size_t)img->width * img->height * 3);
+	for (uint32_t y = 0; y < p->h; y++)
+		for (uint32_t x = 0; x < p->w; x++) {
+			size_t i = (size_t)y * p->w + x;
+			uint8_t *pa = img->pixels + 3 * ((size_t)y * img->width + x);
+			uint8_t *pb = img->pixels + 3 * ((size_t)y * img->width + x + p->w + gap);
+			uint8_t *pd = dimg->pixels + 3 * i;
+			double d;
+			if (!p->n[i]) {
+				memset(pa, 0, 3);
+				memset(pb, 0, 3);
+				memset(pd, 0, 3);
+				continue;
+			}
+			shade(p->ka[i] / p->n[i], p->ha[i] / p->n[i], lo, hi, pa);
+			shade(p->kb[i] / p->n[i], p->hb[i] / p->n[i], lo, hi, pb);
+			/* diverging: B higher (after the mean) red, lower blue */
+			d = ((p->hb[i] - p->ha[i]) / p->n[i] + bias) / dmax;
+			d = d > 1 ? 1 : d < -1 ? -1 : d;
+			pd[0] = (uint8_t)lround(d > 0 ? 255 : 255 * (1 + d));
+			pd[1] = (uint8_t)lround(255 * (1 - fabs(d)));
+			pd[2] = (uint8_t)lround(d < 0 ? 255 : 255 * (1 - d));
+		}
+	snprintf(path, sizeof path, "%s/side-by-side.png", dir);
+	if (loom_image_write(path, img, diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag->message);
+	snprintf(path, sizeof path, "%s/height-difference.png", dir);
+	if (loom_image_write(path, dimg, diag) != LOOM_OK)
+		cli_fail(prog, "%s", diag->message);
+	loom_image_free(img);
+	loom_image_free(dimg);
+}
+
+/* ---- the command ----------------------------------------------------------------- */
+
+static double hist_l1(const src *a, const src *b, int kind)
+{
+	double na = 0, nb = 0, l1 = 0;
+	for (int i = 0; i < HIST_BINS; i++) {
+		na += a->hist[kind][i];
+		nb += b->hist[kind][i];
+	}
+	if (!(na > 0) || !(nb > 0))
+		return na > 0 || nb > 0 ? 2.0 : 0.0;
+	for (int i = 0; i < HIST_BINS; i++)
+		l1 += fabs(a->hist[kind][i] / na - b->hist[kind][i] / nb);
+	return l1;
+}
+
+static int same_geometry(const src *a, const src *b)
+{
+	return a->b1 == b->b1 && a->b2 == b->b2 && a->b3 == b->b3 &&
+	       fabsf(a->vs - b->vs) <= 1e-4f * a->vs;
+}
+
+int cmd_compare(int argc, char **argv)
+{
+	const char *prog = "loom compare";
+	const char *pos[2] = {NULL, NULL}, *picdir = NULL;
+	double budget_mb = 64, thr = 0.2, t0 = now_s();
+	int json = 0, quiet = 0;
+	box r;
+	src A, B;
+	acc ac;
+	pics pic;
+	loom_diag diag;
+	size_t budget, W, chunk_cols, per_col;
+	uint32_t nz, band;
+	uint8_t thr8;
+	opt_entry opts[] = {
+		OPT_CALLBACK(0, "region", &r, "BOX", opt_region, "voxels, half-open: "
+		             "X0,Y0:X1,Y1 or X0,Y0,Z0:X1,Y1,Z1 (default: the whole extent, "
+		             "which must be the same for A and B)"),
+		OPT_DOUBLE(0, "threshold", &thr, "D", "(]", 0, 1, "",
+		           "density of the top surface, %r (default 0.2)"),
+		OPT_STRING(0, "pictures", &picdir, "DIR", "write DIR/side-by-side.png (A "
+		           "left, B right, shaded top surfaces) and DIR/height-difference.png "
+		           "(B - A after the mean: red higher, blue lower, full colour at 3 debiased RMSE)"),
+		OPT_BUDGET(&budget_mb, "memory budget in MiB (default 64): texture caches "
+		           "and the chunks read"),
+		OPT_JSON(&json, "print the result as JSON"),
+		OPT_QUIET(&quiet, "no table"),
+		OPT_END()
+	};
+	opts_cmd c = {.prog = prog, .usage = "loom compare A B [OPTIONS]", .about = about,
+	              .opts = opts, .pos_name = "A B", .pos_min = 2, .pos_max = 2,
+	              .pos = pos};
+
+	memset(&r, 0, sizeof r);
+	opts_parse(&c, argc, argv);
+	cli_diag_init(&diag, &quiet);
+	budget = (size_t)(budget_mb * 1048576.0);
+	if (budget < ((size_t)8 << 20))
+		opts_usage(&c, "--budget: at least 8 MiB");
+	open_src(prog, &A, pos[0], budget / 4, &diag);
+	open_src(prog, &B, pos[1], budget / 4, &diag);
+	if (!same_geometry(&A, &B))
+		cli_fail(prog, "%s has blocks of %ux%ux%u voxels of %g um, %s %ux%ux%u of %g "
+		         "um: compare cloths of the same geometry (loom exemplar generate "
+		         "--like DB)", A.arg, A.b1, A.b2, A.b3, (double)A.vs, B.arg, B.b1,
+		         B.b2, B.b3, (double)B.vs);
+	if (!opt_given(&c, &r)) {
+		if (memcmp(A.size, B.size, sizeof A.size) != 0)
+			cli_fail(prog, "%s is %llux%llux%llu voxels, %s %llux%llux%llu: compare "
+			         "the same extent or give --region", A.arg,
+			         (unsigned long long)A.size[0], (unsigned long long)A.size[1],
+			         (unsigned long long)A.size[2], B.arg,
+			         (unsigned long long)B.size[0], (unsigned long long)B.size[1],
+			         (unsigned long long)B.size[2]);
+		for (int a = 0; a < 3; a++) {
+			r.lo[a] = 0;
+			r.hi[a] = (int64_t)A.size[a];
+		}
+	} else if (!r.has_z) {
+		r.lo[2] = 0;
+		r.hi[2] = (int64_t)A.b3;
+	}
+	for (int k = 0; k < 2; k++) {
+		const src *s = k ? &B : &A;
+		if (s->type == SRC_EXEMPLAR)
+			for (int a = 0; a < 3; a++)
+				if ((uint64_t)r.hi[a] > s->size[a])
+					cli_fail(prog, "--region: %s is %llux%llux%llu voxels; the region "
+					         "ends at %lld,%lld,%lld", s->arg,
+					         (unsigned long long)s->size[0],
+					         (unsigned long long)s->size[1],
+					         (unsigned long long)s->size[2], (long long)r.hi[0],
+					         (long long)r.hi[1], (long long)r.hi[2]);
+	}
+	if (r.hi[2] > (int64_t)A.b3)
+		cli_fail(prog, "--region: z ends at %lld, the cloth is %u voxels thick",
+		         (long long)r.hi[2], A.b3);
+	W = (size_t)(r.hi[0] - r.lo[0]);
+	nz = (uint32_t)(r.hi[2] - r.lo[2]);
+	band = A.b2;
+	/* chunk: whole blocks along x; 2 bytes per voxel per input */
+	per_col = (size_t)band * nz * 2 * 2;
+	chunk_cols = (budget / 2) / per_col;
+	chunk_cols -= chunk_cols % A.b1;
+	if (chunk_cols < A.b1)
+		cli_fail(prog, "--budget %.0f MiB cannot hold one block (%zu bytes)", budget_mb,
+		         per_col * A.b1 * 2);
+	if (chunk_cols > W)
+		chunk_cols = W;
+	/* per-row state: 2 inputs x 3 rows of floats + kinds, the block sums */
+	if ((double)W * band * 24 > (double)budget / 4)
+		cli_fail(prog, "--region %zu voxels wide needs %.0f MiB of row state; raise "
+		         "--budget or narrow the region", W, (double)W * band * 24 * 4 / 1048576.0);
+	memset(&ac, 0, sizeof ac);
+	for (int k = 0; k < 2; k++) {
+		src *s = k ? &B : &A;
+		s->dens = malloc(chunk_cols * band * nz);
+		s->kind = malloc(chunk_cols * band * nz);
+		s->h = malloc(W * band * sizeof *s->h);
+		s->hprev = malloc(W * sizeof *s->hprev);
+		s->k = malloc(W * band);
+		if (!s->dens || !s->kind || !s->h || !s->hprev || !s->k)
+			cli_fail(prog, "out of memory");
+	}
+	ac.blk_sum = calloc(W / A.b1 + 2, sizeof *ac.blk_sum);
+	ac.blk_n = calloc(W / A.b1 + 2, sizeof *ac.blk_n);
+	memset(&pic, 0, sizeof pic);
+	if (picdir) {
+		uint64_t H = (uint64_t)(r.hi[1] - r.lo[1]), M = W > H ? W : H;
+		if (mkdir(picdir, 0777) != 0 && errno != EEXIST)
+			cli_fail(prog, "--pictures %s: %s", picdir, strerror(errno));
+		pic.scale = (uint32_t)((M + PIC_MAX - 1) / PIC_MAX);
+		pic.w = (uint32_t)((W + pic.scale - 1) / pic.scale);
+		pic.h = (uint32_t)((H + pic.scale - 1) / pic.scale);
+		pic.ha = calloc((size_t)pic.w * pic.h, sizeof(double));
+		pic.hb = calloc((size_t)pic.w * pic.h, sizeof(double));
+		pic.ka = calloc((size_t)pic.w * pic.h, sizeof(double));
+		pic.kb = calloc((size_t)pic.w * pic.h, sizeof(double));
+		pic.n = calloc((size_t)pic.w * pic.h, sizeof(double));
+		if (!pic.ha || !pic.hb || !pic.ka || !pic.kb || !pic.n)
+			cli_fail(prog, "out of memory for the pictures");
+	}
+	if (!ac.blk_sum || !ac.blk_n)
+		cli_fail(prog, "out of memory");
+	thr8 = (uint8_t)lround(thr * 255.0);
+	if (thr8 < 1)
+		thr8 = 1;
+
+	/* bands: block rows (the first and last may be partial) */
+	for (int64_t y0 = r.lo[1]; y0 < r.hi[1];) {
+		int64_t yb = (y0 / A.b2 + 1) * A.b2;
+		uint32_t ny = (uint32_t)((yb < r.hi[1] ? yb : r.hi[1]) - y0);
+		for (size_t x = 0; x < W;) {
+			int64_t gx = r.lo[0] + (int64_t)x;
+			int64_t xb = (gx / A.b1) * A.b1 + (int64_t)chunk_cols;
+			size_t nx = (size_t)((xb < r.hi[0] ? xb : r.hi[0]) - gx);
+			if (nx > chunk_cols)
+				nx = chunk_cols;
+			for (int k = 0; k < 2; k++) {
+				src *s = k ? &B : &A;
+				read_box(prog, s, gx, y0, r.lo[2], (uint32_t)nx, ny, nz, &diag);
+				tops(s, (uint32_t)nx, ny, nz, thr8, x, W, r.lo[2]);
+			}
+			x += nx;
+		}
+		/* column pairs of this band */
+		for (size_t i = 0; i < W / A.b1 + 2; i++) {
+			ac.blk_sum[i] = 0;
+			ac.blk_n[i] = 0;
+		}
+		for (uint32_t y = 0; y < ny; y++)
+			for (size_t x = 0; x < W; x++) {
+				size_t cidx = (size_t)y * W + x;
+				int64_t gx = r.lo[0] + (int64_t)x, gy = y0 + y;
+				float ha = A.h[cidx], hb = B.h[cidx];
+				int centre = gx % A.b1 == A.b1 / 2 && gy % A.b2 == A.b2 / 2;
+				size_t bi = (size_t)(gx / A.b1 - r.lo[0] / A.b1);
+				double d;
+				if (isnan(ha) || isnan(hb))
+					continue;
+				d = (double)hb - ha;
+				ac.both++;
+				ac.agree += A.k[cidx] == B.k[cidx];
+				if (centre) {
+					ac.centres++;
+					ac.centres_agree += A.k[cidx] == B.k[cidx];
+				}
+				ac.d_sum += d;
+				ac.d2_sum += d * d;
+				ac.blk_sum[bi] += d;
+				ac.blk_n[bi]++;
+			}
+		/* a block counts once its rows are complete: blocks are b2 rows, the
+		   band is one block row, so each band closes its blocks (partial
+		   blocks at the region's border count with their columns) */
+		for (size_t i = 0; i < W / A.b1 + 2; i++)
+			if (ac.blk_n[i]) {
+				double m = ac.blk_sum[i] / (double)ac.blk_n[i];
+				ac.bo_sum += m;
+				ac.bo2_sum += m * m;
+				ac.bo_n++;
+			}
+		seams(&A, &r, y0, ny, W, y0 > r.lo[1]);
+		seams(&B, &r, y0, ny, W, y0 > r.lo[1]);
+		if (picdir)
+			pic_add(&pic, &r, y0, ny, W, &A, &B);
+		ac.voxels += (uint64_t)W * ny * nz;
+		y0 += ny;
+	}
+
+	{
+		double n = (double)ac.both, mean = n > 0 ? ac.d_sum / n : 0;
+		double rmse = n > 0 ? sqrt(ac.d2_sum / n) : 0;
+		double var = n > 0 ? ac.d2_sum / n - mean * mean : 0;
+		double deb = sqrt(var > 0 ? var : 0);
+		double thick = A.thick_n ? A.thick_sum / (double)A.thick_n : 0;
+		double bom = ac.bo_n ? ac.bo_sum / (double)ac.bo_n : 0;
+		double bov = ac.bo_n ? ac.bo2_sum / (double)ac.bo_n - bom * bom : 0;
+		double bosd = sqrt(bov > 0 ? bov : 0);
+		double hw = hist_l1(&A, &B, LOOM_YARN_WARP), hf = hist_l1(&A, &B, LOOM_YARN_WEFT);
+		double hl1 = 0.5 * (hw + hf);
+		double agc = ac.centres ? (double)ac.centres_agree / (double)ac.centres : 0;
+		double aga = n > 0 ? (double)ac.agree / n : 0;
+		double cova = A.cols ? (double)A.surf / (double)A.cols : 0;
+		double covb = B.cols ? (double)B.surf / (double)B.cols : 0;
+		double sra = A.seam_n && A.in_n && A.in_sum > 0
+		             ? (A.seam_sum / A.seam_n) / (A.in_sum / A.in_n) : 0;
+		double srb = B.seam_n && B.in_n && B.in_sum > 0
+		             ? (B.seam_sum / B.seam_n) / (B.in_sum / B.in_n) : 0;
+		double range = 0, secs;
+		if (picdir)
+			pic_write(prog, &pic, picdir, -mean, deb, &range, &diag);
+		secs = now_s() - t0;
+		if (json) {
+			json_w w;
+			jw_begin(&w, stdout);
+			jw_num(&w, "top_agreement_centres", agc);
+			jw_num(&w, "top_agreement_columns", aga);
+			jw_num(&w, "height_rmse", rmse);
+			jw_num(&w, "height_rmse_debiased", deb);
+			jw_num(&w, "height_rmse_diameters", thick > 0 ? deb / thick : 0);
+			jw_num(&w, "block_offset_sd", bosd);
+			jw_num(&w, "histogram_l1", hl1);
+			jw_num(&w, "coverage_a", cova);
+			jw_num(&w, "coverage_b", covb);
+			jw_num(&w, "seam_ratio_a", sra);
+			jw_num(&w, "seam_ratio_b", srb);
+			jw_uint(&w, "voxels", ac.voxels);
+			jw_num(&w, "seconds", secs);
+			jw_end(&w);
+		} else if (!quiet) {
+			printf("A %s\nB %s\n", A.arg, B.arg);
+			printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks "
+			       "%ux%ux%u of %g um, threshold %.3f\n", (long long)r.lo[0],
+			       (long long)r.lo[1], (long long)r.lo[2], (long long)r.hi[0],
+			       (long long)r.hi[1], (long long)r.hi[2],
+			       (unsigned long long)ac.voxels, A.b1, A.b2, A.b3, (double)A.vs, thr);
+			printf("  %-28s %10s\n", "measure", "value");
+			printf("  %-28s %10.4f\n", "top agreement, centres", agc);
+			printf("  %-28s %10.4f\n", "top agreement, columns", aga);
+			printf("  %-28s %10.4f\n", "height RMSE (voxels)", rmse);
+			printf("  %-28s %10.4f  (mean B - A %+.3f)\n", "  debiased", deb, mean);
+			printf("  %-28s %10.4f  (top-yarn thickness %.2f voxels)\n",
+			       "  debiased, diameters", thick > 0 ? deb / thick : 0, thick);
+			printf("  %-28s %10.4f  (%llu blocks)\n", "block offset SD (voxels)", bosd,
+			       (unsigned long long)ac.bo_n);
+			printf("  %-28s %10.4f  (warp %.4f, weft %.4f)\n", "histogram L1", hl1, hw,
+			       hf);
+			printf("  %-28s %10.4f / %.4f\n", "coverage A / B", cova, covb);
+			printf("  %-28s %10.4f / %.4f\n", "seam ratio A / B", sra, srb);
+			printf("  %.2f s\n", secs);
+			if (picdir)
+				printf("  pictures %s/side-by-side.png, %s/height-difference.png "
+				       "(%u voxel columns per pixel, difference ramp +-%.2f voxels)\n",
+				       picdir, picdir, pic.scale, range);
+		}
+	}
+	close_src(&A);
+	close_src(&B);
+	free(ac.blk_sum);
+	free(ac.blk_n);
+	free(pic.ha);
+	free(pic.hb);
+	free(pic.ka);
+	free(pic.kb);
+	free(pic.n);
+	return 0;
+}
