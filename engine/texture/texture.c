@@ -22,7 +22,7 @@
  *     error message, the region gather buffer (6 planes of RCOLS x RZ
  *     bytes) and n_ent crossing entries (coefficients, label -> type table,
  *     column bitmap, dz of b1*b2 columns as int16; n_ent = 4 .. 256, the
- *     most whose total stays within budget / 8);
+ *     most whose total stays within budget / 32);
  *   - the brick cache, opened with budget - (that block): frames,
  *     bookkeeping, and one database reader (decompressor + scratch) per
  *     thread slot.
@@ -256,7 +256,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 
 	cols = (size_t)fabric->b1 * fabric->b2;
 	/* crossing entries per slot: XENT_WAYS, doubled (up to XENT_MAX) while
-	   all slots' entries stay within an eighth of the budget */
+	   all slots' entries stay within 1/32 of the budget */
 	ent_bytes = sizeof(struct xent) +
 	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN) +
 	            round_up((cols + 63) / 64 * 8, ALIGN) + round_up(cols * sizeof(int16_t), ALIGN);
@@ -279,10 +279,10 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	}
 	/* more entries only while the smallest cache still fits beside them
 	   (so the minimum budget reported above always opens) */
-	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 8) {
+	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32) {
 		size_t cmin = cache_min_budget(&co), sb, f2;
 		while (n_ent < XENT_MAX &&
-		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 8 &&
+		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 &&
 		       (f2 = fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, &sb)) + cmin <=
 		               o.budget_bytes) {
 			n_ent *= 2;
