@@ -56,6 +56,20 @@ expect_ok other_seed "$LOOM" render "$F" $R --seed 8 -o "$T/d.png" --quiet
 if cmp -s "$T/a.png" "$T/d.png"; then fail seed_matters "seeds 7 and 8 gave the same bytes"; else pass seed_matters; fi
 expect_ok json "$LOOM" render "$F" $R --json -o "$T/e.exr"
 json_check json_fields "j['width'] == 64 and j['height'] == 48 and j['paths'] == 64*48*2 and j['scene'] == 'flat' and j['lookups'] > 0"
+json_check json_grid "j['majorant'] == 'grid' and j['cells'] > 0 and j['majorant_bytes'] > 0"
+# the majorant grid (default) against one global bound: same picture (EXR
+# means within Monte Carlo error), fewer lookups
+expect_ok global "$LOOM" render "$F" --width 32 --height 24 --spp 64 --majorant global --json -o "$T/g.exr"
+cp "$T/out" "$T/g.json"
+expect_ok grid "$LOOM" render "$F" --width 32 --height 24 --spp 64 --seed 9 --json -o "$T/h.exr"
+if python3 - "$T/g.json" "$T/out" <<'PY' 2>"$T/pyerr"; then pass grid_fewer_lookups; else fail grid_fewer_lookups "$(cat "$T/pyerr")"; fi
+import json, sys
+g, h = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert g['majorant'] == 'global' and g['cells'] == 0, g
+assert h['lookups'] * 2 < g['lookups'], (h['lookups'], g['lookups'])
+PY
+expect_exit majorant_with_mesh 2 "$LOOM" render "$F" --mesh m.obj --majorant global -o x.png
+expect_exit bad_majorant 2 "$LOOM" render "$F" --majorant tight -o x.png
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok exrheader exrheader "$T/e.exr"
 	expect_out_contains exr_size "(0 0) - (63 47)"

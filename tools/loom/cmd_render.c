@@ -24,7 +24,8 @@ static const char usage[] =
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
 	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
-	"            [--uv-repeats R] [--json] [--quiet] -o OUT.png|OUT.exr\n";
+	"            [--uv-repeats R] [--majorant grid|global] [--json] [--quiet]\n"
+	"            -o OUT.png|OUT.exr\n";
 
 static const char about[] =
 	"Render the fabric with the microflake volume path tracer\n"
@@ -36,6 +37,9 @@ static const char about[] =
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
+
+static const opt_choice majorant_names[] = {
+	{"grid", 0}, {"global", 1}, {NULL, 0}};
 
 static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 {
@@ -97,7 +101,7 @@ int cmd_render(int argc, char **argv)
 {
 	const char *prog = "loom render";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *mesh_path = NULL;
-	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc;
+	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc, global_mj = 0;
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
@@ -114,6 +118,8 @@ int cmd_render(int argc, char **argv)
 	loom_texture *t = NULL;
 	loom_mesh *mesh = NULL;
 	loom_shell *shell = NULL;
+	loom_majorant *mj = NULL;
+	size_t mj_bytes = 0, budget;
 	float *rgb = NULL;
 	rprog pr;
 	loom_diag diag;
@@ -148,6 +154,10 @@ int cmd_render(int argc, char **argv)
 		           "diagonal)"),
 		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
 		           "design repeats per UV unit along u (default 1)"),
+		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
+		         "flat patch: track through the per-crossing majorant grid "
+		         "(default) or against one global bound (slower; for "
+		         "comparison)"),
 		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB)"),
 		OPT_JSON(&json, "print figures as JSON on stdout"),
 		OPT_QUIET(&quiet, "no progress or summary"),
@@ -163,6 +173,9 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
+	if (mesh_path && opt_given(&cmd, &global_mj))
+		opts_usage(&cmd, "--majorant applies to a flat patch; a mesh is tracked "
+		           "against one global bound");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats)))
 		opts_usage(&cmd, "--thickness and --uv-repeats go with --mesh");
 	cli_diag_init(&diag, &quiet);
@@ -175,14 +188,37 @@ int cmd_render(int argc, char **argv)
 	}
 	loom_fabric_get_db_identity(f, &id);
 	loom_fabric_repeat_voxels(f, rep);
-	to.budget_bytes = (size_t)(budget_mb * 1048576.0);
 	to.max_threads = threads ? threads : 64;
+	budget = (size_t)(budget_mb * 1048576.0);
+	/* The majorant grid (flat patches) is counted in --budget: the texture
+	   gets what it leaves. */
+	if (!mesh_path && !global_mj) {
+		if (loom_majorant_build(f, &mj, &diag) != LOOM_OK) {
+			loom_fabric_free(f);
+			loom_db_close(db);
+			cli_fail(prog, "%s", diag.message);
+		}
+		mj_bytes = loom_majorant_bytes(mj, to.max_threads);
+		if (mj_bytes >= budget) {
+			cli_error(prog, "--budget %g MiB cannot hold the majorant grid (%zu "
+			          "bytes) and the texture", budget_mb, mj_bytes);
+			loom_majorant_free(mj);
+			loom_fabric_free(f);
+			loom_db_close(db);
+			return EXIT_BAD_INPUT;
+		}
+	}
+	to.budget_bytes = budget - mj_bytes;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
+		loom_majorant_free(mj);
 		loom_fabric_free(f);
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	loom_texture_volume_source(t, f, filter, &src);
+	if (mj)
+		loom_texture_volume_source_grid(t, f, filter, mj, &src);
+	else
+		loom_texture_volume_source(t, f, filter, &src);
 
 	ro.width = width;
 	ro.height = height;
@@ -290,6 +326,9 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "lookups", st.lookups);
 		jw_uint(&w, "scatterings", st.scatterings);
 		jw_uint(&w, "shell_queries", st.shell_queries);
+		jw_uint(&w, "cells", st.cells);
+		jw_str(&w, "majorant", mj ? "grid" : "global");
+		jw_uint(&w, "majorant_bytes", mj_bytes);
 		jw_num(&w, "seconds", st.seconds);
 		jw_end(&w);
 	} else if (!quiet) {
@@ -302,6 +341,7 @@ int cmd_render(int argc, char **argv)
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
@@ -310,6 +350,7 @@ fail:
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
+	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return EXIT_BAD_INPUT;
