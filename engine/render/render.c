@@ -69,6 +69,8 @@ typedef struct rctx {
 	double eye[3], fwd[3], right[3], up[3], tan_x, tan_y;
 	/* light */
 	double ldir[3];
+	double lu[3], lv[3];     /* frame around ldir */
+	double cos_disc;         /* cosine of the disc's half angle (1: point) */
 	/* work */
 	uint32_t tile, tiles_x, tiles_y;
 	uint64_t n_tiles, tiles_done;
@@ -500,6 +502,19 @@ static int camera_ray(const rctx *c, double sx, double sy, double o[3], double d
 	return 0;
 }
 
+/* A direction uniform over the distant light's disc (a cone of half angle
+   acos(cos_disc) around ldir): the irradiance times the phase function and
+   transmittance along it is an unbiased estimate of the disc's
+   contribution (uniform radiance over the disc). */
+static void sun_direction(const rctx *c, uint64_t *rng, double wl[3])
+{
+	double ct = 1.0 - loom__rand01(rng) * (1.0 - c->cos_disc);
+	double st = sqrt(fmax(0.0, 1.0 - ct * ct)), ph = 2.0 * M_PI * loom__rand01(rng);
+	for (int j = 0; j < 3; j++)
+		wl[j] = ct * c->ldir[j] + st * (cos(ph) * c->lu[j] + sin(ph) * c->lv[j]);
+	loom__normalize3(wl);
+}
+
 /* Radiance of one camera sample; returns 0 or a lookup error code. */
 static int trace_path(tstate *t, double sx, double sy, double L[3])
 {
@@ -539,7 +554,9 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 		if (o->light.kind != LOOM_LIGHT_NONE) {
 			double wl[3], dist = INFINITY, scale = 1.0, T, f;
 			int rc;
-			if (o->light.kind == LOOM_LIGHT_DISTANT) {
+			if (o->light.kind == LOOM_LIGHT_DISTANT && c->cos_disc < 1.0) {
+				sun_direction(c, &t->rng, wl);
+			} else if (o->light.kind == LOOM_LIGHT_DISTANT) {
 				memcpy(wl, c->ldir, sizeof wl);
 			} else {
 				for (int j = 0; j < 3; j++)
@@ -817,6 +834,19 @@ LOOM_API int loom_render(const loom_volume_source *src,
 		if (!finite3(c.ldir) || loom__normalize3(c.ldir) <= 0)
 			return loom__fail(diag, LOOM_EINVAL,
 			                  "render: distant light direction must be finite and non-zero");
+		if (!(o->light.angle_deg >= 0 && o->light.angle_deg <= 90))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: distant light angle_deg must be in [0, 90], got %g",
+			                  o->light.angle_deg);
+		{
+			double t[3] = {0, 0, 0};
+			t[fabs(c.ldir[0]) < 0.6 ? 0 : fabs(c.ldir[1]) < 0.6 ? 1 : 2] = 1.0;
+			loom__cross3(c.ldir, t, c.lu);
+			loom__normalize3(c.lu);
+			loom__cross3(c.ldir, c.lu, c.lv);
+		}
+		c.cos_disc = o->light.angle_deg > 0 ? cos(0.5 * o->light.angle_deg * M_PI / 180.0)
+		                                    : 1.0;
 	}
 	c.tile = o->tile ? o->tile : 16;
 	c.tiles_x = (o->width + c.tile - 1) / c.tile;

@@ -69,6 +69,13 @@ assert g['majorant'] == 'global' and g['cells'] == 0, g
 assert h['lookups'] * 2 < g['lookups'], (h['lookups'], g['lookups'])
 PY
 expect_exit majorant_with_mesh 2 "$LOOM" render "$F" --mesh m.obj --majorant global -o x.png
+expect_exit sun_one_number 2 "$LOOM" render "$F" --sun 30 -o x.png
+expect_exit sun_low 2 "$LOOM" render "$F" --sun 30,0 -o x.png
+expect_exit sun_five 2 "$LOOM" render "$F" --sun 30,20,1,1,1 -o x.png
+expect_exit sun_text 2 "$LOOM" render "$F" --sun 30,high -o x.png
+expect_err_contains sun_msg "--sun"
+expect_ok sun "$LOOM" render "$F" $R --sun 200,30,3,2 --quiet -o "$T/sun.png"
+if cmp -s "$T/a.png" "$T/sun.png"; then fail sun_matters "--sun gave the default picture"; else pass sun_matters; fi
 expect_exit bad_majorant 2 "$LOOM" render "$F" --majorant tight -o x.png
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok exrheader exrheader "$T/e.exr"

@@ -24,7 +24,8 @@ static const char usage[] =
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
 	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
-	"            [--uv-repeats R] [--majorant grid|global] [--json] [--quiet]\n"
+	"            [--uv-repeats R] [--sun AZ,EL[,INTENSITY[,ANGLE]]]\n"
+	"            [--majorant grid|global] [--json] [--quiet]\n"
 	"            -o OUT.png|OUT.exr\n";
 
 static const char about[] =
@@ -40,6 +41,40 @@ static const opt_choice filter_names[] = {
 
 static const opt_choice majorant_names[] = {
 	{"grid", 0}, {"global", 1}, {NULL, 0}};
+
+/* --sun AZ,EL[,INTENSITY[,ANGLE]] into double[4]. */
+static const char *opt_sun(const char *text, void *dest)
+{
+	double *v = dest, w[4] = {0, 0, 2.6, 0.53};
+	int n = 0;
+	const char *p = text;
+
+	for (;;) {
+		char *end;
+		if (n == 4)
+			return "AZ,EL[,INTENSITY[,ANGLE]]: at most 4 numbers";
+		w[n] = strtod(p, &end);
+		if (end == p || !isfinite(w[n]))
+			return "AZ,EL[,INTENSITY[,ANGLE]]: finite numbers separated by commas";
+		n++;
+		p = end;
+		if (*p == '\0')
+			break;
+		if (*p != ',')
+			return "AZ,EL[,INTENSITY[,ANGLE]]: finite numbers separated by commas";
+		p++;
+	}
+	if (n < 2)
+		return "AZ,EL[,INTENSITY[,ANGLE]]: at least the azimuth and the elevation";
+	if (!(w[1] > 0 && w[1] <= 90))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with the elevation EL in (0, 90] degrees";
+	if (!(w[2] >= 0))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with INTENSITY >= 0";
+	if (!(w[3] >= 0 && w[3] <= 90))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with the disc's ANGLE in [0, 90] degrees";
+	memcpy(v, w, sizeof w);
+	return NULL;
+}
 
 static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 {
@@ -106,6 +141,7 @@ int cmd_render(int argc, char **argv)
 	uint64_t seed = 1;
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
 	double thickness = 0, uv_repeats = 1;
+	double sun[4] = {0, 35, 2.6, 0.53};
 	int64_t box[4] = {0, 0, 0, 0}, *lo = box, *hi = box + 2;
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
@@ -154,6 +190,11 @@ int cmd_render(int argc, char **argv)
 		           "diagonal)"),
 		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
 		           "design repeats per UV unit along u (default 1)"),
+		OPT_CALLBACK(0, "sun", sun, "AZ,EL[,I[,A]]", opt_sun, "the sun: azimuth "
+		             "and elevation in degrees (measured as the camera's: a sun at "
+		             "the camera's angles lights from behind it), irradiance "
+		             "(default 2.6) and disc diameter in degrees (default 0.53); "
+		             "default: 150 degrees round from the camera, 35 up"),
 		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
@@ -227,11 +268,18 @@ int cmd_render(int argc, char **argv)
 	ro.seed = seed;
 	ro.density_scale = dscale;
 	ro.max_depth = 32;
+	/* The sun: towards the light = where a camera at (AZ, EL) would stand
+	   (see place_camera).  The studio default stands 150 degrees round from
+	   the camera, so the cloth is lit from the far side at a raking angle
+	   (yarn relief and sheen), never flat from behind the viewer. */
+	if (!opt_given(&cmd, sun))
+		sun[0] = az + 150.0;
 	ro.light.kind = LOOM_LIGHT_DISTANT;
-	ro.light.dir[0] = -0.35;
-	ro.light.dir[1] = -0.45;
-	ro.light.dir[2] = 1.0;
-	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = 2.6f;
+	ro.light.dir[0] = -sin(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
+	ro.light.dir[1] = -cos(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
+	ro.light.dir[2] = sin(sun[1] * M_PI / 180.0);
+	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = (float)sun[2];
+	ro.light.angle_deg = sun[3];
 	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
 	if (mesh_path) {
 		loom_shell_params sp = LOOM_SHELL_PARAMS_INIT;

@@ -306,6 +306,9 @@ typedef struct loom_light {
 	double pos[3];     /* point: position (world) */
 	float rgb[3];      /* distant: irradiance on a plane facing the light;
 	                      point: intensity (irradiance at distance 1) */
+	double angle_deg;  /* distant: angular diameter of the light's disc,
+	                      [0, 90]; 0 = a point (sharp shadows), the sun
+	                      is about 0.53 */
 } loom_light;
 
 typedef struct loom_render_options {
@@ -345,7 +348,7 @@ typedef struct loom_render_options {
 #define LOOM_RENDER_OPTIONS_INIT                                              \
 	{sizeof(loom_render_options), 256, 256, 16, 64, 4, 1, 0, 16, 1.0, 0.3,    \
 	 {LOOM_CAMERA_ORTHO, {0, 0, 1}, {0, 0, 0}, {0, 1, 0}, 40.0, {1, 1}},      \
-	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}},     \
+	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0},\
 	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u}
 
 typedef struct loom_render_stats {
