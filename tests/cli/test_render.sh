@@ -76,6 +76,13 @@ expect_exit sun_text 2 "$LOOM" render "$F" --sun 30,high -o x.png
 expect_err_contains sun_msg "--sun"
 expect_ok sun "$LOOM" render "$F" $R --sun 200,30,3,2 --quiet -o "$T/sun.png"
 if cmp -s "$T/a.png" "$T/sun.png"; then fail sun_matters "--sun gave the default picture"; else pass sun_matters; fi
+# --density-scale is per millimetre: per voxel = K * voxel_mm (tiny: 72 um)
+expect_ok density_mm "$LOOM" render "$F" --width 8 --height 6 --spp 1 --density-scale 50 --json -o "$T/dm.png"
+json_check density_per_voxel "abs(j['density_per_voxel'] - 50 * j['voxel_mm']) < 1e-9 and abs(j['voxel_mm'] - 0.072) < 1e-6"
+expect_ok density_voxel "$LOOM" render "$F" --width 8 --height 6 --spp 1 --density-per-voxel 3.6 --json -o "$T/dv.png"
+json_check density_voxel_json "j['density_per_voxel'] == 3.6"
+expect_exit density_both 2 "$LOOM" render "$F" --density-scale 50 --density-per-voxel 3 -o x.png
+expect_err_contains density_both_msg "give one"
 expect_exit bad_majorant 2 "$LOOM" render "$F" --majorant tight -o x.png
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok exrheader exrheader "$T/e.exr"

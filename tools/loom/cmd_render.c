@@ -22,7 +22,8 @@ static const char usage[] =
 	"loom render FABRIC [--mesh OBJ] [--width W] [--height H] [--spp N]\n"
 	"            [--threads N] [--budget MB] [--seed S] [--db DB]\n"
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
-	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
+	"            [--fov DEG] [--density-scale K | --density-per-voxel K]\n"
+	"            [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
 	"            [--uv-repeats R] [--sun AZ,EL[,INTENSITY[,ANGLE]]]\n"
 	"            [--majorant grid|global] [--json] [--quiet]\n"
@@ -139,7 +140,8 @@ int cmd_render(int argc, char **argv)
 	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc, global_mj = 0;
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
-	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
+	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 80, exposure = 0;
+	double dvoxel = 0;
 	double thickness = 0, uv_repeats = 1;
 	double sun[4] = {0, 35, 2.6, 0.53};
 	int64_t box[4] = {0, 0, 0, 0}, *lo = box, *hi = box + 2;
@@ -178,7 +180,11 @@ int cmd_render(int argc, char **argv)
 		OPT_DOUBLE(0, "fov", &fov, "DEG", "()", 0, 180, "degrees",
 		           "vertical field of view, %r (default 30)"),
 		OPT_DOUBLE(0, "density-scale", &dscale, "K", "(]", 0, 1e6, NULL, "extinction "
-		           "per voxel length of density 1 (default 2)"),
+		           "per millimetre of a density-1 voxel (default 80: opaque yarns; "
+		           "databases of any voxel size look alike)"),
+		OPT_DOUBLE(0, "density-per-voxel", &dvoxel, "K", "(]", 0, 1e6, NULL,
+		           "extinction per voxel length instead (the old meaning of "
+		           "--density-scale)"),
 		OPT_DOUBLE(0, "exposure", &exposure, "STOPS", "[]", -64, 64, "stops", "PNG: "
 		           "scale by 2^STOPS before the sRGB curve (default 0)"),
 		OPT_ENUM(0, "filter", &filter, "F", filter_names,
@@ -214,6 +220,9 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
+	if (opt_given(&cmd, &dscale) && opt_given(&cmd, &dvoxel))
+		opts_usage(&cmd, "--density-scale (per mm) and --density-per-voxel are "
+		           "the same setting in two units; give one");
 	if (mesh_path && opt_given(&cmd, &global_mj))
 		opts_usage(&cmd, "--majorant applies to a flat patch; a mesh is tracked "
 		           "against one global bound");
@@ -266,7 +275,9 @@ int cmd_render(int argc, char **argv)
 	ro.spp = spp;
 	ro.threads = threads;
 	ro.seed = seed;
-	ro.density_scale = dscale;
+	/* loom_render wants extinction per voxel length */
+	ro.density_scale = opt_given(&cmd, &dvoxel) ? dvoxel
+	                   : dscale * (src.voxel_mm > 0 ? src.voxel_mm : 0.024);
 	ro.max_depth = 32;
 	/* The sun: towards the light = where a camera at (AZ, EL) would stand
 	   (see place_camera).  The studio default stands 150 degrees round from
@@ -369,6 +380,8 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "spp", spp);
 		jw_uint(&w, "seed", seed);
 		jw_str(&w, "scene", mesh_path ? "mesh" : "flat");
+		jw_num(&w, "voxel_mm", src.voxel_mm);
+		jw_num(&w, "density_per_voxel", ro.density_scale);
 		jw_uint(&w, "paths", st.paths);
 		jw_uint(&w, "rays", st.rays);
 		jw_uint(&w, "lookups", st.lookups);
