@@ -19,6 +19,8 @@
    rtcPointQuery each, no hint) on random points inside the shell of the
    cylinder (192 triangles) and of a generated 64k-triangle cylinder, and
    the time loom_shell_new takes to build each shell.
+   Fabric: the engine's texture of a twill on the default database with
+   the majorant grid and with the global majorant (bench_fabric below).
    Output: a table on stdout and one JSON line per figure ("{...}").
    BENCH_RENDER_SCALE=0.25 shortens every run; BENCH_RENDER_PNG=dir writes
    the images as PNG. */
@@ -206,6 +208,105 @@ static void bench_queries(const char *name, const loom_mesh *m)
 	loom_shell_free(s);
 }
 
+/*
+ * The engine's own fabric: a 2/3 twill of 10 x 10 crossings synthesized on
+ * the default database ($BUILD/share/loom/default.ldb, 24 x 16 x 48 voxel
+ * blocks), the same view at 35 and 12 degrees elevation, rendered with the
+ * majorant grid and with the single global majorant, 2 threads.  Figures:
+ * lookups per path, microseconds per pixel-sample (wall time / paths, both
+ * threads busy) and the ratio global / grid.
+ */
+static void bench_fabric(void)
+{
+	const char *build = getenv("BUILD");
+	char path[1024];
+	loom_db *db = NULL;
+	loom_design *d = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	loom_majorant *m = NULL;
+	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_volume_source grid, glob;
+	loom_render_options o = LOOM_RENDER_OPTIONS_INIT;
+	const double els[2] = {35.0, 12.0};
+	float *rgb;
+
+	snprintf(path, sizeof path, "%s/share/loom/default.ldb", build ? build : "build");
+	if (loom_db_open(path, &db, NULL) != LOOM_OK) {
+		printf("\n(fabric case skipped: cannot open %s)\n", path);
+		return;
+	}
+	if (loom_design_new(10, 10, &d) != LOOM_OK)
+		goto done;
+	for (uint32_t i = 0; i < 10; i++)
+		for (uint32_t j = 0; j < 10; j++)
+			d->weave[i * 10 + j] = (uint8_t)((j + 10 - i) % 5 < 2);
+	to.budget_bytes = (size_t)64 << 20;
+	if (loom_fabric_synthesize(d, db, path, NULL, &f, NULL) != LOOM_OK ||
+	    loom_texture_open(f, db, &to, &t, NULL) != LOOM_OK ||
+	    loom_majorant_build(f, &m, NULL) != LOOM_OK)
+		goto done;
+	loom_texture_volume_source_grid(t, f, LOOM_FILTER_NEAREST, m, &grid);
+	loom_texture_volume_source(t, f, LOOM_FILTER_NEAREST, &glob);
+	o.width = 160;
+	o.height = 100;
+	o.spp = (uint32_t)(4 * g_scale) + 1;
+	o.threads = 2;
+	o.density_scale = 2.0;
+	o.max_depth = 32;
+	o.light.dir[0] = -0.35;
+	o.light.dir[1] = -0.45;
+	o.light.dir[2] = 1.0;
+	o.env[0] = o.env[1] = o.env[2] = 0.18f;
+	rgb = malloc((size_t)o.width * o.height * 3 * sizeof *rgb);
+	printf("\nfabric: twill 2/3 on the default database, %ux%u, %u spp, 2 threads "
+	       "(majorant grid %zu bytes)\n", o.width, o.height, o.spp,
+	       loom_majorant_bytes(m, 2));
+	printf("%-6s %-8s %10s %10s %10s %8s\n", "elev", "majorant", "lookup/pth",
+	       "cells/pth", "us/sample", "seconds");
+	for (int e = 0; rgb && e < 2; e++) {
+		double el = els[e] * M_PI / 180.0, us[2] = {0, 0}, lk[2] = {0, 0};
+		o.camera.kind = LOOM_CAMERA_PINHOLE;
+		o.camera.target[0] = 120;
+		o.camera.target[1] = 80;
+		o.camera.target[2] = 24;
+		o.camera.eye[0] = 120;
+		o.camera.eye[1] = 80 - 420 * cos(el);
+		o.camera.eye[2] = 24 + 420 * sin(el);
+		o.camera.up[0] = o.camera.up[1] = 0;
+		o.camera.up[2] = 1;
+		o.camera.fov_y_deg = 30;
+		for (int v = 0; v < 2; v++) {
+			loom_render_stats st;
+			o.flags = v ? LOOM_RENDER_GLOBAL_MAJORANT : 0;
+			if (loom_render(v ? &glob : &grid, &o, rgb, &st, NULL) != LOOM_OK)
+				break;
+			us[v] = st.seconds / (double)st.paths * 1e6;
+			lk[v] = (double)st.lookups / (double)st.paths;
+			printf("%-6.0f %-8s %10.1f %10.1f %10.2f %8.2f\n", els[e],
+			       v ? "global" : "grid", lk[v], (double)st.cells / (double)st.paths,
+			       us[v], st.seconds);
+			printf("{\"bench\":\"render\",\"case\":\"fabric\",\"elevation\":%.0f,"
+			       "\"majorant\":\"%s\",\"lookups_per_path\":%.2f,\"cells_per_path\":"
+			       "%.2f,\"us_per_sample\":%.3f,\"seconds\":%.4f}\n", els[e],
+			       v ? "global" : "grid", lk[v], (double)st.cells / (double)st.paths,
+			       us[v], st.seconds);
+			if (v == 0 && e == 0)
+				write_png("fabric35", rgb, o.width, o.height);
+		}
+		if (us[0] > 0 && lk[0] > 0)
+			printf("       global/grid: lookups %.2fx, time %.2fx\n", lk[1] / lk[0],
+			       us[1] / us[0]);
+	}
+	free(rgb);
+done:
+	loom_majorant_free(m);
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	loom_design_free(d);
+	loom_db_close(db);
+}
+
 int main(void)
 {
 	loom_volume_source src = LOOM_VOLUME_SOURCE_INIT;
@@ -295,5 +396,6 @@ int main(void)
 		bench_queries("cylinder 256x128 quads", fine);
 	loom_mesh_free(fine);
 	loom_mesh_free(cyl);
+	bench_fabric();
 	return 0;
 }

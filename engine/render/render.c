@@ -63,10 +63,14 @@ typedef struct rctx {
 	double mu_bar;           /* majorant per scene length */
 	double kscale;           /* density -> mu_t factor per scene length / A */
 	double bnd[3];           /* slab extent (INFINITY = unbounded) */
+	int grid;                /* track through the source's majorant grid */
+	double mu_cell;          /* cell bound (density) -> majorant factor */
 	/* camera */
 	double eye[3], fwd[3], right[3], up[3], tan_x, tan_y;
 	/* light */
 	double ldir[3];
+	double lu[3], lv[3];     /* frame around ldir */
+	double cos_disc;         /* cosine of the disc's half angle (1: point) */
 	/* work */
 	uint32_t tile, tiles_x, tiles_y;
 	uint64_t n_tiles, tiles_done;
@@ -232,6 +236,157 @@ static int next_segment(tstate *t, const double o[3], const double d[3],
 	}
 }
 
+/* ---- majorant grid ----------------------------------------------------- */
+
+void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
+                    const int64_t cell[3], double t0, double t1)
+{
+	for (int j = 0; j < 3; j++) {
+		double p = o[j] + t0 * d[j];
+		g->cell[j] = (double)cell[j];
+		g->o[j] = o[j];
+		g->d[j] = d[j];
+		g->c[j] = (int64_t)floor(p / g->cell[j]);
+		g->step[j] = d[j] > 0 ? 1 : d[j] < 0 ? -1 : 0;
+		if (d[j] > 0)
+			g->tnext[j] = ((double)(g->c[j] + 1) * g->cell[j] - o[j]) / d[j];
+		else if (d[j] < 0)
+			g->tnext[j] = ((double)g->c[j] * g->cell[j] - o[j]) / d[j];
+		else
+			g->tnext[j] = INFINITY;
+	}
+	g->t = t0;
+	g->t1 = t1;
+}
+
+int loom__dda_next(loom__dda *g)
+{
+	int a = g->tnext[0] <= g->tnext[1] ? 0 : 1;
+	if (g->tnext[2] < g->tnext[a])
+		a = 2;
+	if (!(g->tnext[a] < g->t1)) {
+		g->t = g->t1;
+		return 0;
+	}
+	g->t = g->tnext[a];
+	g->c[a] += g->step[a];
+	g->tnext[a] = ((double)(g->c[a] + (g->step[a] > 0)) * g->cell[a] - g->o[a]) /
+	              g->d[a];
+	return 1;
+}
+
+/* Majorant (per scene length) of the DDA's current cell. */
+static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
+{
+	rctx *c = t->c;
+	float bound = 0.0f;
+	int rc;
+
+	t->st.cells++;
+	if ((rc = c->src->cell_max(t->lctx, g->c, &bound)))
+		return rc;
+	*mu = bound > 0 ? fmin((double)bound, c->dmax) * c->mu_cell : 0.0;
+	return 0;
+}
+
+/* Exponential optical depth at unit majorant (distance to the next
+   tentative collision times the majorant). */
+static inline double free_depth(uint64_t *rng)
+{
+	return -log(1.0 - loom__rand01(rng));
+}
+
+/*
+ * Delta tracking over [a, b] through the majorant grid: an optical depth
+ * tau is drawn once per tentative collision and spent cell by cell at each
+ * cell's own majorant (the piecewise-constant majorant's exact free-flight
+ * distribution), so an empty cell costs one DDA step and no lookup.
+ * Returns as track().
+ */
+static int track_grid(tstate *t, const double o[3], const double d[3], double a,
+                      double b, double pos[3], medium *m)
+{
+	loom__dda g;
+	double tt = a, tau = free_depth(&t->rng);
+
+	loom__dda_init(&g, o, d, t->c->src->cell, a, b);
+	for (;;) {
+		double te = loom__dda_exit(&g), mu;
+		int rc;
+		if ((rc = cell_majorant(t, &g, &mu)))
+			return -rc;
+		if (mu > 0) {
+			while (tt + tau / mu < te) {
+				tt += tau / mu;
+				if (++t->tentative > MAX_TENTATIVE)
+					return 0;
+				for (int j = 0; j < 3; j++)
+					pos[j] = o[j] + tt * d[j];
+				if ((rc = medium_at(t, pos, d, m)))
+					return -rc;
+				if (loom__rand01(&t->rng) * mu < m->mu)
+					return 1;
+				tau = free_depth(&t->rng);
+			}
+			tau -= mu * (te - tt);
+			if (tau < 0)
+				tau = 0;
+		}
+		tt = te;
+		if (!loom__dda_next(&g))
+			return 0;
+	}
+}
+
+/* Ratio tracking over [a, b] through the grid: *tr is multiplied by the
+   segment's estimate (Russian roulette below 0.1 as transmittance()).
+   Returns 0 or a negative lookup error. */
+static int transmit_grid(tstate *t, const double o[3], const double d[3],
+                         double a, double b, double *tr)
+{
+	loom__dda g;
+	double tt = a, tau = free_depth(&t->rng), p[3];
+	medium m;
+
+	loom__dda_init(&g, o, d, t->c->src->cell, a, b);
+	for (;;) {
+		double te = loom__dda_exit(&g), mu;
+		int rc;
+		if ((rc = cell_majorant(t, &g, &mu)))
+			return -rc;
+		if (mu > 0) {
+			while (tt + tau / mu < te) {
+				tt += tau / mu;
+				if (++t->tentative > MAX_TENTATIVE) {
+					*tr = 0;
+					return 0;
+				}
+				for (int j = 0; j < 3; j++)
+					p[j] = o[j] + tt * d[j];
+				if ((rc = medium_at(t, p, d, &m)))
+					return -rc;
+				/* fmax: a point rounded into the next cell must not
+				   make the estimate negative */
+				*tr *= fmax(0.0, 1.0 - m.mu / mu);
+				if (*tr < 0.1) {
+					if (loom__rand01(&t->rng) < 0.5) {
+						*tr = 0;
+						return 0;
+					}
+					*tr *= 2.0;
+				}
+				tau = free_depth(&t->rng);
+			}
+			tau -= mu * (te - tt);
+			if (tau < 0)
+				tau = 0;
+		}
+		tt = te;
+		if (!loom__dda_next(&g))
+			return 0;
+	}
+}
+
 /* ---- tracking ---------------------------------------------------------- */
 
 /*
@@ -249,6 +404,12 @@ static int track(tstate *t, const double o[3], const double d[3], double tmax,
 		return 0;
 	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
 		double tt = a;
+		if (c->grid) {
+			int r = track_grid(t, o, d, a, b, pos, m);
+			if (r)
+				return r;
+			continue;
+		}
 		for (;;) {
 			int rc;
 			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
@@ -281,6 +442,16 @@ static int transmittance(tstate *t, const double o[3], const double d[3],
 		return 0;
 	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
 		double tt = a;
+		if (c->grid) {
+			int rc = transmit_grid(t, o, d, a, b, &tr);
+			if (rc)
+				return rc;
+			if (tr == 0) {
+				*T = 0;
+				return 0;
+			}
+			continue;
+		}
 		for (;;) {
 			int rc;
 			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
@@ -331,6 +502,19 @@ static int camera_ray(const rctx *c, double sx, double sy, double o[3], double d
 	return 0;
 }
 
+/* A direction uniform over the distant light's disc (a cone of half angle
+   acos(cos_disc) around ldir): the irradiance times the phase function and
+   transmittance along it is an unbiased estimate of the disc's
+   contribution (uniform radiance over the disc). */
+static void sun_direction(const rctx *c, uint64_t *rng, double wl[3])
+{
+	double ct = 1.0 - loom__rand01(rng) * (1.0 - c->cos_disc);
+	double st = sqrt(fmax(0.0, 1.0 - ct * ct)), ph = 2.0 * M_PI * loom__rand01(rng);
+	for (int j = 0; j < 3; j++)
+		wl[j] = ct * c->ldir[j] + st * (cos(ph) * c->lu[j] + sin(ph) * c->lv[j]);
+	loom__normalize3(wl);
+}
+
 /* Radiance of one camera sample; returns 0 or a lookup error code. */
 static int trace_path(tstate *t, double sx, double sy, double L[3])
 {
@@ -370,7 +554,9 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 		if (o->light.kind != LOOM_LIGHT_NONE) {
 			double wl[3], dist = INFINITY, scale = 1.0, T, f;
 			int rc;
-			if (o->light.kind == LOOM_LIGHT_DISTANT) {
+			if (o->light.kind == LOOM_LIGHT_DISTANT && c->cos_disc < 1.0) {
+				sun_direction(c, &t->rng, wl);
+			} else if (o->light.kind == LOOM_LIGHT_DISTANT) {
 				memcpy(wl, c->ldir, sizeof wl);
 			} else {
 				for (int j = 0; j < 3; j++)
@@ -636,11 +822,31 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	c.dmax = src->max_density > 0 ? src->max_density : 1.0;
 	c.kscale = o->density_scale / c.len_voxel;
 	c.mu_bar = c.dmax * c.kscale * loom_microflake_area_max();
+	c.mu_cell = c.kscale * loom_microflake_area_max();
+	c.grid = !c.shell && src->cell_max && !(o->flags & LOOM_RENDER_GLOBAL_MAJORANT);
+	if (c.grid && !(src->cell[0] > 0 && src->cell[1] > 0 && src->cell[2] > 0))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: the source's majorant cell is %lld x %lld x %lld; "
+		                  "each side must be > 0", (long long)src->cell[0],
+		                  (long long)src->cell[1], (long long)src->cell[2]);
 	if (o->light.kind == LOOM_LIGHT_DISTANT) {
 		memcpy(c.ldir, o->light.dir, sizeof c.ldir);
 		if (!finite3(c.ldir) || loom__normalize3(c.ldir) <= 0)
 			return loom__fail(diag, LOOM_EINVAL,
 			                  "render: distant light direction must be finite and non-zero");
+		if (!(o->light.angle_deg >= 0 && o->light.angle_deg <= 90))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: distant light angle_deg must be in [0, 90], got %g",
+			                  o->light.angle_deg);
+		{
+			double t[3] = {0, 0, 0};
+			t[fabs(c.ldir[0]) < 0.6 ? 0 : fabs(c.ldir[1]) < 0.6 ? 1 : 2] = 1.0;
+			loom__cross3(c.ldir, t, c.lu);
+			loom__normalize3(c.lu);
+			loom__cross3(c.ldir, c.lu, c.lv);
+		}
+		c.cos_disc = o->light.angle_deg > 0 ? cos(0.5 * o->light.angle_deg * M_PI / 180.0)
+		                                    : 1.0;
 	}
 	c.tile = o->tile ? o->tile : 16;
 	c.tiles_x = (o->width + c.tile - 1) / c.tile;
@@ -690,6 +896,7 @@ LOOM_API int loom_render(const loom_volume_source *src,
 			stats->lookups += ts[i].st.lookups;
 			stats->scatterings += ts[i].st.scatterings;
 			stats->shell_queries += ts[i].st.shell_queries;
+			stats->cells += ts[i].st.cells;
 		}
 		stats->seconds = now_s() - t0;
 	}

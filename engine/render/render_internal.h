@@ -53,6 +53,34 @@ static inline double loom__normalize3(double v[3])
 }
 
 /*
+ * 3-D DDA (Amanatides and Woo) over the grid of cells [c*cell, (c+1)*cell)
+ * per axis, along o + t d for t in [t0, t1].  After init, cell c is the one
+ * holding o + t0 d and the ray stays in it until loom__dda_exit(); next
+ * moves to the following cell and returns 0 once t1 is reached.  Cell
+ * boundaries are recomputed from o at every step (no accumulated error);
+ * where two planes are crossed at the same t the ray visits a cell for a
+ * zero length, which trackers skip for free.
+ */
+typedef struct loom__dda {
+	int64_t c[3];
+	int step[3];
+	double cell[3];
+	double o[3], d[3];
+	double tnext[3];
+	double t, t1;
+} loom__dda;
+
+void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
+                    const int64_t cell[3], double t0, double t1);
+int loom__dda_next(loom__dda *g);
+static inline double loom__dda_exit(const loom__dda *g)
+{
+	double e = g->tnext[0] < g->tnext[1] ? g->tnext[0] : g->tnext[1];
+	e = g->tnext[2] < e ? g->tnext[2] : e;
+	return e < g->t1 ? e : g->t1;
+}
+
+/*
  * Shell internals used by the tracer.
  *
  * loom__shell_map: world point -> voxel point, trying the prism *hint first

@@ -62,6 +62,34 @@ expect_ok other_seed "$LOOM" render "$F" $R --seed 8 -o "$T/d.png" --quiet
 if cmp -s "$T/a.png" "$T/d.png"; then fail seed_matters "seeds 7 and 8 gave the same bytes"; else pass seed_matters; fi
 expect_ok json "$LOOM" render "$F" $R --json -o "$T/e.exr"
 json_check json_fields "j['width'] == 64 and j['height'] == 48 and j['paths'] == 64*48*2 and j['scene'] == 'flat' and j['lookups'] > 0"
+json_check json_grid "j['majorant'] == 'grid' and j['cells'] > 0 and j['majorant_bytes'] > 0"
+# the majorant grid (default) against one global bound: same picture (EXR
+# means within Monte Carlo error), fewer lookups
+expect_ok global "$LOOM" render "$F" --width 32 --height 24 --spp 64 --majorant global --json -o "$T/g.exr"
+cp "$T/out" "$T/g.json"
+expect_ok grid "$LOOM" render "$F" --width 32 --height 24 --spp 64 --seed 9 --json -o "$T/h.exr"
+if python3 - "$T/g.json" "$T/out" <<'PY' 2>"$T/pyerr"; then pass grid_fewer_lookups; else fail grid_fewer_lookups "$(cat "$T/pyerr")"; fi
+import json, sys
+g, h = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert g['majorant'] == 'global' and g['cells'] == 0, g
+assert h['lookups'] * 2 < g['lookups'], (h['lookups'], g['lookups'])
+PY
+expect_exit majorant_with_mesh 2 "$LOOM" render "$F" --mesh m.obj --majorant global -o x.png
+expect_exit sun_one_number 2 "$LOOM" render "$F" --sun 30 -o x.png
+expect_exit sun_low 2 "$LOOM" render "$F" --sun 30,0 -o x.png
+expect_exit sun_five 2 "$LOOM" render "$F" --sun 30,20,1,1,1 -o x.png
+expect_exit sun_text 2 "$LOOM" render "$F" --sun 30,high -o x.png
+expect_err_contains sun_msg "--sun"
+expect_ok sun "$LOOM" render "$F" $R --sun 200,30,3,2 --quiet -o "$T/sun.png"
+if cmp -s "$T/a.png" "$T/sun.png"; then fail sun_matters "--sun gave the default picture"; else pass sun_matters; fi
+# --density-scale is per millimetre: per voxel = K * voxel_mm (tiny: 72 um)
+expect_ok density_mm "$LOOM" render "$F" --width 8 --height 6 --spp 1 --density-scale 50 --json -o "$T/dm.png"
+json_check density_per_voxel "abs(j['density_per_voxel'] - 50 * j['voxel_mm']) < 1e-9 and abs(j['voxel_mm'] - 0.072) < 1e-6"
+expect_ok density_voxel "$LOOM" render "$F" --width 8 --height 6 --spp 1 --density-per-voxel 3.6 --json -o "$T/dv.png"
+json_check density_voxel_json "j['density_per_voxel'] == 3.6"
+expect_exit density_both 2 "$LOOM" render "$F" --density-scale 50 --density-per-voxel 3 -o x.png
+expect_err_contains density_both_msg "give one"
+expect_exit bad_majorant 2 "$LOOM" render "$F" --majorant tight -o x.png
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok exrheader exrheader "$T/e.exr"
 	expect_out_contains exr_size "(0 0) - (63 47)"

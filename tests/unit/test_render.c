@@ -425,6 +425,50 @@ static void test_single_scattering(void)
 	free(img);
 }
 
+/* A distant light with a disc (angle_deg 90: half angle 45 degrees) over an
+   isotropic slab seen from above, single scattering: the mean over the
+   disc's directions (uniform in solid angle, cos uniform in [cos 45, 1])
+   of the exact slab integral; the slab is optically thick (mu Z = 5), where
+   the disc's mean differs from the point light's by about 9 %. */
+static void test_sun_disc(void)
+{
+	synth s = {SRC_CONST, 1.0f, {0, 0, 0}, {1, 1, 1}, 0.3f, 0};
+	loom_volume_source src;
+	loom_render_options o;
+	loom_diag d = {0};
+	float *img = malloc(8 * 8 * 3 * sizeof *img);
+	double mu = 1.0, Z = 5, m, disc = 0, point, c0 = cos(M_PI / 4);
+	int n = 20000;
+
+	init_src(&src, &s, 0, 0, (int64_t)Z);
+	init_opt(&o, 8, 8, 512);
+	loom_camera_top(&src, 0, 0, 8, 8, &o.camera);
+	o.env[0] = o.env[1] = o.env[2] = 0;
+	o.density_scale = mu;
+	o.max_depth = 1;
+	o.light.kind = LOOM_LIGHT_DISTANT;
+	o.light.dir[0] = o.light.dir[1] = 0;
+	o.light.dir[2] = 1;
+	o.light.rgb[0] = o.light.rgb[1] = o.light.rgb[2] = 10.0f;
+	o.light.angle_deg = 90;
+	CHECK_EQ_INT(loom_render(&src, &o, img, NULL, NULL), LOOM_OK);
+	m = image_mean(img, 64, 1);
+	for (int k = 0; k < n; k++) {
+		double c = c0 + (k + 0.5) / n * (1 - c0), g = 1 + 1 / c;
+		disc += (1 - exp(-mu * Z * g)) / g;
+	}
+	disc *= 10.0 / (4 * M_PI) / n;
+	point = 10.0 / (4 * M_PI) * (1 - exp(-2 * mu * Z)) / 2;
+	printf("  sun disc 90 degrees: %.5f expected %.5f (a point: %.5f)\n", m, disc,
+	       point);
+	CHECK(fabs(m - disc) < 0.02 * disc);
+	CHECK(fabs(m - point) > 0.05 * point);
+	o.light.angle_deg = 91;
+	CHECK_EQ_INT(loom_render(&src, &o, img, NULL, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "angle_deg");
+	free(img);
+}
+
 static void test_determinism(void)
 {
 	synth s = {SRC_YARN, 1.0f, {0, 1, 0}, {0.8f, 0.6f, 0.4f}, 0.2f, 0};
@@ -785,6 +829,7 @@ int main(void)
 	RUN(test_empty_is_background);
 	RUN(test_transmittance);
 	RUN(test_single_scattering);
+	RUN(test_sun_disc);
 	RUN(test_determinism);
 	RUN(test_half_dense_preview);
 	RUN(test_shell_matches_slab);

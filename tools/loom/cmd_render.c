@@ -23,9 +23,11 @@ static const char usage[] =
 	"loom render FABRIC [--mesh OBJ] [--width W] [--height H] [--spp N]\n"
 	"            [--threads N] [--budget MB] [--seed S] [--db DB]\n"
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
-	"            [--fov DEG] [--density-scale K] [--exposure STOPS]\n"
+	"            [--fov DEG] [--density-scale K | --density-per-voxel K]\n"
+	"            [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
 	"            [--uv-repeats R] [--warp-dir X,Y,Z] [--field-smooth N]\n"
+	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
@@ -43,6 +45,43 @@ static const char about[] =
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
+
+static const opt_choice majorant_names[] = {
+	{"grid", 0}, {"global", 1}, {NULL, 0}};
+
+/* --sun AZ,EL[,INTENSITY[,ANGLE]] into double[4]. */
+static const char *opt_sun(const char *text, void *dest)
+{
+	double *v = dest, w[4] = {0, 0, 2.6, 0.53};
+	int n = 0;
+	const char *p = text;
+
+	for (;;) {
+		char *end;
+		if (n == 4)
+			return "AZ,EL[,INTENSITY[,ANGLE]]: at most 4 numbers";
+		w[n] = strtod(p, &end);
+		if (end == p || !isfinite(w[n]))
+			return "AZ,EL[,INTENSITY[,ANGLE]]: finite numbers separated by commas";
+		n++;
+		p = end;
+		if (*p == '\0')
+			break;
+		if (*p != ',')
+			return "AZ,EL[,INTENSITY[,ANGLE]]: finite numbers separated by commas";
+		p++;
+	}
+	if (n < 2)
+		return "AZ,EL[,INTENSITY[,ANGLE]]: at least the azimuth and the elevation";
+	if (!(w[1] > 0 && w[1] <= 90))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with the elevation EL in (0, 90] degrees";
+	if (!(w[2] >= 0))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with INTENSITY >= 0";
+	if (!(w[3] >= 0 && w[3] <= 90))
+		return "AZ,EL[,INTENSITY[,ANGLE]] with the disc's ANGLE in [0, 90] degrees";
+	memcpy(v, w, sizeof w);
+	return NULL;
+}
 
 static int parse_box2(const char *s, int64_t lo[2], int64_t hi[2])
 {
@@ -123,11 +162,13 @@ int cmd_render(int argc, char **argv)
 {
 	const char *prog = "loom render";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *mesh_path = NULL;
-	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc;
+	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc, global_mj = 0;
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
-	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 2, exposure = 0;
+	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 80, exposure = 0;
+	double dvoxel = 0;
 	double thickness = 0, uv_repeats = 1, warp_dir[3] = {0, 0, 1};
+	double sun[4] = {0, 35, 2.6, 0.53};
 	uint32_t field_smooth = 32;
 	int have_uv_stats = 0, field = 0;
 	loom_mesh_uv_stats uvst;
@@ -144,6 +185,8 @@ int cmd_render(int argc, char **argv)
 	loom_texture *t = NULL;
 	loom_mesh *mesh = NULL;
 	loom_shell *shell = NULL;
+	loom_majorant *mj = NULL;
+	size_t mj_bytes = 0, budget;
 	float *rgb = NULL;
 	rprog pr;
 	loom_diag diag;
@@ -166,7 +209,11 @@ int cmd_render(int argc, char **argv)
 		OPT_DOUBLE(0, "fov", &fov, "DEG", "()", 0, 180, "degrees",
 		           "vertical field of view, %r (default 30)"),
 		OPT_DOUBLE(0, "density-scale", &dscale, "K", "(]", 0, 1e6, NULL, "extinction "
-		           "per voxel length of density 1 (default 2)"),
+		           "per millimetre of a density-1 voxel (default 80: opaque yarns; "
+		           "databases of any voxel size look alike)"),
+		OPT_DOUBLE(0, "density-per-voxel", &dvoxel, "K", "(]", 0, 1e6, NULL,
+		           "extinction per voxel length instead (the old meaning of "
+		           "--density-scale)"),
 		OPT_DOUBLE(0, "exposure", &exposure, "STOPS", "[]", -64, 64, "stops", "PNG: "
 		           "scale by 2^STOPS before the sRGB curve (default 0)"),
 		OPT_ENUM(0, "filter", &filter, "F", filter_names,
@@ -185,6 +232,15 @@ int cmd_render(int argc, char **argv)
 		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
 		           "design repeats per UV unit along u (default 1; without UVs a "
 		           "UV unit is the mesh's bounding-box diagonal)"),
+		OPT_CALLBACK(0, "sun", sun, "AZ,EL[,I[,A]]", opt_sun, "the sun: azimuth "
+		             "and elevation in degrees (measured as the camera's: a sun at "
+		             "the camera's angles lights from behind it), irradiance "
+		             "(default 2.6) and disc diameter in degrees (default 0.53); "
+		             "default: 150 degrees round from the camera, 35 up"),
+		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
+		         "flat patch: track through the per-crossing majorant grid "
+		         "(default) or against one global bound (slower; for "
+		         "comparison)"),
 		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB)"),
 		OPT_JSON(&json, "print figures as JSON on stdout"),
 		OPT_QUIET(&quiet, "no progress or summary"),
@@ -200,6 +256,12 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "output '%s' must end in .png or .exr", out);
 	if (mesh_path && opt_given(&cmd, box))
 		opts_usage(&cmd, "--region frames a flat patch; it does not go with --mesh");
+	if (opt_given(&cmd, &dscale) && opt_given(&cmd, &dvoxel))
+		opts_usage(&cmd, "--density-scale (per mm) and --density-per-voxel are "
+		           "the same setting in two units; give one");
+	if (mesh_path && opt_given(&cmd, &global_mj))
+		opts_usage(&cmd, "--majorant applies to a flat patch; a mesh is tracked "
+		           "against one global bound");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats) ||
 	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth)))
 		opts_usage(&cmd, "--thickness, --uv-repeats, --warp-dir and --field-smooth "
@@ -215,15 +277,38 @@ int cmd_render(int argc, char **argv)
 	}
 	loom_fabric_get_db_identity(f, &id);
 	loom_fabric_repeat_voxels(f, rep);
-	to.budget_bytes = (size_t)(budget_mb * 1048576.0);
 	to.max_threads = threads ? threads : 64;
+	budget = (size_t)(budget_mb * 1048576.0);
+	/* The majorant grid (flat patches) is counted in --budget: the texture
+	   gets what it leaves. */
+	if (!mesh_path && !global_mj && !paint) {
+		if (loom_majorant_build(f, &mj, &diag) != LOOM_OK) {
+			loom_fabric_free(f);
+			loom_db_close(db);
+			cli_fail(prog, "%s", diag.message);
+		}
+		mj_bytes = loom_majorant_bytes(mj, to.max_threads);
+		if (mj_bytes >= budget) {
+			cli_error(prog, "--budget %g MiB cannot hold the majorant grid (%zu "
+			          "bytes) and the texture", budget_mb, mj_bytes);
+			loom_majorant_free(mj);
+			loom_fabric_free(f);
+			loom_db_close(db);
+			return EXIT_BAD_INPUT;
+		}
+	}
+	to.budget_bytes = budget - mj_bytes;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
+		loom_majorant_free(mj);
 		loom_fabric_free(f);
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
+	/* painted regions may add density where the grid saw none (a slub, a
+	   pull): a painted fabric is tracked against the global bound */
 	if (paint ? loom_paint_volume_source(paint, t, f, filter, &src) != LOOM_OK
-	          : loom_texture_volume_source(t, f, filter, &src) != LOOM_OK) {
+	          : (mj ? loom_texture_volume_source_grid(t, f, filter, mj, &src)
+	                : loom_texture_volume_source(t, f, filter, &src)) != LOOM_OK) {
 		cli_error(prog, "%s: cannot make the volume source", path);
 		goto fail;
 	}
@@ -233,13 +318,22 @@ int cmd_render(int argc, char **argv)
 	ro.spp = spp;
 	ro.threads = threads;
 	ro.seed = seed;
-	ro.density_scale = dscale;
+	/* loom_render wants extinction per voxel length */
+	ro.density_scale = opt_given(&cmd, &dvoxel) ? dvoxel
+	                   : dscale * (src.voxel_mm > 0 ? src.voxel_mm : 0.024);
 	ro.max_depth = 32;
+	/* The sun: towards the light = where a camera at (AZ, EL) would stand
+	   (see place_camera).  The studio default stands 150 degrees round from
+	   the camera, so the cloth is lit from the far side at a raking angle
+	   (yarn relief and sheen), never flat from behind the viewer. */
+	if (!opt_given(&cmd, sun))
+		sun[0] = az + 150.0;
 	ro.light.kind = LOOM_LIGHT_DISTANT;
-	ro.light.dir[0] = -0.35;
-	ro.light.dir[1] = -0.45;
-	ro.light.dir[2] = 1.0;
-	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = 2.6f;
+	ro.light.dir[0] = -sin(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
+	ro.light.dir[1] = -cos(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
+	ro.light.dir[2] = sin(sun[1] * M_PI / 180.0);
+	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = (float)sun[2];
+	ro.light.angle_deg = sun[3];
 	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
 	if (mesh_path) {
 		loom_shell_params sp = LOOM_SHELL_PARAMS_INIT;
@@ -354,6 +448,8 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "spp", spp);
 		jw_uint(&w, "seed", seed);
 		jw_str(&w, "scene", mesh_path ? "mesh" : "flat");
+		jw_num(&w, "voxel_mm", src.voxel_mm);
+		jw_num(&w, "density_per_voxel", ro.density_scale);
 		jw_uint(&w, "paths", st.paths);
 		jw_uint(&w, "rays", st.rays);
 		jw_uint(&w, "lookups", st.lookups);
@@ -372,6 +468,9 @@ int cmd_render(int argc, char **argv)
 			       uv_repeats);
 			jw_close(&w);
 		}
+		jw_uint(&w, "cells", st.cells);
+		jw_str(&w, "majorant", mj ? "grid" : "global");
+		jw_uint(&w, "majorant_bytes", mj_bytes);
 		jw_num(&w, "seconds", st.seconds);
 		jw_end(&w);
 	} else if (!quiet) {
@@ -385,6 +484,7 @@ int cmd_render(int argc, char **argv)
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
 	loom_paint_free(paint);
+	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
@@ -394,6 +494,7 @@ fail:
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
 	loom_paint_free(paint);
+	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return EXIT_BAD_INPUT;

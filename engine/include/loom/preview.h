@@ -184,6 +184,36 @@ LOOM_API int loom_preview(loom_texture *t, const loom_fabric *f,
 LOOM_API int loom_texture_volume_source(loom_texture *t, const loom_fabric *f,
                                         int filter, loom_volume_source *src);
 
+/*
+ * Majorant grid of a fabric (docs/rendering.md, "Majorant grid"): per
+ * source block of the database and per z layer the largest density, built
+ * by reading every block once (n_blocks * b3 bytes; never proportional to
+ * the bolt).  Cells are one crossing (b1 x b2 voxels) by Z voxels (2, more
+ * when b3 > 128).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
+ * detached fabric); read errors of loom_db_read_box; LOOM_ENOMEM.
+ */
+typedef struct loom_majorant loom_majorant;
+LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
+                                 loom_diag *diag);
+LOOM_API void loom_majorant_free(loom_majorant *m);
+/* Bytes the grid takes, with `threads` render threads' caches. */
+LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads);
+/* Cell size in voxels (x, y, z). */
+LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3]);
+/* Raw density bounds (0..255) of the z cells of crossing (I, J) for lookups
+   with `filter`, into out[ceil(b3 / Z)] (for tests and tools).  LOOM_OK,
+   LOOM_EINVAL, LOOM_ENOMEM, or an error of the fabric's lookups. */
+LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I,
+                                 int64_t J, uint8_t *out);
+/*
+ * loom_texture_volume_source with the majorant grid m attached (cell,
+ * cell_max): loom_render then tracks through the grid.  m must have been
+ * built for f and must outlive the render; one texture per grid at a time.
+ */
+LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric *f,
+                                             int filter, loom_majorant *m,
+                                             loom_volume_source *src);
+
 #ifdef __cplusplus
 }
 #endif

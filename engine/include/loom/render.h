@@ -127,10 +127,22 @@ typedef struct loom_volume_source {
 	                         NULL = failure: the render stops, LOOM_ENOMEM */
 	void (*thread_done)(void *ctx, void *thread_ctx);
 	                      /* optional: called when that thread ends */
+	int64_t cell[3];      /* majorant grid: cell size in voxels along x, y,
+	                         z (cells [c*cell, (c+1)*cell) per axis);
+	                         used only with cell_max */
+	int (*cell_max)(void *thread_ctx, const int64_t c[3], float *bound);
+	                      /* optional majorant grid: *bound >= the density
+	                         of every lookup at a point inside cell c
+	                         (0 = the cell is empty).  Called from the
+	                         render threads with the thread's ctx, as
+	                         lookup; returns 0 or a loom_result code.
+	                         Slab scenes only (a shell keeps the global
+	                         bound max_density) */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
-	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL}
+	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
+	 {0, 0, 0}, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)
@@ -345,6 +357,9 @@ typedef struct loom_light {
 	double pos[3];     /* point: position (world) */
 	float rgb[3];      /* distant: irradiance on a plane facing the light;
 	                      point: intensity (irradiance at distance 1) */
+	double angle_deg;  /* distant: angular diameter of the light's disc,
+	                      [0, 90]; 0 = a point (sharp shadows), the sun
+	                      is about 0.53 */
 } loom_light;
 
 typedef struct loom_render_options {
@@ -373,13 +388,19 @@ typedef struct loom_render_options {
 	                        /* optional; called from worker threads, one at
 	                           a time */
 	void *progress_user;
+	uint32_t flags;         /* LOOM_RENDER_* bits */
 } loom_render_options;
+
+#define LOOM_RENDER_GLOBAL_MAJORANT 1u /* ignore the source's majorant grid:
+                                          track against max_density
+                                          everywhere (the reference the
+                                          tests and the bench compare to) */
 
 #define LOOM_RENDER_OPTIONS_INIT                                              \
 	{sizeof(loom_render_options), 256, 256, 16, 64, 4, 1, 0, 16, 1.0, 0.3,    \
 	 {LOOM_CAMERA_ORTHO, {0, 0, 1}, {0, 0, 0}, {0, 1, 0}, 40.0, {1, 1}},      \
-	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}},     \
-	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL}
+	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0},\
+	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u}
 
 typedef struct loom_render_stats {
 	uint64_t paths;          /* camera samples (width * height * spp) */
@@ -387,6 +408,8 @@ typedef struct loom_render_stats {
 	uint64_t lookups;        /* source lookups (tentative collisions) */
 	uint64_t scatterings;    /* real collisions */
 	uint64_t shell_queries;  /* Embree closest-point queries (shell only) */
+	uint64_t cells;          /* majorant grid cells entered (0 without a
+	                            grid) */
 	double seconds;          /* wall-clock time of loom_render */
 } loom_render_stats;
 

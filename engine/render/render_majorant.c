@@ -1,0 +1,475 @@
+/*
+ * engine/render/render_majorant.c - the majorant grid of a fabric's virtual
+ * texture (docs/rendering.md, "Majorant grid"): an upper bound of the
+ * density over every cell of one crossing (b1 x b2 voxels) by Z voxels of
+ * height, so the tracer takes long free flights through empty space and
+ * short ones only where the cloth is.
+ *
+ * Built once from the database: per source block (every block of every
+ * exemplar) and per z layer, the largest raw density of the block's
+ * voxels in that layer: n_blocks * b3 bytes, O(source blocks), never
+ * proportional to the bolt or the design.
+ *
+ * Per crossing (I, J) of the bolt, at render time: the crossing's source
+ * block (loom_fabric_source_at, randomisation included) and a range
+ * [dz_lo, dz_hi] holding its edge-fix offsets.  The offset map is a sum
+ * of basis solutions of the discrete Laplace equation (docs/synthesis.md),
+ * hence discrete harmonic inside the block, so it takes its extremes on
+ * the block's border (maximum principle): only the 2 (b1 + b2) - 4 border
+ * columns are evaluated, not the b1 b2 of the map; a margin covers float
+ * rounding, and the texture's rounding to a whole voxel stays inside
+ * [floor(dz_lo), ceil(dz_hi)];
+ * output layer z reads source layer z - dz, so its bound is the largest
+ * layer maximum over source z in [z - dz_hi, z - dz_lo].  A trilinear
+ * lookup blends the 8 voxels around the point, which may lie in the
+ * neighbouring crossings and layers: its bound is the maximum over the 3 x 3
+ * crossings and one more layer on each side.  Cell bounds are kept per
+ * render thread in a small direct-mapped cache of crossings (fixed size),
+ * so a crossing's edge-fix offsets are computed once per thread while it
+ * stays cached.  Every value depends only on the fabric, never on the
+ * thread or the order, so images stay identical for any thread count.
+ */
+#include "core/internal.h"
+#include "loom/preview.h"
+#include "synth/fabric_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CACHE_ENTRIES 1024u /* crossings cached per render thread */
+#define MAX_ZCELLS 64u     /* z cells per crossing (Z grows to fit) */
+
+struct loom_majorant {
+	const loom_fabric *f;
+	loom_texture *t;          /* set by loom_texture_volume_source_grid */
+	int filter;
+	uint32_t b1, b2, b3, zcell, nzc;
+	uint32_t n_exemplars;
+	uint32_t *off;            /* first block of each exemplar */
+	uint32_t *bcols;          /* block columns of each exemplar */
+	uint64_t n_blocks;
+	uint8_t *layer;           /* n_blocks * b3: largest raw density */
+	loom_edgefix_tables ef;   /* the fabric's edge fix (ef.coef NULL:
+	                             none) */
+	float *frange;            /* min, max of each field: 2 rh, then 2 rv */
+};
+
+typedef struct mj_entry {
+	int64_t I, J;
+	int valid;
+	uint8_t cell[MAX_ZCELLS];
+} mj_entry;
+
+typedef struct mj_thread {
+	loom_majorant *m;
+	float a[4 * LOOM_EDGEFIX_MAX_RANK]; /* a crossing's coefficients */
+	uint8_t *vl;              /* 9 * b3: output layer bounds of 3 x 3
+	                             crossings */
+	mj_entry cache[CACHE_ENTRIES];
+} mj_thread;
+
+LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
+                                 loom_diag *diag)
+{
+	const loom_db *db;
+	loom_db_info info;
+	loom_majorant *m;
+	uint8_t *buf = NULL;
+	int rc;
+
+	if (!out)
+		return loom__fail(diag, LOOM_EINVAL, "majorant: NULL argument");
+	*out = NULL;
+	if (!f || !loom_fabric_attached(f) || !(db = loom_fabric_db(f)))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "majorant: the fabric is NULL or not attached to a database");
+	if ((rc = loom_db_get_info(db, &info)) != LOOM_OK)
+		return loom__fail(diag, rc, "majorant: cannot read the database's info");
+	m = calloc(1, sizeof *m);
+	if (!m)
+		return loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+	m->f = f;
+	m->b1 = info.block[0];
+	m->b2 = info.block[1];
+	m->b3 = info.block[2];
+	m->zcell = 2;
+	while ((m->b3 + m->zcell - 1) / m->zcell > MAX_ZCELLS)
+		m->zcell *= 2;
+	m->nzc = (m->b3 + m->zcell - 1) / m->zcell;
+	m->n_exemplars = info.n_exemplars;
+	m->off = calloc(info.n_exemplars + 1u, sizeof *m->off);
+	m->bcols = calloc(info.n_exemplars + 1u, sizeof *m->bcols);
+	if (!m->off || !m->bcols) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+		goto fail;
+	}
+	for (uint32_t u = 0; u < info.n_exemplars; u++) {
+		loom_db_exemplar_info ei;
+		if ((rc = loom_db_exemplar(db, u, &ei)) != LOOM_OK) {
+			rc = loom__fail(diag, rc, "majorant: cannot read exemplar %u", u);
+			goto fail;
+		}
+		m->off[u] = (uint32_t)m->n_blocks;
+		m->bcols[u] = ei.cols;
+		m->n_blocks += (uint64_t)ei.rows * ei.cols;
+	}
+	if (f->ef && loom_edgefix_get_tables(f->ef, &m->ef) == LOOM_OK &&
+	    m->ef.coef && m->ef.b1 == m->b1 && m->ef.b2 == m->b2) {
+		uint32_t rh = m->ef.rank_h, rv = m->ef.rank_v;
+		m->frange = malloc(2u * (rh + rv + 1u) * sizeof *m->frange);
+		if (!m->frange) {
+			rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+			goto fail;
+		}
+		for (uint32_t k = 0; k < rh + rv; k++) {
+			const float *fld = k < rh ? m->ef.field_h : m->ef.field_v;
+			uint32_t r = k < rh ? rh : rv, kk = k < rh ? k : k - rh;
+			float lo = INFINITY, hi = -INFINITY;
+			for (uint32_t c = 0; c < m->b1 * m->b2; c++) {
+				float v = fld[(size_t)c * r + kk];
+				lo = v < lo ? v : lo;
+				hi = v > hi ? v : hi;
+			}
+			m->frange[2 * k] = lo;
+			m->frange[2 * k + 1] = hi;
+		}
+	} else {
+		memset(&m->ef, 0, sizeof m->ef);
+	}
+	m->layer = calloc(m->n_blocks * m->b3 + 1u, 1);
+	if (!m->layer) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+		goto fail;
+	}
+	/* One row of blocks at a time: cols*b1 x b2 x b3 bytes of scratch. */
+	for (uint32_t u = 0; u < info.n_exemplars; u++) {
+		loom_db_exemplar_info ei;
+		loom_db_exemplar(db, u, &ei);
+		free(buf);
+		buf = malloc((size_t)ei.size[0] * m->b2 * m->b3);
+		if (!buf) {
+			rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+			goto fail;
+		}
+		for (uint32_t r = 0; r < ei.rows; r++) {
+			uint32_t org[3] = {0, r * m->b2, 0};
+			uint32_t size[3] = {ei.size[0], m->b2, m->b3};
+			if ((rc = loom_db_read_box(db, u, org, size, buf, NULL, NULL, diag)))
+				goto fail;
+			for (uint32_t z = 0; z < m->b3; z++)
+				for (uint32_t y = 0; y < m->b2; y++) {
+					const uint8_t *row = buf + ((size_t)z * m->b2 + y) * ei.size[0];
+					for (uint32_t c = 0; c < ei.cols; c++) {
+						uint8_t *dst = m->layer +
+						    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->b3 + z;
+						for (uint32_t x = 0; x < m->b1; x++)
+							if (row[c * m->b1 + x] > *dst)
+								*dst = row[c * m->b1 + x];
+					}
+				}
+		}
+	}
+	free(buf);
+	*out = m;
+	return LOOM_OK;
+fail:
+	free(buf);
+	loom_majorant_free(m);
+	return rc;
+}
+
+LOOM_API void loom_majorant_free(loom_majorant *m)
+{
+	if (!m)
+		return;
+	free(m->off);
+	free(m->bcols);
+	free(m->layer);
+	free(m->frange);
+	free(m);
+}
+
+LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads)
+{
+	size_t per_thread;
+
+	if (!m)
+		return 0;
+	per_thread = sizeof(mj_thread) + 9u * m->b3;
+	return sizeof *m + 2u * (m->n_exemplars + 1u) * sizeof(uint32_t) +
+	       (m->frange ? 2u * (m->ef.rank_h + m->ef.rank_v + 1u) * sizeof(float) : 0) +
+	       (size_t)m->n_blocks * m->b3 + (size_t)threads * per_thread;
+}
+
+LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3])
+{
+	cell[0] = m ? m->b1 : 0;
+	cell[1] = m ? m->b2 : 0;
+	cell[2] = m ? m->zcell : 0;
+}
+
+/* The edge-fix offset at column (x, y) for coefficient vectors a (as the
+   edge fix evaluates it: docs/synthesis.md). */
+static float dz_at(const loom_edgefix_tables *t, const float *a, uint32_t x,
+                   uint32_t y)
+{
+	uint32_t b1 = t->b1, b2 = t->b2, rh = t->rank_h, rv = t->rank_v;
+	const float *fn = t->field_h + ((size_t)y * b1 + x) * rh;
+	const float *fs = t->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh;
+	const float *fw = t->field_v + ((size_t)y * b1 + x) * rv;
+	const float *fe = t->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv;
+	float v = 0;
+
+	for (uint32_t k = 0; k < rh; k++)
+		v += a[k] * fn[k] + a[rh + k] * fs[k];
+	for (uint32_t k = 0; k < rv; k++)
+		v += a[2 * rh + k] * fw[k] + a[2 * rh + rv + k] * fe[k];
+	return v;
+}
+
+
+/*
+ * [*dlo, *dhi] holds every rounded edge-fix offset of the crossing whose
+ * sources are nb (maximum principle: only the border columns are
+ * evaluated, see the top of this file).  a: scratch of 2 (rh + rv) floats.
+ */
+static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a,
+                     int64_t *dlo, int64_t *dhi)
+{
+	const loom_edgefix_tables *t = &m->ef;
+	uint32_t rh = t->rank_h, rv = t->rank_v, stride = 2 * rh + 2 * rv;
+	uint32_t b1 = m->b1, b2 = m->b2;
+	const float *cs, *cn, *css, *cw, *ce;
+	double lo = INFINITY, hi = -INFINITY, mag = 0, margin;
+
+	if (!t->coef) { /* no edge fix: no offset */
+		*dlo = *dhi = 0;
+		return;
+	}
+	if (nb->self >= t->n_blocks || nb->n >= t->n_blocks || nb->s >= t->n_blocks ||
+	    nb->w >= t->n_blocks || nb->e >= t->n_blocks) {
+		*dlo = -4096;
+		*dhi = 4096;
+		return;
+	}
+	cs = t->coef + (size_t)nb->self * stride;
+	cn = t->coef + (size_t)nb->n * stride;
+	css = t->coef + (size_t)nb->s * stride;
+	cw = t->coef + (size_t)nb->w * stride;
+	ce = t->coef + (size_t)nb->e * stride;
+	/* the same coefficient combinations as the edge fix */
+	for (uint32_t k = 0; k < rh; k++) {
+		a[k] = 0.5f * (cn[rh + k] - cs[k]);
+		a[rh + k] = 0.5f * (css[k] - cs[rh + k]);
+		mag += (fabs(a[k]) + fabs(a[rh + k])) *
+		       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
+	}
+	for (uint32_t k = 0; k < rv; k++) {
+		const float *fr = m->frange + 2 * (rh + k);
+		a[2 * rh + k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
+		a[2 * rh + rv + k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
+		mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) *
+		       fmax(fabs(fr[0]), fabs(fr[1]));
+	}
+	for (uint32_t x = 0; x < b1; x++) {
+		uint32_t ystep = (x == 0 || x == b1 - 1) ? 1 : b2 - 1;
+		for (uint32_t y = 0; y < b2; y += ystep) {
+			double v = dz_at(t, a, x, y);
+			lo = v < lo ? v : lo;
+			hi = v > hi ? v : hi;
+		}
+	}
+	/* float dot products of 4r terms, float basis fields: errors far
+	   below 1e-4 of the sum of magnitudes */
+	margin = 1e-3 + 1e-4 * mag;
+	lo -= margin;
+	hi += margin;
+	lo = lo < -4096.0 ? -4096.0 : lo > 4096.0 ? 4096.0 : lo;
+	hi = hi < -4096.0 ? -4096.0 : hi > 4096.0 ? 4096.0 : hi;
+	*dlo = (int64_t)floor(lo);
+	*dhi = (int64_t)ceil(hi);
+}
+
+/* Output layer bounds of crossing (I, J) into vl[b3]. */
+static int crossing_layers(const loom_majorant *m, float *a, int64_t I, int64_t J,
+                           uint8_t *vl)
+{
+	loom_fabric_source s;
+	const uint8_t *blk;
+	int64_t dlo, dhi;
+	int rc;
+
+	if ((rc = loom_fabric_source_at(m->f, I, J, &s)) != LOOM_OK)
+		return rc;
+	if (s.exemplar >= m->n_exemplars)
+		return LOOM_ECORRUPT;
+	dz_range(m, &s.nbhd, a, &dlo, &dhi);
+	blk = m->layer + ((uint64_t)m->off[s.exemplar] +
+	                  (uint64_t)s.row * m->bcols[s.exemplar] + s.col) * m->b3;
+	for (int64_t z = 0; z < m->b3; z++) {
+		int64_t s0 = z - dhi, s1 = z - dlo;
+		uint8_t best = 0;
+		if (s0 < 0)
+			s0 = 0;
+		if (s1 > (int64_t)m->b3 - 1)
+			s1 = (int64_t)m->b3 - 1;
+		for (int64_t sz = s0; sz <= s1; sz++)
+			best = blk[sz] > best ? blk[sz] : best;
+		vl[z] = best;
+	}
+	return LOOM_OK;
+}
+
+/* Fill entry e with the cell bounds of crossing (I, J) for `filter`. */
+static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry *e)
+{
+	loom_majorant *m = th->m;
+	int tri = filter == LOOM_FILTER_TRILINEAR, rc;
+	int nb = tri ? 9 : 1;
+
+	for (int k = 0; k < nb; k++) {
+		int64_t dI = tri ? k / 3 - 1 : 0, dJ = tri ? k % 3 - 1 : 0;
+		if ((rc = crossing_layers(m, th->a, I + dI, J + dJ,
+		                          th->vl + (size_t)k * m->b3)))
+			return rc;
+	}
+	for (uint32_t c = 0; c < m->nzc; c++) {
+		int64_t z0 = (int64_t)c * m->zcell, z1 = z0 + m->zcell - 1;
+		uint8_t best = 0;
+		if (tri) { /* the 8 voxels around a point: one more layer */
+			z0--;
+			z1++;
+		}
+		if (z0 < 0)
+			z0 = 0;
+		if (z1 > (int64_t)m->b3 - 1)
+			z1 = (int64_t)m->b3 - 1;
+		for (int k = 0; k < nb; k++)
+			for (int64_t z = z0; z <= z1; z++) {
+				uint8_t v = th->vl[(size_t)k * m->b3 + (size_t)z];
+				best = v > best ? v : best;
+			}
+		e->cell[c] = best;
+	}
+	e->I = I;
+	e->J = J;
+	e->valid = 1;
+	return LOOM_OK;
+}
+
+static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
+{
+	mj_thread *th = thread_ctx;
+	loom_majorant *m = th->m;
+	uint64_t h;
+	mj_entry *e;
+	int rc;
+
+	*bound = 0.0f;
+	if (c[2] < 0 || c[2] >= (int64_t)m->nzc)
+		return LOOM_OK;
+	h = (uint64_t)c[1] * 0x9e3779b97f4a7c15ull ^ (uint64_t)c[0] * 0xc2b2ae3d27d4eb4full;
+	e = &th->cache[(h >> 40) % CACHE_ENTRIES];
+	if (!e->valid || e->I != c[1] || e->J != c[0]) {
+		e->valid = 0;
+		if ((rc = fill_entry(th, m->filter, c[1], c[0], e)))
+			return rc;
+	}
+	/* raw / 255 as the texture computes it, widened a little so that no
+	   rounding of a blend can exceed it */
+	*bound = e->cell[c[2]] ? (float)e->cell[c[2]] / 255.0f * 1.0001f : 0.0f;
+	return LOOM_OK;
+}
+
+static mj_thread *thread_new(loom_majorant *m)
+{
+	mj_thread *th = calloc(1, sizeof *th);
+
+	if (!th)
+		return NULL;
+	th->m = m;
+	th->vl = malloc(9u * m->b3);
+	if (!th->vl) {
+		free(th);
+		return NULL;
+	}
+	return th;
+}
+
+static void thread_free(mj_thread *th)
+{
+	if (th) {
+		free(th->vl);
+		free(th);
+	}
+}
+
+LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I, int64_t J,
+                                 uint8_t *out)
+{
+	mj_thread *th;
+	mj_entry e;
+	int rc;
+
+	if (!m || !out || (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+		return LOOM_EINVAL;
+	if (!(th = thread_new(m)))
+		return LOOM_ENOMEM;
+	rc = fill_entry(th, filter, I, J, &e);
+	if (!rc)
+		memcpy(out, e.cell, m->nzc);
+	thread_free(th);
+	return rc;
+}
+
+/* ---- the volume source -------------------------------------------------- */
+
+static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
+{
+	mj_thread *th = ctx;
+	loom_texel tx;
+	int rc = loom_texture_sample(th->m->t, p, th->m->filter, &tx);
+
+	if (rc != LOOM_OK)
+		return rc;
+	out->density = tx.density;
+	memcpy(out->orient, tx.orientation, sizeof out->orient);
+	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
+	out->alignment = tx.alignment;
+	return LOOM_OK;
+}
+
+static void *grid_thread_init(void *ctx)
+{
+	return thread_new(ctx);
+}
+
+static void grid_thread_done(void *ctx, void *thread_ctx)
+{
+	loom_majorant *m = ctx;
+
+	loom_texture_thread_done(m->t);
+	thread_free(thread_ctx);
+}
+
+LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric *f,
+                                             int filter, loom_majorant *m,
+                                             loom_volume_source *src)
+{
+	int rc;
+
+	if (!m || m->f != f)
+		return LOOM_EINVAL;
+	if ((rc = loom_texture_volume_source(t, f, filter, src)) != LOOM_OK)
+		return rc;
+	m->t = t;
+	m->filter = filter;
+	src->lookup = grid_lookup;
+	src->ctx = m;
+	src->thread_init = grid_thread_init;
+	src->thread_done = grid_thread_done;
+	loom_majorant_cell_size(m, src->cell);
+	src->cell_max = mj_cell_max;
+	return LOOM_OK;
+}
