@@ -694,8 +694,17 @@ static int model_yarns(loom__exgen *g)
 		init_yarn(g, &g->wefts[r + 1], KIND_WEFT, r,
 		          (uint8_t)(1 + wl + (uint32_t)(r + 1) % fl));
 	g->n_labels = wl + fl;
-	for (uint32_t l = 1; shared && l <= g->n_labels; l++)
+	/* a shared label is an interior yarn's: no "outside" flag, and the
+	   index of a window yarn (the cut yarns at -1 and cols/rows also share
+	   labels, so clamp their index into the window, as readers require) */
+	for (uint32_t l = 1; shared && l <= g->n_labels; l++) {
+		int32_t lim = l <= wl ? (int32_t)g->cols : (int32_t)g->rows;
 		g->table[l].flags = 0;
+		if (g->table[l].index < 0)
+			g->table[l].index = 0;
+		if (g->table[l].index >= lim)
+			g->table[l].index = (int16_t)(lim - 1);
+	}
 	g->n_fly = g->rows * g->cols / 4;
 	if (g->n_fly < 2)
 		g->n_fly = 2;
