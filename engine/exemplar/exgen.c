@@ -466,20 +466,57 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 
 /* ---- construction -------------------------------------------------------- */
 
-static void set_kinds(loom__exgen *g)
+/* Half-width and half-height (um) of a yarn of free diameter d (um) lying
+   at lateral spacing S: flattened to 1.3 d wide (at most 0.92 S, where it
+   meets its neighbours) and 0.85 of its area kept (the yarn is pressed),
+   so a round 200 um yarn becomes 260 x 111 um.  d = 0: the defaults. */
+static void yarn_radii(float d, float S, float a_def, float c_def, float *a,
+                       float *c)
 {
-	kind_params *w = &g->kp[KIND_WARP], *f = &g->kp[KIND_WEFT];
+	float w;
+
+	if (!(d > 0.0f)) {
+		*a = a_def;
+		*c = c_def;
+		return;
+	}
+	w = fminf(1.3f * d, 0.92f * S);
+	*a = 0.5f * w;
+	*c = 0.5f * 0.85f * d * d / w;
+}
+
+/* Cross-sections and crimp of both kinds from the spacings Sx, Sy (um) and
+   the free yarn diameters (0 = in proportion to the spacing). */
+static void kind_shapes(kind_params kp[3], float Sx, float Sy, const float d[2])
+{
+	kind_params *w = &kp[KIND_WARP], *f = &kp[KIND_WEFT];
 	float total;
 
 	/* warp: wide, flat, little crimp (it is under tension), Z twist */
-	w->a = 0.44f * g->Sx;
-	w->c = 0.17f * g->Sy;
+	yarn_radii(d[0], Sx, 0.44f * Sx, 0.17f * Sy, &w->a, &w->c);
 	/* weft: narrower, rounder, more crimp, S twist, more twist */
-	f->a = 0.43f * g->Sy;
-	f->c = 0.21f * g->Sy;
+	yarn_radii(d[1], Sy, 0.43f * Sy, 0.21f * Sy, &f->a, &f->c);
 	total = 0.95f * (w->c + f->c); /* centres a little closer than touching */
 	w->crimp = 0.38f * total;
 	f->crimp = 0.62f * total;
+}
+
+/* Largest distance (um) of a yarn surface from the mid-plane, with margin
+   for the per-yarn and along-yarn variation. */
+static float cloth_half_um(float Sx, float Sy, const float d[2])
+{
+	kind_params kp[3];
+
+	kind_shapes(kp, Sx, Sy, d);
+	return 1.2f * fmaxf(kp[KIND_WARP].crimp + kp[KIND_WARP].c,
+	                    kp[KIND_WEFT].crimp + kp[KIND_WEFT].c);
+}
+
+static void set_kinds(loom__exgen *g, const float diam[2])
+{
+	kind_params *w = &g->kp[KIND_WARP], *f = &g->kp[KIND_WEFT];
+
+	kind_shapes(g->kp, g->Sx, g->Sy, diam);
 	w->omega = 2.0f * (float)M_PI / (7.0f * g->Sx);
 	f->omega = -2.0f * (float)M_PI / (7.0f * g->Sy);
 	w->dmax = 0.86f;
@@ -632,6 +669,78 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 	if (p->threads > 64)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %u threads (at most 64)",
 		                  p->threads);
+	for (int k = 0; k < 2; k++) {
+		float S = (float)p->block[k] * p->voxel_size_um, d = p->yarn_diameter_um[k];
+		if (d == 0.0f)
+			continue;
+		if (!(d > 0.0f) || !(d <= 4.0f * S))
+			return loom__fail(diag, LOOM_EINVAL, "generator: %s yarn diameter %g "
+			                  "um (expected 0 < d <= %g um: 4 times the %s "
+			                  "spacing of %g um)", k ? "weft" : "warp", (double)d,
+			                  4.0 * S, k ? "pick" : "end", (double)S);
+	}
+	if (p->yarn_diameter_um[0] > 0.0f || p->yarn_diameter_um[1] > 0.0f) {
+		float half = cloth_half_um((float)p->block[0] * p->voxel_size_um,
+		                           (float)p->block[1] * p->voxel_size_um,
+		                           p->yarn_diameter_um);
+		uint32_t need = 2 * (uint32_t)ceilf(half / p->voxel_size_um) + 4;
+		if (p->block[2] < need)
+			return loom__fail(diag, LOOM_EINVAL, "generator: block depth %u voxels "
+			                  "is too thin for yarns of %g and %g um (needs at "
+			                  "least %u)", p->block[2], (double)p->yarn_diameter_um[0],
+			                  (double)p->yarn_diameter_um[1], need);
+	}
+	return LOOM_OK;
+}
+
+LOOM_API int loom_exgen_check_params(const loom_exgen_params *p, loom_diag *diag)
+{
+	return loom__exgen_check(p, diag);
+}
+
+LOOM_API int loom_exgen_set_sett(loom_exgen_params *p, double ends_per_cm,
+                                 double picks_per_cm, loom_diag *diag)
+{
+	const double sett[2] = {ends_per_cm, picks_per_cm};
+	static const char *const what[2] = {"ends", "picks"};
+	uint32_t b[2], need;
+	float half;
+
+	if (!p || !(p->voxel_size_um > 0.0f))
+		return loom__fail(diag, LOOM_EINVAL, "sett: no parameters or voxel size");
+	for (int k = 0; k < 2; k++) {
+		double v;
+		if (!(sett[k] > 0.0) || !(sett[k] <= 1e5))
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm (expected a "
+			                  "positive number)", sett[k], what[k]);
+		v = 1e4 / (sett[k] * p->voxel_size_um);
+		if (v < 3.5)
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm at %g um "
+			                  "voxels gives crossings of %.1f voxels (at least 4: "
+			                  "at most %.4g %s per cm at this voxel size, or a "
+			                  "voxel size of at most %.3g um)", sett[k], what[k],
+			                  (double)p->voxel_size_um, v,
+			                  1e4 / (3.5 * p->voxel_size_um), what[k],
+			                  1e4 / (3.5 * sett[k]));
+		if (v >= LOOM__DB_MAX_BLOCK + 0.5)
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm at %g um "
+			                  "voxels gives crossings of %.0f voxels (at most %u: "
+			                  "use coarser voxels)", sett[k], what[k],
+			                  (double)p->voxel_size_um, v, LOOM__DB_MAX_BLOCK);
+		b[k] = (uint32_t)lround(v);
+		if (sett[k] < 2 || sett[k] > 200)
+			loom__warn(diag, "sett: %g %s per cm is unusual for woven cloth "
+			           "(2..200)", sett[k], what[k]);
+	}
+	p->block[0] = b[0];
+	p->block[1] = b[1];
+	half = cloth_half_um((float)b[0] * p->voxel_size_um,
+	                     (float)b[1] * p->voxel_size_um, p->yarn_diameter_um);
+	need = 2 * (uint32_t)ceilf(half / p->voxel_size_um) + 4;
+	if (need > LOOM__DB_MAX_BLOCK)
+		need = LOOM__DB_MAX_BLOCK;
+	if (p->block[2] < need)
+		p->block[2] = need;
 	return LOOM_OK;
 }
 
@@ -716,10 +825,10 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 		for (uint32_t c = 0; c < g->cols; c++)
 			g->weave[(size_t)r * g->cols + c] =
 			        (uint8_t)loom_weave_cell(&wp, r + r0, c + c0);
-	/* mid-plane: centred, with a small per-exemplar offset (scans are not
-	   registered in z) */
-	g->z0 = (float)g->b3 * g->vs * (0.5f + 0.04f * (u01(mix64(h ^ 7)) - 0.5f));
-	set_kinds(g);
+	/* mid-plane: the same z in every exemplar of a database (blocks copied
+	   from different exemplars must not step in height) */
+	g->z0 = (float)g->b3 * g->vs * 0.5f;
+	set_kinds(g, p->yarn_diameter_um);
 	g->warps = calloc(g->cols + 2, sizeof *g->warps);
 	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
 	if (!g->warps || !g->wefts) {

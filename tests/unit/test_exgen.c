@@ -563,6 +563,172 @@ static void test_realism(void)
 	loom__exgen_free(g);
 }
 
+/* Bottom-surface counterpart of top_z. */
+static int bottom_z(const vol *v, const loom_db_yarn *yarns, uint32_t x, uint32_t y)
+{
+	for (uint32_t z = 0; z < v->s[2]; z++) {
+		size_t i = vi(v, x, y, z);
+		uint8_t l = v->l[i];
+		if (l && yarns[l].kind && !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY) &&
+		    v->d[i] >= LOOM__DB_TOP_THRESHOLD)
+			return (int)z;
+	}
+	return -1;
+}
+
+/* Every exemplar of a database has its cloth mid-plane at the same z: the
+   middle of the cloth at crossing centres, averaged separately over
+   warp-over and weft-over crossings, agrees between all eight default
+   weaves within one voxel.  The depth is 160 voxels so that an offset of
+   a few percent of b3 per exemplar would show. */
+static void test_midplane(void)
+{
+	loom_exgen_params p = params("small");
+	double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
+
+	p.block[2] = 160;
+	for (uint32_t k = 0; k < p.n_weaves; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom_diag d = {0};
+		double sum[2] = {0, 0};
+		long n[2] = {0, 0};
+		vol v;
+		CHECK_EQ_INT(loom__exgen_new(&p, k, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		for (uint32_t r = 0; r < gd.rows; r++)
+			for (uint32_t c = 0; c < gd.cols; c++) {
+				uint32_t x = c * p.block[0] + p.block[0] / 2;
+				uint32_t y = r * p.block[1] + p.block[1] / 2;
+				int t = top_z(&v, gd.yarns, x, y), b = bottom_z(&v, gd.yarns, x, y);
+				int over = gd.weave[r * gd.cols + c] != 0;
+				CHECK(t >= 0 && b >= 0);
+				sum[over] += 0.5 * (t + b);
+				n[over]++;
+			}
+		for (int o = 0; o < 2; o++) {
+			double m = sum[o] / (double)n[o];
+			printf("  %-12s %s over: mid-plane z %.2f\n", gd.name,
+			       o ? "warp" : "weft", m);
+			lo[o] = m < lo[o] ? m : lo[o];
+			hi[o] = m > hi[o] ? m : hi[o];
+		}
+		CHECK(fabsf(loom__exgen_mid_z(g) - (float)(p.block[2] - 1) / 2.0f) < 0.01f);
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	CHECK(hi[0] - lo[0] <= 1.0);
+	CHECK(hi[1] - lo[1] <= 1.0);
+}
+
+/* Mean over covered columns of the number of voxels of one kind of yarn
+   (its thickness in voxels), flyaways excluded. */
+static double kind_thickness(const vol *v, const loom_db_yarn *yarns, int kind)
+{
+	long t = 0, ncol = 0;
+
+	for (uint32_t y = 0; y < v->s[1]; y++)
+		for (uint32_t x = 0; x < v->s[0]; x++) {
+			long c = 0;
+			for (uint32_t z = 0; z < v->s[2]; z++) {
+				uint8_t l = v->l[vi(v, x, y, z)];
+				c += l && yarns[l].kind == kind &&
+				     !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY);
+			}
+			t += c;
+			ncol += c > 0;
+		}
+	return ncol ? (double)t / (double)ncol : 0;
+}
+
+/* A sett sets b1 x b2 at the voxel size (square -> square, 2:1 -> 2:1),
+   b3 grows to hold thick yarns, the yarn diameter sets the thickness;
+   bad setts and diameters are errors naming the range. */
+static void test_sett(void)
+{
+	loom_exgen_params p = params("paper");
+	loom_diag d = {0};
+	double t1[3], t2[3];
+
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 54.0, 54.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 37 && p.block[1] == 37); /* 10000 / (54 * 5) = 37.04 */
+	CHECK_EQ_INT(p.block[2], 300);
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 54.0, 27.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 37 && p.block[1] == 74);
+	p = params("small");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, 10.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 21 && p.block[1] == 42); /* 20.8 and 41.7 */
+	CHECK(p.block[2] >= 48);
+	/* a crossing under 4 voxels */
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 200.0, 20.0, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "200 ends per cm at 24 um voxels gives crossings "
+	                   "of 2.1 voxels (at least 4");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, 0.0, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "0 picks per cm (expected a positive number)");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, -3.0, &d), LOOM_EINVAL);
+	/* yarn diameter: thicker yarns, thicker cloth, and a deeper block */
+	for (int k = 0; k < 2; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		vol v;
+		p = params("small");
+		p.weaves[0] = "plain";
+		p.voxel_size_um = 10;
+		p.yarn_diameter_um[0] = p.yarn_diameter_um[1] = k ? 240.0f : 120.0f;
+		CHECK_EQ_INT(loom_exgen_set_sett(&p, 30.0, 30.0, &d), LOOM_OK);
+		CHECK(p.block[0] == 33 && p.block[1] == 33);
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		(k ? t2 : t1)[1] = kind_thickness(&v, gd.yarns, LOOM_YARN_WARP);
+		(k ? t2 : t1)[2] = kind_thickness(&v, gd.yarns, LOOM_YARN_WEFT);
+		(k ? t2 : t1)[0] = (double)p.block[2];
+		/* nothing reaches the top or bottom slice */
+		for (uint32_t y = 0; y < v.s[1]; y++)
+			for (uint32_t x = 0; x < v.s[0]; x++) {
+				uint8_t lt = v.l[vi(&v, x, y, v.s[2] - 1)];
+				uint8_t lb = v.l[vi(&v, x, y, 0)];
+				CHECK(!(lt && !(gd.yarns[lt].flags & LOOM_DB_YARN_FLYAWAY)));
+				CHECK(!lb);
+			}
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	/* 120 um round yarns: 156 um wide, 0.85 * 120^2 / 156 = 78 um thick; 240
+	   um: 0.92 * 330 = 304 um wide (the spacing caps it), 161 um thick.  The
+	   mean over the columns an ellipse covers is pi/4 of its height. */
+	printf("  yarn thickness (voxels): 120 um warp %.1f weft %.1f, 240 um warp "
+	       "%.1f weft %.1f\n", t1[1], t1[2], t2[1], t2[2]);
+	for (int k = 1; k < 3; k++) {
+		CHECK(fabs(t1[k] / (0.7854 * 7.8) - 1.0) < 0.15);
+		CHECK(fabs(t2[k] / (0.7854 * 16.1) - 1.0) < 0.15);
+	}
+	/* 400 um yarns on 30 per cm need a deeper block (the cloth is about
+	   1 mm thick) */
+	p = params("small");
+	p.voxel_size_um = 10;
+	p.yarn_diameter_um[0] = p.yarn_diameter_um[1] = 400.0f;
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 30.0, 30.0, &d), LOOM_OK);
+	printf("  b3 for 400 um yarns: %u\n", p.block[2]);
+	CHECK(p.block[2] > 100);
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_OK);
+	p.block[2] -= 2;
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	p = params("small");
+	p.yarn_diameter_um[1] = 2000.0f; /* 4 x 384 um = 1536 at most */
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "weft yarn diameter 2000 um (expected 0 < d <= "
+	                   "1536 um");
+	p.yarn_diameter_um[1] = 600.0f;
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "block depth 48 voxels is too thin");
+}
+
 static void test_bad_params(void)
 {
 	loom_exgen_params p = params("small");
@@ -620,6 +786,8 @@ int main(void)
 	RUN(test_tables_brute_force);
 	RUN(test_symmetries);
 	RUN(test_realism);
+	RUN(test_midplane);
+	RUN(test_sett);
 	RUN(test_bad_params);
 	CHECK_MAIN_END();
 }
