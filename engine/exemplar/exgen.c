@@ -35,9 +35,10 @@
  *   orientation  the helix tangent T + omega (-(a/c) p2 e1 + (c/a) p1 e2)
  *                plus a small per-fibre misalignment;
  *   label        the yarn.
- * Flyaway fibres: cubic Bezier arcs leaving a yarn's top surface, sampled
- * every 0.4 voxel and splatted with max(); they only fill voxels outside
- * yarns and have their own labels (flag FLYAWAY).
+ * Flyaway fibres: cubic Bezier arcs leaving a yarn's top surface, inside
+ * the block of their root, sampled every 0.4 voxel and splatted with max();
+ * they only fill voxels outside yarns and have their own labels (flag
+ * FLYAWAY).
  *
  * Determinism: every value is a function of the voxel position, the
  * parameters and the seed (splitmix-style hashing), so boxes can be made
@@ -56,6 +57,12 @@
 #define KIND_WEFT 2
 #define MAX_SIDE 64         /* crossings per side a generated window may have */
 #define MAX_FLY 16
+
+/* Woven mechanics (docs/exemplars.md, "Crimp and floats"). */
+#define FLOAT_RISE 0.25f /* a long float's middle rises by this much of the
+                            crimp amplitude above an interlacing */
+#define COMPRESS 0.2f    /* half-height lost where a yarn is pressed */
+#define SPREAD 0.12f     /* half-width gained in a long float's middle */
 
 /* ---- hashing and noise ------------------------------------------------- */
 
@@ -127,6 +134,10 @@ typedef struct yarn {
 	float centre;        /* nominal lateral position, um */
 	float wscale, hscale;/* per-yarn radius factors */
 	float phase;         /* twist phase, rad */
+	uint32_t period;     /* crossings per repeat along the yarn */
+	const float *hgt;    /* period crossing heights (units of the crimp) */
+	const float *wfac;   /* period half-width factors */
+	const float *cfac;   /* period half-height factors */
 } yarn;
 
 typedef struct flyaway {
@@ -149,6 +160,7 @@ struct loom__exgen {
 	uint8_t *weave;
 	char name[32], weave_name[32];
 	kind_params kp[3];   /* by kind */
+	float *mech;         /* the yarns' hgt/wfac/cfac tables */
 	yarn *warps;         /* cols + 2: c = -1 .. cols */
 	yarn *wefts;         /* rows + 2 */
 	uint32_t n_fly;
@@ -172,22 +184,31 @@ static inline float crossing_sign(const loom__exgen *g, const yarn *y, int64_t i
 	return weave_at(g, y->index, i) ? -1.0f : 1.0f;
 }
 
-/* Centre curve of yarn y at along-yarn coordinate s (um). */
+/* Centre curve of yarn y at along-yarn coordinate s (um): the crossing
+   heights joined by a cubic Hermite spline with Catmull-Rom tangents (C1;
+   flat at an isolated interlacing, a smooth arch over a float), the
+   cross-section factors by a smoothstep. */
 static void yarn_eval(const loom__exgen *g, const yarn *y, float s, float *lat,
                       float *zc, float *ha, float *hc)
 {
 	const kind_params *kp = &g->kp[y->kind];
 	float t = s / kp->spacing - 0.5f;
-	float fl = floorf(t), f = t - fl;
-	int64_t i = (int64_t)fl;
-	float s0 = crossing_sign(g, y, i), s1 = crossing_sign(g, y, i + 1);
+	float fl = floorf(t), f = t - fl, f2 = f * f, f3 = f2 * f;
+	int64_t P = y->period, i = (((int64_t)fl % P) + P) % P;
+	int64_t im = (i + P - 1) % P, i1 = (i + 1) % P, i2 = (i + 2) % P;
+	float h0 = y->hgt[i], h1 = y->hgt[i1];
+	float m0 = 0.5f * (h1 - y->hgt[im]), m1 = 0.5f * (y->hgt[i2] - h0);
+	float hz = (2 * f3 - 3 * f2 + 1) * h0 + (f3 - 2 * f2 + f) * m0 +
+	           (-2 * f3 + 3 * f2) * h1 + (f3 - f2) * m1;
+	float sf = smooth(f);
+	float wf = y->wfac[i] + (y->wfac[i1] - y->wfac[i]) * sf;
+	float cf = y->cfac[i] + (y->cfac[i1] - y->cfac[i]) * sf;
 	float u = s / kp->noise_len;
 
-	*zc = g->z0 + kp->crimp * (s0 + (s1 - s0) * smooth(f)) +
-	      kp->jit_z * noise1(y->seed ^ 0x11, u);
+	*zc = g->z0 + kp->crimp * hz + kp->jit_z * noise1(y->seed ^ 0x11, u);
 	*lat = y->centre + kp->jit_lat * noise1(y->seed ^ 0x22, u);
-	*ha = kp->a * y->wscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x33, u));
-	*hc = kp->c * y->hscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x44, u));
+	*ha = kp->a * wf * y->wscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x33, u));
+	*hc = kp->c * cf * y->hscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x44, u));
 }
 
 static void normalize3(float v[3])
@@ -496,7 +517,9 @@ static void kind_shapes(kind_params kp[3], float Sx, float Sy, const float d[2])
 	yarn_radii(d[0], Sx, 0.44f * Sx, 0.17f * Sy, &w->a, &w->c);
 	/* weft: narrower, rounder, more crimp, S twist, more twist */
 	yarn_radii(d[1], Sy, 0.43f * Sy, 0.21f * Sy, &f->a, &f->c);
-	total = 0.95f * (w->c + f->c); /* centres a little closer than touching */
+	/* at an interlacing both yarns are pressed to (1 - COMPRESS) of their
+	   half-height and touch */
+	total = (1.0f - COMPRESS) * (w->c + f->c);
 	w->crimp = 0.38f * total;
 	f->crimp = 0.62f * total;
 }
@@ -508,8 +531,8 @@ static float cloth_half_um(float Sx, float Sy, const float d[2])
 	kind_params kp[3];
 
 	kind_shapes(kp, Sx, Sy, d);
-	return 1.2f * fmaxf(kp[KIND_WARP].crimp + kp[KIND_WARP].c,
-	                    kp[KIND_WEFT].crimp + kp[KIND_WEFT].c);
+	return 1.2f * fmaxf((1.0f + FLOAT_RISE) * kp[KIND_WARP].crimp + kp[KIND_WARP].c,
+	                    (1.0f + FLOAT_RISE) * kp[KIND_WEFT].crimp + kp[KIND_WEFT].c);
 }
 
 static void set_kinds(loom__exgen *g, const float diam[2])
@@ -535,6 +558,52 @@ static void set_kinds(loom__exgen *g, const float diam[2])
 	f->noise_len = 0.9f * g->Sx;
 	w->misalign = 0.05f;
 	f->misalign = 0.07f;
+}
+
+/*
+ * Crossing heights and cross-section factors of yarn y, one per crossing of
+ * its repeat (tab: 3 x period floats).  At crossing i in a run of L equal
+ * crossings (a float of length L; b before and f after i), with the profile
+ * p = sin(pi (b + 1/2) / L) (1 in the middle of a long float, small at its
+ * ends) and free = 1 - 1/L (0 for an interlacing):
+ *   height      sign * (1 + FLOAT_RISE * free * p): a float is not pulled
+ *               down between its ends, and its stiffness arches it up, the
+ *               more the longer it is;
+ *   half-width  (1 + COMPRESS/2 * pressed) (1 + SPREAD * free * p);
+ *   half-height 1 - COMPRESS * pressed, where pressed = 1 at an interlacing
+ *               (L = 1), 1/2 at a float's ends, 0 inside a float:
+ *               lenticular where the crossing yarn presses it, spread and
+ *               rounder where it floats free.
+ */
+static void yarn_mechanics(const loom__exgen *g, yarn *y, float *tab)
+{
+	uint32_t P = y->kind == KIND_WARP ? g->rows : g->cols;
+
+	y->period = P;
+	y->hgt = tab;
+	y->wfac = tab + P;
+	y->cfac = tab + 2 * P;
+	for (uint32_t i = 0; i < P; i++) {
+		float sg = crossing_sign(g, y, i), loose, prof, pressed;
+		uint32_t b = 0, f = 0, L;
+		while (b < P && crossing_sign(g, y, (int64_t)i - b - 1) == sg)
+			b++;
+		while (f < P && crossing_sign(g, y, (int64_t)i + f + 1) == sg)
+			f++;
+		if (b + f + 1 >= P) { /* the whole repeat floats */
+			L = P;
+			prof = 1.0f;
+			pressed = 0.0f;
+		} else {
+			L = b + f + 1;
+			prof = sinf((float)M_PI * ((float)b + 0.5f) / (float)L);
+			pressed = L == 1 ? 1.0f : (b == 0 || f == 0) ? 0.5f : 0.0f;
+		}
+		loose = 1.0f - 1.0f / (float)L;
+		tab[i] = sg * (1.0f + FLOAT_RISE * loose * prof);
+		tab[P + i] = (1.0f + 0.5f * COMPRESS * pressed) * (1.0f + SPREAD * loose * prof);
+		tab[2 * P + i] = 1.0f - COMPRESS * pressed;
+	}
 }
 
 static void init_yarn(loom__exgen *g, yarn *y, int kind, int index, uint8_t label)
@@ -578,6 +647,7 @@ static int make_flyaway(loom__exgen *g, uint32_t f)
 	float extent = warp ? (float)g->size[1] * g->vs : (float)g->size[0] * g->vs;
 	float s0 = (0.1f + 0.8f * u01(mix64(h ^ 10))) * extent;
 	float lat, zc, a, c, P[4][3], dirh[3], len = 0, L, H, Hend, side, mixl;
+	float blo[2], bhi[2]; /* the root's block, less the fibre's margin */
 	float fr = 7.0f; /* fibre radius, um */
 	float zmax = (float)g->size[2] * g->vs - 2.0f * g->vs;
 
@@ -591,10 +661,37 @@ static int make_flyaway(loom__exgen *g, uint32_t f)
 	H = c * (1.0f + 2.0f * u01(mix64(h ^ 13)));
 	Hend = H * (0.2f + 0.8f * u01(mix64(h ^ 14)));
 	mixl = 0.8f * (u01(mix64(h ^ 15)) - 0.5f);
-	dirh[0] = warp ? mixl : ((h >> 4) & 1 ? 1.0f : -1.0f);
-	dirh[1] = warp ? ((h >> 4) & 1 ? 1.0f : -1.0f) : mixl;
+	/* the fibre stays inside the block (crossing) of its root, so that a
+	   block copied elsewhere never shows a flyaway cut at its edge: it
+	   leans towards the farther end of the block along its yarn and is
+	   shortened to fit (a Bezier curve lies in the hull of its control
+	   points) */
+	{
+		float S[2] = {g->Sx, g->Sy}, margin = fr + g->vs;
+		for (int k = 0; k < 2; k++) {
+			float b0 = floorf(P[0][k] / S[k]) * S[k];
+			blo[k] = b0 + margin;
+			bhi[k] = b0 + S[k] - margin;
+			if (P[0][k] < blo[k])
+				P[0][k] = blo[k];
+			if (P[0][k] > bhi[k])
+				P[0][k] = bhi[k];
+		}
+	}
+	{
+		int along = warp ? 1 : 0;
+		float sgn = P[0][along] - blo[along] > bhi[along] - P[0][along] ? -1.0f : 1.0f;
+		dirh[along] = sgn;
+		dirh[1 - along] = mixl;
+	}
 	dirh[2] = 0.0f;
 	normalize3(dirh);
+	for (int k = 0; k < 2; k++) {
+		float room = dirh[k] > 0 ? (bhi[k] - P[0][k]) / dirh[k]
+		             : dirh[k] < 0 ? (blo[k] - P[0][k]) / dirh[k] : INFINITY;
+		if (L > room)
+			L = room > 0 ? room : 0;
+	}
 	for (int k = 0; k < 2; k++) {
 		P[1][k] = P[0][k] + dirh[k] * L * 0.25f;
 		P[2][k] = P[0][k] + dirh[k] * L * 0.7f;
@@ -841,6 +938,19 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 	for (int r = -1; r <= (int)g->rows; r++)
 		init_yarn(g, &g->wefts[r + 1], KIND_WEFT, r, (uint8_t)label++);
 	g->n_labels = label - 1;
+	g->mech = malloc(sizeof(float) * 3 * ((size_t)(g->cols + 2) * g->rows +
+	                                     (size_t)(g->rows + 2) * g->cols));
+	if (!g->mech) {
+		loom__exgen_free(g);
+		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+	}
+	{
+		float *t = g->mech;
+		for (uint32_t c = 0; c < g->cols + 2; c++, t += 3 * g->rows)
+			yarn_mechanics(g, &g->warps[c], t);
+		for (uint32_t r = 0; r < g->rows + 2; r++, t += 3 * g->cols)
+			yarn_mechanics(g, &g->wefts[r], t);
+	}
 	g->n_fly = g->rows * g->cols / 4;
 	if (g->n_fly < 2)
 		g->n_fly = 2;
@@ -866,6 +976,7 @@ void loom__exgen_free(loom__exgen *g)
 	free(g->weave);
 	free(g->warps);
 	free(g->wefts);
+	free(g->mech);
 	free(g);
 }
 

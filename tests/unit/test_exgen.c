@@ -497,7 +497,8 @@ static void test_realism(void)
 	vol v;
 	long empty_top = 0, empty_bot = 0, slant[3] = {0, 0, 0}, nslant[3] = {0, 0, 0};
 	long along[3] = {0, 0, 0}, nyarn[3] = {0, 0, 0}, thick[3] = {0, 0, 0};
-	long ncol[3] = {0, 0, 0}, fly = 0;
+	long ncol[3] = {0, 0, 0}, fly = 0, fly_split = 0;
+	uint32_t fly_block[256] = {0};
 
 	p.block[0] = 48; /* finer voxels so that the surface fibres resolve */
 	p.block[1] = 32;
@@ -529,6 +530,13 @@ static void test_realism(void)
 				if (!v.l[i])
 					continue;
 				if (gd.yarns[v.l[i]].flags & LOOM_DB_YARN_FLYAWAY) {
+					/* a flyaway stays in one block: never cut at a
+					   block edge when the block is copied */
+					uint32_t blk = (y / p.block[1]) * 1024 + x / p.block[0];
+					if (!fly_block[v.l[i]])
+						fly_block[v.l[i]] = blk + 1;
+					else if (fly_block[v.l[i]] != blk + 1)
+						fly_split++;
 					fly++;
 					continue;
 				}
@@ -559,6 +567,7 @@ static void test_realism(void)
 	       (double)thick[1] / (double)ncol[1], (double)thick[2] / (double)ncol[2]);
 	CHECK((double)thick[2] / (double)ncol[2] > 1.1 * (double)thick[1] / (double)ncol[1]);
 	CHECK(fly > 0);
+	CHECK_EQ_INT(fly_split, 0);
 	vol_free(&v);
 	loom__exgen_free(g);
 }
@@ -700,13 +709,15 @@ static void test_sett(void)
 		loom__exgen_free(g);
 	}
 	/* 120 um round yarns: 156 um wide, 0.85 * 120^2 / 156 = 78 um thick; 240
-	   um: 0.92 * 330 = 304 um wide (the spacing caps it), 161 um thick.  The
-	   mean over the columns an ellipse covers is pi/4 of its height. */
+	   um: 0.92 * 330 = 304 um wide (the spacing caps it), 161 um thick.  In
+	   a plain weave every crossing is an interlacing, where the yarn is
+	   pressed to 1 - 0.2 of its half-height (COMPRESS); and the mean over the
+	   columns an ellipse covers is pi/4 of its height. */
 	printf("  yarn thickness (voxels): 120 um warp %.1f weft %.1f, 240 um warp "
 	       "%.1f weft %.1f\n", t1[1], t1[2], t2[1], t2[2]);
 	for (int k = 1; k < 3; k++) {
-		CHECK(fabs(t1[k] / (0.7854 * 7.8) - 1.0) < 0.15);
-		CHECK(fabs(t2[k] / (0.7854 * 16.1) - 1.0) < 0.15);
+		CHECK(fabs(t1[k] / (0.7854 * 0.8 * 7.8) - 1.0) < 0.15);
+		CHECK(fabs(t2[k] / (0.7854 * 0.8 * 16.1) - 1.0) < 0.15);
 	}
 	/* 400 um yarns on 30 per cm need a deeper block (the cloth is about
 	   1 mm thick) */
@@ -727,6 +738,105 @@ static void test_sett(void)
 	p.yarn_diameter_um[1] = 600.0f;
 	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(d.message, "block depth 48 voxels is too thin");
+}
+
+/* Extent of warp c's voxels in the slice y (x width, z height), voxels. */
+static void warp_extent(const vol *v, const loom__exgen_desc *gd, uint32_t c,
+                        uint32_t y, int *w, int *h)
+{
+	int xlo = INT32_MAX, xhi = -1, zlo = INT32_MAX, zhi = -1;
+
+	for (uint32_t z = 0; z < v->s[2]; z++)
+		for (uint32_t x = 0; x < v->s[0]; x++) {
+			uint8_t l = v->l[vi(v, x, y, z)];
+			if (!l || gd->yarns[l].kind != LOOM_YARN_WARP ||
+			    gd->yarns[l].index != (int16_t)c ||
+			    (gd->yarns[l].flags & LOOM_DB_YARN_FLYAWAY) || v->d[vi(v, x, y, z)] < 64)
+				continue;
+			xlo = (int)x < xlo ? (int)x : xlo;
+			xhi = (int)x > xhi ? (int)x : xhi;
+			zlo = (int)z < zlo ? (int)z : zlo;
+			zhi = (int)z > zhi ? (int)z : zhi;
+		}
+	*w = xhi - xlo + 1;
+	*h = zhi - zlo + 1;
+}
+
+/* Woven mechanics: a warp float lies higher the longer it is (mean top of
+   the warp-over crossing centres: plain < 2/2 twill < the middle of the
+   4/1 satin's floats; expected about 8.0, 8.9 and 9.7 voxels above the
+   mid-plane from the crimp and half-heights), and a warp
+   is flatter (larger width / height) where a weft presses it at an
+   interlacing than in the middle of a 4-pick float. */
+static void test_mechanics(void)
+{
+	static const char *const weaves[3] = {"plain", "twill:2/2", "satin:4/1"};
+	loom_exgen_params p = params("small");
+	double top[3];
+	double asp_pressed = 0, asp_free = 0;
+	int n_pressed = 0, n_free = 0;
+
+	p.block[0] = p.block[1] = 32;
+	p.block[2] = 96;
+	p.voxel_size_um = 10;
+	for (int k = 0; k < 3; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom_diag d = {0};
+		double sum = 0;
+		long n = 0;
+		vol v;
+		p.weaves[0] = weaves[k];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		for (uint32_t r = 0; r < gd.rows; r++)
+			for (uint32_t c = 0; c < gd.cols; c++) {
+				uint32_t x = c * 32 + 16, y = r * 32 + 16;
+				uint32_t up = (r + gd.rows - 1) % gd.rows, dn = (r + 1) % gd.rows;
+				int w, h;
+				if (!gd.weave[r * gd.cols + c])
+					continue;
+				/* the satin's 4-pick floats: their middle */
+				if (k < 2 || (gd.weave[up * gd.cols + c] && gd.weave[dn * gd.cols + c])) {
+					sum += top_z(&v, gd.yarns, x, y);
+					n++;
+				}
+				if (k != 2)
+					continue;
+				/* in the satin: the middle of a float (over on both sides) */
+				if (gd.weave[up * gd.cols + c] && gd.weave[dn * gd.cols + c]) {
+					warp_extent(&v, &gd, c, y, &w, &h);
+					asp_free += (double)w / h;
+					n_free++;
+				}
+			}
+		if (k == 2)
+			for (uint32_t r = 0; r < gd.rows; r++)
+				for (uint32_t c = 0; c < gd.cols; c++) {
+					int w, h;
+					if (gd.weave[r * gd.cols + c])
+						continue; /* the single pick the warp passes under */
+					warp_extent(&v, &gd, c, r * 32 + 16, &w, &h);
+					asp_pressed += (double)w / h;
+					n_pressed++;
+				}
+		top[k] = sum / (double)n;
+		printf("  %-10s mean top of warp floats: z %.2f (%ld crossings)\n", weaves[k],
+		       top[k], n);
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	CHECK(top[1] > top[0] + 0.5);
+	CHECK(top[2] > top[1] + 0.5);
+	CHECK(n_pressed > 0 && n_free > 0);
+	asp_pressed /= n_pressed;
+	asp_free /= n_free;
+	printf("  warp aspect (width/height): pressed %.2f, middle of a float %.2f\n",
+	       asp_pressed, asp_free);
+	CHECK(asp_pressed > 1.1 * asp_free);
 }
 
 static void test_bad_params(void)
@@ -788,6 +898,7 @@ int main(void)
 	RUN(test_realism);
 	RUN(test_midplane);
 	RUN(test_sett);
+	RUN(test_mechanics);
 	RUN(test_bad_params);
 	CHECK_MAIN_END();
 }
