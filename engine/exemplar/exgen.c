@@ -57,6 +57,8 @@
 #define KIND_WEFT 2
 #define MAX_SIDE 64         /* crossings per side a generated window may have */
 #define MAX_FLY 16
+#define ZCHUNK 512         /* fibre-level columns are made in runs of this */
+#define MAX_FIB 4000       /* fibres per yarn */
 
 /* Woven mechanics (docs/exemplars.md, "Crimp and floats"). */
 #define FLOAT_RISE 0.25f /* a long float's middle rises by this much of the
@@ -111,6 +113,49 @@ static inline float noise2(uint64_t seed, float x, float y)
 	return a + (b - a) * sy;
 }
 
+/* ---- fibre presets (docs/exemplars.md, "Fibre-level yarns") ------------
+ * The model's form follows Zhao, Luan and Bala (SIGGRAPH 2016): plies
+ * twisted about the yarn centre, fibres twisted about the ply centre, drawn
+ * from the radial density ((1 - 2 eps) ((e - e^R) / (e - 1))^beta + eps),
+ * migrating between rmin and rmax of their radius, plus hair and loop
+ * fibres.  The numbers are loom's choices from textile data (fibre
+ * diameters, typical twist angles), not the paper's fitted table. */
+typedef struct fibre_preset {
+	const char *name;
+	float d;            /* fibre diameter, um; 0: one fibre filling the yarn */
+	uint32_t plies;
+	float ply_deg;      /* ply helix angle at the ply centres */
+	float fib_deg;      /* fibre helix angle at the ply surface */
+	float packing;      /* fibre area fraction a ply is filled to */
+	float eps, beta;    /* radial density */
+	float rmin, rmax;   /* migration range, fraction of a fibre's radius */
+	float mig;          /* migration period, yarn diameters */
+	float hair, loop;   /* hair and loop fibres per mm of yarn */
+	float hair_len;     /* mean hair length, um (loops: 0.4 of it) */
+	float hair_out;     /* how far hairs reach beyond the surface, yarn radii */
+} fibre_preset;
+
+static const fibre_preset fibre_presets[] = {
+	/* name          d   ply ply  fib  pack  eps   beta rmin rmax mig hair loop len  out */
+	{"cotton",      15,  2, 20,  28, 0.20f, 0.05f, 1.5f, .85f, 1, 2.0f, 3,  5, 400, 0.6f},
+	{"rayon",       13,  2, 18,  22, 0.20f, 0.10f, 1.0f, .88f, 1, 3.0f, 1,  3, 300, 0.4f},
+	{"silk",        11,  2, 12,  10, 0.21f, 0.20f, 0.5f, .92f, 1, 4.0f, 0.3f, 1, 200, 0.3f},
+	{"polyester",   14,  1,  0,  14, 0.16f, 0.20f, 0.5f, .90f, 1, 4.0f, 0.3f, 2, 250, 0.3f},
+	{"wool",        24,  2, 22,  30, 0.19f, 0.05f, 2.0f, .80f, 1, 1.5f, 5,  8, 600, 0.9f},
+	{"linen",       18,  1,  0,  20, 0.20f, 0.10f, 1.0f, .85f, 1, 2.5f, 2,  3, 500, 0.5f},
+	{"monofilament", 0,  1,  0,   0, 1.00f, 0.00f, 1.0f, 1.0f, 1, 1.0f, 0,  0,   0, 0.0f},
+};
+
+static const fibre_preset *fibre_find(const char *name)
+{
+	if (!name || !strcmp(name, "none"))
+		return NULL;
+	for (size_t i = 0; i < sizeof fibre_presets / sizeof fibre_presets[0]; i++)
+		if (!strcmp(name, fibre_presets[i].name))
+			return &fibre_presets[i];
+	return NULL;
+}
+
 /* ---- model ------------------------------------------------------------- */
 
 typedef struct kind_params {
@@ -124,6 +169,16 @@ typedef struct kind_params {
 	float noise_len;     /* along-yarn correlation length, um */
 	float misalign;      /* fibre direction noise */
 	float spacing;       /* crossing spacing along the yarn, um */
+	/* fibre-level yarns (fp != NULL) */
+	const struct fibre_preset *fp;
+	uint32_t plies, per_ply; /* fibres per ply (as packed) */
+	float rp;            /* ply radius, fraction of the yarn's */
+	float om_p, om_f;    /* ply and fibre twist, rad per um */
+	float w1, w2;        /* fibre footprint in the cross-section, um */
+	float mig_k;         /* migration, rad per um */
+	float cell;          /* along-yarn cell of one hair or loop fibre, um */
+	float hair_max;      /* longest hair or loop, um */
+	float out;           /* farthest reach of hairs, yarn radii */
 } kind_params;
 
 typedef struct yarn {
@@ -138,6 +193,10 @@ typedef struct yarn {
 	const float *hgt;    /* period crossing heights (units of the crimp) */
 	const float *wfac;   /* period half-width factors */
 	const float *cfac;   /* period half-height factors */
+	const float *fib;    /* fibre-level: 6 floats per fibre (ply-unit
+	                        radius, cos/sin angle, cos/sin migration phase,
+	                        ply index) */
+	uint32_t n_fib;
 } yarn;
 
 typedef struct flyaway {
@@ -161,11 +220,13 @@ struct loom__exgen {
 	char name[32], weave_name[32];
 	kind_params kp[3];   /* by kind */
 	float *mech;         /* the yarns' hgt/wfac/cfac tables */
+	float *fibs;         /* the yarns' fibre tables */
 	yarn *warps;         /* cols + 2: c = -1 .. cols */
 	yarn *wefts;         /* rows + 2 */
 	uint32_t n_fly;
 	flyaway fly[MAX_FLY];
 	uint32_t n_labels;
+	int fibres;          /* fibre-level yarns (either kind) */
 	loom_db_yarn table[256];
 };
 
@@ -267,7 +328,7 @@ typedef struct hit {
 
 /* Column (px, py) in um against yarn y: fill h, return 1 if it reaches. */
 static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
-                      hit *h)
+                      hit *h, float reach)
 {
 	int warp = y->kind == KIND_WARP;
 	float s = warp ? py : px, lat, zc, a, c, off;
@@ -275,6 +336,10 @@ static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
 	float La[3]; /* lateral axis of the column's offset */
 
 	yarn_eval(g, y, s, &lat, &zc, &a, &c);
+	h->a = a;
+	h->c = c;
+	a *= reach; /* reach > 1: hairs outside the yarn's ellipse */
+	c *= reach;
 	off = (warp ? px : py) - lat;
 	if (fabsf(off) > a * 1.1f + g->vs)
 		return 0;
@@ -302,12 +367,10 @@ static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
 	h->y = y;
 	h->kp = &g->kp[y->kind];
 	h->zc = zc;
-	h->a = a;
-	h->c = c;
 	psi = h->kp->omega * s + y->phase;
 	h->cs = cosf(psi);
 	h->sn = sinf(psi);
-	h->fscale = sqrtf(a * c) / h->kp->fibre;
+	h->fscale = sqrtf(h->a * h->c) / h->kp->fibre;
 	return 1;
 }
 
@@ -357,11 +420,11 @@ static void gen_column(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
 
 	for (int64_t c = cw - 1; c <= cw + 1; c++)
 		if (c >= -1 && c <= (int64_t)g->cols &&
-		    column_hit(g, &g->warps[c + 1], px, py, &hits[n]))
+		    column_hit(g, &g->warps[c + 1], px, py, &hits[n], 1.0f))
 			n++;
 	for (int64_t r = rw - 1; r <= rw + 1; r++)
 		if (r >= -1 && r <= (int64_t)g->rows &&
-		    column_hit(g, &g->wefts[r + 1], px, py, &hits[n]))
+		    column_hit(g, &g->wefts[r + 1], px, py, &hits[n], 1.0f))
 			n++;
 	for (int i = 0; i < n; i++) {
 		if (hits[i].zlo < zmin)
@@ -397,6 +460,188 @@ static void gen_column(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
 		voxel_value(g, &hits[bi], bu, bv, best, &dens[z - zbase], &orient[z - zbase]);
 		label[z - zbase] = hits[bi].y->label;
 	}
+}
+
+/* ---- fibre-level yarns ---------------------------------------------------- */
+
+/* Overlap of the voxel [d - vs/2, d + vs/2] with [-w/2, w/2], over vs. */
+static inline float overlap1(float d, float w, float vs)
+{
+	float lo = fmaxf(d - 0.5f * vs, -0.5f * w), hi = fminf(d + 0.5f * vs, 0.5f * w);
+	return hi > lo ? (hi - lo) / vs : 0.0f;
+}
+
+/* Add one fibre, at (f1, f2) um in the cross-section frame of hit h with
+   direction dir, to the column's coverage (index 0 = z zbase). */
+static void splat_fibre(const loom__exgen *g, const hit *h, float f1, float f2,
+                        const float dir[3], int zs, int ze, int zbase, float *cov,
+                        float *best, uint16_t *bor, uint8_t *blab)
+{
+	const kind_params *kp = h->kp;
+	float dzs, p1s, half2 = 0.5f * (kp->w2 + g->vs);
+	int zlo, zhi;
+	uint16_t code = 0;
+
+	if (!(h->be2 > 0.05f))
+		return;
+	dzs = (f2 - h->al2) / h->be2;
+	p1s = h->al1 + h->be1 * dzs;
+	if (fabsf(p1s - f1) >= 0.5f * (kp->w1 + g->vs) + fabsf(h->be1) * half2)
+		return;
+	zlo = (int)ceilf((h->zc + dzs - half2 / h->be2) / g->vs - 0.5f);
+	zhi = (int)floorf((h->zc + dzs + half2 / h->be2) / g->vs - 0.5f);
+	if (zlo < zs)
+		zlo = zs;
+	if (zhi > ze - 1)
+		zhi = ze - 1;
+	for (int z = zlo; z <= zhi; z++) {
+		float dz = ((float)z + 0.5f) * g->vs - h->zc;
+		float p1 = h->al1 + h->be1 * dz, p2 = h->al2 + h->be2 * dz;
+		float c = overlap1(p1 - f1, kp->w1, g->vs) * overlap1(p2 - f2, kp->w2, g->vs);
+		int i = z - zbase;
+		if (!(c > 0.0f))
+			continue;
+		cov[i] += c;
+		if (c > best[i]) {
+			if (!code)
+				code = loom__orient_encode(dir[0], dir[1], dir[2]);
+			best[i] = c;
+			bor[i] = code;
+			blab[i] = h->y->label;
+		}
+	}
+}
+
+/* Direction of a fibre whose normalised cross-section position moves by
+   (dX, dY) per um along the yarn. */
+static void fibre_dir(const hit *h, float dX, float dY, float dir[3])
+{
+	for (int k = 0; k < 3; k++)
+		dir[k] = h->T[k] + h->a * dX * h->e1[k] + h->c * dY * h->e2[k];
+}
+
+/* All fibres of the yarn of hit h at along-yarn coordinate s. */
+static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
+                         int ze, int zbase, float *cov, float *best, uint16_t *bor,
+                         uint8_t *blab)
+{
+	const kind_params *kp = h->kp;
+	const yarn *y = h->y;
+	uint32_t np = kp->plies;
+	float cf = cosf(kp->om_f * s), sf = sinf(kp->om_f * s);
+	float cm = cosf(kp->mig_k * s), sm = sinf(kp->mig_k * s);
+	float rmid = 0.5f * (kp->fp->rmin + kp->fp->rmax);
+	float ramp = 0.5f * (kp->fp->rmax - kp->fp->rmin);
+	float cx[8], cy[8], dcx[8], dcy[8], dir[3];
+
+	if (kp->fp->d == 0.0f) { /* monofilament: the fibre is the yarn */
+		for (int z = zs; z < ze; z++) {
+			float dz = ((float)z + 0.5f) * g->vs - h->zc;
+			float u = (h->al1 + h->be1 * dz) / h->a, v = (h->al2 + h->be2 * dz) / h->c;
+			float rho = sqrtf(u * u + v * v), gu = u / h->a, gv = v / h->c;
+			float grad = sqrtf(gu * gu + gv * gv) / (rho > 1e-4f ? rho : 1e-4f);
+			float c = (1.0f - rho) / (grad > 1e-9f ? grad : 1e-9f) / g->vs + 0.5f;
+			int i = z - zbase;
+			c = fminf(fmaxf(c, 0.0f), 1.0f);
+			if (!(c > 0.0f))
+				continue;
+			cov[i] += c;
+			if (c > best[i]) {
+				best[i] = c;
+				bor[i] = loom__orient_encode(h->T[0], h->T[1], h->T[2]);
+				blab[i] = y->label;
+			}
+		}
+		return;
+	}
+	for (uint32_t j = 0; j < np; j++) {
+		float psi = kp->om_p * s + y->phase + 6.2831853f * (float)j / (float)np;
+		float rc = np > 1 ? 1.0f - kp->rp : 0.0f;
+		cx[j] = rc * cosf(psi);
+		cy[j] = rc * sinf(psi);
+		dcx[j] = -kp->om_p * cy[j];
+		dcy[j] = kp->om_p * cx[j];
+	}
+	for (uint32_t i = 0; i < y->n_fib; i++) {
+		const float *f = y->fib + 6 * i;
+		uint32_t j = (uint32_t)f[5];
+		float cph = f[1] * cf - f[2] * sf, sph = f[2] * cf + f[1] * sf;
+		float cmi = f[3] * cm - f[4] * sm, smi = f[4] * cm + f[3] * sm;
+		float R = f[0] * (rmid + ramp * cmi), dR = -f[0] * ramp * smi * kp->mig_k;
+		float X = cx[j] + kp->rp * R * cph, Y = cy[j] + kp->rp * R * sph;
+		float dX = dcx[j] + kp->rp * (dR * cph - R * kp->om_f * sph);
+		float dY = dcy[j] + kp->rp * (dR * sph + R * kp->om_f * cph);
+		fibre_dir(h, dX, dY, dir);
+		splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor, blab);
+	}
+	/* hair and loop fibres: one per cell of kp->cell um along the yarn,
+	   leaving the surface at a random angle; a hair rises steadily to its
+	   free end, a loop rises and returns */
+	if (kp->cell > 0.0f) {
+		int64_t k0 = (int64_t)floorf((s - kp->hair_max) / kp->cell);
+		int64_t k1 = (int64_t)floorf(s / kp->cell);
+		float ph = kp->fp->hair / (kp->fp->hair + kp->fp->loop);
+		for (int64_t k = k0; k <= k1; k++) {
+			uint64_t hh = hash2(y->seed ^ 0x4a17, k, 0);
+			int is_hair = u01(hh) < ph;
+			float s0 = ((float)k + u01(mix64(hh ^ 1))) * kp->cell;
+			float len = kp->fp->hair_len * (is_hair ? 0.5f + u01(mix64(hh ^ 2))
+			                                        : 0.25f + 0.3f * u01(mix64(hh ^ 2)));
+			float t = (s - s0) / len, th, out, R, dR, X, Y, dX, dY;
+			if (t < 0.0f || t > 1.0f)
+				continue;
+			out = kp->fp->hair_out * (0.4f + 0.6f * u01(mix64(hh ^ 3)));
+			th = 6.2831853f * u01(mix64(hh ^ 4)) + kp->om_f * (s - s0);
+			if (is_hair) {
+				R = 0.95f + out * t;
+				dR = out / len;
+			} else {
+				R = 0.95f + out * sinf(3.1415927f * t);
+				dR = out * 3.1415927f / len * cosf(3.1415927f * t);
+			}
+			X = R * cosf(th);
+			Y = R * sinf(th);
+			dX = dR * cosf(th) - R * kp->om_f * Y / (R > 0 ? R : 1);
+			dY = dR * sinf(th) + R * kp->om_f * X / (R > 0 ? R : 1);
+			fibre_dir(h, dX, dY, dir);
+			splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor,
+			            blab);
+		}
+	}
+}
+
+/* Fibre-level column: coverage summed over the yarns and fibres; the
+   orientation and label of the fibre covering most of the voxel.  Scratch
+   arrays of ze - zs entries. */
+static void gen_column_fibres(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
+                              int64_t ze, int64_t zbase, uint8_t *dens,
+                              uint16_t *orient, uint8_t *label, float *cov, float *best)
+{
+	float px = ((float)x + 0.5f) * g->vs, py = ((float)y + 0.5f) * g->vs;
+	int64_t cw = (int64_t)floorf(px / g->Sx), rw = (int64_t)floorf(py / g->Sy);
+	hit h;
+
+	for (int64_t z = zs; z < ze; z++) {
+		cov[z - zs] = 0.0f;
+		best[z - zs] = 0.0f;
+	}
+	for (int pass = 0; pass < 2; pass++) {
+		int64_t mid = pass ? rw : cw, lim = pass ? g->rows : g->cols;
+		for (int64_t c = mid - 1; c <= mid + 1; c++) {
+			const yarn *yy;
+			if (c < -1 || c > lim)
+				continue;
+			yy = pass ? &g->wefts[c + 1] : &g->warps[c + 1];
+			if (!column_hit(g, yy, px, py, &h, g->kp[yy->kind].out))
+				continue;
+			fibre_column(g, &h, yy->kind == KIND_WARP ? py : px, (int)zs, (int)ze,
+			             (int)zs, cov, best, orient + (zs - zbase),
+			             label + (zs - zbase));
+		}
+	}
+	for (int64_t z = zs; z < ze; z++)
+		if (best[z - zs] > 0.0f)
+			dens[z - zbase] = loom__density_encode(fminf(cov[z - zs], 1.0f));
 }
 
 /* Flyaway overlay on a box (same layout as loom__exgen_box). */
@@ -463,6 +708,7 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 {
 	size_t n = (size_t)nx * ny * nz;
 	int64_t zs = z0 < 0 ? 0 : z0, ze = z0 + nz;
+	float cov[ZCHUNK], best[ZCHUNK];
 
 	memset(density, 0, n);
 	memset(orientation, 0, n * sizeof *orientation);
@@ -478,8 +724,15 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 			size_t col = ((size_t)j * nx + i) * nz;
 			if (x < 0 || x >= (int64_t)g->size[0] || zs >= ze)
 				continue;
-			gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
-			           label + col);
+			if (!g->fibres) {
+				gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
+				           label + col);
+				continue;
+			}
+			for (int64_t za = zs; za < ze; za += ZCHUNK)
+				gen_column_fibres(g, x, y, za, za + ZCHUNK < ze ? za + ZCHUNK : ze,
+				                  z0, density + col, orientation + col, label + col,
+				                  cov, best);
 		}
 	}
 	overlay_flyaways(g, x0, y0, z0, nx, ny, nz, density, orientation, label);
@@ -558,6 +811,107 @@ static void set_kinds(loom__exgen *g, const float diam[2])
 	f->noise_len = 0.9f * g->Sx;
 	w->misalign = 0.05f;
 	f->misalign = 0.07f;
+}
+
+/* Fibre-level parameters of a kind from its preset and cross-section. */
+static void fibre_setup(loom__exgen *g, int kind, const fibre_preset *fp)
+{
+	kind_params *kp = &g->kp[kind];
+	float Req = sqrtf(kp->a * kp->c), sgn = kind == KIND_WARP ? 1.0f : -1.0f;
+	float sn, n;
+
+	kp->fp = fp;
+	kp->plies = fp->plies;
+	sn = sinf((float)M_PI / (float)fp->plies);
+	kp->rp = fp->plies > 1 ? sn / (1.0f + sn) : 1.0f;
+	if (fp->d > 0.0f) {
+		n = fp->packing * kp->rp * kp->rp * 4.0f * Req * Req / (fp->d * fp->d);
+		n = fminf(fmaxf(n, 1.0f), (float)(MAX_FIB / fp->plies));
+		kp->per_ply = (uint32_t)lroundf(n);
+	} else {
+		kp->per_ply = 1;
+	}
+	/* singles twisted Z, plied S on the warp; the weft the other way.  The
+	   angles are those seen on the top of the flattened yarn (as under a
+	   microscope): a fibre at the ply surface (its mean migration radius
+	   less the fibre's radius) and a ply centre, at half-width a */
+	{
+		float rtop = 0.5f * (fp->rmin + fp->rmax) * (1.0f - (fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0));
+		kp->om_f = sgn * tanf(fp->fib_deg * (float)M_PI / 180.0f) /
+		           (kp->a * kp->rp * rtop);
+		kp->om_p = fp->plies > 1 ? -sgn * tanf(fp->ply_deg * (float)M_PI / 180.0f) /
+		                                   ((1.0f - kp->rp) * kp->a)
+		                         : 0.0f;
+	}
+	/* the fibre footprint: a disc of the fibre's area, flattened with the
+	   yarn (half-width a, half-height c against the round yarn of radius
+	   Req), as a rectangle of the same area */
+	kp->w1 = fp->d * 0.886227f * kp->a / Req;
+	kp->w2 = fp->d * 0.886227f * kp->c / Req;
+	kp->mig_k = 2.0f * (float)M_PI / (fp->mig * 2.0f * Req);
+	kp->cell = fp->hair + fp->loop > 0.0f ? 1000.0f / (fp->hair + fp->loop) : 0.0f;
+	kp->hair_max = 1.5f * fp->hair_len;
+	kp->out = 1.0f + 1.05f * fp->hair_out + fp->d / fminf(kp->a, kp->c);
+	if (fp->d == 0.0f)
+		kp->out = 1.0f;
+}
+
+/* Radial density of fibres in a ply (R in [0, 1]), at most 1. */
+static float fibre_density(const fibre_preset *fp, float R)
+{
+	float e = 2.7182818f, q = (e - expf(R)) / (e - 1.0f);
+	return ((1.0f - 2.0f * fp->eps) * powf(q > 0 ? q : 0, fp->beta) + fp->eps) /
+	       (1.0f - fp->eps);
+}
+
+/* Fibres of yarn y (tab: 6 floats per fibre): per ply, darts drawn from the
+   radial density and kept at least 1.5 fibre diameters from the ply's
+   other fibres (in the round yarn), until per_ply are placed or 60 darts
+   in a row miss.  Returns the number placed. */
+static uint32_t make_fibres(const loom__exgen *g, yarn *y, float *tab)
+{
+	const kind_params *kp = &g->kp[y->kind];
+	const fibre_preset *fp = kp->fp;
+	float Req = sqrtf(kp->a * kp->c);
+	float fr = fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0.0f; /* ply units */
+	float dmin = 3.0f * fr, Rmax = 1.0f - fr;
+	uint32_t n = 0;
+
+	y->fib = tab;
+	for (uint32_t j = 0; j < kp->plies; j++) {
+		uint32_t first = n, miss = 0;
+		uint64_t k = 0;
+		while (n - first < kp->per_ply && miss < 60) {
+			uint64_t h = hash2(y->seed ^ 0xf1b, j, (int64_t)k++);
+			float R = fp->d > 0 ? Rmax * sqrtf(u01(h)) : 0.0f;
+			float th = 6.2831853f * u01(mix64(h ^ 1)), X, Y;
+			int ok = fp->d == 0.0f || u01(mix64(h ^ 2)) < fibre_density(fp, R);
+			X = R * cosf(th);
+			Y = R * sinf(th);
+			for (uint32_t i = first; ok && i < n; i++) {
+				float *f = tab + 6 * i, dx = f[0] * f[1] - X, dy = f[0] * f[2] - Y;
+				if (dx * dx + dy * dy < dmin * dmin)
+					ok = 0;
+			}
+			if (!ok) {
+				miss++;
+				continue;
+			}
+			miss = 0;
+			{
+				float mu = 6.2831853f * u01(mix64(h ^ 3)), *f = tab + 6 * n;
+				f[0] = R;
+				f[1] = cosf(th);
+				f[2] = sinf(th);
+				f[3] = cosf(mu);
+				f[4] = sinf(mu);
+				f[5] = (float)j;
+			}
+			n++;
+		}
+	}
+	y->n_fib = n;
+	return n;
 }
 
 /*
@@ -763,6 +1117,18 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 	if (p->rows > MAX_SIDE || p->cols > MAX_SIDE)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %ux%u crossings (at most "
 		                  "%u per side)", p->rows, p->cols, MAX_SIDE);
+	for (int k = 0; k < 2; k++) {
+		const char *f = p->fibre[k];
+		if (f && strcmp(f, "none") && !fibre_find(f))
+			return loom__fail(diag, LOOM_EINVAL, "generator: %s fibre '%s' (expected "
+			                  "none, cotton, rayon, silk, polyester, wool, linen or "
+			                  "monofilament)", k ? "weft" : "warp", f);
+	}
+	if ((fibre_find(p->fibre[0]) && p->fibre[1] && !fibre_find(p->fibre[1])) ||
+	    (fibre_find(p->fibre[1]) && p->fibre[0] && !fibre_find(p->fibre[0])))
+		return loom__fail(diag, LOOM_EINVAL, "generator: fibres 'none' and '%s' "
+		                  "cannot be mixed (both yarns fibre-level or neither)",
+		                  fibre_find(p->fibre[0]) ? p->fibre[0] : p->fibre[1]);
 	if (p->threads > 64)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %u threads (at most 64)",
 		                  p->threads);
@@ -926,6 +1292,17 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 	   from different exemplars must not step in height) */
 	g->z0 = (float)g->b3 * g->vs * 0.5f;
 	set_kinds(g, p->yarn_diameter_um);
+	{
+		const fibre_preset *fw = fibre_find(p->fibre[0]), *ff = fibre_find(p->fibre[1]);
+		if (!fw && !p->fibre[0])
+			fw = ff;
+		if (!ff && !p->fibre[1])
+			ff = fw;
+		if (fw && ff) {
+			fibre_setup(g, KIND_WARP, fw);
+			fibre_setup(g, KIND_WEFT, ff);
+		}
+	}
 	g->warps = calloc(g->cols + 2, sizeof *g->warps);
 	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
 	if (!g->warps || !g->wefts) {
@@ -950,6 +1327,19 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 			yarn_mechanics(g, &g->warps[c], t);
 		for (uint32_t r = 0; r < g->rows + 2; r++, t += 3 * g->cols)
 			yarn_mechanics(g, &g->wefts[r], t);
+	}
+	if (g->kp[KIND_WARP].fp) {
+		size_t tot = (size_t)(g->cols + g->rows + 4) * MAX_FIB * 6, used = 0;
+		g->fibres = 1;
+		g->fibs = malloc(sizeof(float) * tot);
+		if (!g->fibs) {
+			loom__exgen_free(g);
+			return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
+		}
+		for (uint32_t c = 0; c < g->cols + 2; c++)
+			used += 6 * (size_t)make_fibres(g, &g->warps[c], g->fibs + used);
+		for (uint32_t r = 0; r < g->rows + 2; r++)
+			used += 6 * (size_t)make_fibres(g, &g->wefts[r], g->fibs + used);
 	}
 	g->n_fly = g->rows * g->cols / 4;
 	if (g->n_fly < 2)
@@ -977,6 +1367,7 @@ void loom__exgen_free(loom__exgen *g)
 	free(g->warps);
 	free(g->wefts);
 	free(g->mech);
+	free(g->fibs);
 	free(g);
 }
 
@@ -990,6 +1381,22 @@ void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d)
 	memcpy(d->size, g->size, sizeof d->size);
 	d->n_yarns = g->n_labels;
 	d->yarns = g->table;
+}
+
+void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f)
+{
+	const kind_params *kp = &g->kp[kind == 2 ? KIND_WEFT : KIND_WARP];
+
+	memset(f, 0, sizeof *f);
+	if (!kp->fp)
+		return;
+	f->plies = kp->plies;
+	f->per_ply = kp->per_ply;
+	f->fibre_deg = kp->fp->fib_deg;
+	f->ply_deg = kp->fp->ply_deg;
+	f->hair_per_mm = kp->fp->hair;
+	f->loop_per_mm = kp->fp->loop;
+	f->placed = kind == 2 ? g->wefts[1].n_fib : g->warps[1].n_fib;
 }
 
 float loom__exgen_mid_z(const loom__exgen *g)

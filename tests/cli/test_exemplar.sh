@@ -16,6 +16,21 @@ expect_exit generate_bad_weave 1 "$LOOM" exemplar generate --weaves twill:0/2 -o
 expect_err_contains generate_bad_weave_msg "twill:0/2"
 if [ -e "$T/x.ldb" ]; then fail no_partial_output "x.ldb exists"; else pass no_partial_output; fi
 
+# fibre-level yarns: the same bytes for 1 and 2 threads; a bad fibre is a
+# usage error naming it
+expect_ok fibre_1 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--fibre cotton,silk --threads 1 -q -o "$T/f1.ldb"
+expect_ok fibre_2 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--fibre cotton,silk --threads 2 -q -o "$T/f2.ldb"
+if cmp -s "$T/f1.ldb" "$T/f2.ldb"; then pass fibre_threads_same; else
+	fail fibre_threads_same "1 and 2 threads differ"; fi
+expect_ok fibre_none "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	-q -o "$T/f0.ldb"
+if cmp -s "$T/f0.ldb" "$T/f1.ldb"; then fail fibre_differs "same bytes as smooth yarns"
+else pass fibre_differs; fi
+expect_exit fibre_bad 2 "$LOOM" exemplar generate --fibre hemp -o "$T/x.ldb"
+expect_err_contains fibre_bad_msg "hemp"
+
 # generate: two weaves, small preset; no progress when stderr is not a terminal
 expect_ok generate "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
 	--seed 5 -o "$DB"

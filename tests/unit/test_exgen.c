@@ -880,6 +880,234 @@ static void test_bad_params(void)
 	}
 }
 
+
+/* ---- fibre-level yarns -------------------------------------------------- */
+
+/* 4-connected components of the voxels of plane (w x h) set in m. */
+static uint32_t components(uint8_t *m, int w, int h, int *stack)
+{
+	uint32_t n = 0;
+	for (int i = 0; i < w * h; i++) {
+		int sp = 0;
+		if (!m[i])
+			continue;
+		n++;
+		m[i] = 0;
+		stack[sp++] = i;
+		while (sp) {
+			int c = stack[--sp], x = c % w, y = c / w;
+			const int nb[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+			for (int k = 0; k < 4; k++) {
+				int xx = x + nb[k][0], yy = y + nb[k][1];
+				if (xx < 0 || yy < 0 || xx >= w || yy >= h || !m[yy * w + xx])
+					continue;
+				m[yy * w + xx] = 0;
+				stack[sp++] = yy * w + xx;
+			}
+		}
+	}
+	return n;
+}
+
+/* Paper-scale cross-sections of the warps: the fibres counted as connected
+   components of density >= 128 (half covered) come out at plies x fibres per ply (hair and
+   loop fibres add a few, fibres that touch at 5 um merge). */
+static void test_fibre_count(void)
+{
+	/* (wool is left out: at this yarn size it has so few fibres that its
+	   hair outnumbers them) */
+	static const char *const fib[] = {"cotton", "silk", "rayon", "polyester"};
+	loom_diag d = {0};
+
+	for (size_t f = 0; f < sizeof fib / sizeof fib[0]; f++) {
+		loom_exgen_params p = params("paper");
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom__exgen_fibre fi;
+		uint8_t *dn, *lb, *m;
+		uint16_t *o;
+		int *stack;
+		double total = 0;
+		uint32_t slices = 0;
+
+		p.n_weaves = 1;
+		p.weaves[0] = "twill:2/3";
+		p.fibre[0] = p.fibre[1] = fib[f];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			continue;
+		loom__exgen_describe(g, &gd);
+		loom__exgen_fibres(g, 1, &fi);
+		dn = malloc((size_t)gd.size[0] * gd.size[2]);
+		lb = malloc((size_t)gd.size[0] * gd.size[2]);
+		o = malloc(2 * (size_t)gd.size[0] * gd.size[2]);
+		m = malloc((size_t)gd.size[0] * gd.size[2]);
+		stack = malloc(sizeof(int) * gd.size[0] * gd.size[2]);
+		for (uint32_t r = 0; r < gd.rows; r++) {
+			uint32_t y = r * p.block[1] + p.block[1] / 2; /* crossing centre */
+			loom__exgen_box(g, 0, y, 0, gd.size[0], 1, gd.size[2], dn, o, lb);
+			for (uint32_t c = 1; c + 1 < gd.cols; c++) {
+				uint8_t L = 0;
+				for (uint32_t k = 1; k <= gd.n_yarns; k++)
+					if (gd.yarns[k].kind == 1 && gd.yarns[k].index == (int)c &&
+					    !(gd.yarns[k].flags & LOOM_DB_YARN_FLYAWAY))
+						L = (uint8_t)k;
+				/* plane (x, z) of the warp's voxels */
+				for (uint32_t x = 0; x < gd.size[0]; x++)
+					for (uint32_t z = 0; z < gd.size[2]; z++) {
+						size_t i = (size_t)x * gd.size[2] + z;
+						m[z * gd.size[0] + x] = lb[i] == L && dn[i] >= 128;
+					}
+				total += components(m, (int)gd.size[0], (int)gd.size[2], stack);
+				slices++;
+			}
+		}
+		{
+			double mean = total / slices, want = (double)fi.plies * fi.per_ply;
+			printf("  %-10s %u plies x %u fibres (%u placed): %.1f components per "
+			       "cross-section\n", fib[f], fi.plies, fi.per_ply, fi.placed, mean);
+			CHECK(fabs(mean / want - 1.0) <= 0.25);
+		}
+		free(dn);
+		free(lb);
+		free(o);
+		free(m);
+		free(stack);
+		loom__exgen_free(g);
+	}
+}
+
+/* The fibres' helix angle read from the orientation channel on the top of
+   the warp floats (middle quarter of the yarn's width, where the surface is
+   flat; the outermost fibres) is the preset's, within 3 degrees (median
+   over the voxels). */
+static void test_fibre_twist(void)
+{
+	static const char *const fib[] = {"polyester", "linen"};
+	loom_diag d = {0};
+
+	for (size_t f = 0; f < 2; f++) {
+		loom_exgen_params p = params("paper");
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom__exgen_fibre fi;
+		uint8_t *dn, *lb;
+		uint16_t *o;
+		float *ang;
+		size_t na = 0;
+		uint32_t nz;
+
+		p.n_weaves = 1;
+		p.weaves[0] = "satin:4/1"; /* warp floats of 4 */
+		p.fibre[0] = p.fibre[1] = fib[f];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			continue;
+		loom__exgen_describe(g, &gd);
+		loom__exgen_fibres(g, 1, &fi);
+		nz = gd.size[2];
+		dn = malloc((size_t)p.block[0] * nz);
+		lb = malloc((size_t)p.block[0] * nz);
+		o = malloc(2 * (size_t)p.block[0] * nz);
+		ang = malloc(sizeof(float) * gd.size[1] * p.block[0]);
+		for (uint32_t c = 1; c + 1 < gd.cols; c++)
+			for (uint32_t y = 0; y < gd.size[1]; y++) {
+				uint32_t r = y / p.block[1], x0 = c * p.block[0] + p.block[0] / 4;
+				/* middle of a warp float of 4: its crossing and neighbours are
+				   warp-over */
+				if (!gd.weave[r * gd.cols + c] ||
+				    !gd.weave[((r + 1) % gd.rows) * gd.cols + c] ||
+				    !gd.weave[((r + gd.rows - 1) % gd.rows) * gd.cols + c])
+					continue;
+				int ztop[64];
+				float atop[64];
+				int zmax = -1;
+				uint32_t nx = p.block[0] / 4 < 64 ? p.block[0] / 4 : 64;
+				x0 = c * p.block[0] + p.block[0] / 2 - nx / 2;
+				loom__exgen_box(g, x0, y, 0, nx, 1, nz, dn, o, lb);
+				for (uint32_t i = 0; i < nx; i++) {
+					ztop[i] = -1;
+					for (int z = (int)nz - 1; z >= 0; z--) {
+						size_t k = (size_t)i * nz + (size_t)z;
+						float v[3];
+						if (!lb[k] || dn[k] < 128)
+							continue;
+						if (gd.yarns[lb[k]].kind == 1 &&
+						    !(gd.yarns[lb[k]].flags & LOOM_DB_YARN_FLYAWAY)) {
+							loom__orient_decode(o[k], v);
+							if (fabsf(v[2]) < 0.2f) {
+								ztop[i] = z;
+								atop[i] = atan2f(fabsf(v[0]), fabsf(v[1])) * 57.29578f;
+								if (z > zmax)
+									zmax = z;
+							}
+						}
+						break;
+					}
+				}
+				/* the outermost fibres (within 2 voxels of the top) carry
+				   the surface angle; deeper ones seen through gaps less */
+				for (uint32_t i = 0; i < nx; i++)
+					if (ztop[i] >= 0 && ztop[i] >= zmax - 2)
+						ang[na++] = atop[i];
+			}
+		CHECK(na > 100);
+		if (na) {
+			float med;
+			for (size_t i = 1; i < na; i++) /* insertion sort */
+				for (size_t j = i; j > 0 && ang[j - 1] > ang[j]; j--) {
+					float t = ang[j];
+					ang[j] = ang[j - 1];
+					ang[j - 1] = t;
+				}
+			med = ang[na / 2];
+			printf("  %-10s twist: preset %.1f deg, median on the floats %.1f deg "
+			       "(%zu voxels)\n", fib[f], (double)fi.fibre_deg, (double)med, na);
+			CHECK(fabsf(med - fi.fibre_deg) <= 3.0f);
+		}
+		free(dn);
+		free(lb);
+		free(o);
+		free(ang);
+		loom__exgen_free(g);
+	}
+}
+
+/* Fibre-level databases are the same bytes for 1, 2 and 3 threads. */
+static void test_fibre_threads(void)
+{
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	uint64_t h[3] = {0, 0, 0};
+	uint8_t *f[3];
+	size_t n[3];
+	const char *names[3] = {"f1.ldb", "f2.ldb", "f3.ldb"};
+
+	p.n_weaves = 2;
+	p.weaves[0] = "twill:2/3";
+	p.weaves[1] = "satin:1/4";
+	p.fibre[0] = "wool";
+	p.fibre[1] = "cotton";
+	p.brick[0] = p.brick[1] = 16;
+	p.brick[2] = 16;
+	for (int i = 0; i < 3; i++) {
+		p.threads = (unsigned)i + 1;
+		CHECK_EQ_INT(loom_exgen_write_db(tpath(names[i]), &p, &h[i], &d), LOOM_OK);
+		f[i] = slurp(tpath(names[i]), &n[i]);
+	}
+	CHECK(h[0] == h[1] && h[1] == h[2] && h[0] != 0);
+	CHECK(f[0] && f[1] && f[2] && n[0] == n[1] && n[1] == n[2] &&
+	      memcmp(f[0], f[1], n[0]) == 0 && memcmp(f[0], f[2], n[0]) == 0);
+	for (int i = 0; i < 3; i++)
+		free(f[i]);
+	/* an unknown fibre, and none mixed with a fibre, are refused */
+	p.fibre[0] = "hemp";
+	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+	CHECK(strstr(d.message, "hemp") != NULL);
+	p.fibre[0] = "none";
+	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+}
+
 int main(void)
 {
 	const char *base = getenv("LOOM_TEST_TMP");
@@ -900,5 +1128,8 @@ int main(void)
 	RUN(test_sett);
 	RUN(test_mechanics);
 	RUN(test_bad_params);
+	RUN(test_fibre_count);
+	RUN(test_fibre_twist);
+	RUN(test_fibre_threads);
 	CHECK_MAIN_END();
 }

@@ -133,7 +133,8 @@ static int sub_generate(int argc, char **argv)
 	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
 	uint64_t seed = 0;
 	double vs = 0, sett[2] = {0, 0}, ydiam[2] = {0, 0};
-	const char *sett_from = NULL;
+	const char *sett_from = NULL, *fibre = "none";
+	char fbuf[64], *fcomma;
 	loom_exgen_params p;
 	loom_diag diag;
 	progress_state ps;
@@ -162,6 +163,10 @@ static int sub_generate(int argc, char **argv)
 		OPT_CALLBACK(0, "yarn-diameter", ydiam, "UM[,UM]", opt_yarn_diameter,
 		             "free yarn diameter in micrometres, warp and weft (one "
 		             "number: both); default: in proportion to the spacing"),
+		OPT_STRING(0, "fibre", &fibre, "F[,F]", "fibre-level yarns (plies of "
+		           "twisted fibres), warp and weft (one name: both): cotton, rayon, "
+		           "silk, polyester, wool, linen, monofilament, or none (default: "
+		           "smooth yarns with fibre-like noise)"),
 		OPT_STRING(0, "sett-from", &sett_from, "DRAFT", "take the sett and yarn "
 		           "diameters the draft states (WIF [WARP]/[WEFT] Spacing, "
 		           "Thickness, Units and the SPACING/THICKNESS tables); --sett and "
@@ -242,6 +247,14 @@ static int sub_generate(int argc, char **argv)
 		           "block size; give one");
 	p.yarn_diameter_um[0] = (float)ydiam[0];
 	p.yarn_diameter_um[1] = (float)ydiam[1];
+	snprintf(fbuf, sizeof fbuf, "%s", fibre);
+	fcomma = strchr(fbuf, ',');
+	if (fcomma)
+		*fcomma++ = '\0';
+	p.fibre[0] = fbuf;
+	p.fibre[1] = fcomma ? fcomma : fbuf;
+	if (loom_exgen_check_params(&p, &diag) != LOOM_OK && strstr(diag.message, "fibre"))
+		opts_usage(&c, "--fibre: %s", diag.message);
 	if (sett[0] > 0 && loom_exgen_set_sett(&p, sett[0], sett[1], &diag) != LOOM_OK) {
 		if (opt_given(&c, sett))
 			opts_usage(&c, "--sett: %s", diag.message);

@@ -220,7 +220,7 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 #define LOOM_EXGEN_MAX_WEAVES 64
 /* Revision of the generator's output: bumped whenever the same parameters
    give different bytes (caches of generated databases key on it). */
-#define LOOM_EXGEN_REVISION 3
+#define LOOM_EXGEN_REVISION 4
 
 /* Generator parameters.  Initialise with loom_exgen_preset(). */
 typedef struct loom_exgen_params {
@@ -241,6 +241,11 @@ typedef struct loom_exgen_params {
 	float yarn_diameter_um[2];/* free (round) diameter of the warp and weft
 	                             yarns, 0 < d <= 4 x their spacing; 0 = in
 	                             proportion to the spacing (the presets) */
+	const char *fibre[2];     /* fibre-level yarns of the warp and weft:
+	                             "cotton", "rayon", "silk", "polyester",
+	                             "wool", "linen", "monofilament" (plies of
+	                             twisted fibres, docs/exemplars.md), or NULL /
+	                             "none": smooth yarns with fibre-like noise */
 } loom_exgen_params;
 
 /*
