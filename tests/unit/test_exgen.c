@@ -1100,6 +1100,37 @@ static void test_fibre_threads(void)
 	      memcmp(f[0], f[1], n[0]) == 0 && memcmp(f[0], f[2], n[0]) == 0);
 	for (int i = 0; i < 3; i++)
 		free(f[i]);
+	/* any box gives the same voxels: a box made whole and in four parts
+	   (split in x and in z) */
+	{
+		loom__exgen *g = NULL;
+		enum { NX = 24, NY = 20, NZ = 48 };
+		static uint8_t da[NX * NY * NZ], la[NX * NY * NZ], dq[NX * NY * NZ],
+		        lq[NX * NY * NZ];
+		static uint16_t oa[NX * NY * NZ], oq[NX * NY * NZ];
+		int same = 1;
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (g) {
+			loom__exgen_box(g, 30, 10, 0, NX, NY, NZ, da, oa, la);
+			for (int part = 0; part < 4; part++) {
+				int x0 = (part & 1) * 11, z0 = (part >> 1) * 19;
+				int nx = part & 1 ? NX - 11 : 11, nz = part >> 1 ? NZ - 19 : 19;
+				loom__exgen_box(g, 30 + x0, 10, z0, (uint32_t)nx, NY, (uint32_t)nz,
+				                dq, oq, lq);
+				for (int y = 0; y < NY; y++)
+					for (int x = 0; x < nx; x++)
+						for (int z = 0; z < nz; z++) {
+							size_t i = ((size_t)y * NX + (size_t)(x + x0)) * NZ +
+							           (size_t)(z + z0);
+							size_t j = ((size_t)y * nx + (size_t)x) * nz + (size_t)z;
+							if (da[i] != dq[j] || oa[i] != oq[j] || la[i] != lq[j])
+								same = 0;
+						}
+			}
+			CHECK(same);
+			loom__exgen_free(g);
+		}
+	}
 	/* an unknown fibre, and none mixed with a fibre, are refused */
 	p.fibre[0] = "hemp";
 	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
