@@ -17,6 +17,8 @@ export LOOM_TOP="$TOP"
 export LOOM_TEST_TMP="$TOP/$BUILD/test-tmp"
 rm -rf "$LOOM_TEST_TMP"
 mkdir -p "$LOOM_TEST_TMP"
+# databases generated for a draft's sett go here, never to ~/.cache
+export LOOM_CACHE_DIR="$LOOM_TEST_TMP/cache"
 
 passed=0
 failed=0

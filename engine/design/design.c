@@ -100,6 +100,8 @@ LOOM_API int loom_design_clone(const loom_design *d, loom_design **out)
 		return rc;
 	}
 	memcpy(c->types, d->types, d->n_types * sizeof *d->types);
+	memcpy(c->sett, d->sett, sizeof c->sett);
+	memcpy(c->yarn_um, d->yarn_um, sizeof c->yarn_um);
 	*out = c;
 	return LOOM_OK;
 }

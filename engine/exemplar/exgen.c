@@ -35,9 +35,10 @@
  *   orientation  the helix tangent T + omega (-(a/c) p2 e1 + (c/a) p1 e2)
  *                plus a small per-fibre misalignment;
  *   label        the yarn.
- * Flyaway fibres: cubic Bezier arcs leaving a yarn's top surface, sampled
- * every 0.4 voxel and splatted with max(); they only fill voxels outside
- * yarns and have their own labels (flag FLYAWAY).
+ * Flyaway fibres: cubic Bezier arcs leaving a yarn's top surface, inside
+ * the block of their root, sampled every 0.4 voxel and splatted with max();
+ * they only fill voxels outside yarns and have their own labels (flag
+ * FLYAWAY).
  *
  * Determinism: every value is a function of the voxel position, the
  * parameters and the seed (splitmix-style hashing), so boxes can be made
@@ -57,6 +58,14 @@
 #define MAX_SIDE 64         /* crossings per side a generated window may have */
 #define MAX_FLY 16
 #define DESIGN_LABELS 119  /* labels per yarn kind when they must be shared */
+#define ZCHUNK 512         /* fibre-level columns are made in runs of this */
+#define MAX_FIB 4000       /* fibres per yarn */
+
+/* Woven mechanics (docs/exemplars.md, "Crimp and floats"). */
+#define FLOAT_RISE 0.25f /* a long float's middle rises by this much of the
+                            crimp amplitude above an interlacing */
+#define COMPRESS 0.2f    /* half-height lost where a yarn is pressed */
+#define SPREAD 0.12f     /* half-width gained in a long float's middle */
 
 /* ---- hashing and noise ------------------------------------------------- */
 
@@ -105,6 +114,49 @@ static inline float noise2(uint64_t seed, float x, float y)
 	return a + (b - a) * sy;
 }
 
+/* ---- fibre presets (docs/exemplars.md, "Fibre-level yarns") ------------
+ * The model's form follows Zhao, Luan and Bala (SIGGRAPH 2016): plies
+ * twisted about the yarn centre, fibres twisted about the ply centre, drawn
+ * from the radial density ((1 - 2 eps) ((e - e^R) / (e - 1))^beta + eps),
+ * migrating between rmin and rmax of their radius, plus hair and loop
+ * fibres.  The numbers are loom's choices from textile data (fibre
+ * diameters, typical twist angles), not the paper's fitted table. */
+typedef struct fibre_preset {
+	const char *name;
+	float d;            /* fibre diameter, um; 0: one fibre filling the yarn */
+	uint32_t plies;
+	float ply_deg;      /* ply helix angle at the ply centres */
+	float fib_deg;      /* fibre helix angle at the ply surface */
+	float packing;      /* fibre area fraction a ply is filled to */
+	float eps, beta;    /* radial density */
+	float rmin, rmax;   /* migration range, fraction of a fibre's radius */
+	float mig;          /* migration period, yarn diameters */
+	float hair, loop;   /* hair and loop fibres per mm of yarn */
+	float hair_len;     /* mean hair length, um (loops: 0.4 of it) */
+	float hair_out;     /* how far hairs reach beyond the surface, yarn radii */
+} fibre_preset;
+
+static const fibre_preset fibre_presets[] = {
+	/* name          d   ply ply  fib  pack  eps   beta rmin rmax mig hair loop len  out */
+	{"cotton",      15,  2, 20,  28, 0.20f, 0.05f, 1.5f, .85f, 1, 2.0f, 3,  5, 400, 0.6f},
+	{"rayon",       13,  2, 18,  22, 0.20f, 0.10f, 1.0f, .88f, 1, 3.0f, 1,  3, 300, 0.4f},
+	{"silk",        11,  2, 12,  10, 0.21f, 0.20f, 0.5f, .92f, 1, 4.0f, 0.3f, 1, 200, 0.3f},
+	{"polyester",   14,  1,  0,  14, 0.16f, 0.20f, 0.5f, .90f, 1, 4.0f, 0.3f, 2, 250, 0.3f},
+	{"wool",        24,  2, 22,  30, 0.19f, 0.05f, 2.0f, .80f, 1, 1.5f, 5,  8, 600, 0.9f},
+	{"linen",       18,  1,  0,  20, 0.20f, 0.10f, 1.0f, .85f, 1, 2.5f, 2,  3, 500, 0.5f},
+	{"monofilament", 0,  1,  0,   0, 1.00f, 0.00f, 1.0f, 1.0f, 1, 1.0f, 0,  0,   0, 0.0f},
+};
+
+static const fibre_preset *fibre_find(const char *name)
+{
+	if (!name || !strcmp(name, "none"))
+		return NULL;
+	for (size_t i = 0; i < sizeof fibre_presets / sizeof fibre_presets[0]; i++)
+		if (!strcmp(name, fibre_presets[i].name))
+			return &fibre_presets[i];
+	return NULL;
+}
+
 /* ---- model ------------------------------------------------------------- */
 
 typedef struct kind_params {
@@ -118,6 +170,16 @@ typedef struct kind_params {
 	float noise_len;     /* along-yarn correlation length, um */
 	float misalign;      /* fibre direction noise */
 	float spacing;       /* crossing spacing along the yarn, um */
+	/* fibre-level yarns (fp != NULL) */
+	const struct fibre_preset *fp;
+	uint32_t plies, per_ply; /* fibres per ply (as packed) */
+	float rp;            /* ply radius, fraction of the yarn's */
+	float om_p, om_f;    /* ply and fibre twist, rad per um */
+	float w1, w2;        /* fibre footprint in the cross-section, um */
+	float mig_k;         /* migration, rad per um */
+	float cell;          /* along-yarn cell of one hair or loop fibre, um */
+	float hair_max;      /* longest hair or loop, um */
+	float out;           /* farthest reach of hairs, yarn radii */
 } kind_params;
 
 typedef struct yarn {
@@ -128,6 +190,14 @@ typedef struct yarn {
 	float centre;        /* nominal lateral position, um */
 	float wscale, hscale;/* per-yarn radius factors */
 	float phase;         /* twist phase, rad */
+	uint32_t period;     /* crossings per repeat along the yarn */
+	const float *hgt;    /* period crossing heights (units of the crimp) */
+	const float *wfac;   /* period half-width factors */
+	const float *cfac;   /* period half-height factors */
+	const float *fib;    /* fibre-level: 6 floats per fibre (ply-unit
+	                        radius, cos/sin angle, cos/sin migration phase,
+	                        ply index) */
+	uint32_t n_fib;
 } yarn;
 
 typedef struct flyaway {
@@ -150,11 +220,14 @@ struct loom__exgen {
 	uint8_t *weave;
 	char name[32], weave_name[32];
 	kind_params kp[3];   /* by kind */
+	float *mech;         /* the yarns' hgt/wfac/cfac tables */
+	float *fibs;         /* the yarns' fibre tables */
 	yarn *warps;         /* cols + 2: c = -1 .. cols */
 	yarn *wefts;         /* rows + 2 */
 	uint32_t n_fly;
 	flyaway fly[MAX_FLY];
 	uint32_t n_labels;
+	int fibres;          /* fibre-level yarns (either kind) */
 	loom_db_yarn table[256];
 };
 
@@ -173,22 +246,31 @@ static inline float crossing_sign(const loom__exgen *g, const yarn *y, int64_t i
 	return weave_at(g, y->index, i) ? -1.0f : 1.0f;
 }
 
-/* Centre curve of yarn y at along-yarn coordinate s (um). */
+/* Centre curve of yarn y at along-yarn coordinate s (um): the crossing
+   heights joined by a cubic Hermite spline with Catmull-Rom tangents (C1;
+   flat at an isolated interlacing, a smooth arch over a float), the
+   cross-section factors by a smoothstep. */
 static void yarn_eval(const loom__exgen *g, const yarn *y, float s, float *lat,
                       float *zc, float *ha, float *hc)
 {
 	const kind_params *kp = &g->kp[y->kind];
 	float t = s / kp->spacing - 0.5f;
-	float fl = floorf(t), f = t - fl;
-	int64_t i = (int64_t)fl;
-	float s0 = crossing_sign(g, y, i), s1 = crossing_sign(g, y, i + 1);
+	float fl = floorf(t), f = t - fl, f2 = f * f, f3 = f2 * f;
+	int64_t P = y->period, i = (((int64_t)fl % P) + P) % P;
+	int64_t im = (i + P - 1) % P, i1 = (i + 1) % P, i2 = (i + 2) % P;
+	float h0 = y->hgt[i], h1 = y->hgt[i1];
+	float m0 = 0.5f * (h1 - y->hgt[im]), m1 = 0.5f * (y->hgt[i2] - h0);
+	float hz = (2 * f3 - 3 * f2 + 1) * h0 + (f3 - 2 * f2 + f) * m0 +
+	           (-2 * f3 + 3 * f2) * h1 + (f3 - f2) * m1;
+	float sf = smooth(f);
+	float wf = y->wfac[i] + (y->wfac[i1] - y->wfac[i]) * sf;
+	float cf = y->cfac[i] + (y->cfac[i1] - y->cfac[i]) * sf;
 	float u = s / kp->noise_len;
 
-	*zc = g->z0 + kp->crimp * (s0 + (s1 - s0) * smooth(f)) +
-	      kp->jit_z * noise1(y->seed ^ 0x11, u);
+	*zc = g->z0 + kp->crimp * hz + kp->jit_z * noise1(y->seed ^ 0x11, u);
 	*lat = y->centre + kp->jit_lat * noise1(y->seed ^ 0x22, u);
-	*ha = kp->a * y->wscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x33, u));
-	*hc = kp->c * y->hscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x44, u));
+	*ha = kp->a * wf * y->wscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x33, u));
+	*hc = kp->c * cf * y->hscale * (1.0f + kp->jit_r * noise1(y->seed ^ 0x44, u));
 }
 
 static void normalize3(float v[3])
@@ -247,7 +329,7 @@ typedef struct hit {
 
 /* Column (px, py) in um against yarn y: fill h, return 1 if it reaches. */
 static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
-                      hit *h)
+                      hit *h, float reach)
 {
 	int warp = y->kind == KIND_WARP;
 	float s = warp ? py : px, lat, zc, a, c, off;
@@ -255,6 +337,10 @@ static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
 	float La[3]; /* lateral axis of the column's offset */
 
 	yarn_eval(g, y, s, &lat, &zc, &a, &c);
+	h->a = a;
+	h->c = c;
+	a *= reach; /* reach > 1: hairs outside the yarn's ellipse */
+	c *= reach;
 	off = (warp ? px : py) - lat;
 	if (fabsf(off) > a * 1.1f + g->vs)
 		return 0;
@@ -282,12 +368,10 @@ static int column_hit(const loom__exgen *g, const yarn *y, float px, float py,
 	h->y = y;
 	h->kp = &g->kp[y->kind];
 	h->zc = zc;
-	h->a = a;
-	h->c = c;
 	psi = h->kp->omega * s + y->phase;
 	h->cs = cosf(psi);
 	h->sn = sinf(psi);
-	h->fscale = sqrtf(a * c) / h->kp->fibre;
+	h->fscale = sqrtf(h->a * h->c) / h->kp->fibre;
 	return 1;
 }
 
@@ -337,11 +421,11 @@ static void gen_column(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
 
 	for (int64_t c = cw - 1; c <= cw + 1; c++)
 		if (c >= -1 && c <= (int64_t)g->cols &&
-		    column_hit(g, &g->warps[c + 1], px, py, &hits[n]))
+		    column_hit(g, &g->warps[c + 1], px, py, &hits[n], 1.0f))
 			n++;
 	for (int64_t r = rw - 1; r <= rw + 1; r++)
 		if (r >= -1 && r <= (int64_t)g->rows &&
-		    column_hit(g, &g->wefts[r + 1], px, py, &hits[n]))
+		    column_hit(g, &g->wefts[r + 1], px, py, &hits[n], 1.0f))
 			n++;
 	for (int i = 0; i < n; i++) {
 		if (hits[i].zlo < zmin)
@@ -377,6 +461,188 @@ static void gen_column(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
 		voxel_value(g, &hits[bi], bu, bv, best, &dens[z - zbase], &orient[z - zbase]);
 		label[z - zbase] = hits[bi].y->label;
 	}
+}
+
+/* ---- fibre-level yarns ---------------------------------------------------- */
+
+/* Overlap of the voxel [d - vs/2, d + vs/2] with [-w/2, w/2], over vs. */
+static inline float overlap1(float d, float w, float vs)
+{
+	float lo = fmaxf(d - 0.5f * vs, -0.5f * w), hi = fminf(d + 0.5f * vs, 0.5f * w);
+	return hi > lo ? (hi - lo) / vs : 0.0f;
+}
+
+/* Add one fibre, at (f1, f2) um in the cross-section frame of hit h with
+   direction dir, to the column's coverage (index 0 = z zbase). */
+static void splat_fibre(const loom__exgen *g, const hit *h, float f1, float f2,
+                        const float dir[3], int zs, int ze, int zbase, float *cov,
+                        float *best, uint16_t *bor, uint8_t *blab)
+{
+	const kind_params *kp = h->kp;
+	float dzs, p1s, half2 = 0.5f * (kp->w2 + g->vs);
+	int zlo, zhi;
+	uint16_t code = 0;
+
+	if (!(h->be2 > 0.05f))
+		return;
+	dzs = (f2 - h->al2) / h->be2;
+	p1s = h->al1 + h->be1 * dzs;
+	if (fabsf(p1s - f1) >= 0.5f * (kp->w1 + g->vs) + fabsf(h->be1) * half2)
+		return;
+	zlo = (int)ceilf((h->zc + dzs - half2 / h->be2) / g->vs - 0.5f);
+	zhi = (int)floorf((h->zc + dzs + half2 / h->be2) / g->vs - 0.5f);
+	if (zlo < zs)
+		zlo = zs;
+	if (zhi > ze - 1)
+		zhi = ze - 1;
+	for (int z = zlo; z <= zhi; z++) {
+		float dz = ((float)z + 0.5f) * g->vs - h->zc;
+		float p1 = h->al1 + h->be1 * dz, p2 = h->al2 + h->be2 * dz;
+		float c = overlap1(p1 - f1, kp->w1, g->vs) * overlap1(p2 - f2, kp->w2, g->vs);
+		int i = z - zbase;
+		if (!(c > 0.0f))
+			continue;
+		cov[i] += c;
+		if (c > best[i]) {
+			if (!code)
+				code = loom__orient_encode(dir[0], dir[1], dir[2]);
+			best[i] = c;
+			bor[i] = code;
+			blab[i] = h->y->label;
+		}
+	}
+}
+
+/* Direction of a fibre whose normalised cross-section position moves by
+   (dX, dY) per um along the yarn. */
+static void fibre_dir(const hit *h, float dX, float dY, float dir[3])
+{
+	for (int k = 0; k < 3; k++)
+		dir[k] = h->T[k] + h->a * dX * h->e1[k] + h->c * dY * h->e2[k];
+}
+
+/* All fibres of the yarn of hit h at along-yarn coordinate s. */
+static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
+                         int ze, int zbase, float *cov, float *best, uint16_t *bor,
+                         uint8_t *blab)
+{
+	const kind_params *kp = h->kp;
+	const yarn *y = h->y;
+	uint32_t np = kp->plies;
+	float cf = cosf(kp->om_f * s), sf = sinf(kp->om_f * s);
+	float cm = cosf(kp->mig_k * s), sm = sinf(kp->mig_k * s);
+	float rmid = 0.5f * (kp->fp->rmin + kp->fp->rmax);
+	float ramp = 0.5f * (kp->fp->rmax - kp->fp->rmin);
+	float cx[8], cy[8], dcx[8], dcy[8], dir[3];
+
+	if (kp->fp->d == 0.0f) { /* monofilament: the fibre is the yarn */
+		for (int z = zs; z < ze; z++) {
+			float dz = ((float)z + 0.5f) * g->vs - h->zc;
+			float u = (h->al1 + h->be1 * dz) / h->a, v = (h->al2 + h->be2 * dz) / h->c;
+			float rho = sqrtf(u * u + v * v), gu = u / h->a, gv = v / h->c;
+			float grad = sqrtf(gu * gu + gv * gv) / (rho > 1e-4f ? rho : 1e-4f);
+			float c = (1.0f - rho) / (grad > 1e-9f ? grad : 1e-9f) / g->vs + 0.5f;
+			int i = z - zbase;
+			c = fminf(fmaxf(c, 0.0f), 1.0f);
+			if (!(c > 0.0f))
+				continue;
+			cov[i] += c;
+			if (c > best[i]) {
+				best[i] = c;
+				bor[i] = loom__orient_encode(h->T[0], h->T[1], h->T[2]);
+				blab[i] = y->label;
+			}
+		}
+		return;
+	}
+	for (uint32_t j = 0; j < np; j++) {
+		float psi = kp->om_p * s + y->phase + 6.2831853f * (float)j / (float)np;
+		float rc = np > 1 ? 1.0f - kp->rp : 0.0f;
+		cx[j] = rc * cosf(psi);
+		cy[j] = rc * sinf(psi);
+		dcx[j] = -kp->om_p * cy[j];
+		dcy[j] = kp->om_p * cx[j];
+	}
+	for (uint32_t i = 0; i < y->n_fib; i++) {
+		const float *f = y->fib + 6 * i;
+		uint32_t j = (uint32_t)f[5];
+		float cph = f[1] * cf - f[2] * sf, sph = f[2] * cf + f[1] * sf;
+		float cmi = f[3] * cm - f[4] * sm, smi = f[4] * cm + f[3] * sm;
+		float R = f[0] * (rmid + ramp * cmi), dR = -f[0] * ramp * smi * kp->mig_k;
+		float X = cx[j] + kp->rp * R * cph, Y = cy[j] + kp->rp * R * sph;
+		float dX = dcx[j] + kp->rp * (dR * cph - R * kp->om_f * sph);
+		float dY = dcy[j] + kp->rp * (dR * sph + R * kp->om_f * cph);
+		fibre_dir(h, dX, dY, dir);
+		splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor, blab);
+	}
+	/* hair and loop fibres: one per cell of kp->cell um along the yarn,
+	   leaving the surface at a random angle; a hair rises steadily to its
+	   free end, a loop rises and returns */
+	if (kp->cell > 0.0f) {
+		int64_t k0 = (int64_t)floorf((s - kp->hair_max) / kp->cell);
+		int64_t k1 = (int64_t)floorf(s / kp->cell);
+		float ph = kp->fp->hair / (kp->fp->hair + kp->fp->loop);
+		for (int64_t k = k0; k <= k1; k++) {
+			uint64_t hh = hash2(y->seed ^ 0x4a17, k, 0);
+			int is_hair = u01(hh) < ph;
+			float s0 = ((float)k + u01(mix64(hh ^ 1))) * kp->cell;
+			float len = kp->fp->hair_len * (is_hair ? 0.5f + u01(mix64(hh ^ 2))
+			                                        : 0.25f + 0.3f * u01(mix64(hh ^ 2)));
+			float t = (s - s0) / len, th, out, R, dR, X, Y, dX, dY;
+			if (t < 0.0f || t > 1.0f)
+				continue;
+			out = kp->fp->hair_out * (0.4f + 0.6f * u01(mix64(hh ^ 3)));
+			th = 6.2831853f * u01(mix64(hh ^ 4)) + kp->om_f * (s - s0);
+			if (is_hair) {
+				R = 0.95f + out * t;
+				dR = out / len;
+			} else {
+				R = 0.95f + out * sinf(3.1415927f * t);
+				dR = out * 3.1415927f / len * cosf(3.1415927f * t);
+			}
+			X = R * cosf(th);
+			Y = R * sinf(th);
+			dX = dR * cosf(th) - R * kp->om_f * Y / (R > 0 ? R : 1);
+			dY = dR * sinf(th) + R * kp->om_f * X / (R > 0 ? R : 1);
+			fibre_dir(h, dX, dY, dir);
+			splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor,
+			            blab);
+		}
+	}
+}
+
+/* Fibre-level column: coverage summed over the yarns and fibres; the
+   orientation and label of the fibre covering most of the voxel.  Scratch
+   arrays of ze - zs entries. */
+static void gen_column_fibres(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
+                              int64_t ze, int64_t zbase, uint8_t *dens,
+                              uint16_t *orient, uint8_t *label, float *cov, float *best)
+{
+	float px = ((float)x + 0.5f) * g->vs, py = ((float)y + 0.5f) * g->vs;
+	int64_t cw = (int64_t)floorf(px / g->Sx), rw = (int64_t)floorf(py / g->Sy);
+	hit h;
+
+	for (int64_t z = zs; z < ze; z++) {
+		cov[z - zs] = 0.0f;
+		best[z - zs] = 0.0f;
+	}
+	for (int pass = 0; pass < 2; pass++) {
+		int64_t mid = pass ? rw : cw, lim = pass ? g->rows : g->cols;
+		for (int64_t c = mid - 1; c <= mid + 1; c++) {
+			const yarn *yy;
+			if (c < -1 || c > lim)
+				continue;
+			yy = pass ? &g->wefts[c + 1] : &g->warps[c + 1];
+			if (!column_hit(g, yy, px, py, &h, g->kp[yy->kind].out))
+				continue;
+			fibre_column(g, &h, yy->kind == KIND_WARP ? py : px, (int)zs, (int)ze,
+			             (int)zs, cov, best, orient + (zs - zbase),
+			             label + (zs - zbase));
+		}
+	}
+	for (int64_t z = zs; z < ze; z++)
+		if (best[z - zs] > 0.0f)
+			dens[z - zbase] = loom__density_encode(fminf(cov[z - zs], 1.0f));
 }
 
 /* Flyaway overlay on a box (same layout as loom__exgen_box). */
@@ -443,6 +709,7 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 {
 	size_t n = (size_t)nx * ny * nz;
 	int64_t zs = z0 < 0 ? 0 : z0, ze = z0 + nz;
+	float cov[ZCHUNK], best[ZCHUNK];
 
 	memset(density, 0, n);
 	memset(orientation, 0, n * sizeof *orientation);
@@ -458,8 +725,15 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 			size_t col = ((size_t)j * nx + i) * nz;
 			if (x < 0 || x >= (int64_t)g->size[0] || zs >= ze)
 				continue;
-			gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
-			           label + col);
+			if (!g->fibres) {
+				gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
+				           label + col);
+				continue;
+			}
+			for (int64_t za = zs; za < ze; za += ZCHUNK)
+				gen_column_fibres(g, x, y, za, za + ZCHUNK < ze ? za + ZCHUNK : ze,
+				                  z0, density + col, orientation + col, label + col,
+				                  cov, best);
 		}
 	}
 	overlay_flyaways(g, x0, y0, z0, nx, ny, nz, density, orientation, label);
@@ -467,20 +741,59 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
 
 /* ---- construction -------------------------------------------------------- */
 
-static void set_kinds(loom__exgen *g)
+/* Half-width and half-height (um) of a yarn of free diameter d (um) lying
+   at lateral spacing S: flattened to 1.3 d wide (at most 0.92 S, where it
+   meets its neighbours) and 0.85 of its area kept (the yarn is pressed),
+   so a round 200 um yarn becomes 260 x 111 um.  d = 0: the defaults. */
+static void yarn_radii(float d, float S, float a_def, float c_def, float *a,
+                       float *c)
 {
-	kind_params *w = &g->kp[KIND_WARP], *f = &g->kp[KIND_WEFT];
+	float w;
+
+	if (!(d > 0.0f)) {
+		*a = a_def;
+		*c = c_def;
+		return;
+	}
+	w = fminf(1.3f * d, 0.92f * S);
+	*a = 0.5f * w;
+	*c = 0.5f * 0.85f * d * d / w;
+}
+
+/* Cross-sections and crimp of both kinds from the spacings Sx, Sy (um) and
+   the free yarn diameters (0 = in proportion to the spacing). */
+static void kind_shapes(kind_params kp[3], float Sx, float Sy, const float d[2])
+{
+	kind_params *w = &kp[KIND_WARP], *f = &kp[KIND_WEFT];
 	float total;
 
 	/* warp: wide, flat, little crimp (it is under tension), Z twist */
-	w->a = 0.44f * g->Sx;
-	w->c = 0.17f * g->Sy;
+	yarn_radii(d[0], Sx, 0.44f * Sx, 0.17f * Sy, &w->a, &w->c);
 	/* weft: narrower, rounder, more crimp, S twist, more twist */
-	f->a = 0.43f * g->Sy;
-	f->c = 0.21f * g->Sy;
-	total = 0.95f * (w->c + f->c); /* centres a little closer than touching */
+	yarn_radii(d[1], Sy, 0.43f * Sy, 0.21f * Sy, &f->a, &f->c);
+	/* at an interlacing both yarns are pressed to (1 - COMPRESS) of their
+	   half-height and touch */
+	total = (1.0f - COMPRESS) * (w->c + f->c);
 	w->crimp = 0.38f * total;
 	f->crimp = 0.62f * total;
+}
+
+/* Largest distance (um) of a yarn surface from the mid-plane, with margin
+   for the per-yarn and along-yarn variation. */
+static float cloth_half_um(float Sx, float Sy, const float d[2])
+{
+	kind_params kp[3];
+
+	kind_shapes(kp, Sx, Sy, d);
+	return 1.2f * fmaxf((1.0f + FLOAT_RISE) * kp[KIND_WARP].crimp + kp[KIND_WARP].c,
+	                    (1.0f + FLOAT_RISE) * kp[KIND_WEFT].crimp + kp[KIND_WEFT].c);
+}
+
+static void set_kinds(loom__exgen *g, const float diam[2])
+{
+	kind_params *w = &g->kp[KIND_WARP], *f = &g->kp[KIND_WEFT];
+
+	kind_shapes(g->kp, g->Sx, g->Sy, diam);
 	w->omega = 2.0f * (float)M_PI / (7.0f * g->Sx);
 	f->omega = -2.0f * (float)M_PI / (7.0f * g->Sy);
 	w->dmax = 0.86f;
@@ -499,6 +812,153 @@ static void set_kinds(loom__exgen *g)
 	f->noise_len = 0.9f * g->Sx;
 	w->misalign = 0.05f;
 	f->misalign = 0.07f;
+}
+
+/* Fibre-level parameters of a kind from its preset and cross-section. */
+static void fibre_setup(loom__exgen *g, int kind, const fibre_preset *fp)
+{
+	kind_params *kp = &g->kp[kind];
+	float Req = sqrtf(kp->a * kp->c), sgn = kind == KIND_WARP ? 1.0f : -1.0f;
+	float sn, n;
+
+	kp->fp = fp;
+	kp->plies = fp->plies;
+	sn = sinf((float)M_PI / (float)fp->plies);
+	kp->rp = fp->plies > 1 ? sn / (1.0f + sn) : 1.0f;
+	if (fp->d > 0.0f) {
+		n = fp->packing * kp->rp * kp->rp * 4.0f * Req * Req / (fp->d * fp->d);
+		n = fminf(fmaxf(n, 1.0f), (float)(MAX_FIB / fp->plies));
+		kp->per_ply = (uint32_t)lroundf(n);
+	} else {
+		kp->per_ply = 1;
+	}
+	/* singles twisted Z, plied S on the warp; the weft the other way.  The
+	   angles are those seen on the top of the flattened yarn (as under a
+	   microscope): a fibre at the ply surface (its mean migration radius
+	   less the fibre's radius) and a ply centre, at half-width a */
+	{
+		float rtop = 0.5f * (fp->rmin + fp->rmax) * (1.0f - (fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0));
+		kp->om_f = sgn * tanf(fp->fib_deg * (float)M_PI / 180.0f) /
+		           (kp->a * kp->rp * rtop);
+		kp->om_p = fp->plies > 1 ? -sgn * tanf(fp->ply_deg * (float)M_PI / 180.0f) /
+		                                   ((1.0f - kp->rp) * kp->a)
+		                         : 0.0f;
+	}
+	/* the fibre footprint: a disc of the fibre's area, flattened with the
+	   yarn (half-width a, half-height c against the round yarn of radius
+	   Req), as a rectangle of the same area */
+	kp->w1 = fp->d * 0.886227f * kp->a / Req;
+	kp->w2 = fp->d * 0.886227f * kp->c / Req;
+	kp->mig_k = 2.0f * (float)M_PI / (fp->mig * 2.0f * Req);
+	kp->cell = fp->hair + fp->loop > 0.0f ? 1000.0f / (fp->hair + fp->loop) : 0.0f;
+	kp->hair_max = 1.5f * fp->hair_len;
+	kp->out = 1.0f + 1.05f * fp->hair_out + fp->d / fminf(kp->a, kp->c);
+	if (fp->d == 0.0f)
+		kp->out = 1.0f;
+}
+
+/* Radial density of fibres in a ply (R in [0, 1]), at most 1. */
+static float fibre_density(const fibre_preset *fp, float R)
+{
+	float e = 2.7182818f, q = (e - expf(R)) / (e - 1.0f);
+	return ((1.0f - 2.0f * fp->eps) * powf(q > 0 ? q : 0, fp->beta) + fp->eps) /
+	       (1.0f - fp->eps);
+}
+
+/* Fibres of yarn y (tab: 6 floats per fibre): per ply, darts drawn from the
+   radial density and kept at least 1.5 fibre diameters from the ply's
+   other fibres (in the round yarn), until per_ply are placed or 60 darts
+   in a row miss.  Returns the number placed. */
+static uint32_t make_fibres(const loom__exgen *g, yarn *y, float *tab)
+{
+	const kind_params *kp = &g->kp[y->kind];
+	const fibre_preset *fp = kp->fp;
+	float Req = sqrtf(kp->a * kp->c);
+	float fr = fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0.0f; /* ply units */
+	float dmin = 3.0f * fr, Rmax = 1.0f - fr;
+	uint32_t n = 0;
+
+	y->fib = tab;
+	for (uint32_t j = 0; j < kp->plies; j++) {
+		uint32_t first = n, miss = 0;
+		uint64_t k = 0;
+		while (n - first < kp->per_ply && miss < 60) {
+			uint64_t h = hash2(y->seed ^ 0xf1b, j, (int64_t)k++);
+			float R = fp->d > 0 ? Rmax * sqrtf(u01(h)) : 0.0f;
+			float th = 6.2831853f * u01(mix64(h ^ 1)), X, Y;
+			int ok = fp->d == 0.0f || u01(mix64(h ^ 2)) < fibre_density(fp, R);
+			X = R * cosf(th);
+			Y = R * sinf(th);
+			for (uint32_t i = first; ok && i < n; i++) {
+				float *f = tab + 6 * i, dx = f[0] * f[1] - X, dy = f[0] * f[2] - Y;
+				if (dx * dx + dy * dy < dmin * dmin)
+					ok = 0;
+			}
+			if (!ok) {
+				miss++;
+				continue;
+			}
+			miss = 0;
+			{
+				float mu = 6.2831853f * u01(mix64(h ^ 3)), *f = tab + 6 * n;
+				f[0] = R;
+				f[1] = cosf(th);
+				f[2] = sinf(th);
+				f[3] = cosf(mu);
+				f[4] = sinf(mu);
+				f[5] = (float)j;
+			}
+			n++;
+		}
+	}
+	y->n_fib = n;
+	return n;
+}
+
+/*
+ * Crossing heights and cross-section factors of yarn y, one per crossing of
+ * its repeat (tab: 3 x period floats).  At crossing i in a run of L equal
+ * crossings (a float of length L; b before and f after i), with the profile
+ * p = sin(pi (b + 1/2) / L) (1 in the middle of a long float, small at its
+ * ends) and free = 1 - 1/L (0 for an interlacing):
+ *   height      sign * (1 + FLOAT_RISE * free * p): a float is not pulled
+ *               down between its ends, and its stiffness arches it up, the
+ *               more the longer it is;
+ *   half-width  (1 + COMPRESS/2 * pressed) (1 + SPREAD * free * p);
+ *   half-height 1 - COMPRESS * pressed, where pressed = 1 at an interlacing
+ *               (L = 1), 1/2 at a float's ends, 0 inside a float:
+ *               lenticular where the crossing yarn presses it, spread and
+ *               rounder where it floats free.
+ */
+static void yarn_mechanics(const loom__exgen *g, yarn *y, float *tab)
+{
+	uint32_t P = y->kind == KIND_WARP ? g->rows : g->cols;
+
+	y->period = P;
+	y->hgt = tab;
+	y->wfac = tab + P;
+	y->cfac = tab + 2 * P;
+	for (uint32_t i = 0; i < P; i++) {
+		float sg = crossing_sign(g, y, i), loose, prof, pressed;
+		uint32_t b = 0, f = 0, L;
+		while (b < P && crossing_sign(g, y, (int64_t)i - b - 1) == sg)
+			b++;
+		while (f < P && crossing_sign(g, y, (int64_t)i + f + 1) == sg)
+			f++;
+		if (b + f + 1 >= P) { /* the whole repeat floats */
+			L = P;
+			prof = 1.0f;
+			pressed = 0.0f;
+		} else {
+			L = b + f + 1;
+			prof = sinf((float)M_PI * ((float)b + 0.5f) / (float)L);
+			pressed = L == 1 ? 1.0f : (b == 0 || f == 0) ? 0.5f : 0.0f;
+		}
+		loose = 1.0f - 1.0f / (float)L;
+		tab[i] = sg * (1.0f + FLOAT_RISE * loose * prof);
+		tab[P + i] = (1.0f + 0.5f * COMPRESS * pressed) * (1.0f + SPREAD * loose * prof);
+		tab[2 * P + i] = 1.0f - COMPRESS * pressed;
+	}
 }
 
 static void init_yarn(loom__exgen *g, yarn *y, int kind, int index, uint8_t label)
@@ -542,6 +1002,7 @@ static int make_flyaway(loom__exgen *g, uint32_t f)
 	float extent = warp ? (float)g->size[1] * g->vs : (float)g->size[0] * g->vs;
 	float s0 = (0.1f + 0.8f * u01(mix64(h ^ 10))) * extent;
 	float lat, zc, a, c, P[4][3], dirh[3], len = 0, L, H, Hend, side, mixl;
+	float blo[2], bhi[2]; /* the root's block, less the fibre's margin */
 	float fr = 7.0f; /* fibre radius, um */
 	float zmax = (float)g->size[2] * g->vs - 2.0f * g->vs;
 
@@ -555,10 +1016,37 @@ static int make_flyaway(loom__exgen *g, uint32_t f)
 	H = c * (1.0f + 2.0f * u01(mix64(h ^ 13)));
 	Hend = H * (0.2f + 0.8f * u01(mix64(h ^ 14)));
 	mixl = 0.8f * (u01(mix64(h ^ 15)) - 0.5f);
-	dirh[0] = warp ? mixl : ((h >> 4) & 1 ? 1.0f : -1.0f);
-	dirh[1] = warp ? ((h >> 4) & 1 ? 1.0f : -1.0f) : mixl;
+	/* the fibre stays inside the block (crossing) of its root, so that a
+	   block copied elsewhere never shows a flyaway cut at its edge: it
+	   leans towards the farther end of the block along its yarn and is
+	   shortened to fit (a Bezier curve lies in the hull of its control
+	   points) */
+	{
+		float S[2] = {g->Sx, g->Sy}, margin = fr + g->vs;
+		for (int k = 0; k < 2; k++) {
+			float b0 = floorf(P[0][k] / S[k]) * S[k];
+			blo[k] = b0 + margin;
+			bhi[k] = b0 + S[k] - margin;
+			if (P[0][k] < blo[k])
+				P[0][k] = blo[k];
+			if (P[0][k] > bhi[k])
+				P[0][k] = bhi[k];
+		}
+	}
+	{
+		int along = warp ? 1 : 0;
+		float sgn = P[0][along] - blo[along] > bhi[along] - P[0][along] ? -1.0f : 1.0f;
+		dirh[along] = sgn;
+		dirh[1 - along] = mixl;
+	}
 	dirh[2] = 0.0f;
 	normalize3(dirh);
+	for (int k = 0; k < 2; k++) {
+		float room = dirh[k] > 0 ? (bhi[k] - P[0][k]) / dirh[k]
+		             : dirh[k] < 0 ? (blo[k] - P[0][k]) / dirh[k] : INFINITY;
+		if (L > room)
+			L = room > 0 ? room : 0;
+	}
 	for (int k = 0; k < 2; k++) {
 		P[1][k] = P[0][k] + dirh[k] * L * 0.25f;
 		P[2][k] = P[0][k] + dirh[k] * L * 0.7f;
@@ -630,9 +1118,93 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 	if (p->rows > MAX_SIDE || p->cols > MAX_SIDE)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %ux%u crossings (at most "
 		                  "%u per side)", p->rows, p->cols, MAX_SIDE);
+	for (int k = 0; k < 2; k++) {
+		const char *f = p->fibre[k];
+		if (f && strcmp(f, "none") && !fibre_find(f))
+			return loom__fail(diag, LOOM_EINVAL, "generator: %s fibre '%s' (expected "
+			                  "none, cotton, rayon, silk, polyester, wool, linen or "
+			                  "monofilament)", k ? "weft" : "warp", f);
+	}
+	if ((fibre_find(p->fibre[0]) && p->fibre[1] && !fibre_find(p->fibre[1])) ||
+	    (fibre_find(p->fibre[1]) && p->fibre[0] && !fibre_find(p->fibre[0])))
+		return loom__fail(diag, LOOM_EINVAL, "generator: fibres 'none' and '%s' "
+		                  "cannot be mixed (both yarns fibre-level or neither)",
+		                  fibre_find(p->fibre[0]) ? p->fibre[0] : p->fibre[1]);
 	if (p->threads > 64)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %u threads (at most 64)",
 		                  p->threads);
+	for (int k = 0; k < 2; k++) {
+		float S = (float)p->block[k] * p->voxel_size_um, d = p->yarn_diameter_um[k];
+		if (d == 0.0f)
+			continue;
+		if (!(d > 0.0f) || !(d <= 4.0f * S))
+			return loom__fail(diag, LOOM_EINVAL, "generator: %s yarn diameter %g "
+			                  "um (expected 0 < d <= %g um: 4 times the %s "
+			                  "spacing of %g um)", k ? "weft" : "warp", (double)d,
+			                  4.0 * S, k ? "pick" : "end", (double)S);
+	}
+	if (p->yarn_diameter_um[0] > 0.0f || p->yarn_diameter_um[1] > 0.0f) {
+		float half = cloth_half_um((float)p->block[0] * p->voxel_size_um,
+		                           (float)p->block[1] * p->voxel_size_um,
+		                           p->yarn_diameter_um);
+		uint32_t need = 2 * (uint32_t)ceilf(half / p->voxel_size_um) + 4;
+		if (p->block[2] < need)
+			return loom__fail(diag, LOOM_EINVAL, "generator: block depth %u voxels "
+			                  "is too thin for yarns of %g and %g um (needs at "
+			                  "least %u)", p->block[2], (double)p->yarn_diameter_um[0],
+			                  (double)p->yarn_diameter_um[1], need);
+	}
+	return LOOM_OK;
+}
+
+LOOM_API int loom_exgen_check_params(const loom_exgen_params *p, loom_diag *diag)
+{
+	return loom__exgen_check(p, diag);
+}
+
+LOOM_API int loom_exgen_set_sett(loom_exgen_params *p, double ends_per_cm,
+                                 double picks_per_cm, loom_diag *diag)
+{
+	const double sett[2] = {ends_per_cm, picks_per_cm};
+	static const char *const what[2] = {"ends", "picks"};
+	uint32_t b[2], need;
+	float half;
+
+	if (!p || !(p->voxel_size_um > 0.0f))
+		return loom__fail(diag, LOOM_EINVAL, "sett: no parameters or voxel size");
+	for (int k = 0; k < 2; k++) {
+		double v;
+		if (!(sett[k] > 0.0) || !(sett[k] <= 1e5))
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm (expected a "
+			                  "positive number)", sett[k], what[k]);
+		v = 1e4 / (sett[k] * p->voxel_size_um);
+		if (v < 3.5)
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm at %g um "
+			                  "voxels gives crossings of %.1f voxels (at least 4: "
+			                  "at most %.4g %s per cm at this voxel size, or a "
+			                  "voxel size of at most %.3g um)", sett[k], what[k],
+			                  (double)p->voxel_size_um, v,
+			                  1e4 / (3.5 * p->voxel_size_um), what[k],
+			                  1e4 / (3.5 * sett[k]));
+		if (v >= LOOM__DB_MAX_BLOCK + 0.5)
+			return loom__fail(diag, LOOM_EINVAL, "sett: %g %s per cm at %g um "
+			                  "voxels gives crossings of %.0f voxels (at most %u: "
+			                  "use coarser voxels)", sett[k], what[k],
+			                  (double)p->voxel_size_um, v, LOOM__DB_MAX_BLOCK);
+		b[k] = (uint32_t)lround(v);
+		if (sett[k] < 2 || sett[k] > 200)
+			loom__warn(diag, "sett: %g %s per cm is unusual for woven cloth "
+			           "(2..200)", sett[k], what[k]);
+	}
+	p->block[0] = b[0];
+	p->block[1] = b[1];
+	half = cloth_half_um((float)b[0] * p->voxel_size_um,
+	                     (float)b[1] * p->voxel_size_um, p->yarn_diameter_um);
+	need = 2 * (uint32_t)ceilf(half / p->voxel_size_um) + 4;
+	if (need > LOOM__DB_MAX_BLOCK)
+		need = LOOM__DB_MAX_BLOCK;
+	if (p->block[2] < need)
+		p->block[2] = need;
 	return LOOM_OK;
 }
 
@@ -664,20 +1236,31 @@ static int model_init(loom__exgen *g, const loom_exgen_params *p,
 	return g->weave ? LOOM_OK : LOOM_ENOMEM;
 }
 
-/* Mid-plane, yarns, labels and flyaways of a model with its weave.  More
-   yarns than labels (a whole design, loom__exgen_new_design): the interior
-   labels are reused cyclically, so a label's kind is exact and its index
-   is that of one of the yarns sharing it. */
-static int model_yarns(loom__exgen *g)
+/* Mid-plane, yarn sizes and fibres, yarns, labels, mechanics and
+   flyaways of a model with its weave.  More yarns than labels (a whole
+   design, loom__exgen_new_design): the interior labels are reused
+   cyclically, so a label's kind is exact and its index is that of one of
+   the yarns sharing it.  LOOM_ENOMEM (the caller frees g). */
+static int model_yarns(loom__exgen *g, const loom_exgen_params *p)
 {
-	uint64_t h = mix64(g->seed ^ 0xabc);
 	uint32_t nw = g->cols + 2, nf = g->rows + 2, wl = nw, fl = nf;
 	int shared = 0;
 
-	/* mid-plane: centred, with a small per-exemplar offset (scans are not
-	   registered in z) */
-	g->z0 = (float)g->b3 * g->vs * (0.5f + 0.04f * (u01(mix64(h ^ 7)) - 0.5f));
-	set_kinds(g);
+	/* mid-plane: the same z in every exemplar of a database (blocks copied
+	   from different exemplars must not step in height) */
+	g->z0 = (float)g->b3 * g->vs * 0.5f;
+	set_kinds(g, p->yarn_diameter_um);
+	{
+		const fibre_preset *fw = fibre_find(p->fibre[0]), *ff = fibre_find(p->fibre[1]);
+		if (!fw && !p->fibre[0])
+			fw = ff;
+		if (!ff && !p->fibre[1])
+			ff = fw;
+		if (fw && ff) {
+			fibre_setup(g, KIND_WARP, fw);
+			fibre_setup(g, KIND_WEFT, ff);
+		}
+	}
 	g->warps = calloc(g->cols + 2, sizeof *g->warps);
 	g->wefts = calloc(g->rows + 2, sizeof *g->wefts);
 	if (!g->warps || !g->wefts)
@@ -704,6 +1287,28 @@ static int model_yarns(loom__exgen *g)
 			g->table[l].index = 0;
 		if (g->table[l].index >= lim)
 			g->table[l].index = (int16_t)(lim - 1);
+	}
+	g->mech = malloc(sizeof(float) * 3 * ((size_t)(g->cols + 2) * g->rows +
+	                                     (size_t)(g->rows + 2) * g->cols));
+	if (!g->mech)
+		return LOOM_ENOMEM;
+	{
+		float *t = g->mech;
+		for (uint32_t c = 0; c < g->cols + 2; c++, t += 3 * g->rows)
+			yarn_mechanics(g, &g->warps[c], t);
+		for (uint32_t r = 0; r < g->rows + 2; r++, t += 3 * g->cols)
+			yarn_mechanics(g, &g->wefts[r], t);
+	}
+	if (g->kp[KIND_WARP].fp) {
+		size_t tot = (size_t)(g->cols + g->rows + 4) * MAX_FIB * 6, used = 0;
+		g->fibres = 1;
+		g->fibs = malloc(sizeof(float) * tot);
+		if (!g->fibs)
+			return LOOM_ENOMEM;
+		for (uint32_t c = 0; c < g->cols + 2; c++)
+			used += 6 * (size_t)make_fibres(g, &g->warps[c], g->fibs + used);
+		for (uint32_t r = 0; r < g->rows + 2; r++)
+			used += 6 * (size_t)make_fibres(g, &g->wefts[r], g->fibs + used);
 	}
 	g->n_fly = g->rows * g->cols / 4;
 	if (g->n_fly < 2)
@@ -777,7 +1382,7 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 		for (uint32_t c = 0; c < g->cols; c++)
 			g->weave[(size_t)r * g->cols + c] =
 			        (uint8_t)loom_weave_cell(&wp, r + r0, c + c0);
-	rcode = model_yarns(g);
+	rcode = model_yarns(g, p);
 	if (rcode) {
 		loom__exgen_free(g);
 		return loom__fail(diag, rcode, "generator: out of memory");
@@ -818,7 +1423,7 @@ int loom__exgen_new_design(const loom_exgen_params *p, const char *name,
 	rc = model_init(g, p, 0, g->name);
 	if (!rc) {
 		memcpy(g->weave, weave, (size_t)rows * cols);
-		rc = model_yarns(g);
+		rc = model_yarns(g, p);
 	}
 	if (rc) {
 		loom__exgen_free(g);
@@ -845,6 +1450,8 @@ void loom__exgen_free(loom__exgen *g)
 	free(g->weave);
 	free(g->warps);
 	free(g->wefts);
+	free(g->mech);
+	free(g->fibs);
 	free(g);
 }
 
@@ -858,6 +1465,22 @@ void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d)
 	memcpy(d->size, g->size, sizeof d->size);
 	d->n_yarns = g->n_labels;
 	d->yarns = g->table;
+}
+
+void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f)
+{
+	const kind_params *kp = &g->kp[kind == 2 ? KIND_WEFT : KIND_WARP];
+
+	memset(f, 0, sizeof *f);
+	if (!kp->fp)
+		return;
+	f->plies = kp->plies;
+	f->per_ply = kp->per_ply;
+	f->fibre_deg = kp->fp->fib_deg;
+	f->ply_deg = kp->fp->ply_deg;
+	f->hair_per_mm = kp->fp->hair;
+	f->loop_per_mm = kp->fp->loop;
+	f->placed = kind == 2 ? g->wefts[1].n_fib : g->warps[1].n_fib;
 }
 
 float loom__exgen_mid_z(const loom__exgen *g)

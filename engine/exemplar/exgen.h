@@ -60,6 +60,16 @@ void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
                      uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
                      uint16_t *orientation, uint8_t *label);
 
+/* Fibre-level yarns of a kind (1 warp, 2 weft) as the model uses them;
+   all zero for smooth yarns. */
+typedef struct loom__exgen_fibre {
+	uint32_t plies, per_ply;   /* per_ply: fibres aimed for in each ply */
+	float fibre_deg, ply_deg;  /* helix angles seen on the yarn's top */
+	float hair_per_mm, loop_per_mm;
+	uint32_t placed;           /* fibres placed in yarn 0 of the kind */
+} loom__exgen_fibre;
+void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f);
+
 /* Nominal mid-plane of the cloth, in voxels (for tests). */
 float loom__exgen_mid_z(const loom__exgen *g);
 

@@ -62,7 +62,8 @@
 
 enum { /* numeric tables ("lists") */
 	L_THREADING, L_TIEUP, L_TREADLING, L_LIFTPLAN, L_COLOR_TABLE,
-	L_WARP_COLORS, L_WEFT_COLORS, L_WARP_THICK, L_WEFT_THICK, L_COUNT
+	L_WARP_COLORS, L_WEFT_COLORS, L_WARP_THICK, L_WEFT_THICK,
+	L_WARP_SPACING, L_WEFT_SPACING, L_COUNT
 };
 
 enum { /* sections; lists follow SEC_LIST */
@@ -99,6 +100,10 @@ static const struct list_info {
 	                  K_REAL, "end", "thickness"},
 	[L_WEFT_THICK] = {"[WEFT THICKNESS]", "WEFTTHICKNESS", WIF_MAX_PICKS, 0,
 	                  K_REAL, "pick", "thickness"},
+	[L_WARP_SPACING] = {"[WARP SPACING]", "WARPSPACING", WIF_MAX_ENDS, 0,
+	                    K_REAL, "end", "spacing"},
+	[L_WEFT_SPACING] = {"[WEFT SPACING]", "WEFTSPACING", WIF_MAX_PICKS, 0,
+	                    K_REAL, "pick", "spacing"},
 };
 
 static const struct { const char *norm; int sec; } scalar_sections[] = {
@@ -141,7 +146,8 @@ typedef struct wif_parser {
 	size_t nf, cap_f;
 	wif_list list[L_COUNT];
 	wif_val version, shafts, treadles, rising, range, form;
-	wif_val threads[2], color[2], thick[2], units[2]; /* [0] warp, [1] weft */
+	wif_val threads[2], color[2], thick[2], units[2], spacing[2]; /* [0] warp,
+	                                                                 [1] weft */
 	int color_shift;    /* colour indices counted from 0: add one */
 } wif_parser;
 
@@ -460,12 +466,17 @@ static int list_line(wif_parser *p, int li_idx, const char *key, size_t kn,
 		if (vn == 0)
 			break; /* empty: no thickness given */
 		if (!parse_real(val, vn, &x))
-			return perr(p, line, LOOM_EFORMAT, "%s: expected a thickness "
+			return perr(p, line, LOOM_EFORMAT, "%s: expected a %s "
 			            "(a number such as 0.5), got '%s'", li->section,
-			            show(b, sizeof b, val, vn));
+			            li->val_what, show(b, sizeof b, val, vn));
 		if (x > WIF_MAX_THICKNESS)
-			return perr(p, line, LOOM_ERANGE, "%s: thickness %s too large",
-			            li->section, show(b, sizeof b, val, vn));
+			return perr(p, line, LOOM_ERANGE, "%s: %s %s too large (at most "
+			            "%g)", li->section, li->val_what,
+			            show(b, sizeof b, val, vn), WIF_MAX_THICKNESS);
+		if (x == 0 && (li == &lists[L_WARP_SPACING] ||
+		               li == &lists[L_WEFT_SPACING]))
+			return perr(p, line, LOOM_ERANGE, "%s: spacing 0 (expected a "
+			            "positive number)", li->section);
 		if (x > 0) {
 			if (!grow((void **)&p->fpool, &p->cap_f, p->nf + 1,
 			          sizeof *p->fpool))
@@ -519,6 +530,8 @@ static void scalar_line(wif_parser *p, int sec, const char *key, size_t kn,
 			dst = &p->thick[side];
 		else if (!strcmp(k, "UNITS"))
 			dst = &p->units[side];
+		else if (!strcmp(k, "SPACING"))
+			dst = &p->spacing[side];
 		break;
 	case SEC_PALETTE:
 		if (!strcmp(k, "RANGE"))
@@ -1287,6 +1300,91 @@ static int side_types(wif_parser *p, wif_build *b, wif_palette *pal,
 	return LOOM_OK;
 }
 
+/*
+ * Sett and yarn size of the ends (side 0) or picks (side 1): the mean of the
+ * per-thread [WARP SPACING] / [WEFT SPACING] and thickness entries, threads
+ * without one taking [WARP]/[WEFT] Spacing and Thickness, converted by the
+ * side's Units into d->sett[side] (threads per cm) and d->yarn_um[side].
+ * Nothing stated leaves them 0.  A spacing in a unit loom cannot convert is
+ * an error (the geometry would be wrong by an unknown factor); an odd sett
+ * or a yarn much thicker than its spacing is a warning.
+ */
+static int side_sett(wif_parser *p, wif_build *b, loom_design *d, int side,
+                     uint32_t count)
+{
+	static const char *const what[2] = {"[WARP]", "[WEFT]"};
+	static const char *const thread[2] = {"ends", "picks"};
+	const int spc_l = side ? L_WEFT_SPACING : L_WARP_SPACING;
+	const wif_list *sl = &p->list[spc_l];
+	const wif_list *tl = &p->list[side ? L_WEFT_THICK : L_WARP_THICK];
+	double umm = unit_mm(&p->units[side]);
+	double def_s = 0, def_t = 0, sum_s = 0, sum_t = 0;
+	uint32_t n_s = 0, n_t = 0, line_s = sl->header_line;
+	int32_t *se = NULL;
+	char bb[64];
+	int rc;
+
+	if (p->spacing[side].s && p->spacing[side].n) {
+		const wif_val *v = &p->spacing[side];
+		if (!parse_real(v->s, v->n, &def_s) || def_s > WIF_MAX_THICKNESS)
+			return perr(p, v->line, LOOM_EFORMAT, "%s: expected Spacing=NUMBER "
+			            "(positive, at most %g), such as 0.05, got '%s'",
+			            what[side], WIF_MAX_THICKNESS,
+			            show(bb, sizeof bb, v->s, v->n));
+		if (def_s <= 0)
+			return perr(p, v->line, LOOM_ERANGE, "%s: Spacing=%s (expected a "
+			            "positive number)", what[side],
+			            show(bb, sizeof bb, v->s, v->n));
+		line_s = v->line;
+	}
+	if (p->thick[side].s && p->thick[side].n)
+		parse_real(p->thick[side].s, p->thick[side].n, &def_t); /* checked */
+	if ((rc = index_list(p, spc_l, count, &se)))
+		return rc;
+	for (uint32_t j = 0; j < count; j++) {
+		double sp = def_s, th = def_t;
+		if (se[j] >= 0 && sl->e[se[j]].n == 1)
+			sp = p->fpool[sl->e[se[j]].off];
+		if (b->thr_e[side][j] >= 0 && tl->e[b->thr_e[side][j]].n == 1)
+			th = p->fpool[tl->e[b->thr_e[side][j]].off];
+		if (sp > 0) {
+			sum_s += sp;
+			n_s++;
+		}
+		if (th > 0) {
+			sum_t += th;
+			n_t++;
+		}
+	}
+	free(se);
+	if (n_s && umm == 0)
+		return perr(p, p->units[side].line ? p->units[side].line : line_s,
+		            LOOM_EFORMAT, "%s: Units=%s is not a WIF unit (expected "
+		            "Decipoints, Inches or Centimeters; loom also reads "
+		            "Millimeters), so the spacing cannot be read", what[side],
+		            show(bb, sizeof bb, p->units[side].s, p->units[side].n));
+	if (n_s) {
+		double mm = sum_s / n_s * umm;
+		d->sett[side] = (float)(10.0 / mm);
+		if (mm < 0.02 || mm > 20)
+			pwarn(p, line_s, "%s: a spacing of %.3g mm (%.3g %s per cm) is not a "
+			      "usual sett (0.02..20 mm)", what[side], mm,
+			      (double)d->sett[side], thread[side]);
+	}
+	if (n_t) {
+		double mm = sum_t / n_t * (umm > 0 ? umm : 1);
+		double sp = n_s ? sum_s / n_s * umm : 0;
+		if (sp > 0 && mm > 4 * sp)
+			pwarn(p, p->thick[side].line ? p->thick[side].line : tl->header_line,
+			      "%s: yarns %.3g mm thick at a spacing of %.3g mm cannot lie "
+			      "side by side; the thickness is not used for the geometry",
+			      what[side], mm, sp);
+		else
+			d->yarn_um[side] = (float)(1000.0 * mm);
+	}
+	return LOOM_OK;
+}
+
 /* Fill the design's yarn table and type maps. */
 static int yarn_types(wif_parser *p, wif_build *b, loom_design *d)
 {
@@ -1435,7 +1533,9 @@ static int build(wif_parser *p, loom_design **out)
 	    (rc = index_list(p, use_lift ? L_LIFTPLAN : L_TREADLING, rows,
 	                     &b.pick_e)) ||
 	    (rc = drawdown(p, &b, d, use_lift, rising)) ||
-	    (rc = yarn_types(p, &b, d))) {
+	    (rc = yarn_types(p, &b, d)) ||
+	    (rc = side_sett(p, &b, d, 0, d->cols)) ||
+	    (rc = side_sett(p, &b, d, 1, d->rows))) {
 		build_free(&b);
 		loom_design_free(d);
 		return rc;

@@ -16,6 +16,21 @@ expect_exit generate_bad_weave 1 "$LOOM" exemplar generate --weaves twill:0/2 -o
 expect_err_contains generate_bad_weave_msg "twill:0/2"
 if [ -e "$T/x.ldb" ]; then fail no_partial_output "x.ldb exists"; else pass no_partial_output; fi
 
+# fibre-level yarns: the same bytes for 1 and 2 threads; a bad fibre is a
+# usage error naming it
+expect_ok fibre_1 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--fibre cotton,silk --threads 1 -q -o "$T/f1.ldb"
+expect_ok fibre_2 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--fibre cotton,silk --threads 2 -q -o "$T/f2.ldb"
+if cmp -s "$T/f1.ldb" "$T/f2.ldb"; then pass fibre_threads_same; else
+	fail fibre_threads_same "1 and 2 threads differ"; fi
+expect_ok fibre_none "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	-q -o "$T/f0.ldb"
+if cmp -s "$T/f0.ldb" "$T/f1.ldb"; then fail fibre_differs "same bytes as smooth yarns"
+else pass fibre_differs; fi
+expect_exit fibre_bad 2 "$LOOM" exemplar generate --fibre hemp -o "$T/x.ldb"
+expect_err_contains fibre_bad_msg "hemp"
+
 # generate: two weaves, small preset; no progress when stderr is not a terminal
 expect_ok generate "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
 	--seed 5 -o "$DB"
@@ -142,3 +157,45 @@ if awk '{for (i = 1; i <= NF; i++) if ($i > 1.0001 || $i < -1.0001) bad = 1} END
    [ -s "$T/omax.txt" ]; then pass orientation_values; else fail orientation_values "$(cat "$T/omax.txt")"; fi
 expect_exit export_bad_exemplar 1 "$LOOM" exemplar export "$DB" --exemplar nope -o "$T/n.nrrd"
 expect_exit export_bad_channel 2 "$LOOM" exemplar export "$DB" --exemplar 0 --channel rgb -o "$T/n.nrrd"
+
+# sett and yarn size from a draft (WIF Spacing/Thickness/Units) or options:
+# a square sett gives square crossings, 2:1 gives 2:1 (b1 = 10000 / (ends
+# per cm x voxel um): 54 per cm at 5 um = 37.04 voxels)
+W=$LOOM_TOP/tests/data/wif
+block_of() { # DB -> "b1 b2 b3"
+	"$LOOM" exemplar info "$1" --json | python3 -c \
+		'import json,sys; print(*json.load(sys.stdin)["block"])'
+}
+expect_ok sett_square "$LOOM" exemplar generate --sett-from "$W/sett-square.wif" \
+	--voxel-size 5 --weaves plain --quiet -o "$T/sq.ldb"
+b=$(block_of "$T/sq.ldb")
+case "$b" in "37 37 "*) pass sett_square_block ;; *) fail sett_square_block "$b" ;; esac
+expect_ok sett_two_one "$LOOM" exemplar generate --sett-from "$W/sett-two-one.wif" \
+	--voxel-size 5 --weaves plain --quiet -o "$T/s21.ldb"
+b=$(block_of "$T/s21.ldb")
+case "$b" in "37 74 "*) pass sett_two_one_block ;; *) fail sett_two_one_block "$b" ;; esac
+expect_ok sett_option "$LOOM" exemplar generate --sett 20x10 --yarn-diameter 250,300 \
+	--weaves plain --quiet -o "$T/so.ldb"
+b=$(block_of "$T/so.ldb")
+case "$b" in "21 42 "*) pass sett_option_block ;; *) fail sett_option_block "$b" ;; esac
+# the sett option overrides the draft; a draft without a sett keeps the preset
+expect_ok sett_override "$LOOM" exemplar generate --sett-from "$W/sett-square.wif" \
+	--sett 27x54 --voxel-size 5 --weaves plain --quiet -o "$T/sov.ldb"
+b=$(block_of "$T/sov.ldb")
+case "$b" in "74 37 "*) pass sett_override_block ;; *) fail sett_override_block "$b" ;; esac
+expect_ok sett_none "$LOOM" exemplar generate --sett-from "$W/basic-twill.wif" \
+	--weaves plain -o "$T/sn.ldb"
+expect_err_contains sett_none_warning "states no sett; the block stays 24x16"
+# bad input: the option or the file:line, and the accepted range
+expect_exit sett_too_fine 2 "$LOOM" exemplar generate --sett 200x20 -o "$T/x.ldb"
+expect_err_contains sett_too_fine_msg "--sett: sett: 200 ends per cm at 24 um voxels gives crossings of 2.1 voxels (at least 4"
+expect_exit sett_bad 2 "$LOOM" exemplar generate --sett 20x-1 -o "$T/x.ldb"
+expect_err_contains sett_bad_msg "--sett: expected ENDS_PER_CMxPICKS_PER_CM"
+expect_exit yarn_bad 2 "$LOOM" exemplar generate --yarn-diameter 0 -o "$T/x.ldb"
+expect_err_contains yarn_bad_msg "--yarn-diameter: expected UM or WARP_UM,WEFT_UM"
+expect_exit yarn_too_thick 1 "$LOOM" exemplar generate --sett 20x20 --yarn-diameter 3000 -o "$T/x.ldb"
+expect_err_contains yarn_too_thick_msg "warp yarn diameter 3000 um (expected 0 < d <= 2016 um"
+expect_exit sett_block_both 2 "$LOOM" exemplar generate --sett 20x20 --block 8x8x8 -o "$T/x.ldb"
+expect_exit sett_bad_units 1 "$LOOM" exemplar generate --sett-from "$W/bad-spacing-units.wif" -o "$T/x.ldb"
+expect_err_contains sett_bad_units_msg "bad-spacing-units.wif:40: [WARP]: Units=Furlongs is not a WIF unit"
+if [ -e "$T/x.ldb" ]; then fail sett_no_partial_output "x.ldb exists"; else pass sett_no_partial_output; fi

@@ -497,7 +497,8 @@ static void test_realism(void)
 	vol v;
 	long empty_top = 0, empty_bot = 0, slant[3] = {0, 0, 0}, nslant[3] = {0, 0, 0};
 	long along[3] = {0, 0, 0}, nyarn[3] = {0, 0, 0}, thick[3] = {0, 0, 0};
-	long ncol[3] = {0, 0, 0}, fly = 0;
+	long ncol[3] = {0, 0, 0}, fly = 0, fly_split = 0;
+	uint32_t fly_block[256] = {0};
 
 	p.block[0] = 48; /* finer voxels so that the surface fibres resolve */
 	p.block[1] = 32;
@@ -529,6 +530,13 @@ static void test_realism(void)
 				if (!v.l[i])
 					continue;
 				if (gd.yarns[v.l[i]].flags & LOOM_DB_YARN_FLYAWAY) {
+					/* a flyaway stays in one block: never cut at a
+					   block edge when the block is copied */
+					uint32_t blk = (y / p.block[1]) * 1024 + x / p.block[0];
+					if (!fly_block[v.l[i]])
+						fly_block[v.l[i]] = blk + 1;
+					else if (fly_block[v.l[i]] != blk + 1)
+						fly_split++;
 					fly++;
 					continue;
 				}
@@ -559,8 +567,276 @@ static void test_realism(void)
 	       (double)thick[1] / (double)ncol[1], (double)thick[2] / (double)ncol[2]);
 	CHECK((double)thick[2] / (double)ncol[2] > 1.1 * (double)thick[1] / (double)ncol[1]);
 	CHECK(fly > 0);
+	CHECK_EQ_INT(fly_split, 0);
 	vol_free(&v);
 	loom__exgen_free(g);
+}
+
+/* Bottom-surface counterpart of top_z. */
+static int bottom_z(const vol *v, const loom_db_yarn *yarns, uint32_t x, uint32_t y)
+{
+	for (uint32_t z = 0; z < v->s[2]; z++) {
+		size_t i = vi(v, x, y, z);
+		uint8_t l = v->l[i];
+		if (l && yarns[l].kind && !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY) &&
+		    v->d[i] >= LOOM__DB_TOP_THRESHOLD)
+			return (int)z;
+	}
+	return -1;
+}
+
+/* Every exemplar of a database has its cloth mid-plane at the same z: the
+   middle of the cloth at crossing centres, averaged separately over
+   warp-over and weft-over crossings, agrees between all eight default
+   weaves within one voxel.  The depth is 160 voxels so that an offset of
+   a few percent of b3 per exemplar would show. */
+static void test_midplane(void)
+{
+	loom_exgen_params p = params("small");
+	double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
+
+	p.block[2] = 160;
+	for (uint32_t k = 0; k < p.n_weaves; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom_diag d = {0};
+		double sum[2] = {0, 0};
+		long n[2] = {0, 0};
+		vol v;
+		CHECK_EQ_INT(loom__exgen_new(&p, k, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		for (uint32_t r = 0; r < gd.rows; r++)
+			for (uint32_t c = 0; c < gd.cols; c++) {
+				uint32_t x = c * p.block[0] + p.block[0] / 2;
+				uint32_t y = r * p.block[1] + p.block[1] / 2;
+				int t = top_z(&v, gd.yarns, x, y), b = bottom_z(&v, gd.yarns, x, y);
+				int over = gd.weave[r * gd.cols + c] != 0;
+				CHECK(t >= 0 && b >= 0);
+				sum[over] += 0.5 * (t + b);
+				n[over]++;
+			}
+		for (int o = 0; o < 2; o++) {
+			double m = sum[o] / (double)n[o];
+			printf("  %-12s %s over: mid-plane z %.2f\n", gd.name,
+			       o ? "warp" : "weft", m);
+			lo[o] = m < lo[o] ? m : lo[o];
+			hi[o] = m > hi[o] ? m : hi[o];
+		}
+		CHECK(fabsf(loom__exgen_mid_z(g) - (float)(p.block[2] - 1) / 2.0f) < 0.01f);
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	CHECK(hi[0] - lo[0] <= 1.0);
+	CHECK(hi[1] - lo[1] <= 1.0);
+}
+
+/* Mean over covered columns of the number of voxels of one kind of yarn
+   (its thickness in voxels), flyaways excluded. */
+static double kind_thickness(const vol *v, const loom_db_yarn *yarns, int kind)
+{
+	long t = 0, ncol = 0;
+
+	for (uint32_t y = 0; y < v->s[1]; y++)
+		for (uint32_t x = 0; x < v->s[0]; x++) {
+			long c = 0;
+			for (uint32_t z = 0; z < v->s[2]; z++) {
+				uint8_t l = v->l[vi(v, x, y, z)];
+				c += l && yarns[l].kind == kind &&
+				     !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY);
+			}
+			t += c;
+			ncol += c > 0;
+		}
+	return ncol ? (double)t / (double)ncol : 0;
+}
+
+/* A sett sets b1 x b2 at the voxel size (square -> square, 2:1 -> 2:1),
+   b3 grows to hold thick yarns, the yarn diameter sets the thickness;
+   bad setts and diameters are errors naming the range. */
+static void test_sett(void)
+{
+	loom_exgen_params p = params("paper");
+	loom_diag d = {0};
+	double t1[3], t2[3];
+
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 54.0, 54.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 37 && p.block[1] == 37); /* 10000 / (54 * 5) = 37.04 */
+	CHECK_EQ_INT(p.block[2], 300);
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 54.0, 27.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 37 && p.block[1] == 74);
+	p = params("small");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, 10.0, &d), LOOM_OK);
+	CHECK(p.block[0] == 21 && p.block[1] == 42); /* 20.8 and 41.7 */
+	CHECK(p.block[2] >= 48);
+	/* a crossing under 4 voxels */
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 200.0, 20.0, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "200 ends per cm at 24 um voxels gives crossings "
+	                   "of 2.1 voxels (at least 4");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, 0.0, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "0 picks per cm (expected a positive number)");
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 20.0, -3.0, &d), LOOM_EINVAL);
+	/* yarn diameter: thicker yarns, thicker cloth, and a deeper block */
+	for (int k = 0; k < 2; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		vol v;
+		p = params("small");
+		p.weaves[0] = "plain";
+		p.voxel_size_um = 10;
+		p.yarn_diameter_um[0] = p.yarn_diameter_um[1] = k ? 240.0f : 120.0f;
+		CHECK_EQ_INT(loom_exgen_set_sett(&p, 30.0, 30.0, &d), LOOM_OK);
+		CHECK(p.block[0] == 33 && p.block[1] == 33);
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		(k ? t2 : t1)[1] = kind_thickness(&v, gd.yarns, LOOM_YARN_WARP);
+		(k ? t2 : t1)[2] = kind_thickness(&v, gd.yarns, LOOM_YARN_WEFT);
+		(k ? t2 : t1)[0] = (double)p.block[2];
+		/* nothing reaches the top or bottom slice */
+		for (uint32_t y = 0; y < v.s[1]; y++)
+			for (uint32_t x = 0; x < v.s[0]; x++) {
+				uint8_t lt = v.l[vi(&v, x, y, v.s[2] - 1)];
+				uint8_t lb = v.l[vi(&v, x, y, 0)];
+				CHECK(!(lt && !(gd.yarns[lt].flags & LOOM_DB_YARN_FLYAWAY)));
+				CHECK(!lb);
+			}
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	/* 120 um round yarns: 156 um wide, 0.85 * 120^2 / 156 = 78 um thick; 240
+	   um: 0.92 * 330 = 304 um wide (the spacing caps it), 161 um thick.  In
+	   a plain weave every crossing is an interlacing, where the yarn is
+	   pressed to 1 - 0.2 of its half-height (COMPRESS); and the mean over the
+	   columns an ellipse covers is pi/4 of its height. */
+	printf("  yarn thickness (voxels): 120 um warp %.1f weft %.1f, 240 um warp "
+	       "%.1f weft %.1f\n", t1[1], t1[2], t2[1], t2[2]);
+	for (int k = 1; k < 3; k++) {
+		CHECK(fabs(t1[k] / (0.7854 * 0.8 * 7.8) - 1.0) < 0.15);
+		CHECK(fabs(t2[k] / (0.7854 * 0.8 * 16.1) - 1.0) < 0.15);
+	}
+	/* 400 um yarns on 30 per cm need a deeper block (the cloth is about
+	   1 mm thick) */
+	p = params("small");
+	p.voxel_size_um = 10;
+	p.yarn_diameter_um[0] = p.yarn_diameter_um[1] = 400.0f;
+	CHECK_EQ_INT(loom_exgen_set_sett(&p, 30.0, 30.0, &d), LOOM_OK);
+	printf("  b3 for 400 um yarns: %u\n", p.block[2]);
+	CHECK(p.block[2] > 100);
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_OK);
+	p.block[2] -= 2;
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	p = params("small");
+	p.yarn_diameter_um[1] = 2000.0f; /* 4 x 384 um = 1536 at most */
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "weft yarn diameter 2000 um (expected 0 < d <= "
+	                   "1536 um");
+	p.yarn_diameter_um[1] = 600.0f;
+	CHECK_EQ_INT(loom__exgen_check(&p, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "block depth 48 voxels is too thin");
+}
+
+/* Extent of warp c's voxels in the slice y (x width, z height), voxels. */
+static void warp_extent(const vol *v, const loom__exgen_desc *gd, uint32_t c,
+                        uint32_t y, int *w, int *h)
+{
+	int xlo = INT32_MAX, xhi = -1, zlo = INT32_MAX, zhi = -1;
+
+	for (uint32_t z = 0; z < v->s[2]; z++)
+		for (uint32_t x = 0; x < v->s[0]; x++) {
+			uint8_t l = v->l[vi(v, x, y, z)];
+			if (!l || gd->yarns[l].kind != LOOM_YARN_WARP ||
+			    gd->yarns[l].index != (int16_t)c ||
+			    (gd->yarns[l].flags & LOOM_DB_YARN_FLYAWAY) || v->d[vi(v, x, y, z)] < 64)
+				continue;
+			xlo = (int)x < xlo ? (int)x : xlo;
+			xhi = (int)x > xhi ? (int)x : xhi;
+			zlo = (int)z < zlo ? (int)z : zlo;
+			zhi = (int)z > zhi ? (int)z : zhi;
+		}
+	*w = xhi - xlo + 1;
+	*h = zhi - zlo + 1;
+}
+
+/* Woven mechanics: a warp float lies higher the longer it is (mean top of
+   the warp-over crossing centres: plain < 2/2 twill < the middle of the
+   4/1 satin's floats; expected about 8.0, 8.9 and 9.7 voxels above the
+   mid-plane from the crimp and half-heights), and a warp
+   is flatter (larger width / height) where a weft presses it at an
+   interlacing than in the middle of a 4-pick float. */
+static void test_mechanics(void)
+{
+	static const char *const weaves[3] = {"plain", "twill:2/2", "satin:4/1"};
+	loom_exgen_params p = params("small");
+	double top[3];
+	double asp_pressed = 0, asp_free = 0;
+	int n_pressed = 0, n_free = 0;
+
+	p.block[0] = p.block[1] = 32;
+	p.block[2] = 96;
+	p.voxel_size_um = 10;
+	for (int k = 0; k < 3; k++) {
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom_diag d = {0};
+		double sum = 0;
+		long n = 0;
+		vol v;
+		p.weaves[0] = weaves[k];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			return;
+		loom__exgen_describe(g, &gd);
+		vol_gen(g, &v);
+		for (uint32_t r = 0; r < gd.rows; r++)
+			for (uint32_t c = 0; c < gd.cols; c++) {
+				uint32_t x = c * 32 + 16, y = r * 32 + 16;
+				uint32_t up = (r + gd.rows - 1) % gd.rows, dn = (r + 1) % gd.rows;
+				int w, h;
+				if (!gd.weave[r * gd.cols + c])
+					continue;
+				/* the satin's 4-pick floats: their middle */
+				if (k < 2 || (gd.weave[up * gd.cols + c] && gd.weave[dn * gd.cols + c])) {
+					sum += top_z(&v, gd.yarns, x, y);
+					n++;
+				}
+				if (k != 2)
+					continue;
+				/* in the satin: the middle of a float (over on both sides) */
+				if (gd.weave[up * gd.cols + c] && gd.weave[dn * gd.cols + c]) {
+					warp_extent(&v, &gd, c, y, &w, &h);
+					asp_free += (double)w / h;
+					n_free++;
+				}
+			}
+		if (k == 2)
+			for (uint32_t r = 0; r < gd.rows; r++)
+				for (uint32_t c = 0; c < gd.cols; c++) {
+					int w, h;
+					if (gd.weave[r * gd.cols + c])
+						continue; /* the single pick the warp passes under */
+					warp_extent(&v, &gd, c, r * 32 + 16, &w, &h);
+					asp_pressed += (double)w / h;
+					n_pressed++;
+				}
+		top[k] = sum / (double)n;
+		printf("  %-10s mean top of warp floats: z %.2f (%ld crossings)\n", weaves[k],
+		       top[k], n);
+		vol_free(&v);
+		loom__exgen_free(g);
+	}
+	CHECK(top[1] > top[0] + 0.5);
+	CHECK(top[2] > top[1] + 0.5);
+	CHECK(n_pressed > 0 && n_free > 0);
+	asp_pressed /= n_pressed;
+	asp_free /= n_free;
+	printf("  warp aspect (width/height): pressed %.2f, middle of a float %.2f\n",
+	       asp_pressed, asp_free);
+	CHECK(asp_pressed > 1.1 * asp_free);
 }
 
 static void test_bad_params(void)
@@ -604,6 +880,265 @@ static void test_bad_params(void)
 	}
 }
 
+
+/* ---- fibre-level yarns -------------------------------------------------- */
+
+/* 4-connected components of the voxels of plane (w x h) set in m. */
+static uint32_t components(uint8_t *m, int w, int h, int *stack)
+{
+	uint32_t n = 0;
+	for (int i = 0; i < w * h; i++) {
+		int sp = 0;
+		if (!m[i])
+			continue;
+		n++;
+		m[i] = 0;
+		stack[sp++] = i;
+		while (sp) {
+			int c = stack[--sp], x = c % w, y = c / w;
+			const int nb[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+			for (int k = 0; k < 4; k++) {
+				int xx = x + nb[k][0], yy = y + nb[k][1];
+				if (xx < 0 || yy < 0 || xx >= w || yy >= h || !m[yy * w + xx])
+					continue;
+				m[yy * w + xx] = 0;
+				stack[sp++] = yy * w + xx;
+			}
+		}
+	}
+	return n;
+}
+
+/* Paper-scale cross-sections of the warps: the fibres counted as connected
+   components of density >= 128 (half covered) come out at plies x fibres per ply (hair and
+   loop fibres add a few, fibres that touch at 5 um merge). */
+static void test_fibre_count(void)
+{
+	/* (wool is left out: at this yarn size it has so few fibres that its
+	   hair outnumbers them) */
+	static const char *const fib[] = {"cotton", "silk", "rayon", "polyester"};
+	loom_diag d = {0};
+
+	for (size_t f = 0; f < sizeof fib / sizeof fib[0]; f++) {
+		loom_exgen_params p = params("paper");
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom__exgen_fibre fi;
+		uint8_t *dn, *lb, *m;
+		uint16_t *o;
+		int *stack;
+		double total = 0;
+		uint32_t slices = 0;
+
+		p.n_weaves = 1;
+		p.weaves[0] = "twill:2/3";
+		p.fibre[0] = p.fibre[1] = fib[f];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			continue;
+		loom__exgen_describe(g, &gd);
+		loom__exgen_fibres(g, 1, &fi);
+		dn = malloc((size_t)gd.size[0] * gd.size[2]);
+		lb = malloc((size_t)gd.size[0] * gd.size[2]);
+		o = malloc(2 * (size_t)gd.size[0] * gd.size[2]);
+		m = malloc((size_t)gd.size[0] * gd.size[2]);
+		stack = malloc(sizeof(int) * gd.size[0] * gd.size[2]);
+		for (uint32_t r = 0; r < gd.rows; r++) {
+			uint32_t y = r * p.block[1] + p.block[1] / 2; /* crossing centre */
+			loom__exgen_box(g, 0, y, 0, gd.size[0], 1, gd.size[2], dn, o, lb);
+			for (uint32_t c = 1; c + 1 < gd.cols; c++) {
+				uint8_t L = 0;
+				for (uint32_t k = 1; k <= gd.n_yarns; k++)
+					if (gd.yarns[k].kind == 1 && gd.yarns[k].index == (int)c &&
+					    !(gd.yarns[k].flags & LOOM_DB_YARN_FLYAWAY))
+						L = (uint8_t)k;
+				/* plane (x, z) of the warp's voxels */
+				for (uint32_t x = 0; x < gd.size[0]; x++)
+					for (uint32_t z = 0; z < gd.size[2]; z++) {
+						size_t i = (size_t)x * gd.size[2] + z;
+						m[z * gd.size[0] + x] = lb[i] == L && dn[i] >= 128;
+					}
+				total += components(m, (int)gd.size[0], (int)gd.size[2], stack);
+				slices++;
+			}
+		}
+		{
+			double mean = total / slices, want = (double)fi.plies * fi.per_ply;
+			printf("  %-10s %u plies x %u fibres (%u placed): %.1f components per "
+			       "cross-section\n", fib[f], fi.plies, fi.per_ply, fi.placed, mean);
+			CHECK(fabs(mean / want - 1.0) <= 0.25);
+		}
+		free(dn);
+		free(lb);
+		free(o);
+		free(m);
+		free(stack);
+		loom__exgen_free(g);
+	}
+}
+
+/* The fibres' helix angle read from the orientation channel on the top of
+   the warp floats (middle quarter of the yarn's width, where the surface is
+   flat; the outermost fibres) is the preset's, within 3 degrees (median
+   over the voxels). */
+static void test_fibre_twist(void)
+{
+	static const char *const fib[] = {"polyester", "linen"};
+	loom_diag d = {0};
+
+	for (size_t f = 0; f < 2; f++) {
+		loom_exgen_params p = params("paper");
+		loom__exgen *g = NULL;
+		loom__exgen_desc gd;
+		loom__exgen_fibre fi;
+		uint8_t *dn, *lb;
+		uint16_t *o;
+		float *ang;
+		size_t na = 0;
+		uint32_t nz;
+
+		p.n_weaves = 1;
+		p.weaves[0] = "satin:4/1"; /* warp floats of 4 */
+		p.fibre[0] = p.fibre[1] = fib[f];
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (!g)
+			continue;
+		loom__exgen_describe(g, &gd);
+		loom__exgen_fibres(g, 1, &fi);
+		nz = gd.size[2];
+		dn = malloc((size_t)p.block[0] * nz);
+		lb = malloc((size_t)p.block[0] * nz);
+		o = malloc(2 * (size_t)p.block[0] * nz);
+		ang = malloc(sizeof(float) * gd.size[1] * p.block[0]);
+		for (uint32_t c = 1; c + 1 < gd.cols; c++)
+			for (uint32_t y = 0; y < gd.size[1]; y++) {
+				uint32_t r = y / p.block[1], x0 = c * p.block[0] + p.block[0] / 4;
+				/* middle of a warp float of 4: its crossing and neighbours are
+				   warp-over */
+				if (!gd.weave[r * gd.cols + c] ||
+				    !gd.weave[((r + 1) % gd.rows) * gd.cols + c] ||
+				    !gd.weave[((r + gd.rows - 1) % gd.rows) * gd.cols + c])
+					continue;
+				int ztop[64];
+				float atop[64];
+				int zmax = -1;
+				uint32_t nx = p.block[0] / 4 < 64 ? p.block[0] / 4 : 64;
+				x0 = c * p.block[0] + p.block[0] / 2 - nx / 2;
+				loom__exgen_box(g, x0, y, 0, nx, 1, nz, dn, o, lb);
+				for (uint32_t i = 0; i < nx; i++) {
+					ztop[i] = -1;
+					for (int z = (int)nz - 1; z >= 0; z--) {
+						size_t k = (size_t)i * nz + (size_t)z;
+						float v[3];
+						if (!lb[k] || dn[k] < 128)
+							continue;
+						if (gd.yarns[lb[k]].kind == 1 &&
+						    !(gd.yarns[lb[k]].flags & LOOM_DB_YARN_FLYAWAY)) {
+							loom__orient_decode(o[k], v);
+							if (fabsf(v[2]) < 0.2f) {
+								ztop[i] = z;
+								atop[i] = atan2f(fabsf(v[0]), fabsf(v[1])) * 57.29578f;
+								if (z > zmax)
+									zmax = z;
+							}
+						}
+						break;
+					}
+				}
+				/* the outermost fibres (within 2 voxels of the top) carry
+				   the surface angle; deeper ones seen through gaps less */
+				for (uint32_t i = 0; i < nx; i++)
+					if (ztop[i] >= 0 && ztop[i] >= zmax - 2)
+						ang[na++] = atop[i];
+			}
+		CHECK(na > 100);
+		if (na) {
+			float med;
+			for (size_t i = 1; i < na; i++) /* insertion sort */
+				for (size_t j = i; j > 0 && ang[j - 1] > ang[j]; j--) {
+					float t = ang[j];
+					ang[j] = ang[j - 1];
+					ang[j - 1] = t;
+				}
+			med = ang[na / 2];
+			printf("  %-10s twist: preset %.1f deg, median on the floats %.1f deg "
+			       "(%zu voxels)\n", fib[f], (double)fi.fibre_deg, (double)med, na);
+			CHECK(fabsf(med - fi.fibre_deg) <= 3.0f);
+		}
+		free(dn);
+		free(lb);
+		free(o);
+		free(ang);
+		loom__exgen_free(g);
+	}
+}
+
+/* Fibre-level databases are the same bytes for 1, 2 and 3 threads. */
+static void test_fibre_threads(void)
+{
+	loom_exgen_params p = params("small");
+	loom_diag d = {0};
+	uint64_t h[3] = {0, 0, 0};
+	uint8_t *f[3];
+	size_t n[3];
+	const char *names[3] = {"f1.ldb", "f2.ldb", "f3.ldb"};
+
+	p.n_weaves = 2;
+	p.weaves[0] = "twill:2/3";
+	p.weaves[1] = "satin:1/4";
+	p.fibre[0] = "wool";
+	p.fibre[1] = "cotton";
+	p.brick[0] = p.brick[1] = 16;
+	p.brick[2] = 16;
+	for (int i = 0; i < 3; i++) {
+		p.threads = (unsigned)i + 1;
+		CHECK_EQ_INT(loom_exgen_write_db(tpath(names[i]), &p, &h[i], &d), LOOM_OK);
+		f[i] = slurp(tpath(names[i]), &n[i]);
+	}
+	CHECK(h[0] == h[1] && h[1] == h[2] && h[0] != 0);
+	CHECK(f[0] && f[1] && f[2] && n[0] == n[1] && n[1] == n[2] &&
+	      memcmp(f[0], f[1], n[0]) == 0 && memcmp(f[0], f[2], n[0]) == 0);
+	for (int i = 0; i < 3; i++)
+		free(f[i]);
+	/* any box gives the same voxels: a box made whole and in four parts
+	   (split in x and in z) */
+	{
+		loom__exgen *g = NULL;
+		enum { NX = 24, NY = 20, NZ = 48 };
+		static uint8_t da[NX * NY * NZ], la[NX * NY * NZ], dq[NX * NY * NZ],
+		        lq[NX * NY * NZ];
+		static uint16_t oa[NX * NY * NZ], oq[NX * NY * NZ];
+		int same = 1;
+		CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+		if (g) {
+			loom__exgen_box(g, 30, 10, 0, NX, NY, NZ, da, oa, la);
+			for (int part = 0; part < 4; part++) {
+				int x0 = (part & 1) * 11, z0 = (part >> 1) * 19;
+				int nx = part & 1 ? NX - 11 : 11, nz = part >> 1 ? NZ - 19 : 19;
+				loom__exgen_box(g, 30 + x0, 10, z0, (uint32_t)nx, NY, (uint32_t)nz,
+				                dq, oq, lq);
+				for (int y = 0; y < NY; y++)
+					for (int x = 0; x < nx; x++)
+						for (int z = 0; z < nz; z++) {
+							size_t i = ((size_t)y * NX + (size_t)(x + x0)) * NZ +
+							           (size_t)(z + z0);
+							size_t j = ((size_t)y * nx + (size_t)x) * nz + (size_t)z;
+							if (da[i] != dq[j] || oa[i] != oq[j] || la[i] != lq[j])
+								same = 0;
+						}
+			}
+			CHECK(same);
+			loom__exgen_free(g);
+		}
+	}
+	/* an unknown fibre, and none mixed with a fibre, are refused */
+	p.fibre[0] = "hemp";
+	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+	CHECK(strstr(d.message, "hemp") != NULL);
+	p.fibre[0] = "none";
+	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+}
+
 int main(void)
 {
 	const char *base = getenv("LOOM_TEST_TMP");
@@ -620,6 +1155,12 @@ int main(void)
 	RUN(test_tables_brute_force);
 	RUN(test_symmetries);
 	RUN(test_realism);
+	RUN(test_midplane);
+	RUN(test_sett);
+	RUN(test_mechanics);
 	RUN(test_bad_params);
+	RUN(test_fibre_count);
+	RUN(test_fibre_twist);
+	RUN(test_fibre_threads);
 	CHECK_MAIN_END();
 }

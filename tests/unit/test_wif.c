@@ -386,6 +386,40 @@ static void check_names(const char *file, int n, const char *const *names)
 	loom_design_free(d);
 }
 
+/* Sett and yarn size: per-thread tables averaged with the section's
+   default, converted by Units (centimetres; decipoints by default). */
+static void test_sett(void)
+{
+	loom_design *d = load("sett-square.wif"), *c = NULL;
+
+	if (d) {
+		/* ends: 0.0175, 0.0195 and four at 0.0185 cm; mean 0.0185 cm */
+		CHECK(fabs(d->sett[0] - 10.0 / 0.185) < 1e-3);
+		CHECK(fabs(d->sett[1] - 10.0 / 0.185) < 1e-3);
+		/* yarns: 0.019, 0.021 and four at 0.02 cm; mean 200 um */
+		CHECK(fabs(d->yarn_um[0] - 200.0) < 1e-3);
+		CHECK(fabs(d->yarn_um[1] - 200.0) < 1e-3);
+		CHECK_EQ_INT(loom_design_clone(d, &c), LOOM_OK);
+		if (c)
+			CHECK(c->sett[0] == d->sett[0] && c->yarn_um[1] == d->yarn_um[1]);
+		loom_design_free(c);
+		loom_design_free(d);
+	}
+	d = load("sett-two-one.wif");
+	if (d) {
+		/* 5.25 and 10.5 decipoints of 25.4/720 mm */
+		CHECK(fabs(d->sett[0] - 10.0 / (5.25 * 25.4 / 720)) < 1e-3);
+		CHECK(fabs(d->sett[1] - 10.0 / (10.5 * 25.4 / 720)) < 1e-3);
+		CHECK(d->yarn_um[0] == 0 && d->yarn_um[1] == 0);
+		loom_design_free(d);
+	}
+	d = load("basic-twill.wif");
+	if (d) {
+		CHECK(d->sett[0] == 0 && d->sett[1] == 0);
+		loom_design_free(d);
+	}
+}
+
 static void test_palettes(void)
 {
 	static const char *const p999[] = {"warp #ffffff", "weft #800000"};
@@ -814,6 +848,7 @@ int main(void)
 	CHECK_MAIN_BEGIN("test_wif");
 	test_files();
 	RUN(test_colors);
+	RUN(test_sett);
 	RUN(test_palettes);
 	RUN(test_shipped_data);
 	RUN(test_shed_words);

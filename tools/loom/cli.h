@@ -56,6 +56,17 @@ const char *cli_data_dir(void);
 const char *cli_db_path(const char *opt);
 const char *cli_db_require(const char *opt, const char *prog);
 
+/* Databases for a draft's sett (tools/loom/settdb.c, docs/exemplars.md):
+   the cache directory ($LOOM_CACHE_DIR, $XDG_CACHE_HOME/loom,
+   $HOME/.cache/loom; NULL if none); the path of the database generated for
+   d's sett and yarns (d->sett[0] and [1] > 0), made and cached if needed
+   (fails, exit 1, on errors); a warning when db's crossing aspect does not
+   match d's sett. */
+const char *cli_cache_dir(void);
+const char *cli_sett_db(const char *prog, const loom_design *d, int quiet);
+void cli_sett_check(const loom_design *d, const loom_db *db, const char *db_path,
+                    int quiet);
+
 /* Before long work (tools/loom/outcheck.c): fail (exit 1) when path is a
    directory or its directory is missing or not writable; for an output
    directory, when it is not a directory or cannot be made or written. */

@@ -134,6 +134,50 @@ static uint8_t *design_weave(const char *prog, const char *path, const char *map
 	return w;
 }
 
+/* Two positive numbers "AxB" (or "A,B"; one number "A" means A and A when
+   `one_ok`) into v[2]; 1 on success. */
+static int parse_pair(const char *text, double v[2], int one_ok)
+{
+	char *end;
+	double a = strtod(text, &end), b;
+
+	if (end == text || !(a > 0) || !isfinite(a))
+		return 0;
+	if (*end == '\0' && one_ok) {
+		v[0] = v[1] = a;
+		return 1;
+	}
+	if (*end != 'x' && *end != 'X' && *end != ',')
+		return 0;
+	text = end + 1;
+	b = strtod(text, &end);
+	if (end == text || *end || !(b > 0) || !isfinite(b))
+		return 0;
+	v[0] = a;
+	v[1] = b;
+	return 1;
+}
+
+/* --sett ENDSxPICKS: threads per cm, each in (0, 10000]. */
+static const char *opt_sett(const char *text, void *dest)
+{
+	double *v = dest;
+
+	if (!parse_pair(text, v, 0) || v[0] > 10000 || v[1] > 10000)
+		return "ENDS_PER_CMxPICKS_PER_CM, two numbers in (0, 10000] such as 54x54";
+	return NULL;
+}
+
+/* --yarn-diameter UM or WARP,WEFT: micrometres, each in (0, 10000]. */
+static const char *opt_yarn_diameter(const char *text, void *dest)
+{
+	double *v = dest;
+
+	if (!parse_pair(text, v, 1) || v[0] > 10000 || v[1] > 10000)
+		return "UM or WARP_UM,WEFT_UM, micrometres in (0, 10000] such as 180,220";
+	return NULL;
+}
+
 static int sub_generate(int argc, char **argv)
 {
 	const char *prog = "loom exemplar generate";
@@ -145,7 +189,9 @@ static int sub_generate(int argc, char **argv)
 	int quiet = 0, json = 0, scan = 0, rc;
 	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
 	uint64_t seed = 0;
-	double vs = 0;
+	double vs = 0, sett[2] = {0, 0}, ydiam[2] = {0, 0};
+	const char *sett_from = NULL, *fibre = "none";
+	char fbuf[64], *fcomma;
 	loom_exgen_params p;
 	loom_diag diag;
 	progress_state ps;
@@ -167,6 +213,21 @@ static int sub_generate(int argc, char **argv)
 		          "block size in voxels (overrides the preset)"),
 		OPT_DOUBLE(0, "voxel-size", &vs, "UM", "(]", 0, 10000, "micrometres",
 		           "voxel edge in micrometres, %r (overrides the preset)"),
+		OPT_CALLBACK(0, "sett", sett, "ENDSxPICKS", opt_sett, "sett in ends and "
+		             "picks per cm, e.g. 54x54: sets the block's b1 x b2 at the "
+		             "voxel size (b1 = 10000 / (ends per cm x voxel um)), b3 deep "
+		             "enough for the cloth"),
+		OPT_CALLBACK(0, "yarn-diameter", ydiam, "UM[,UM]", opt_yarn_diameter,
+		             "free yarn diameter in micrometres, warp and weft (one "
+		             "number: both); default: in proportion to the spacing"),
+		OPT_STRING(0, "fibre", &fibre, "F[,F]", "fibre-level yarns (plies of "
+		           "twisted fibres), warp and weft (one name: both): cotton, rayon, "
+		           "silk, polyester, wool, linen, monofilament, or none (default: "
+		           "smooth yarns with fibre-like noise)"),
+		OPT_STRING(0, "sett-from", &sett_from, "DRAFT", "take the sett and yarn "
+		           "diameters the draft states (WIF [WARP]/[WEFT] Spacing, "
+		           "Thickness, Units and the SPACING/THICKNESS tables); --sett and "
+		           "--yarn-diameter override them"),
 		OPT_SIZE3(0, "brick", brick, "XxYxZ", 0, UINT32_MAX,
 		          "brick shape (default 16x16x64)"),
 		OPT_U32(0, "level", &level, "L", 1, 12, "libdeflate level %r (default 6)"),
@@ -246,6 +307,49 @@ static int sub_generate(int argc, char **argv)
 		memcpy(p.brick, brick, sizeof p.brick);
 	if (opt_given(&c, &vs))
 		p.voxel_size_um = (float)vs;
+	cli_diag_init(&diag, &quiet);
+	if (sett_from) {
+		loom_design *d = NULL;
+		if (loom_design_read(sett_from, &d, &diag) != LOOM_OK)
+			cli_fail(prog, "%s", diag.message);
+		if (!opt_given(&c, sett) && d->sett[0] > 0 && d->sett[1] > 0) {
+			sett[0] = d->sett[0];
+			sett[1] = d->sett[1];
+		} else if (!opt_given(&c, sett) && (d->sett[0] > 0 || d->sett[1] > 0)) {
+			/* one side stated: square crossings */
+			sett[0] = sett[1] = d->sett[0] > 0 ? d->sett[0] : d->sett[1];
+			if (!quiet)
+				fprintf(stderr, "loom: warning: %s states the %s sett only; using "
+				        "%.4g per cm for both\n", sett_from,
+				        d->sett[0] > 0 ? "warp" : "weft", sett[0]);
+		} else if (!opt_given(&c, sett))
+			if (!quiet)
+				fprintf(stderr, "loom: warning: %s states no sett; the block "
+				        "stays %ux%u\n", sett_from, p.block[0], p.block[1]);
+		if (!opt_given(&c, ydiam)) {
+			ydiam[0] = d->yarn_um[0] > 0 ? d->yarn_um[0] : d->yarn_um[1];
+			ydiam[1] = d->yarn_um[1] > 0 ? d->yarn_um[1] : d->yarn_um[0];
+		}
+		loom_design_free(d);
+	}
+	if (sett[0] > 0 && opt_given(&c, block))
+		opts_usage(&c, "--block and a sett (--sett, --sett-from) both set the "
+		           "block size; give one");
+	p.yarn_diameter_um[0] = (float)ydiam[0];
+	p.yarn_diameter_um[1] = (float)ydiam[1];
+	snprintf(fbuf, sizeof fbuf, "%s", fibre);
+	fcomma = strchr(fbuf, ',');
+	if (fcomma)
+		*fcomma++ = '\0';
+	p.fibre[0] = fbuf;
+	p.fibre[1] = fcomma ? fcomma : fbuf;
+	if (loom_exgen_check_params(&p, &diag) != LOOM_OK && strstr(diag.message, "fibre"))
+		opts_usage(&c, "--fibre: %s", diag.message);
+	if (sett[0] > 0 && loom_exgen_set_sett(&p, sett[0], sett[1], &diag) != LOOM_OK) {
+		if (opt_given(&c, sett))
+			opts_usage(&c, "--sett: %s", diag.message);
+		cli_fail(prog, "%s: %s", sett_from, diag.message);
+	}
 	if (opt_given(&c, &level))
 		p.level = (int)level;
 	if (opt_given(&c, &threads))

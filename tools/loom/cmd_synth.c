@@ -442,8 +442,10 @@ int cmd_synth(int argc, char **argv)
 	double t0;
 	opt_entry opts[] = {
 		OPT_OUTPUT(&out, "FABRIC", "fabric file to write (.loomf), atomically"),
-		OPT_DB(&db_opt, "exemplar database (default: $LOOM_DB, then default.ldb in "
-		       "the data directory)"),
+		OPT_DB(&db_opt, "exemplar database (default: $LOOM_DB, then, for a draft "
+		       "that states its sett, a database generated for that sett and "
+		       "cached in $LOOM_CACHE_DIR or $XDG_CACHE_HOME/loom, then "
+		       "default.ldb in the data directory)"),
 		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
 		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
@@ -503,9 +505,21 @@ int cmd_synth(int argc, char **argv)
 
 	d = synth_load_design(prog, in, map, warp, weft, &diag);
 	memset(&r, 0, sizeof r);
-	r.db_path = cli_db_require(db_opt, prog);
+	{
+		const char *env = getenv("LOOM_DB");
+		/* a sett stated for one side only: square crossings */
+		if (!(d->sett[0] > 0))
+			d->sett[0] = d->sett[1];
+		if (!(d->sett[1] > 0))
+			d->sett[1] = d->sett[0];
+		if (!db_opt && !(env && *env) && d->sett[0] > 0)
+			r.db_path = cli_sett_db(prog, d, quiet);
+		else
+			r.db_path = cli_db_require(db_opt, prog);
+	}
 	if (loom_db_open(r.db_path, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
+	cli_sett_check(d, db, r.db_path, quiet);
 	if (progress)
 		fprintf(stderr, "%s: %ux%u crossings: assigning, edge-fix tables...", prog,
 		        d->rows, d->cols);

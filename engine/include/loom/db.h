@@ -218,6 +218,9 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 /* ---- Procedural exemplars (docs/exemplars.md) --------------------------- */
 
 #define LOOM_EXGEN_MAX_WEAVES 64
+/* Revision of the generator's output: bumped whenever the same parameters
+   give different bytes (caches of generated databases key on it). */
+#define LOOM_EXGEN_REVISION 4
 
 /* Generator parameters.  Initialise with loom_exgen_preset(). */
 typedef struct loom_exgen_params {
@@ -235,7 +238,32 @@ typedef struct loom_exgen_params {
 	unsigned threads;         /* worker threads; 0 = 2 */
 	void (*progress)(void *user, uint64_t done, uint64_t total);
 	void *user;               /* passed to progress */
+	float yarn_diameter_um[2];/* free (round) diameter of the warp and weft
+	                             yarns, 0 < d <= 4 x their spacing; 0 = in
+	                             proportion to the spacing (the presets) */
+	const char *fibre[2];     /* fibre-level yarns of the warp and weft:
+	                             "cotton", "rayon", "silk", "polyester",
+	                             "wool", "linen", "monofilament" (plies of
+	                             twisted fibres, docs/exemplars.md), or NULL /
+	                             "none": smooth yarns with fibre-like noise */
 } loom_exgen_params;
+
+/*
+ * Set the block size b1 x b2 from a sett: ends_per_cm and picks_per_cm at
+ * p->voxel_size_um (b1 = 10000 / (ends_per_cm * voxel), rounded), and make
+ * b3 deep enough for the cloth (yarn diameters included; set them first).
+ * LOOM_EINVAL when a sett is not positive or a crossing would be under 4
+ * voxels or over the largest block; the message names the sett, the voxel
+ * size and the accepted range.  A warning (diag) for an unusual sett (under
+ * 2 or over 200 threads per cm).
+ */
+LOOM_API int loom_exgen_set_sett(loom_exgen_params *p, double ends_per_cm,
+                                 double picks_per_cm, loom_diag *diag);
+
+/* Check the parameters that do not depend on a weave (what
+   loom_exgen_write_db refuses before it starts): LOOM_OK or LOOM_EINVAL
+   with the reason. */
+LOOM_API int loom_exgen_check_params(const loom_exgen_params *p, loom_diag *diag);
 
 /*
  * Fill p for a preset: "paper" (block 115x70x300, 5 um voxels), "small"

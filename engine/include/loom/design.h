@@ -41,6 +41,10 @@ typedef struct loom_design {
 	uint8_t *weft_type;   /* rows*cols yarn-type IDs of the weft */
 	uint32_t n_types;     /* entries in types[] (>= 1) */
 	loom_yarn_type *types;
+	float sett[2];        /* ends and picks per cm the draft states (WIF
+	                         Spacing); 0 = not stated */
+	float yarn_um[2];     /* mean warp and weft yarn diameter in um the
+	                         draft states (WIF Thickness); 0 = not stated */
 } loom_design;
 
 /* Cell access; no bounds check. */
