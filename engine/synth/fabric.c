@@ -383,6 +383,28 @@ fail:
 
 /* ---- accessors ----------------------------------------------------------- */
 
+size_t loom__fabric_bytes(const loom_fabric *f)
+{
+	size_t n, b;
+	if (!f)
+		return 0;
+	n = f->design ? (size_t)f->design->rows * f->design->cols : 0;
+	b = sizeof *f + strlen(f->db_path) + 1;
+	if (f->design)
+		b += sizeof *f->design + 3 * n + sizeof(loom_yarn_type) * f->design->n_types;
+	if (f->base)
+		b += n * sizeof *f->base;
+	b += loom_edgefix_bytes(f->ef);
+	if (f->usage)
+		b += sizeof *f->usage * f->n_exemplars;
+	if (f->blocks)
+		b += sizeof *f->blocks * (size_t)f->n_blocks;
+	if (f->heights)
+		b += sizeof(float) * LOOM_EDGE_RECORD(f->b1, f->b2) * (size_t)f->n_blocks;
+	return b;
+}
+
+
 LOOM_API const loom_design *loom_fabric_design(const loom_fabric *f)
 {
 	return f ? f->design : NULL;

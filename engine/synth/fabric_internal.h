@@ -37,6 +37,12 @@
 
 #include "core/internal.h"
 
+/* Bytes the fabric holds in memory: the design (3 per crossing), the base
+   assignment (2 per crossing), the edge-fix tables and the per-block tables
+   (not the database or the synthesis set, which hold no per-crossing data).
+   The texture counts them against its budget (loom_texture_open). */
+size_t loom__fabric_bytes(const loom_fabric *f);
+
 /* Per source block t: where its voxels are. */
 typedef struct loom__fabric_block {
 	uint16_t exemplar;     /* u */

@@ -13,7 +13,13 @@
  *   steps are in lookup.c, region reads in region.c, per-thread slots in
  *   slots.c.
  *
- * THE MEMORY IT OWNS (all counted against the budget)
+ * THE MEMORY IT COUNTS (all against the budget)
+ *   - the fabric's own memory (loom__fabric_bytes: the design and the base
+ *     assignment, 5 bytes per crossing, the edge-fix and per-block
+ *     tables): not owned, but resident for as long as the texture is, so
+ *     it is taken from the budget first (a large design leaves less for
+ *     the cache; one too large for the budget fails at open, naming the
+ *     minimum);
  *   - the texture header (density, albedo and alignment tables) and one
  *     block allocated at open (calloc: pages become resident when first
  *     used): per-exemplar tables (first brick, brick counts, label ->
@@ -26,7 +32,8 @@
  *   - the brick cache, opened with budget - (that block): frames,
  *     bookkeeping, and one database reader (decompressor + scratch) per
  *     thread slot.
- *   Nothing else is allocated after open.  bytes_in_use = block + cache's.
+ *   Nothing else is allocated after open.  bytes_in_use = fabric's +
+ *   block + cache's (fixed_bytes = fabric's + block).
  *
  * DETERMINISM
  *   Every value is a pure function of the fabric, the database and the
@@ -35,6 +42,7 @@
 #include "texture_impl.h"
 
 #include <inttypes.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 /* ------------------------------------------------------------ open/close */
@@ -91,15 +99,28 @@ static size_t cache_min_budget(const loom__cache_opts *co)
 	return hi;
 }
 
-static int budget_fail(loom_diag *diag, size_t budget, size_t fixed, size_t cache,
-                       unsigned T, size_t brick)
+/* " (N MiB)", need rounded up, from 1 MiB on; "" below */
+static const char *min_text(char *buf, size_t n, size_t need)
 {
+	buf[0] = 0;
+	if (need >= ((size_t)1 << 20))
+		snprintf(buf, n, " (%zu MiB)", (need + ((size_t)1 << 20) - 1) >> 20);
+	return buf;
+}
+
+static int budget_fail(loom_diag *diag, size_t budget, size_t fab, size_t fixed,
+                       size_t cache, unsigned T, size_t brick, uint64_t xings)
+{
+	char m[48];
 	return loom__fail(diag, LOOM_EBUDGET, "texture: budget of %zu bytes too small: "
-	                  "this fabric needs at least %zu bytes with %u threads (%zu for "
-	                  "per-thread state and tables, %zu for the smallest brick cache: "
-	                  "at least %u frames of %zu bytes, a decompressor per thread, "
-	                  "bookkeeping)", budget, fixed + cache, T, fixed, cache, T + 2,
-	                  brick);
+	                  "this fabric needs at least %zu bytes%s with %u threads "
+	                  "(%zu for the fabric held in memory: design and base "
+	                  "assignment of %" PRIu64 " crossings, 5 bytes each, and "
+	                  "edge-fix tables; %zu for per-thread state and tables; %zu "
+	                  "for the smallest brick cache: at least %u frames of %zu "
+	                  "bytes, a decompressor per thread, bookkeeping)", budget,
+	                  fixed + cache, min_text(m, sizeof m, fixed + cache), T, fab,
+	                  xings, fixed - fab, cache, T + 2, brick);
 }
 
 static int check_identity(const loom_fabric *fab, const loom_db *db, loom_diag *diag)
@@ -217,7 +238,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom__db_geom g;
 	loom__cache_opts co;
 	loom_texture *t;
-	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes;
+	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes, fab;
+	uint64_t xings;
 	uint32_t n_ent;
 	unsigned T;
 	int rc;
@@ -263,7 +285,10 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN);
 	n_ent = XENT_WAYS;
-	fixed = fixed_bytes(T, n_ent, ent_bytes, ex_bytes, &slot_bytes);
+	/* the design, base assignment and tables the fabric holds count too */
+	fab = loom__fabric_bytes(fabric);
+	xings = (uint64_t)fabric->design->rows * fabric->design->cols;
+	fixed = fab + fixed_bytes(T, n_ent, ent_bytes, ex_bytes, &slot_bytes);
 
 	memset(&co, 0, sizeof co);
 	co.brick_bytes = g.brick_bytes;
@@ -275,7 +300,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	co.pins_per_thread = 2;
 	if (o.budget_bytes <= fixed) {
 		size_t need = cache_min_budget(&co);
-		return budget_fail(diag, o.budget_bytes, fixed, need, T, g.brick_bytes);
+		return budget_fail(diag, o.budget_bytes, fab, fixed, need, T, g.brick_bytes,
+		                   xings);
 	}
 	/* more entries only while the smallest cache still fits beside them
 	   (so the minimum budget reported above always opens) */
@@ -283,14 +309,15 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		size_t cmin = cache_min_budget(&co), sb, f2;
 		while (n_ent < XENT_MAX &&
 		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 &&
-		       (f2 = fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, &sb)) + cmin <=
+		       (f2 = fab + fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, &sb)) +
+		                       cmin <=
 		               o.budget_bytes) {
 			n_ent *= 2;
 			fixed = f2;
 			slot_bytes = sb;
 		}
 	}
-	mem_bytes = fixed - round_up(sizeof *t, ALIGN);
+	mem_bytes = fixed - fab - round_up(sizeof *t, ALIGN);
 	co.budget_bytes = o.budget_bytes - fixed;
 
 	t = aligned_alloc(ALIGN, round_up(sizeof *t, ALIGN));
@@ -351,7 +378,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	if ((rc = loom__cache_open(&co, &t->cache, diag)) != LOOM_OK) {
 		if (rc == LOOM_EBUDGET) {
 			size_t need = cache_min_budget(&co);
-			rc = budget_fail(diag, o.budget_bytes, fixed, need, T, g.brick_bytes);
+			rc = budget_fail(diag, o.budget_bytes, fab, fixed, need, T,
+			                 g.brick_bytes, xings);
 		}
 		goto fail;
 	}

@@ -522,6 +522,9 @@ static void budget_too_small(void)
 			continue;
 		CHECK_EQ_INT(loom_texture_get_stats(t, &st), LOOM_OK);
 		CHECK(st.budget_bytes == need);
+		/* the design and base assignment (5 bytes a crossing) count */
+		CHECK(st.fixed_bytes >= 5 * (uint64_t)loom_fabric_design(g_fab)->rows *
+		                                loom_fabric_design(g_fab)->cols);
 		CHECK_EQ_INT(st.max_threads, threads);
 		/* T + 1 cache threads, each with one reserved frame, + 1 */
 		CHECK(st.cache_frames >= threads + 2);

@@ -327,6 +327,38 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 	j->total = total;
 }
 
+/* Smallest --budget, whole MiB, with which the texture opens beside
+   `buffers` bytes of buffers (0 if none up to 4 TiB). */
+static double min_budget_mb(tiles_job *j, double buffers)
+{
+	double lo = floor(j->budget_mb), hi = lo + 1;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_texture *t;
+
+	o.max_threads = j->threads;
+	for (;;) { /* lo fails; find an hi that opens */
+		o.budget_bytes = (size_t)(hi * 1048576.0 - buffers);
+		if (loom_texture_open(j->f, j->db, &o, &t, NULL) == LOOM_OK)
+			break;
+		if (hi > 4194304.0)
+			return 0;
+		lo = hi;
+		hi *= 2;
+	}
+	loom_texture_close(t);
+	while (hi - lo > 1) {
+		double mid = floor((lo + hi) / 2);
+		o.budget_bytes = (size_t)(mid * 1048576.0 - buffers);
+		if (loom_texture_open(j->f, j->db, &o, &t, NULL) == LOOM_OK) {
+			loom_texture_close(t);
+			hi = mid;
+		} else {
+			lo = mid;
+		}
+	}
+	return hi;
+}
+
 void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 {
 	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
@@ -368,15 +400,20 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 	rc = loom_texture_open(j->f, j->db, &o, &j->t, &diag);
 	if (rc != LOOM_OK) {
 		int code = rc == LOOM_EBUDGET ? EXIT_USAGE : EXIT_BAD_INPUT;
-		if (rc == LOOM_EBUDGET)
+		if (rc == LOOM_EBUDGET) {
+			double need = min_budget_mb(j, buffers);
 			fprintf(stderr, "%s: --budget %s minus %s of tile buffers (and manifest) "
 			        "leaves %s for the texture: %s\n", prog,
 			        loom__size_text(s1, sizeof s1, budget),
 			        loom__size_text(s2, sizeof s2, buffers),
 			        loom__size_text(s4, sizeof s4, (double)j->texture_budget),
 			        diag.message);
-		else
+			if (need > 0)
+				fprintf(stderr, "%s: this job needs at least --budget %.0f\n",
+				        prog, need);
+		} else {
 			fprintf(stderr, "%s: %s\n", prog, diag.message);
+		}
 		tiles_close(j);
 		exit(code);
 	}

@@ -17,8 +17,11 @@
  * Memory.  Everything the texture allocates after loom_texture_open (brick
  * frames, cache bookkeeping, per-thread state and decompressors, the
  * per-thread caches of edge-fix offset maps) is counted against the budget
- * given at open and never exceeds it; a budget that cannot hold the fixed
- * part plus one brick is LOOM_EBUDGET at open.
+ * given at open and never exceeds it, and so is the memory the fabric holds
+ * while the texture reads it (design and base assignment, 5 bytes a
+ * crossing, and edge-fix tables: a larger design leaves a smaller cache); a
+ * budget that cannot hold the fixed part plus one brick is LOOM_EBUDGET at
+ * open.
  *
  * Threads.  Any number of threads may call the lookup functions on one
  * texture at once.  Each thread gets private state on its first call (up to
@@ -150,8 +153,10 @@ typedef struct loom_texture_stats {
 	                              voxel column of a crossing setup used) */
 	uint64_t bytes_in_use;     /* now: fixed part + cache */
 	uint64_t peak_bytes;       /* maximum of bytes_in_use since open */
-	uint64_t fixed_bytes;      /* allocated at open outside the cache:
-	                              per-thread state, tables */
+	uint64_t fixed_bytes;      /* outside the cache: the fabric's own
+	                              memory (design, base assignment,
+	                              edge-fix tables) and what open
+	                              allocates (per-thread state, tables) */
 	uint64_t budget_bytes;     /* as opened */
 	uint64_t brick_bytes;      /* decompressed bytes of one brick */
 	uint32_t cache_frames;     /* bricks the cache can hold */
@@ -173,7 +178,7 @@ typedef struct loom_texture_stats {
  * edge-fix tables that do not match the block size); LOOM_EUNUSABLE
  * (detached fabric); LOOM_EMISMATCH (another database); LOOM_EBUDGET
  * (budget too small: the message says how many bytes this fabric needs at
- * least); LOOM_ENOMEM; an error of loom_db_exemplar for an unreadable
+ * least, "needs at least N bytes (M MiB)", and how they split); LOOM_ENOMEM; an error of loom_db_exemplar for an unreadable
  * exemplar.  *out is NULL on failure.  Thread-safe (the fabric and the
  * database are only read).
  */
