@@ -37,7 +37,13 @@ SOVER   := 0
 # print nothing, which is fine because nothing compiles before it.
 PKGS      := libdeflate libpng
 DEP_CFLAGS = $(shell pkg-config --cflags $(PKGS) OpenEXR 2>/dev/null)
-DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 -lm -lpthread -ldl
+DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 $(VDB_LIBS) -lm -lpthread -ldl
+# The VDB writers (io/volume/vdb_shim.cpp, libloom's only C++, docs/interop.md):
+# OpenVDB (no .pc file) is linked when Debian's libopenvdb-dev is installed;
+# without it the shim compiles to writers that name the missing package.
+# Probed lazily (=), so on a fresh machine after deps.sh has run.
+HAVE_VDB   = $(shell test -f /usr/include/openvdb/openvdb.h && echo 1)
+VDB_LIBS   = $(if $(HAVE_VDB),-lopenvdb -lImath-3_1 -ltbb -lblosc -lz) -lstdc++
 # The loom command alone links the HTTP server of `loom serve` (Debian's
 # libmicrohttpd); libloom does not.
 TOOL_CFLAGS = $(shell pkg-config --cflags libmicrohttpd 2>/dev/null)
@@ -54,6 +60,10 @@ ALL_INC    := $(ENGINE_INC) -I.
 BASE_CFLAGS = -std=c11 -D_GNU_SOURCE -fPIC -fvisibility=hidden $(WARN) $(CFLAGS) $(SAN) \
              $(DEP_CFLAGS) -DLOOM_BUILDING
 ALL_CFLAGS = $(BASE_CFLAGS) $(ALL_INC)
+CXX     ?= g++
+CXX_CFLAGS = -std=c++17 -D_GNU_SOURCE -fPIC \
+             -Wall -Wextra -Werror -Wshadow -Wno-unused-parameter $(CFLAGS) $(SAN) \
+             -DLOOM_BUILDING $(ALL_INC)
 LDFLAGS ?=
 
 # Sources by folder: one folder per module (docs/architecture.md).
@@ -66,7 +76,7 @@ FUZZ_SRC   := $(sort $(wildcard tests/fuzz/fuzz_*.c))
 BENCH_SRC  := $(sort $(wildcard bench/bench_*.c))
 SEED_SRC   := $(sort $(wildcard tests/fuzz/seeds/*.hex))
 
-LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
+LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/io/volume/vdb_shim.o
 TOOL_OBJ  := $(TOOL_SRC:%.c=$(BUILD)/obj/%.o)
 UNIT_BIN  := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 FUZZ_BIN  := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=$(BUILD)/tests/replay_%)
@@ -112,6 +122,11 @@ $(BUILD)/obj/tools/%.o: tools/%.c | $(DEPS_OK)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(ALL_CFLAGS) $(TOOL_CFLAGS) -MMD -MP -c $< -o $@
 
+$(BUILD)/obj/%.o: %.cpp | $(DEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CXX     $<")
+	$(Q)$(CXX) $(CXX_CFLAGS) -MMD -MP -c $< -o $@
+
 $(BUILD)/obj/%.o: %.c | $(DEPS_OK)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<")
@@ -121,9 +136,10 @@ $(STATIC): $(LIB_OBJ)
 	@$(if $(Q),echo "  AR      $@")
 	$(Q)rm -f $@ && ar rcs $@ $^
 
-$(SHARED): $(LIB_OBJ)
+$(SHARED): $(LIB_OBJ) libloom.map
 	@$(if $(Q),echo "  LD      $@")
-	$(Q)$(CC) -shared -Wl,-soname,libloom.so.$(SOVER) $(SAN) $(LDFLAGS) -o $@ $^ $(DEP_LIBS)
+	$(Q)$(CC) -shared -Wl,-soname,libloom.so.$(SOVER) -Wl,--version-script=libloom.map \
+	    $(SAN) $(LDFLAGS) -o $@ $(LIB_OBJ) $(DEP_LIBS)
 	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so.$(SOVER)
 	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so
 
@@ -191,7 +207,25 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 demo: all
 	$(LOOM) demo
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK)
+# An independent reader of the .vdb / .nvdb exports (OpenVDB's and
+# NanoVDB's own headers) for tests/cli/test_vdb.sh; not built without them.
+VDB_CHECK := $(BUILD)/tests/vdb_check
+$(VDB_CHECK): tests/cli/vdb_check.cpp | $(DEPS_OK)
+	@mkdir -p $(@D)
+	$(Q)if [ -n "$(HAVE_VDB)" ]; then $(if $(Q),echo "  CXX     $@";) \
+	    $(CXX) -std=c++17 -O1 -o $@ $< -lopenvdb -lImath-3_1 -ltbb -lblosc -lz -lpthread; fi
+
+# The loom command as built without OpenVDB (the shim's fallback linked
+# first), for the missing-package message of tests/cli/test_vdb.sh.
+NOVDB_LOOM := $(BUILD)/tests/loom_novdb
+$(BUILD)/obj/tests/vdb_shim_missing.o: io/volume/vdb_shim.cpp | $(DEPS_OK)
+	@mkdir -p $(@D)
+	$(Q)$(CXX) $(CXX_CFLAGS) -DLOOM_VDB_PRETEND_MISSING -c $< -o $@
+$(NOVDB_LOOM): $(BUILD)/obj/tests/vdb_shim_missing.o $(TOOL_OBJ) $(STATIC)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(SAN) $(LDFLAGS) -o $@ $(TOOL_OBJ) $< $(STATIC) $(DEP_LIBS) $(TOOL_LIBS)
+
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(TESTDEPS_OK) $(VDB_CHECK) $(NOVDB_LOOM)
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 # tools/slurm/ on a real single-node Slurm that the script starts and stops
@@ -219,6 +253,16 @@ fuzz: | $(DEPS_OK)
 	    $(ALL_INC) $(DEP_CFLAGS) $$f $(LIB_SRC) \
 	    -o $(BUILD)/fuzz/$$n $(DEP_LIBS) || exit 1; echo "  FUZZ    $(BUILD)/fuzz/$$n"; done
 
+# loom.pc (docs/api.md, "Building against the installed library"): an rpath
+# to libdir for every prefix but /usr, whose lib the dynamic linker searches
+# (RPATH=0 leaves it out: then run ldconfig or set LD_LIBRARY_PATH); the
+# libraries libloom.a needs, those with Debian archives first (libdeflate,
+# libpng, zlib) and then, after -Wl,-Bdynamic, those Debian ships only
+# shared (OpenEXRCore, OpenVDB, TBB) and the system's.
+RPATH     ?= 1
+PC_RPATH   = $(if $(filter /usr,$(PREFIX))$(filter 0,$(RPATH)),,-Wl,-rpath,$${libdir})
+PC_PRIVATE = -ldeflate -lpng16 -lz -Wl,-Bdynamic -lOpenEXRCore-3_1 $(VDB_LIBS) -lm -lpthread -ldl
+
 install: all
 	install -d $(DESTDIR)$(PREFIX)/lib $(DESTDIR)$(PREFIX)/include/loom \
 	    $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/share/loom
@@ -230,7 +274,8 @@ install: all
 	install -m 644 engine/include/loom/*.h $(DESTDIR)$(PREFIX)/include/loom/
 	install -m 755 $(LOOM) $(DESTDIR)$(PREFIX)/bin/
 	cp -R $(DATA_DIR)/. $(DESTDIR)$(PREFIX)/share/loom/
-	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@VERSION@|$(VERSION)|g' loom.pc.in \
+	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@VERSION@|$(VERSION)|g' \
+	    -e 's|@RPATH@|$(PC_RPATH)|' -e 's|@PRIVATE@|$(PC_PRIVATE)|' loom.pc.in \
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/loom.pc
 
 uninstall:
