@@ -40,6 +40,15 @@ SOVER   := 0
 PKGS      := libdeflate libpng
 DEP_CFLAGS = $(shell pkg-config --cflags $(PKGS) OpenEXR 2>/dev/null)
 DEP_LIBS   = $(shell pkg-config --libs $(PKGS) 2>/dev/null) -lOpenEXRCore-3_1 -lm -lpthread -ldl
+# The VDB writers (io/volume/vdb_shim.cpp, loom's only C++, docs/interop.md)
+# are a plugin, $(BUILD)/libloom-vdb.so.0, linked against OpenVDB and
+# loaded by io/volume/vdb_dl.c on the first VDB export: OpenVDB, TBB and
+# libstdc++ cost a process ~30 MiB before main, so only a VDB export pays
+# for them and libloom itself links no C++.  Built when Debian's
+# libopenvdb-dev is installed (probed when the recipe runs, i.e. after
+# tools/deps.sh); without it loom names the package to install.
+HAVE_VDB   = $(shell test -f /usr/include/openvdb/openvdb.h && echo 1)
+VDB_LIBS   = -lopenvdb -lImath-3_1 -ltbb -lblosc -lz -lpthread
 # The loom command alone links the HTTP server of `loom serve` (Debian's
 # libmicrohttpd); libloom does not.
 TOOL_CFLAGS = $(shell pkg-config --cflags libmicrohttpd 2>/dev/null)
@@ -56,6 +65,10 @@ ALL_INC    := $(ENGINE_INC) -I.
 BASE_CFLAGS = -std=c11 -D_GNU_SOURCE -fPIC -fvisibility=hidden $(WARN) $(CFLAGS) $(SAN) \
              $(DEP_CFLAGS) -DLOOM_BUILDING
 ALL_CFLAGS = $(BASE_CFLAGS) $(ALL_INC)
+CXX     ?= g++
+CXX_CFLAGS = -std=c++17 -D_GNU_SOURCE -fPIC \
+             -Wall -Wextra -Werror -Wshadow -Wno-unused-parameter $(CFLAGS) $(SAN) \
+             -DLOOM_BUILDING $(ALL_INC)
 LDFLAGS ?=
 
 # Sources by folder: one folder per module (docs/architecture.md).
@@ -69,6 +82,7 @@ BENCH_SRC  := $(sort $(wildcard bench/bench_*.c))
 SEED_SRC   := $(sort $(wildcard tests/fuzz/seeds/*.hex))
 
 LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
+VDB_PLUGIN := $(BUILD)/libloom-vdb.so.0
 TOOL_OBJ  := $(TOOL_SRC:%.c=$(BUILD)/obj/%.o)
 UNIT_BIN  := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 FUZZ_BIN  := $(FUZZ_SRC:tests/fuzz/fuzz_%.c=$(BUILD)/tests/replay_%)
@@ -92,7 +106,7 @@ WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
 .PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity
-all: $(STATIC) $(SHARED) $(LOOM) $(DATA) $(DEFAULT_DB) $(WEB_OK)
+all: $(STATIC) $(SHARED) $(LOOM) $(VDB_PLUGIN) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
 	@sed -n '3,15p' Makefile | sed 's/^# \{0,1\}//'
@@ -117,6 +131,11 @@ $(BUILD)/obj/tools/%.o: tools/%.c | $(DEPS_OK)
 	@$(if $(Q),echo "  CC      $<")
 	$(Q)$(CC) $(ALL_CFLAGS) $(TOOL_CFLAGS) -MMD -MP -c $< -o $@
 
+$(BUILD)/obj/%.o: %.cpp | $(DEPS_OK)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CXX     $<")
+	$(Q)$(CXX) $(CXX_CFLAGS) -MMD -MP -c $< -o $@
+
 $(BUILD)/obj/%.o: %.c | $(DEPS_OK)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<")
@@ -126,9 +145,10 @@ $(STATIC): $(LIB_OBJ)
 	@$(if $(Q),echo "  AR      $@")
 	$(Q)rm -f $@ && ar rcs $@ $^
 
-$(SHARED): $(LIB_OBJ)
+$(SHARED): $(LIB_OBJ) libloom.map
 	@$(if $(Q),echo "  LD      $@")
-	$(Q)$(CC) -shared -Wl,-soname,libloom.so.$(SOVER) $(SAN) $(LDFLAGS) -o $@ $^ $(DEP_LIBS)
+	$(Q)$(CC) -shared -Wl,-soname,libloom.so.$(SOVER) -Wl,--version-script=libloom.map \
+	    $(SAN) $(LDFLAGS) -o $@ $(LIB_OBJ) $(DEP_LIBS)
 	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so.$(SOVER)
 	$(Q)ln -sf libloom.so.$(VERSION) $(BUILD)/libloom.so
 
@@ -201,7 +221,24 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 demo: all
 	$(LOOM) demo
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(BUILD)/tests/childrun $(TESTDEPS_OK) $(if $(SAN),,$(VDB_BIN))
+# An independent reader of the .vdb / .nvdb exports (OpenVDB's and
+# NanoVDB's own headers) for tests/cli/test_vdb.sh; not built without them.
+VDB_CHECK := $(BUILD)/tests/vdb_check
+$(VDB_CHECK): tests/cli/vdb_check.cpp | $(DEPS_OK)
+	@mkdir -p $(@D)
+	$(Q)if [ -n "$(HAVE_VDB)" ]; then $(if $(Q),echo "  CXX     $@";) \
+	    $(CXX) -std=c++17 -O1 -o $@ $< -lopenvdb -lImath-3_1 -ltbb -lblosc -lz -lpthread; fi
+
+# The VDB plugin (see HAVE_VDB above): built only where OpenVDB is
+# installed, checked when the recipe runs; elsewhere nothing is made and
+# loom names the missing package.
+$(VDB_PLUGIN): io/volume/vdb_shim.cpp io/volume/vdb.h | $(DEPS_OK)
+	@mkdir -p $(@D)
+	$(Q)if [ -n "$(HAVE_VDB)" ]; then $(if $(Q),echo "  CXX     $@";) \
+	    $(CXX) $(CXX_CFLAGS) -DLOOM_VDB_PLUGIN -shared -Wl,-soname,libloom-vdb.so.0 \
+	    -o $@ $< $(VDB_LIBS); else echo "  SKIP    $@ (OpenVDB not installed)"; fi
+
+test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(BUILD)/tests/childrun $(TESTDEPS_OK) $(VDB_CHECK) $(if $(SAN),,$(VDB_BIN))
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 # tools/slurm/ on a real single-node Slurm that the script starts and stops
@@ -291,22 +328,34 @@ fuzz-run: $(FUZZ_TGT) $(SEED_DIRS)
 	    sed "s/^/          /"; fi; done; \
 	  if [ -n "$$fails" ]; then echo "fuzz-run: failed:$$fails"; exit 1; fi
 
+# loom.pc (docs/api.md, "Building against the installed library"): an rpath
+# to libdir for every prefix but /usr, whose lib the dynamic linker searches
+# (RPATH=0 leaves it out: then run ldconfig or set LD_LIBRARY_PATH); the
+# libraries libloom.a needs, those with Debian archives first (libdeflate,
+# libpng, zlib) and then, after -Wl,-Bdynamic, those Debian ships only
+# shared (OpenEXRCore, OpenVDB, TBB) and the system's.
+RPATH     ?= 1
+PC_RPATH   = $(if $(filter /usr,$(PREFIX))$(filter 0,$(RPATH)),,-Wl,-rpath,$${libdir})
+PC_PRIVATE = -ldeflate -lpng16 -lz -Wl,-Bdynamic -lOpenEXRCore-3_1 -lm -lpthread -ldl
+
 install: all
 	install -d $(DESTDIR)$(PREFIX)/lib $(DESTDIR)$(PREFIX)/include/loom \
 	    $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/share/loom
 	install -m 644 $(STATIC) $(DESTDIR)$(PREFIX)/lib/
 	install -m 755 $(SHARED) $(DESTDIR)$(PREFIX)/lib/
+	if [ -f $(VDB_PLUGIN) ]; then install -m 755 $(VDB_PLUGIN) $(DESTDIR)$(PREFIX)/lib/; fi
 	ln -sf libloom.so.$(VERSION) $(DESTDIR)$(PREFIX)/lib/libloom.so.$(SOVER)
 	ln -sf libloom.so.$(VERSION) $(DESTDIR)$(PREFIX)/lib/libloom.so
 	install -m 644 engine/include/loom.h $(DESTDIR)$(PREFIX)/include/
 	install -m 644 engine/include/loom/*.h $(DESTDIR)$(PREFIX)/include/loom/
 	install -m 755 $(LOOM) $(DESTDIR)$(PREFIX)/bin/
 	cp -R $(DATA_DIR)/. $(DESTDIR)$(PREFIX)/share/loom/
-	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@VERSION@|$(VERSION)|g' loom.pc.in \
+	sed -e 's|@PREFIX@|$(PREFIX)|g' -e 's|@VERSION@|$(VERSION)|g' \
+	    -e 's|@RPATH@|$(PC_RPATH)|' -e 's|@PRIVATE@|$(PC_PRIVATE)|' loom.pc.in \
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/loom.pc
 
 uninstall:
-	rm -f $(DESTDIR)$(PREFIX)/lib/libloom.* $(DESTDIR)$(PREFIX)/include/loom.h \
+	rm -f $(DESTDIR)$(PREFIX)/lib/libloom.* $(DESTDIR)$(PREFIX)/lib/libloom-vdb.so.0 $(DESTDIR)$(PREFIX)/include/loom.h \
 	    $(DESTDIR)$(PREFIX)/bin/loom $(DESTDIR)$(PREFIX)/lib/pkgconfig/loom.pc
 	rm -rf $(DESTDIR)$(PREFIX)/include/loom $(DESTDIR)$(PREFIX)/share/loom
 

@@ -45,6 +45,10 @@ else
 	# loom serve: the HTTP server, and npm for the viewer page (make runs npm ci)
 	need libmicrohttpd-dev has_header microhttpd.h
 	need npm             command -v npm
+	# the OpenVDB / NanoVDB export (io/volume/vdb_shim.cpp, C++17)
+	need g++             command -v g++
+	need libopenvdb-dev  has_header openvdb/openvdb.h
+	need libnanovdb-dev  has_header nanovdb/NanoVDB.h
 fi
 if [ "$what" = fuzz ]; then
 	need clang       command -v clang
@@ -54,6 +58,9 @@ if [ "$what" = test ]; then
 	need teem-apps   command -v teem-unu
 	# the CLI tests read loom's --json output with python3's json module
 	need python3     command -v python3
+	# the VDB export read back by OpenVDB's Python module (Debian's python3 only)
+	need python3-openvdb /usr/bin/python3 -c 'import pyopenvdb'
+	need python3-numpy   /usr/bin/python3 -c 'import numpy'
 	# the viewer's end-to-end test: Debian's chromium driven by playwright-core
 	need chromium    command -v chromium
 	need curl        command -v curl

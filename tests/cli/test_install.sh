@@ -28,17 +28,53 @@ int main(void)
 }
 C
 export PKG_CONFIG_PATH="$P/lib/pkgconfig"
+# shared: the program finds libloom.so.0 through loom.pc's rpath, with no
+# LD_LIBRARY_PATH and no ldconfig
 if cc -std=c11 -Wall -Werror ${LOOM_SAN:-} "$T/prog.c" -o "$T/prog_shared" $(pkg-config --cflags --libs loom) >"$T/cc.log" 2>&1 &&
-	LD_LIBRARY_PATH="$P/lib" "$T/prog_shared" >"$T/prog.out" && grep -q '^0.1.0 5x5 1$' "$T/prog.out"; then
+	env -u LD_LIBRARY_PATH "$T/prog_shared" >"$T/prog.out" 2>&1 && grep -q '^0.1.0 5x5 1$' "$T/prog.out"; then
 	pass pkgconfig_shared
 else
 	fail pkgconfig_shared "$(cat "$T/cc.log" "$T/prog.out" 2>/dev/null | head -c 600)"
 fi
-if cc -std=c11 -Wall -Werror ${LOOM_SAN:-} "$T/prog.c" -o "$T/prog_static" $(pkg-config --cflags loom) "$P/lib/libloom.a" $(pkg-config --static --libs-only-l loom | sed 's/-lloom//') >"$T/cc2.log" 2>&1 &&
-	"$T/prog_static" >"$T/prog2.out" && grep -q '^0.1.0 5x5 1$' "$T/prog2.out"; then
-	pass pkgconfig_static
+if env -u LD_LIBRARY_PATH ldd "$T/prog_shared" 2>&1 | grep -q "libloom.so.0 => $P/lib/libloom.so.0"; then
+	pass rpath_finds_installed_lib
 else
+	fail rpath_finds_installed_lib "$(env -u LD_LIBRARY_PATH ldd "$T/prog_shared" 2>&1 | grep -i loom)"
+fi
+# static: libloom.a (and the archives Debian has) linked in, the libraries
+# Debian ships only shared (OpenEXRCore, OpenVDB, TBB) dynamically, as
+# docs/api.md shows; the program runs with the prefix's lib moved away
+if cc -std=c11 -Wall -Werror ${LOOM_SAN:-} "$T/prog.c" -o "$T/prog_static" $(pkg-config --cflags loom) \
+	-Wl,-Bstatic $(pkg-config --static --libs loom) >"$T/cc2.log" 2>&1 &&
+	mv "$P/lib" "$P/lib.away" && env -u LD_LIBRARY_PATH "$T/prog_static" >"$T/prog2.out" 2>&1; then
+	mv "$P/lib.away" "$P/lib"
+	if grep -q '^0.1.0 5x5 1$' "$T/prog2.out" && ! ldd "$T/prog_static" | grep -q libloom; then
+		pass pkgconfig_static
+	else
+		fail pkgconfig_static "$(cat "$T/prog2.out"; ldd "$T/prog_static" | grep loom)"
+	fi
+else
+	[ -d "$P/lib.away" ] && mv "$P/lib.away" "$P/lib"
 	fail pkgconfig_static "$(cat "$T/cc2.log" "$T/prog2.out" 2>/dev/null | head -c 600)"
+fi
+# the plain --static flags also link (against the shared library)
+if cc -std=c11 -Wall -Werror ${LOOM_SAN:-} "$T/prog.c" -o "$T/prog_static2" $(pkg-config --cflags loom) \
+	$(pkg-config --static --libs loom) >"$T/cc2b.log" 2>&1 && env -u LD_LIBRARY_PATH "$T/prog_static2" >/dev/null 2>&1; then
+	pass pkgconfig_static_flags_link
+else
+	fail pkgconfig_static_flags_link "$(head -c 600 "$T/cc2b.log")"
+fi
+# RPATH=0: no rpath in loom.pc; the program then needs the documented
+# LD_LIBRARY_PATH (or ldconfig) step
+P0=$T/prefix-norpath
+if make -C "$LOOM_TOP" --no-print-directory -s BUILD="$LOOM_BUILD" PREFIX="$P0" RPATH=0 install >"$T/install0.log" 2>&1 &&
+	! grep -q -- '-Wl,-rpath' "$P0/lib/pkgconfig/loom.pc" &&
+	cc -std=c11 ${LOOM_SAN:-} "$T/prog.c" -o "$T/prog_norpath" $(PKG_CONFIG_PATH=$P0/lib/pkgconfig pkg-config --cflags --libs loom) >"$T/cc0.log" 2>&1 &&
+	! env -u LD_LIBRARY_PATH "$T/prog_norpath" >/dev/null 2>&1 &&
+	LD_LIBRARY_PATH="$P0/lib" "$T/prog_norpath" | grep -q '^0.1.0 5x5 1$'; then
+	pass norpath_needs_ld_library_path
+else
+	fail norpath_needs_ld_library_path "$(tail -3 "$T/install0.log"; cat "$T/cc0.log")"
 fi
 if "$P/bin/loom" --version | grep -q '^loom 0.1.0$'; then pass installed_binary_runs; else fail installed_binary_runs "loom --version"; fi
 if [ -f "$P/share/loom/README" ]; then pass installed_data; else fail installed_data "no share/loom"; fi
@@ -116,8 +152,55 @@ int main(int argc, char **argv)
 }
 C
 if cc -std=c11 -Wall -Werror -pthread ${LOOM_SAN:-} "$T/tex.c" -o "$T/tex" $(pkg-config --cflags --libs loom) >"$T/cc3.log" 2>&1 &&
-	LD_LIBRARY_PATH="$P/lib" "$T/tex" "$P/share/loom/default.ldb" >"$T/tex.out" 2>&1 && grep -q '^1 1 1$' "$T/tex.out"; then
+	env -u LD_LIBRARY_PATH "$T/tex" "$P/share/loom/default.ldb" >"$T/tex.out" 2>&1 && grep -q '^1 1 1$' "$T/tex.out"; then
 	pass pkgconfig_texture_threads
 else
 	fail pkgconfig_texture_threads "$(cat "$T/cc3.log" "$T/tex.out" 2>/dev/null | head -c 600)"
+fi
+
+# The example programs of docs/examples/, built against the installed
+# library as its README says and run.
+EX=$LOOM_TOP/docs/examples
+DB=$P/share/loom/default.ldb
+for ex in sample_threads read_region render_loop; do
+	if cc -std=c11 -Wall -Wextra -Werror ${LOOM_SAN:-} "$EX/$ex.c" -o "$T/ex_$ex" \
+		$(pkg-config --cflags --libs loom) -pthread -lm >"$T/ex_$ex.cc" 2>&1; then
+		pass "example_${ex}_builds"
+	else
+		fail "example_${ex}_builds" "$(head -c 600 "$T/ex_$ex.cc")"
+	fi
+done
+if env -u LD_LIBRARY_PATH "$T/ex_sample_threads" "$DB" >"$T/ex1.out" 2>&1 &&
+	grep -q 'identical yes' "$T/ex1.out" && grep -q 'peak_within_budget yes' "$T/ex1.out" &&
+	awk '{for (i = 1; i < NF; i++) if ($i == "filled") exit !($(i + 1) > 0.05 && $(i + 1) < 0.95)}' "$T/ex1.out"; then
+	pass example_sample_threads_runs
+else
+	fail example_sample_threads_runs "$(head -c 600 "$T/ex1.out")"
+fi
+if env -u LD_LIBRARY_PATH "$T/ex_read_region" "$DB" >"$T/ex2.out" 2>&1 &&
+	grep -q 'mismatches 0$' "$T/ex2.out" &&
+	awk '{exit !($6 > 1000 && $8 > 1000 && $10 > 100)}' "$T/ex2.out"; then
+	pass example_read_region_runs
+else
+	fail example_read_region_runs "$(head -c 600 "$T/ex2.out")"
+fi
+if env -u LD_LIBRARY_PATH "$T/ex_render_loop" "$DB" "$T/ex3.ppm" >"$T/ex3.out" 2>&1 &&
+	head -c 15 "$T/ex3.ppm" | grep -q '^P6' &&
+	awk '{exit !($4 > 0.3)}' "$T/ex3.out"; then
+	pass example_render_loop_runs
+else
+	fail example_render_loop_runs "$(head -c 600 "$T/ex3.out")"
+fi
+# the installed loom finds the VDB plugin in PREFIX/lib (it lives in
+# PREFIX/bin) and writes a .vdb; `make install` put the plugin there
+if [ -x "$LOOM_BUILD/tests/vdb_check" ]; then
+	if [ -f "$P/lib/libloom-vdb.so.0" ]; then pass vdb_plugin_installed; else
+		fail vdb_plugin_installed "no $P/lib/libloom-vdb.so.0"; fi
+	"$P/bin/loom" pattern make plain --size 4x4 -o "$T/ip.pbm" >/dev/null 2>&1 &&
+	env -u LOOM_VDB_LIBRARY "$P/bin/loom" synth "$T/ip.pbm" --quiet -o "$T/ip.loomf" \
+		>"$T/ivdb.out" 2>&1 &&
+	env -u LOOM_VDB_LIBRARY "$P/bin/loom" export "$T/ip.loomf" --region 0,0,0:16,16,8 \
+		--format vdb --quiet -o "$T/ivdb" >>"$T/ivdb.out" 2>&1
+	if ls "$T"/ivdb/*.vdb >/dev/null 2>&1; then pass installed_vdb_export; else
+		fail installed_vdb_export "$(head -c 600 "$T/ivdb.out")"; fi
 fi

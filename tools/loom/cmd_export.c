@@ -1,6 +1,6 @@
 /*
  * tools/loom/cmd_export.c - `loom export FABRIC`: write a region of the
- * virtual texture (or a whole bolt) as tiles of Mitsuba .vol, NRRD or
+ * virtual texture (or a whole bolt) as tiles of Mitsuba .vol, NRRD, OpenVDB, NanoVDB or
  * OpenEXR z-slice files, with a manifest that makes a killed job resumable
  * and shards mergeable (`loom export --merge DIR`).  docs/batch.md
  * describes the options, the files, the manifest and resuming.
@@ -9,6 +9,8 @@
 #include "commands.h"
 #include "export.h"
 #include "tiles.h"
+
+#include "io/volume/vdb.h" /* io/: the OpenVDB shim, to name a missing package */
 
 #include <errno.h>
 #include <stdlib.h>
@@ -19,8 +21,9 @@
 
 static const char usage[] =
 	"loom export FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
-	"            --format vol|nrrd|exr -o DIR [--channels LIST]\n"
-	"            [--tile TX,TY[,TZ]] [--shard I/N] [--budget MB]\n"
+	"            --format vol|nrrd|exr|vdb|nvdb -o DIR [--channels LIST]\n"
+	"            [--compression blosc|zip|none] [--tile TX,TY[,TZ]]\n"
+	"            [--shard I/N] [--budget MB]\n"
 	"            [--threads N] [--db DB] [--quiet] [--json]\n"
 	"loom export --merge DIR [--quiet] [--json]\n"
 	"loom export --status DIR [--verify] [--quiet] [--json]\n";
@@ -34,7 +37,10 @@ static const char about[] =
 	"complete, missing and damaged tiles and the shards to run again.\n";
 
 static const opt_choice format_names[] = {
-	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {NULL, 0}};
+	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {"vdb", F_VDB}, {"nvdb", F_NVDB},
+	{NULL, 0}};
+static const opt_choice codec_names[] = {
+	{"blosc", LOOM__VDB_BLOSC}, {"zip", LOOM__VDB_ZIP}, {"none", LOOM__VDB_NONE}, {NULL, 0}};
 
 static void stem_of(const tiles_job *j, uint64_t index, char *out, size_t n)
 {
@@ -195,7 +201,11 @@ int cmd_export(int argc, char **argv)
 		TILES_OPT_BOLT(&j),
 		OPT_ENUM(0, "format", &c.format, "F", format_names, "vol: Mitsuba grid volumes, "
 		         "one file per channel per tile\nnrrd: NRRD (attached header), one per "
-		         "channel per tile\nexr: OpenEXR, one multi-channel image per z per tile"),
+		         "channel per tile\nexr: OpenEXR, one multi-channel image per z per tile\n"
+		         "vdb: OpenVDB, one file per tile with a grid per channel\nnvdb: NanoVDB, "
+		         "the same grids"),
+		OPT_ENUM(0, "compression", &c.codec, "C", codec_names, "with --format vdb: "
+		         "blosc (default), zip or none (NanoVDB files are uncompressed)"),
 		OPT_CALLBACK(0, "channels", &c.chmask, "LIST", opt_channels, "comma-separated: "
 		             "density, orientation, albedo, kind, type (default "
 		             "density,orientation)"),
@@ -228,13 +238,14 @@ int cmd_export(int argc, char **argv)
 	tiles_init(&j);
 	memset(&c, 0, sizeof c);
 	c.format = -1;
+	c.codec = -1;
 	c.chmask = 1u << CH_DENSITY | 1u << CH_ORIENT;
 	opts_parse(&cmd, argc, argv);
 	if (merge_dir || status_dir) {
 		const char *what = merge_dir ? "--merge" : "--status";
 		if (merge_dir && status_dir)
 			opts_usage(&cmd, "give --merge DIR or --status DIR, not both");
-		if (path || c.format >= 0 || opt_given(&cmd, &c.chmask) || out || j.region_s ||
+		if (path || c.format >= 0 || c.codec >= 0 || opt_given(&cmd, &c.chmask) || out || j.region_s ||
 		    j.all || j.shard_s || j.tile_s || opt_given(&cmd, &j.bolt) ||
 		    opt_given(&cmd, &j.threads) || opt_given(&cmd, &j.budget_mb) || j.db_s)
 			opts_usage(&cmd, "%s DIR takes no FABRIC nor export options", what);
@@ -250,7 +261,24 @@ int cmd_export(int argc, char **argv)
 		opts_usage(&cmd, "missing FABRIC");
 	tiles_parse(&cmd, &j, 1);
 	if (c.format < 0)
-		opts_usage(&cmd, "missing --format vol|nrrd|exr");
+		opts_usage(&cmd, "missing --format vol|nrrd|exr|vdb|nvdb");
+	if (c.codec >= 0 && c.format != F_VDB)
+		opts_usage(&cmd, "--compression goes with --format vdb (NanoVDB files are "
+		           "uncompressed)");
+	if (c.format == F_VDB || c.format == F_NVDB) {
+		const char *miss = loom__vdb_missing(c.format == F_NVDB ? LOOM__VDB_NANOVDB
+		                                                        : LOOM__VDB_OPENVDB);
+		const char *why = miss ? loom__vdb_load_error() : NULL;
+		if (why)
+			cli_fail(prog, "--format %s: cannot load the VDB writer: %s",
+			         fmt_names[c.format], why);
+		if (miss)
+			cli_fail(prog, "--format %s: this loom was built without %s (install "
+			         "Debian's %s and rebuild loom)", fmt_names[c.format],
+			         c.format == F_NVDB ? "NanoVDB" : "OpenVDB", miss);
+		if (c.codec < 0)
+			c.codec = c.format == F_VDB ? LOOM__VDB_BLOSC : LOOM__VDB_NONE;
+	}
 	if (!out)
 		opts_usage(&cmd, "missing -o DIR");
 
@@ -263,6 +291,13 @@ int cmd_export(int argc, char **argv)
 	if (c.format == F_EXR && (j.lo[2] < INT32_MIN || j.hi[2] > INT32_MAX)) {
 		tiles_close(&j);
 		opts_usage(&cmd, "EXR slices need z within the 32-bit range");
+	}
+	if ((c.format == F_VDB || c.format == F_NVDB) &&
+	    (j.lo[0] < INT32_MIN || j.lo[1] < INT32_MIN || j.lo[2] < INT32_MIN ||
+	     j.hi[0] > INT32_MAX || j.hi[1] > INT32_MAX || j.hi[2] > INT32_MAX)) {
+		tiles_close(&j);
+		opts_usage(&cmd, "OpenVDB coordinates are 32-bit: the region must be within "
+		           "-2^31 .. 2^31-1 voxels");
 	}
 	make_dir(prog, out);
 	c.j = &j;
@@ -285,11 +320,14 @@ int cmd_export(int argc, char **argv)
 	snprintf(params, sizeof params,
 	         "{\"fabric_bytes\": %llu, \"fabric_crc32\": \"%08x\", \"format\": \"%s\", "
 	         "\"channels\": [%s], \"region_lo\": [%lld, %lld, %lld], \"region_hi\": "
-	         "[%lld, %lld, %lld], \"tile\": [%lld, %lld, %lld], \"voxel_mm\": %.9g}",
+	         "[%lld, %lld, %lld], \"tile\": [%lld, %lld, %lld], \"voxel_mm\": %.9g%s}",
 	         (unsigned long long)fbytes, fcrc, fmt_names[c.format], cl, (long long)j.lo[0],
 	         (long long)j.lo[1], (long long)j.lo[2], (long long)j.hi[0], (long long)j.hi[1],
 	         (long long)j.hi[2], (long long)j.tsize[0], (long long)j.tsize[1],
-	         (long long)j.tsize[2], j.voxel_mm);
+	         (long long)j.tsize[2], j.voxel_mm,
+	         c.format != F_VDB ? "" : c.codec == LOOM__VDB_BLOSC ? ", \"compression\": \"blosc\""
+	         : c.codec == LOOM__VDB_ZIP ? ", \"compression\": \"zip\""
+	                                    : ", \"compression\": \"none\"");
 	c.params = params;
 	if (j.shard_n > 1)
 		snprintf(c.manifest, sizeof c.manifest, "%s/manifest-%u-of-%u.json", out, j.shard_i,
@@ -304,6 +342,13 @@ int cmd_export(int argc, char **argv)
 	rowf = (size_t)j.tsize[0] * 9;
 	per = voxels * 5 + rowf * sizeof(float) + CRC_BUF + (1u << 20) +
 	      (c.format == F_EXR ? (size_t)j.tsize[0] * 16 * 9 * 4 * 3 : 0);
+	/* a VDB writer holds the tile's grids (all voxels active at worst), and
+	   for NanoVDB the converted grids too */
+	if (c.format == F_VDB || c.format == F_NVDB)
+		for (int ch = 0; ch < N_CH; ch++)
+			if (c.chmask & 1u << ch)
+				per += voxels * (c.format == F_NVDB ? 2u : 1u) *
+				       (ch_comps[ch] == 3 ? LOOM__VDB_BYTES_VEC3 : LOOM__VDB_BYTES_SCALAR);
 	/* the manifest lines, held until the end: per tile of the shard about
 	   256 bytes of index and box and 128 per file (an upper estimate), its
 	   pointer, skip flag and allocation header, and its place in the
@@ -314,6 +359,8 @@ int cmd_export(int argc, char **argv)
 			files += (c.chmask >> ch) & 1u;
 		if (c.format == F_EXR)
 			files = (size_t)j.tsize[2];
+		if (c.format == F_VDB || c.format == F_NVDB)
+			files = 1;
 		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16 + 16);
 	}
 	tiles_open_texture(&j, prog, per);

@@ -24,8 +24,12 @@ enum { CH_DENSITY, CH_ORIENT, CH_ALBEDO, CH_KIND, CH_TYPE, N_CH };
 static const char *const ch_names[N_CH] = {"density", "orientation", "albedo", "kind",
                                            "type"};
 static const unsigned ch_comps[N_CH] = {1, 3, 3, 1, 1};
-enum { F_VOL, F_NRRD, F_EXR };
-static const char *const fmt_names[] = {"vol", "nrrd", "exr"};
+enum { F_VOL, F_NRRD, F_EXR, F_VDB, F_NVDB };
+static const char *const fmt_names[] = {"vol", "nrrd", "exr", "vdb", "nvdb"};
+/* OpenVDB grid names: albedo is "color", the Principled Volume's colour
+   attribute in Blender (docs/interop.md) */
+static const char *const vdb_grid_names[N_CH] = {"density", "orientation", "color", "kind",
+                                                 "type"};
 
 #define CRC_BUF (256u << 10)
 
@@ -41,6 +45,7 @@ struct ewstate {
 struct export_ctx {
 	tiles_job *j;
 	int format;
+	int codec;             /* vdb: LOOM__VDB_BLOSC, _ZIP or _NONE */
 	unsigned chmask;
 	const char *dir;
 	char *params;          /* the manifest's "params" value (one line) */

@@ -8,6 +8,7 @@
 #include "export.h"
 
 #include "io/volume/nrrd.h" /* io/: the NRRD writer (internal to libloom) */
+#include "io/volume/vdb.h"  /* io/: the OpenVDB / NanoVDB shim (internal) */
 
 #include <stdlib.h>
 #include <string.h>
@@ -221,6 +222,48 @@ static int write_exr(struct export_ctx *c, struct ewstate *w, const char *stem,
 	return 0;
 }
 
+/* One .vdb or .nvdb file per tile with a grid per chosen channel. */
+static int write_vdb(struct export_ctx *c, struct ewstate *w, const char *stem,
+                     const int64_t lo[3], const int64_t hi[3], char *msg, size_t msz)
+{
+	size_t nx = (size_t)(hi[0] - lo[0]), ny = (size_t)(hi[1] - lo[1]);
+	size_t nz = (size_t)(hi[2] - lo[2]);
+	int nano = c->format == F_NVDB;
+	loom__vdb *v = NULL;
+	loom_diag diag;
+	char name[512], path[4096];
+
+	snprintf(name, sizeof name, "%s.%s", stem, nano ? "nvdb" : "vdb");
+	snprintf(path, sizeof path, "%s/%s", c->dir, name);
+	cli_diag_init(&diag, NULL);
+	if (loom__vdb_open(&v, nano ? LOOM__VDB_NANOVDB : LOOM__VDB_OPENVDB, c->codec,
+	                   c->j->voxel_mm, &diag) != LOOM_OK)
+		goto fail;
+	for (int ch = 0; ch < N_CH; ch++) {
+		int kind = ch_comps[ch] == 3 ? LOOM__VDB_VEC3
+		           : ch == CH_DENSITY ? LOOM__VDB_FLOAT : LOOM__VDB_INT32;
+		if (!(c->chmask & 1u << ch))
+			continue;
+		if (loom__vdb_grid(v, vdb_grid_names[ch], kind, lo, hi, &diag) != LOOM_OK)
+			goto fail;
+		for (size_t z = 0; z < nz; z++)
+			for (size_t y = 0; y < ny; y++) {
+				fill_row(c, w, ch, (z * ny + y) * nx, nx, w->row);
+				if (loom__vdb_row(v, lo[0], lo[1] + (int64_t)y, lo[2] + (int64_t)z, nx,
+				                  w->row, &diag) != LOOM_OK)
+					goto fail;
+			}
+	}
+	if (loom__vdb_write(v, path, &diag) != LOOM_OK)
+		goto fail;
+	loom__vdb_free(v);
+	return export_record_file(c, w, name, msg, msz);
+fail:
+	loom__vdb_free(v);
+	snprintf(msg, msz, "%s", diag.message);
+	return -1;
+}
+
 /* ---- dispatch ----------------------------------------------------------------- */
 
 int export_write_tile(struct export_ctx *c, struct ewstate *w, const char *stem,
@@ -228,6 +271,9 @@ int export_write_tile(struct export_ctx *c, struct ewstate *w, const char *stem,
 {
 	if (c->format == F_EXR) {
 		if (write_exr(c, w, stem, lo, hi, msg, msz))
+			return -1;
+	} else if (c->format == F_VDB || c->format == F_NVDB) {
+		if (write_vdb(c, w, stem, lo, hi, msg, msz))
 			return -1;
 	} else {
 		for (int ch = 0; ch < N_CH; ch++) {
