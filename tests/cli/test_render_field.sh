@@ -16,8 +16,11 @@ json_check() {
 	    "$T/out" "$2" 2>"$T/pyerr"; then pass "$1"; else
 		fail "$1" "JSON check failed: $2: $(head -c 400 "$T/out") $(head -c 300 "$T/pyerr")"; fi
 }
-# cloth_check NAME PNG: at least a fifth of the pixels differ from the
-# grey background (the environment's colour), read by pngread.py
+# cloth_check NAME PNG: at least an eighth of the pixels differ from the
+# grey background (the environment's colour), read by pngread.py.  The
+# figure mesh fills about a quarter of the frame, and under the studio
+# light its shaded side comes close to the grey: an empty or failed render
+# differs in no pixel.
 cloth_check() {
 	if PYTHONPATH="$LOOM_TOP/tests/cli" python3 - "$2" <<'PY' 2>"$T/pyerr"; then pass "$1"; else fail "$1" "$(cat "$T/pyerr")"; fi
 import sys, pngread
@@ -25,7 +28,7 @@ w, h, ch, px = pngread.read(sys.argv[1])
 bg = px[0][0:3]
 n = sum(1 for y in range(h) for x in range(w)
         if max(abs(px[y][x * ch + c] - bg[c]) for c in range(3)) > 12)
-assert n > w * h // 5, '%d of %d pixels differ from the background' % (n, w * h)
+assert n > w * h // 8, '%d of %d pixels differ from the background' % (n, w * h)
 PY
 }
 

@@ -114,7 +114,7 @@ static void trim_cache(const char *dir, const char *keep, double max_bytes, int 
 				break;
 			list = nl;
 		}
-		snprintf(list[n].name, sizeof list[n].name, "%s", e->d_name);
+		memcpy(list[n].name, e->d_name, l + 1); /* l < sizeof name */
 		list[n].size = st.st_size;
 		list[n].mtime = st.st_mtime;
 		total += (double)st.st_size;
