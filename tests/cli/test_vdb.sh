@@ -40,6 +40,13 @@ NOT_LINKED="-e openvdb -e libtbb"
 if ldd "$LOOM" | grep -q $NOT_LINKED; then
 	fail no_openvdb_linked "$(ldd "$LOOM" | grep $NOT_LINKED)"
 else pass no_openvdb_linked; fi
+case "${LOOM_SAN:-}" in *thread*)
+	# Debian's OpenVDB and TBB are not built with ThreadSanitizer, so it
+	# cannot see their synchronisation and reports races inside TBB's
+	# scheduler; the VDB writes run under ASan/UBSan and in the plain suite
+	echo "test_vdb: VDB writes not run under ThreadSanitizer (OpenVDB and TBB are not instrumented)" >&2
+	exit 0 ;;
+esac
 if [ ! -x "$CHECK" ]; then
 	echo "test_vdb: OpenVDB not installed (tools/deps.sh installs it): only the missing-package message checked" >&2
 	exit 0
