@@ -22,7 +22,7 @@
 static const char usage[] =
 	"loom export FABRIC (--region X0,Y0,Z0:X1,Y1,Z1 | --all [--bolt LxW])\n"
 	"            --format vol|nrrd|exr|vdb|nvdb -o DIR [--channels LIST]\n"
-	"            [--compression blosc|zip|none] [--tile TX,TY[,TZ]]\n"
+	"            [--compression blosc|zip|none] [--tile TX,TY[,TZ]] [--lod L]\n"
 	"            [--shard I/N] [--budget MB]\n"
 	"            [--threads N] [--db DB] [--quiet] [--json]\n"
 	"loom export --merge DIR [--quiet] [--json]\n"
@@ -42,6 +42,8 @@ static const opt_choice format_names[] = {
 static const opt_choice codec_names[] = {
 	{"blosc", LOOM__VDB_BLOSC}, {"zip", LOOM__VDB_ZIP}, {"none", LOOM__VDB_NONE}, {NULL, 0}};
 
+#define LOD_MAX 10 /* --lod: coarse voxels of at most 1024^3 fine ones */
+
 static void stem_of(const tiles_job *j, uint64_t index, char *out, size_t n)
 {
 	int64_t lo[3], hi[3], t[3];
@@ -58,13 +60,22 @@ static int export_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char
 {
 	struct export_ctx *c = vctx;
 	struct ewstate *w = &c->w[wi];
-	int64_t lo[3], hi[3], t[3];
+	int64_t lo[3], hi[3], t[3], rhi[3], clo[3], chi[3], n[3];
 	loom_texture_region r;
 	char stem[128], *line;
 	const char *delay = getenv("LOOM_EXPORT_TILE_DELAY_MS");
 
 	tiles_box(c->j, index, lo, hi, t);
 	stem_of(c->j, index, stem, sizeof stem);
+	/* --lod L: read whole coarse voxels of s = 2^L (lo is a multiple of s;
+	   the far end of the region rounds up), then downsample */
+	for (int a = 0; a < 3; a++) {
+		int64_t s = (int64_t)1 << c->lod;
+		n[a] = (hi[a] - lo[a] + s - 1) / s * s;
+		rhi[a] = lo[a] + n[a];
+		clo[a] = lo[a] / s;
+		chi[a] = rhi[a] / s;
+	}
 	memset(&r, 0, sizeof r);
 	r.layout = LOOM_REGION_X_FASTEST;
 	r.density = w->d;
@@ -74,10 +85,12 @@ static int export_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char
 		r.kind = w->k;
 		r.type = w->ty;
 	}
-	if (loom_texture_read_region(c->j->t, lo, hi, &r) != LOOM_OK) {
+	if (loom_texture_read_region(c->j->t, lo, rhi, &r) != LOOM_OK) {
 		snprintf(msg, msz, "tile %s: %s", stem, loom_texture_errmsg(c->j->t));
 		return -1;
 	}
+	if (c->lod)
+		export_lod_tile(c, w, n);
 	w->line_len = 0;
 	w->line[0] = 0;
 	if (export_line_add(w, "{\"index\": %llu, \"tile\": [%lld, %lld, %lld], \"lo\": "
@@ -89,7 +102,7 @@ static int export_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char
 		snprintf(msg, msz, "out of memory");
 		return -1;
 	}
-	if (export_write_tile(c, w, stem, lo, hi, msg, msz))
+	if (export_write_tile(c, w, stem, clo, chi, msg, msz))
 		return -1;
 	if (export_line_add(w, "]}") || !(line = strdup(w->line))) {
 		snprintf(msg, msz, "out of memory");
@@ -162,6 +175,8 @@ static void export_ctx_free(struct export_ctx *c, unsigned threads)
 		free(c->w[w].ty);
 		free(c->w[w].o);
 		free(c->w[w].row);
+		free(c->w[w].lv);
+		free(c->w[w].tw);
 		free(c->w[w].io);
 		free(c->w[w].line);
 	}
@@ -183,17 +198,18 @@ int cmd_export(int argc, char **argv)
 	const char *prog = "loom export";
 	const char *path = NULL, *out = NULL, *merge_dir = NULL, *status_dir = NULL;
 	int json = 0, quiet = 0, verify = 0;
+	uint32_t lod_u = 0;
 	tiles_job j;
 	struct export_ctx c;
 	tiles_pool pool;
 	cli_progress bar;
 	const loom_design *d;
-	size_t voxels, per, rowf;
+	size_t voxels, per, rowf, cvox, cx;
 	uint64_t kept;
 	uint32_t fcrc;
 	uint64_t fbytes;
 	double t0, secs;
-	char params[2048], cl[160] = "";
+	char params[2048], cl[160] = "", lod_text[32] = "";
 	uint8_t *fbuf;
 	opt_entry opts[] = {
 		TILES_OPT_REGION(&j),
@@ -211,6 +227,11 @@ int cmd_export(int argc, char **argv)
 		             "density,orientation)"),
 		TILES_OPT_TILE(&j, "tile size in voxels (default 64,64 and the region's whole "
 		               "thickness)"),
+		OPT_U32(0, "lod", &lod_u, "L", 0, LOD_MAX, "level of detail: voxels "
+		        "downsampled by 2^L (density averaged, orientation by the averaged "
+		        "structure tensor, albedo density-weighted, kind and type by density-"
+		        "weighted majority); the region's corner and the tile sides must be "
+		        "multiples of 2^L (default 0)"),
 		TILES_OPT_SHARD(&j, "only shard I of N (0-based; each shard reads about 1/N of "
 		                "the database); writes DIR/manifest-I-of-N.json"
 		                TILES_SHARD_AUTO_HELP),
@@ -247,7 +268,8 @@ int cmd_export(int argc, char **argv)
 			opts_usage(&cmd, "give --merge DIR or --status DIR, not both");
 		if (path || c.format >= 0 || c.codec >= 0 || opt_given(&cmd, &c.chmask) || out || j.region_s ||
 		    j.all || j.shard_s || j.tile_s || opt_given(&cmd, &j.bolt) ||
-		    opt_given(&cmd, &j.threads) || opt_given(&cmd, &j.budget_mb) || j.db_s)
+		    opt_given(&cmd, &j.threads) || opt_given(&cmd, &j.budget_mb) || j.db_s ||
+		    opt_given(&cmd, &lod_u))
 			opts_usage(&cmd, "%s DIR takes no FABRIC nor export options", what);
 		if (verify && merge_dir)
 			opts_usage(&cmd, "--verify goes with --status");
@@ -299,6 +321,30 @@ int cmd_export(int argc, char **argv)
 		opts_usage(&cmd, "OpenVDB coordinates are 32-bit: the region must be within "
 		           "-2^31 .. 2^31-1 voxels");
 	}
+	c.lod = (int)lod_u;
+	c.vmm = j.voxel_mm * (double)((int64_t)1 << c.lod);
+	for (int a = 0; a < 3 && c.lod; a++) {
+		int64_t s = (int64_t)1 << c.lod;
+		const char *why = NULL;
+		if (j.tsize[a] < s)
+			why = "makes the tiles vanish";
+		else if (j.lo[a] % s != 0)
+			why = "needs the region's corner at a multiple of";
+		else if (j.nt[a] > 1 && j.tsize[a] % s != 0)
+			why = "needs a tile side that is a multiple of";
+		if (!why)
+			continue;
+		tiles_close(&j);
+		if (j.tsize[a] < s)
+			opts_usage(&cmd, "--lod %d %s: they are %lld voxels along %c, less than "
+			           "one coarse voxel of %lld (give a --tile of at least %lld, or a "
+			           "smaller --lod)", c.lod, why, (long long)j.tsize[a], "xyz"[a],
+			           (long long)s, (long long)s);
+		opts_usage(&cmd, "--lod %d %s %lld voxels along %c (the region starts at %lld, "
+		           "the tiles are %lld voxels), so that coarse tiles line up edge to edge",
+		           c.lod, why, (long long)s, "xyz"[a], (long long)j.lo[a],
+		           (long long)j.tsize[a]);
+	}
 	make_dir(prog, out);
 	c.j = &j;
 	c.dir = out;
@@ -317,17 +363,19 @@ int cmd_export(int argc, char **argv)
 		if (c.chmask & 1u << ch)
 			snprintf(cl + strlen(cl), sizeof cl - strlen(cl), "%s\"%s\"", cl[0] ? ", " : "",
 			         ch_names[ch]);
+	if (c.lod) /* absent at 0: manifests of earlier exports stay valid */
+		snprintf(lod_text, sizeof lod_text, ", \"lod\": %d", c.lod);
 	snprintf(params, sizeof params,
 	         "{\"fabric_bytes\": %llu, \"fabric_crc32\": \"%08x\", \"format\": \"%s\", "
 	         "\"channels\": [%s], \"region_lo\": [%lld, %lld, %lld], \"region_hi\": "
-	         "[%lld, %lld, %lld], \"tile\": [%lld, %lld, %lld], \"voxel_mm\": %.9g%s}",
+	         "[%lld, %lld, %lld], \"tile\": [%lld, %lld, %lld], \"voxel_mm\": %.9g%s%s}",
 	         (unsigned long long)fbytes, fcrc, fmt_names[c.format], cl, (long long)j.lo[0],
 	         (long long)j.lo[1], (long long)j.lo[2], (long long)j.hi[0], (long long)j.hi[1],
 	         (long long)j.hi[2], (long long)j.tsize[0], (long long)j.tsize[1],
 	         (long long)j.tsize[2], j.voxel_mm,
 	         c.format != F_VDB ? "" : c.codec == LOOM__VDB_BLOSC ? ", \"compression\": \"blosc\""
 	         : c.codec == LOOM__VDB_ZIP ? ", \"compression\": \"zip\""
-	                                    : ", \"compression\": \"none\"");
+	                                    : ", \"compression\": \"none\"", lod_text);
 	c.params = params;
 	if (j.shard_n > 1)
 		snprintf(c.manifest, sizeof c.manifest, "%s/manifest-%u-of-%u.json", out, j.shard_i,
@@ -338,16 +386,26 @@ int cmd_export(int argc, char **argv)
 	/* per worker: the tile's raw channels, a row of up to 9 floats per voxel,
 	   the CRC buffer and the writers' own buffers (a .vol writer 64 KiB; an
 	   EXR writer one 16-row chunk, its planes and a compressor) */
-	voxels = (size_t)j.tsize[0] * (size_t)j.tsize[1] * (size_t)j.tsize[2];
-	rowf = (size_t)j.tsize[0] * 9;
+	{
+		/* with --lod the tile read rounds up to whole coarse voxels; the
+		   writers see the coarse tile (cvox voxels, cx a row) */
+		int64_t s = (int64_t)1 << c.lod, rt[3];
+		for (int a = 0; a < 3; a++)
+			rt[a] = (j.tsize[a] + s - 1) / s * s;
+		voxels = (size_t)rt[0] * (size_t)rt[1] * (size_t)rt[2];
+		cvox = voxels >> (3 * c.lod);
+		cx = (size_t)(rt[0] / s);
+	}
+	rowf = cx * 9;
 	per = voxels * 5 + rowf * sizeof(float) + CRC_BUF + (1u << 20) +
-	      (c.format == F_EXR ? (size_t)j.tsize[0] * 16 * 9 * 4 * 3 : 0);
+	      (c.format == F_EXR ? cx * 16 * 9 * 4 * 3 : 0) +
+	      (c.lod ? cvox * LOD_FLOATS * sizeof(float) + 256 * sizeof(double) : 0);
 	/* a VDB writer holds the tile's grids (all voxels active at worst), and
 	   for NanoVDB the converted grids too */
 	if (c.format == F_VDB || c.format == F_NVDB)
 		for (int ch = 0; ch < N_CH; ch++)
 			if (c.chmask & 1u << ch)
-				per += voxels * (c.format == F_NVDB ? 2u : 1u) *
+				per += cvox * (c.format == F_NVDB ? 2u : 1u) *
 				       (ch_comps[ch] == 3 ? LOOM__VDB_BYTES_VEC3 : LOOM__VDB_BYTES_SCALAR);
 	/* the manifest lines, held until the end: per tile of the shard about
 	   256 bytes of index and box and 128 per file (an upper estimate), its
@@ -358,7 +416,7 @@ int cmd_export(int argc, char **argv)
 		for (int ch = 0; ch < N_CH; ch++)
 			files += (c.chmask >> ch) & 1u;
 		if (c.format == F_EXR)
-			files = (size_t)j.tsize[2];
+			files = (size_t)((j.tsize[2] + ((int64_t)1 << c.lod) - 1) >> c.lod);
 		if (c.format == F_VDB || c.format == F_NVDB)
 			files = 1;
 		j.job_bytes = (size_t)c.n * (256 + 128 * files + 8 + 1 + 16 + 16);
@@ -382,6 +440,9 @@ int cmd_export(int argc, char **argv)
 		ws->ty = malloc(voxels);
 		ws->o = malloc(voxels * 2);
 		ws->row = malloc(rowf * sizeof(float));
+		if (c.lod && (!(ws->lv = malloc(cvox * LOD_FLOATS * sizeof(float))) ||
+		              !(ws->tw = calloc(256, sizeof(double)))))
+			cli_fail(prog, "out of memory");
 		ws->io = malloc(CRC_BUF);
 		ws->line_cap = 4096;
 		ws->line = malloc(ws->line_cap);

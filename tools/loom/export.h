@@ -4,7 +4,9 @@
  *   export_manifest.c  the manifest: each tile's line of files, sizes and
  *                      CRC-32s, its atomic rewrites, resuming a killed job,
  *                      merging the manifests of shards (--merge)
- *   export_formats.c   the tile writers, one per format (vol, nrrd, exr)
+ *   export_formats.c   the tile writers, one per format (vol, nrrd, exr,
+ *                      vdb, nvdb)
+ *   export_lod.c       --lod: a tile downsampled before it is written
  * A writer puts a tile's files into the output directory and records each
  * with export_record_file, which adds it to the tile's manifest line.
  */
@@ -37,6 +39,8 @@ struct ewstate {
 	uint8_t *d, *k, *ty;
 	uint16_t *o;
 	float *row;            /* one row: up to 9 floats per voxel */
+	float *lv;             /* --lod: the coarse tile, LOD_FLOATS per voxel */
+	double *tw;            /* --lod: summed density per yarn type (256) */
 	uint8_t *io;           /* CRC read buffer */
 	char *line;            /* the tile's manifest line being built */
 	size_t line_cap, line_len;
@@ -47,6 +51,8 @@ struct export_ctx {
 	int format;
 	int codec;             /* vdb: LOOM__VDB_BLOSC, _ZIP or _NONE */
 	unsigned chmask;
+	int lod;               /* --lod L: voxels downsampled by 2^L (0: none) */
+	double vmm;            /* edge of an exported voxel, mm (voxel_mm * 2^L) */
 	const char *dir;
 	char *params;          /* the manifest's "params" value (one line) */
 	char manifest[4096];   /* its path */
@@ -66,6 +72,16 @@ struct export_ctx {
 	int manifest_error;
 	char manifest_msg[LOOM_DIAG_MSG_MAX];
 };
+
+/* ---- export_lod.c ---------------------------------------------------------- */
+
+/* Floats per coarse voxel in ewstate.lv: density, orientation (3), albedo
+   (3), kind, type. */
+#define LOD_FLOATS 9
+/* Downsample the tile in w's buffers (n voxels per axis, each a multiple
+   of 2^c->lod, x fastest) into w->lv; the coarse kind and type bytes go
+   to the start of w->k and w->ty. */
+void export_lod_tile(const struct export_ctx *c, struct ewstate *w, const int64_t n[3]);
 
 /* ---- export_formats.c ------------------------------------------------------ */
 

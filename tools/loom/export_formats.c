@@ -21,6 +21,13 @@ static void fill_row(const struct export_ctx *c, const struct ewstate *w, int ch
 	const uint8_t *d = w->d + off, *k = w->k + off, *ty = w->ty + off;
 	const uint16_t *o = w->o + off;
 
+	if (c->lod) { /* the coarse tile: LOD_FLOATS per voxel */
+		static const unsigned first[N_CH] = {0, 1, 4, 7, 8};
+		for (size_t i = 0; i < nx; i++)
+			for (unsigned q = 0; q < ch_comps[ch]; q++)
+				out[i * ch_comps[ch] + q] = w->lv[(off + i) * LOD_FLOATS + first[ch] + q];
+		return;
+	}
 	switch (ch) {
 	case CH_DENSITY:
 		for (size_t i = 0; i < nx; i++)
@@ -64,12 +71,13 @@ static int write_vol(struct export_ctx *c, struct ewstate *w, const char *stem, 
 	loom_vol_writer *vw = NULL;
 	loom_diag diag;
 	char name[512], path[4096];
-	double vmm = c->j->voxel_mm;
+	double vmm = c->vmm;
 
 	snprintf(name, sizeof name, "%s.%s.vol", stem, ch_names[ch]);
 	snprintf(path, sizeof path, "%s/%s", c->dir, name);
 	memset(&h, 0, sizeof h);
-	h.encoding = ch == CH_DENSITY ? LOOM_VOL_UINT8 : LOOM_VOL_FLOAT32;
+	/* density: bytes as stored, or with --lod the coarse means as floats */
+	h.encoding = ch == CH_DENSITY && !c->lod ? LOOM_VOL_UINT8 : LOOM_VOL_FLOAT32;
 	h.xres = (uint32_t)nx;
 	h.yres = (uint32_t)ny;
 	h.zres = (uint32_t)nz;
@@ -121,8 +129,8 @@ static int write_nrrd(struct export_ctx *c, struct ewstate *w, const char *stem,
 	d.sizes[1] = ny;
 	d.sizes[2] = nz;
 	for (int a = 0; a < 3; a++) {
-		d.spacing[a] = c->j->voxel_mm;
-		d.origin[a] = ((double)lo[a] + 0.5) * c->j->voxel_mm;
+		d.spacing[a] = c->vmm;
+		d.origin[a] = ((double)lo[a] + 0.5) * c->vmm;
 	}
 	d.units = "mm";
 	d.content = content;
@@ -182,10 +190,10 @@ static int write_exr(struct export_ctx *c, struct ewstate *w, const char *stem,
 		o.has_slice = 1;
 		o.slice_z = (int32_t)az;
 		for (int a = 0; a < 3; a++)
-			o.voxel_mm[a] = c->j->voxel_mm;
-		o.origin_mm[0] = ((double)lo[0] + 0.5) * c->j->voxel_mm;
-		o.origin_mm[1] = ((double)lo[1] + 0.5) * c->j->voxel_mm;
-		o.origin_mm[2] = ((double)az + 0.5) * c->j->voxel_mm;
+			o.voxel_mm[a] = c->vmm;
+		o.origin_mm[0] = ((double)lo[0] + 0.5) * c->vmm;
+		o.origin_mm[1] = ((double)lo[1] + 0.5) * c->vmm;
+		o.origin_mm[2] = ((double)az + 0.5) * c->vmm;
 		if (loom_exr_writer_open(path, (uint32_t)nx, (uint32_t)ny, chans, nch, &o, &ew,
 		                         &diag) != LOOM_OK)
 			goto fail;
@@ -237,7 +245,7 @@ static int write_vdb(struct export_ctx *c, struct ewstate *w, const char *stem,
 	snprintf(path, sizeof path, "%s/%s", c->dir, name);
 	cli_diag_init(&diag, NULL);
 	if (loom__vdb_open(&v, nano ? LOOM__VDB_NANOVDB : LOOM__VDB_OPENVDB, c->codec,
-	                   c->j->voxel_mm, &diag) != LOOM_OK)
+	                   c->vmm, &diag) != LOOM_OK)
 		goto fail;
 	for (int ch = 0; ch < N_CH; ch++) {
 		int kind = ch_comps[ch] == 3 ? LOOM__VDB_VEC3
