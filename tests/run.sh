@@ -64,6 +64,13 @@ for t in tests/cli/test_*.sh; do
 	[ -f "$t" ] || continue
 	run_one "cli_$(basename "$t" .sh)" sh "$t"
 done
+# checks against other programs that are installed only on request
+# (tests/extra/blender.sh: tools/deps.sh blender); a SKIP line says why not
+for t in tests/extra/*.sh; do
+	[ -f "$t" ] || continue
+	run_one "extra_$(basename "$t" .sh)" sh "$t"
+	grep '^SKIP ' "$LOGS/extra_$(basename "$t" .sh).log"
+done
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -8,6 +8,8 @@
 #   tools/deps.sh openvdb the peer benchmark bench/bench_vdb.cpp (make bench):
 #                         OpenVDB, NanoVDB, the Boost headers they include, g++
 #   tools/deps.sh fuzz    build + clang with libFuzzer (make fuzz, fuzz-run)
+#   tools/deps.sh blender Blender (Cycles) for tests/extra/blender.sh and the
+#                         Cycles comparison of bench/cycles.sh; only on request
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -31,6 +33,8 @@ if [ "$what" = slurm ]; then
 	need slurmd       command -v slurmd
 	need slurm-client command -v sbatch
 	need munge        command -v munged
+elif [ "$what" = blender ]; then
+	need blender        command -v blender
 elif [ "$what" = openvdb ]; then
 	need g++            command -v g++
 	need libopenvdb-dev has_header openvdb/openvdb.h
