@@ -19,4 +19,9 @@ for b in "$BUILD"/bench/bench_*; do
 	"$b" | tee "$BUILD/bench/$(basename "$b").log" | grep -v '^{'
 	grep '^{' "$BUILD/bench/$(basename "$b").log" >>"$out"
 done
+# loom's renderer against Blender Cycles on an exported region (skipped,
+# with a message, without Blender or OpenVDB)
+echo "== cycles"
+BUILD=$BUILD sh bench/cycles.sh | tee "$BUILD/bench/cycles.log" | grep -v '^{'
+grep '^{' "$BUILD/bench/cycles.log" >>"$out"
 echo "results: $out"
