@@ -50,6 +50,10 @@ for L in 1 2; do
 	if grep -q "\"lod\": $L" "$T/n$L/manifest.json"; then pass manifest_lod$L
 	else fail manifest_lod$L "$(head -c 400 "$T/n$L/manifest.json")"; fi
 done
+# a re-run of the same export resumes: every tile verified and skipped
+expect_ok lod_resume "$LOOM" export "$F" --region "$REG" --format nrrd --channels $ALL \
+	--tile 32,24 --lod 1 --json -o "$T/n1"
+expect_out_contains lod_resume_skips '"tiles_skipped": 6'
 # another --lod into the same directory is another export: refused
 expect_exit lod_resume_other 1 "$LOOM" export "$F" --region "$REG" --format nrrd \
 	--channels $ALL --tile 32,24 --lod 2 --quiet -o "$T/n1"

@@ -12,7 +12,7 @@ if ! command -v blender >/dev/null 2>&1; then
 	echo "SKIP blender: not installed (tools/deps.sh blender installs it): the Cycles check is skipped"
 	exit 0
 fi
-if [ ! -x "$LOOM_BUILD/libloom-vdb.so.0" ] && [ ! -f "$LOOM_BUILD/libloom-vdb.so.0" ]; then
+if [ ! -f "$LOOM_BUILD/libloom-vdb.so.0" ]; then
 	echo "SKIP blender: this loom has no VDB writer (OpenVDB not installed): the Cycles check is skipped"
 	exit 0
 fi
