@@ -174,9 +174,9 @@ static void test_cylinder_round_trip(void)
 	loom_mesh_free(m);
 }
 
-static void test_pillow_computed_normals(void)
+static void test_bump_computed_normals(void)
 {
-	loom_mesh *m = load("pillow.obj");
+	loom_mesh *m = load("bump.obj");
 	loom_shell *s;
 	uint64_t rng = check_seed();
 	double maxerr = 0;
@@ -203,10 +203,10 @@ static void test_pillow_computed_normals(void)
 		for (int j = 0; j < 3; j++)
 			maxerr = fmax(maxerr, fabs(v2[j] - v[j]));
 	}
-	printf("  pillow: round trip max error %.3g voxels, %d failures\n", maxerr, fails);
+	printf("  bump: round trip max error %.3g voxels, %d failures\n", maxerr, fails);
 	CHECK_EQ_INT(fails, 0);
 	CHECK(maxerr < 1e-6);
-	/* the middle of the pillow: normal +z, height 6; z voxel 12 = h 0 */
+	/* the middle of the bump: normal +z, height 6; z voxel 12 = h 0 */
 	{
 		double v[3] = {24, 24, 12}, w[3];
 		CHECK_EQ_INT(loom_shell_voxel_to_world(s, v, w, NULL), LOOM_OK);
@@ -430,7 +430,7 @@ int main(void)
 	CHECK_MAIN_BEGIN("test_shell");
 	RUN(test_quad_identity);
 	RUN(test_cylinder_round_trip);
-	RUN(test_pillow_computed_normals);
+	RUN(test_bump_computed_normals);
 	RUN(test_jacobian);
 	RUN(test_ray_crossings);
 	RUN(test_concurrent_queries);
