@@ -41,3 +41,19 @@ for m in pillow:0.15 drape:0.1 sleeve:0.15; do
 	json_check "${name}_uv" "j['scene'] == 'mesh' and j['uv']['source'] == 'mesh' and j['uv']['stretch_mean'] < 1.25"
 	cloth_check "${name}_cloth" "$T/$name.png" "${m#*:}"
 done
+
+# --uv-mm U,V: millimetres of cloth per UV unit.  The tiny database states
+# no sett: crossings become square at the exemplar crossing's area, so the
+# voxel scales differ by the crossing's aspect b1 / b2 (and U / V)
+expect_ok uv_mm "$LOOM" render "$F" --mesh "$MESHES/quad.obj" $R --uv-mm 12,6 --json -o "$T/uvmm.png"
+json_check uv_mm_scales "abs(j['uv']['crossing_mm_u'] - j['uv']['crossing_mm_v']) < 1e-12 and abs(j['uv']['voxels_per_uv_u'] / 12 * j['uv']['crossing_mm_u'] - 8) < 1e-6 and abs(j['uv']['voxels_per_uv_v'] / 6 * j['uv']['crossing_mm_v'] - 6) < 1e-6"
+cloth_check uv_mm_cloth "$T/uvmm.png" 0.15
+expect_ok uv_mm_pillow "$LOOM" render "$F" --mesh "$MESHES/pillow.obj" $R --uv-mm 40 --json -o "$T/uvmmp.png"
+json_check uv_mm_one_value "abs(j['uv']['voxels_per_uv_u'] / j['uv']['voxels_per_uv_v'] - 8 / 6) < 1e-9"
+cloth_check uv_mm_pillow_cloth "$T/uvmmp.png" 0.15
+expect_exit uv_mm_and_repeats 2 "$LOOM" render "$F" --mesh "$MESHES/quad.obj" --uv-mm 12 --uv-repeats 2 -o "$T/x.png"
+expect_err_contains uv_mm_and_repeats_msg "give one"
+expect_exit uv_mm_zero 2 "$LOOM" render "$F" --mesh "$MESHES/quad.obj" --uv-mm 0 -o "$T/x.png"
+expect_err_contains uv_mm_zero_msg "--uv-mm"
+expect_exit uv_mm_bad_v 2 "$LOOM" render "$F" --mesh "$MESHES/quad.obj" --uv-mm 12,x -o "$T/x.png"
+expect_exit uv_mm_flat 2 "$LOOM" render "$F" --uv-mm 12 -o "$T/x.png"
