@@ -2,6 +2,7 @@
 #
 #   make            build libloom.a, libloom.so, the loom command, default data
 #   make demo       build and run `loom demo` on the built-in data
+#   make gallery    render the gallery to docs/images (~10 min; docs/rendering.md)
 #   make test       build with -Werror and run every test; ends "N passed, N failed"
 #   make sanitize   the same suite under AddressSanitizer + UBSan
 #   make tsan       the same suite under ThreadSanitizer
@@ -105,11 +106,11 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity
+.PHONY: all demo gallery test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity
 all: $(STATIC) $(SHARED) $(LOOM) $(VDB_PLUGIN) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
-	@sed -n '3,15p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '3,16p' Makefile | sed 's/^# \{0,1\}//'
 
 $(DEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
@@ -220,6 +221,11 @@ $(BUILD)/bench/%: $(BUILD)/obj/bench/%.o $(STATIC)
 
 demo: all
 	$(LOOM) demo
+
+# The figure 13 subjects on the scene meshes (tools/gallery.sh; not part of
+# make test: about 10 minutes on 2 cores).  GALLERY_ARGS="W H SPP" to change.
+gallery: all
+	nice sh tools/gallery.sh $(LOOM) docs/images $(GALLERY_ARGS)
 
 # An independent reader of the .vdb / .nvdb exports (OpenVDB's and
 # NanoVDB's own headers) for tests/cli/test_vdb.sh; not built without them.

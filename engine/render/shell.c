@@ -16,8 +16,10 @@
  *                  |  ...  | /               are bilinear patches
  *            P0+loN0 ______|/ P1+loN1        inner surface  (h = lo)
  *
- * and  voxel = ((u - u0) s, (v - v0) s, (h - offset) / thickness * nz)
- * with (u, v) = sum_i b_i uv_i and s = voxels_per_uv.  Neighbouring prisms
+ * and  voxel = ((u - u0) su, (v - v0) sv, (h - offset) / thickness * nz)
+ * with (u, v) = sum_i b_i uv_i, su = voxels_per_uv and sv = voxels_per_uv_v
+ * (or su when 0): separate scales keep crossings of any aspect at their
+ * physical size (loom_uv_mm_scale).  Neighbouring prisms
  * share their side walls (same corners, same normals), so the map is
  * continuous across triangles; inside a prism it is linear in b and in h
  * separately (bilinear overall): the "per-prism linear interpolation" of
@@ -63,6 +65,7 @@
 
 struct loom_shell {
 	loom_shell_params p;
+	double vpu[2];            /* voxels per UV unit in u and v */
 	double lo, hi;            /* heights of the inner / outer surfaces */
 	uint32_t n_tri;           /* usable triangles */
 	uint32_t *tri_src;        /* mesh triangle index of each */
@@ -250,8 +253,8 @@ static void to_voxel(const loom_shell *s, uint32_t k, const double b[3],
 	const double *uv = s->UV + 6 * (size_t)k;
 	double u = b[0] * uv[0] + b[1] * uv[2] + b[2] * uv[4];
 	double vv = b[0] * uv[1] + b[1] * uv[3] + b[2] * uv[5];
-	v[0] = (u - s->p.uv_origin[0]) * s->p.voxels_per_uv;
-	v[1] = (vv - s->p.uv_origin[1]) * s->p.voxels_per_uv;
+	v[0] = (u - s->p.uv_origin[0]) * s->vpu[0];
+	v[1] = (vv - s->p.uv_origin[1]) * s->vpu[1];
 	v[2] = (h - s->lo) / s->p.thickness * (double)s->p.nz;
 }
 
@@ -261,13 +264,13 @@ static void jacobian(const loom_shell *s, uint32_t k, const double b[3],
 {
 	const double *M = s->Minv + 4 * (size_t)k;
 	double X[3], Xb0[3], Xb1[3], Xh[3];
-	double inv_s = 1.0 / s->p.voxels_per_uv;
+	double inv_su = 1.0 / s->vpu[0], inv_sv = 1.0 / s->vpu[1];
 	double hz = s->p.thickness / (double)s->p.nz;
 
 	prism_eval(s, k, b[0], b[1], h, X, Xb0, Xb1, Xh);
 	for (int j = 0; j < 3; j++) {
-		jac[3 * j + 0] = (Xb0[j] * M[0] + Xb1[j] * M[2]) * inv_s;
-		jac[3 * j + 1] = (Xb0[j] * M[1] + Xb1[j] * M[3]) * inv_s;
+		jac[3 * j + 0] = (Xb0[j] * M[0] + Xb1[j] * M[2]) * inv_su;
+		jac[3 * j + 1] = (Xb0[j] * M[1] + Xb1[j] * M[3]) * inv_sv;
 		jac[3 * j + 2] = Xh[j] * hz;
 	}
 }
@@ -420,8 +423,8 @@ LOOM_API int loom_shell_voxel_to_world(const loom_shell *s, const double v[3],
 		return LOOM_EINVAL;
 	if (atomic_load(&s->failed))
 		return LOOM_EUNUSABLE;
-	u = v[0] / s->p.voxels_per_uv + s->p.uv_origin[0];
-	vv = v[1] / s->p.voxels_per_uv + s->p.uv_origin[1];
+	u = v[0] / s->vpu[0] + s->p.uv_origin[0];
+	vv = v[1] / s->vpu[1] + s->p.uv_origin[1];
 	memset(&rh, 0, sizeof rh);
 	rh.ray.org_x = (float)u;
 	rh.ray.org_y = (float)vv;
@@ -499,6 +502,33 @@ int64_t loom__shell_nz(const loom_shell *s)
 int loom__shell_failed(const loom_shell *s)
 {
 	return atomic_load(&s->failed) != 0;
+}
+
+LOOM_API int loom_uv_mm_scale(const double uv_mm[2], const uint32_t block[2],
+                              double voxel_mm, const float sett[2],
+                              double voxels_per_uv[2], double pitch_mm[2])
+{
+	double pitch[2];
+
+	if (!uv_mm || !block || !sett || !voxels_per_uv)
+		return LOOM_EINVAL;
+	if (!(uv_mm[0] > 0) || !(uv_mm[1] > 0) || !isfinite(uv_mm[0]) ||
+	    !isfinite(uv_mm[1]) || !block[0] || !block[1] || !(voxel_mm > 0) ||
+	    !isfinite(voxel_mm) || !(sett[0] >= 0) || !(sett[1] >= 0) ||
+	    !isfinite(sett[0]) || !isfinite(sett[1]))
+		return LOOM_EINVAL;
+	/* an unstated sett: square crossings of the exemplar crossing's area;
+	   one side stated: square crossings of that pitch */
+	pitch[0] = pitch[1] = sqrt((double)block[0] * (double)block[1]) * voxel_mm;
+	for (int j = 0; j < 2; j++) {
+		float st = sett[j] > 0 ? sett[j] : sett[1 - j];
+		if (st > 0)
+			pitch[j] = 10.0 / (double)st;
+		voxels_per_uv[j] = uv_mm[j] * (double)block[j] / pitch[j];
+		if (pitch_mm)
+			pitch_mm[j] = pitch[j];
+	}
+	return LOOM_OK;
 }
 
 LOOM_API void loom_shell_bounds(const loom_shell *s, double lo[3], double hi[3])
@@ -840,11 +870,14 @@ LOOM_API int loom_shell_new(const loom_mesh *m, const loom_shell_params *p,
 		                  p->size, sizeof(loom_shell_params));
 	if (!(p->thickness > 0) || !isfinite(p->thickness) || !isfinite(p->offset) ||
 	    !(p->voxels_per_uv > 0) || !isfinite(p->voxels_per_uv) ||
+	    !(p->voxels_per_uv_v >= 0) || !isfinite(p->voxels_per_uv_v) ||
 	    !isfinite(p->uv_origin[0]) || !isfinite(p->uv_origin[1]) || p->nz <= 0)
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "shell: thickness (%g) and voxels_per_uv (%g) must be "
-		                  "finite and > 0, nz (%lld) > 0, offset finite",
-		                  p->thickness, p->voxels_per_uv, (long long)p->nz);
+		                  "finite and > 0, voxels_per_uv_v (%g) finite and >= 0, "
+		                  "nz (%lld) > 0, offset finite",
+		                  p->thickness, p->voxels_per_uv, p->voxels_per_uv_v,
+		                  (long long)p->nz);
 	if (!m->tri_vt || !m->n_texcoords)
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "shell: the mesh has no texture coordinates (faces "
@@ -857,6 +890,8 @@ LOOM_API int loom_shell_new(const loom_mesh *m, const loom_shell_params *p,
 		return loom__fail(diag, LOOM_ENOMEM, "shell: out of memory");
 	s->p = *p;
 	s->p.size = sizeof s->p;
+	s->vpu[0] = p->voxels_per_uv;
+	s->vpu[1] = p->voxels_per_uv_v > 0 ? p->voxels_per_uv_v : p->voxels_per_uv;
 	s->lo = p->offset;
 	s->hi = p->offset + p->thickness;
 	atomic_init(&s->failed, 0);

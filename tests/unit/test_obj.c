@@ -226,11 +226,132 @@ static void test_bad_args_and_files(void)
 		loom_mesh_free(m);
 		m = NULL;
 	}
-	snprintf(path, sizeof path, "%s/tests/data/meshes/pillow.obj", top ? top : ".");
+	snprintf(path, sizeof path, "%s/tests/data/meshes/bump.obj", top ? top : ".");
 	CHECK_EQ_INT(loom_obj_read(path, &m, &d), LOOM_OK);
 	if (m) {
 		CHECK_EQ_INT(m->n_triangles, 2 * 12 * 12);
 		CHECK(m->tri_vt && !m->tri_vn);
+		loom_mesh_free(m);
+	}
+}
+
+/* Undirected edges by position index: how many triangles use each, and
+   whether each directed edge occurs once (consistent winding). */
+typedef struct { uint64_t key; int dir; } dedge;
+
+static int dedge_cmp(const void *a, const void *b)
+{
+	const dedge *x = a, *y = b;
+	return x->key < y->key ? -1 : x->key > y->key;
+}
+
+static void edge_census(const loom_mesh *m, uint32_t *border, uint32_t *twice,
+                        uint32_t *other, uint32_t *misoriented)
+{
+	size_t n = 3 * (size_t)m->n_triangles;
+	dedge *e = malloc(n * sizeof *e);
+
+	*border = *twice = *other = *misoriented = 0;
+	if (!e)
+		return;
+	for (size_t t = 0; t < m->n_triangles; t++)
+		for (int i = 0; i < 3; i++) {
+			uint64_t a = m->tri_v[3 * t + i], b = m->tri_v[3 * t + (i + 1) % 3];
+			e[3 * t + i].key = a < b ? (a << 32) | b : (b << 32) | a;
+			e[3 * t + i].dir = a < b;
+		}
+	qsort(e, n, sizeof *e, dedge_cmp);
+	for (size_t i = 0; i < n;) {
+		size_t j = i + 1;
+		while (j < n && e[j].key == e[i].key)
+			j++;
+		if (j - i == 1)
+			(*border)++;
+		else if (j - i == 2) {
+			(*twice)++;
+			if (e[i].dir == e[i + 1].dir)
+				(*misoriented)++;
+		} else
+			(*other)++;
+		i = j;
+	}
+	free(e);
+}
+
+/* Signed volume (divergence theorem): > 0 when the normals face out. */
+static double signed_volume(const loom_mesh *m)
+{
+	double vol = 0;
+	for (size_t t = 0; t < m->n_triangles; t++) {
+		const float *a = m->positions + 3 * (size_t)m->tri_v[3 * t];
+		const float *b = m->positions + 3 * (size_t)m->tri_v[3 * t + 1];
+		const float *c = m->positions + 3 * (size_t)m->tri_v[3 * t + 2];
+		vol += (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) -
+		        a[1] * ((double)b[0] * c[2] - (double)b[2] * c[0]) +
+		        a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) / 6.0;
+	}
+	return vol;
+}
+
+/* The scene meshes of tests/data/meshes/gen_meshes.py: read, counts, UVs in
+   [0, 1], the pillow closed (every edge shared by exactly two triangles,
+   wound consistently, normals outwards, two UV charts meeting at a seam),
+   the drape and the sleeve open along their hems only. */
+static void test_scene_meshes(void)
+{
+	static const struct {
+		const char *name;
+		uint32_t positions, triangles, border;
+	} tab[] = {
+		{"pillow.obj", 2 * 33 * 33 - 4 * 32, 2 * 2 * 32 * 32, 0},
+		{"drape.obj", 45 * 45, 2 * 44 * 44, 4 * 44},
+		{"sleeve.obj", 48 * 23, 2 * 48 * 22, 2 * 48},
+	};
+	const char *top = getenv("LOOM_TOP");
+	char path[4096];
+	loom_diag d;
+
+	memset(&d, 0, sizeof d);
+	for (size_t k = 0; k < sizeof tab / sizeof tab[0]; k++) {
+		loom_mesh *m = NULL;
+		uint32_t border, twice, other, mis, uv_out = 0;
+		snprintf(path, sizeof path, "%s/tests/data/meshes/%s", top ? top : ".",
+		         tab[k].name);
+		CHECK_EQ_INT(loom_obj_read(path, &m, &d), LOOM_OK);
+		if (!m)
+			continue;
+		CHECK_EQ_INT(m->n_positions, tab[k].positions);
+		CHECK_EQ_INT(m->n_triangles, tab[k].triangles);
+		CHECK(m->tri_vt != NULL);
+		for (size_t i = 0; i < 2 * (size_t)m->n_texcoords; i++)
+			uv_out += !(m->texcoords[i] >= 0.0f && m->texcoords[i] <= 1.0f);
+		CHECK_EQ_INT(uv_out, 0);
+		edge_census(m, &border, &twice, &other, &mis);
+		printf("  %s: %u triangles, %u border edges, %u shared, %u "
+		       "non-manifold, %u misoriented\n", tab[k].name, m->n_triangles,
+		       border, twice, other, mis);
+		CHECK_EQ_INT(border, tab[k].border);
+		CHECK_EQ_INT(other, 0);
+		CHECK_EQ_INT(mis, 0);
+		if (tab[k].border == 0) {
+			/* closed: Euler characteristic 2, outward normals, and the
+			   seam: shared edges whose two triangles use different vt */
+			uint32_t seam = 0;
+			CHECK_EQ_INT((int64_t)m->n_positions - (int64_t)(border + twice) +
+			             (int64_t)m->n_triangles, 2);
+			CHECK(signed_volume(m) > 0);
+			for (size_t t = 0; t < m->n_triangles; t++)
+				for (int i = 0; i < 3; i++) {
+					/* a corner whose position is on z = 0 (the seam
+					   plane) with u on the back chart's side */
+					uint32_t v = m->tri_v[3 * t + i], vt = m->tri_vt[3 * t + i];
+					if (m->positions[3 * (size_t)v + 2] == 0.0f &&
+					    m->texcoords[2 * (size_t)vt] > 0.5f)
+						seam++;
+				}
+			CHECK(seam > 0);
+			CHECK_EQ_INT(m->n_texcoords, 2 * 33 * 33);
+		}
 		loom_mesh_free(m);
 	}
 }
@@ -243,5 +364,6 @@ int main(void)
 	RUN(test_relative_and_extras);
 	RUN(test_malformed);
 	RUN(test_bad_args_and_files);
+	RUN(test_scene_meshes);
 	CHECK_MAIN_END();
 }

@@ -174,9 +174,9 @@ static void test_cylinder_round_trip(void)
 	loom_mesh_free(m);
 }
 
-static void test_pillow_computed_normals(void)
+static void test_bump_computed_normals(void)
 {
-	loom_mesh *m = load("pillow.obj");
+	loom_mesh *m = load("bump.obj");
 	loom_shell *s;
 	uint64_t rng = check_seed();
 	double maxerr = 0;
@@ -203,10 +203,10 @@ static void test_pillow_computed_normals(void)
 		for (int j = 0; j < 3; j++)
 			maxerr = fmax(maxerr, fabs(v2[j] - v[j]));
 	}
-	printf("  pillow: round trip max error %.3g voxels, %d failures\n", maxerr, fails);
+	printf("  bump: round trip max error %.3g voxels, %d failures\n", maxerr, fails);
 	CHECK_EQ_INT(fails, 0);
 	CHECK(maxerr < 1e-6);
-	/* the middle of the pillow: normal +z, height 6; z voxel 12 = h 0 */
+	/* the middle of the bump: normal +z, height 6; z voxel 12 = h 0 */
 	{
 		double v[3] = {24, 24, 12}, w[3];
 		CHECK_EQ_INT(loom_shell_voxel_to_world(s, v, w, NULL), LOOM_OK);
@@ -425,15 +425,116 @@ static void test_bad_args(void)
 	loom_mesh_free(m);
 }
 
+/*
+ * --uv-mm: loom_uv_mm_scale on the default database's crossings (24 x 16
+ * voxels of 24 um, 1.5 : 1) and the 64 x 64 quad (UV 0..1).  Counted
+ * through the shell map itself: the voxel span of the quad's edges over the
+ * crossing size is the number of crossings, U / pitch along u and V / pitch
+ * along v; a motif of N x N crossings is square on the quad; the old single
+ * scale made it 1.5 : 1; a stated sett sets the pitch.
+ */
+static void test_uv_mm(void)
+{
+	static const uint32_t block[2] = {24, 16};
+	static const float no_sett[2] = {0, 0}, sett[2] = {54, 27}, half[2] = {0, 40};
+	const double vmm = 0.024, pitch = sqrt(24.0 * 16.0) * vmm;
+	double uv_mm[2] = {12.0, 6.0}, vpu[2], pm[2];
+	loom_mesh *m = load("quad.obj");
+
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, no_sett, vpu, pm), LOOM_OK);
+	CHECK(fabs(pm[0] - pitch) < 1e-12 && fabs(pm[1] - pitch) < 1e-12);
+	CHECK(fabs(vpu[0] - 12.0 * 24 / pitch) < 1e-9);
+	CHECK(fabs(vpu[1] - 6.0 * 16 / pitch) < 1e-9);
+	if (m) {
+		loom_shell_params p = LOOM_SHELL_PARAMS_INIT;
+		loom_shell *s = NULL;
+		loom_diag d;
+		double w0[3] = {0, 0, 0}, wu[3] = {64, 0, 0}, wv[3] = {0, 64, 0};
+		double v0[3], vu[3], vv[3], n = 10, a[3], b[3], o[3] = {0, 0, 0};
+
+		memset(&d, 0, sizeof d);
+		p.thickness = 1;
+		p.offset = -0.5;
+		p.voxels_per_uv = vpu[0];
+		p.voxels_per_uv_v = vpu[1];
+		p.nz = 16;
+		CHECK_EQ_INT(loom_shell_new(m, &p, &s, &d), LOOM_OK);
+		if (s) {
+			double cu, cv;
+			CHECK_EQ_INT(loom_shell_world_to_voxel(s, w0, v0, NULL), LOOM_OK);
+			CHECK_EQ_INT(loom_shell_world_to_voxel(s, wu, vu, NULL), LOOM_OK);
+			CHECK_EQ_INT(loom_shell_world_to_voxel(s, wv, vv, NULL), LOOM_OK);
+			cu = (vu[0] - v0[0]) / block[0];
+			cv = (vv[1] - v0[1]) / block[1];
+			printf("  uv-mm 12,6 on the quad: %.3f x %.3f crossings "
+			       "(expected %.3f x %.3f)\n", cu, cv, 12 / pitch, 6 / pitch);
+			CHECK(fabs(cu - 12 / pitch) < 1e-6);
+			CHECK(fabs(cv - 6 / pitch) < 1e-6);
+			CHECK(fabs(vu[1] - v0[1]) < 1e-6 && fabs(vv[0] - v0[0]) < 1e-6);
+			/* a motif of 10 x 10 crossings from the origin: square */
+			a[0] = n * block[0];
+			a[1] = 0;
+			a[2] = b[2] = 8;
+			b[0] = 0;
+			b[1] = n * block[1];
+			o[2] = 8;
+			{
+				double wo[3], wa[3], wb[3];
+				CHECK_EQ_INT(loom_shell_voxel_to_world(s, o, wo, NULL), LOOM_OK);
+				CHECK_EQ_INT(loom_shell_voxel_to_world(s, a, wa, NULL), LOOM_OK);
+				CHECK_EQ_INT(loom_shell_voxel_to_world(s, b, wb, NULL), LOOM_OK);
+				/* along u at 12 mm per 64 units, along v at 6 mm per 64 */
+				CHECK(fabs((wa[0] - wo[0]) * 12.0 / (wb[1] - wo[1]) / 6.0 - 1) < 1e-6);
+			}
+			loom_shell_free(s);
+		}
+		/* the old single scale (--uv-repeats): the same motif 1.5 : 1 */
+		s = make_shell(m, 1, -0.5, vpu[0], 16, 0);
+		if (s) {
+			double wo[3], wa[3], wb[3];
+			CHECK_EQ_INT(loom_shell_voxel_to_world(s, o, wo, NULL), LOOM_OK);
+			CHECK_EQ_INT(loom_shell_voxel_to_world(s, a, wa, NULL), LOOM_OK);
+			CHECK_EQ_INT(loom_shell_voxel_to_world(s, b, wb, NULL), LOOM_OK);
+			CHECK(fabs((wa[0] - wo[0]) / (wb[1] - wo[1]) - 1.5) < 1e-6);
+			loom_shell_free(s);
+		}
+		loom_mesh_free(m);
+	}
+	/* a stated sett: 54 ends and 27 picks per cm */
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, sett, vpu, pm), LOOM_OK);
+	CHECK(fabs(pm[0] - 10.0 / 54) < 1e-6 && fabs(pm[1] - 10.0 / 27) < 1e-6);
+	CHECK(fabs(vpu[0] - 12.0 * 24 * 54 / 10) < 1e-3);
+	CHECK(fabs(vpu[1] - 6.0 * 16 * 27 / 10) < 1e-3);
+	/* one side stated: square at that pitch */
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, half, vpu, NULL), LOOM_OK);
+	CHECK(fabs(vpu[0] - 12.0 * 24 * 40 / 10) < 1e-3);
+	CHECK(fabs(vpu[1] - 6.0 * 16 * 40 / 10) < 1e-3);
+	/* bad arguments */
+	uv_mm[1] = 0;
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, no_sett, vpu, NULL), LOOM_EINVAL);
+	uv_mm[1] = NAN;
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, no_sett, vpu, NULL), LOOM_EINVAL);
+	uv_mm[1] = 6;
+	CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, 0, no_sett, vpu, NULL), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_uv_mm_scale(NULL, block, vmm, no_sett, vpu, NULL), LOOM_EINVAL);
+	{
+		static const uint32_t zero[2] = {24, 0};
+		static const float neg[2] = {-1, 0};
+		CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, zero, vmm, no_sett, vpu, NULL), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_uv_mm_scale(uv_mm, block, vmm, neg, vpu, NULL), LOOM_EINVAL);
+	}
+}
+
 int main(void)
 {
 	CHECK_MAIN_BEGIN("test_shell");
 	RUN(test_quad_identity);
 	RUN(test_cylinder_round_trip);
-	RUN(test_pillow_computed_normals);
+	RUN(test_bump_computed_normals);
 	RUN(test_jacobian);
 	RUN(test_ray_crossings);
 	RUN(test_concurrent_queries);
 	RUN(test_bad_args);
+	RUN(test_uv_mm);
 	CHECK_MAIN_END();
 }

@@ -26,7 +26,8 @@ static const char usage[] =
 	"            [--fov DEG] [--density-scale K | --density-per-voxel K]\n"
 	"            [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
-	"            [--uv-repeats R] [--warp-dir X,Y,Z] [--field-smooth N]\n"
+	"            [--uv-repeats R | --uv-mm U[,V]] [--warp-dir X,Y,Z]\n"
+	"            [--field-smooth N]\n"
 	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
@@ -142,6 +143,27 @@ static const char *opt_dir3(const char *text, void *dest)
 	return NULL;
 }
 
+/* --uv-mm U[,V] into double[2]: millimetres of cloth per UV unit. */
+static const char *opt_uv_mm(const char *text, void *dest)
+{
+	double *d = dest;
+	char *end;
+
+	d[0] = strtod(text, &end);
+	if (end == text || !(d[0] > 0) || !isfinite(d[0]))
+		return "U[,V]: millimetres per UV unit, finite and > 0";
+	d[1] = d[0];
+	if (*end == ',') {
+		const char *q = end + 1;
+		d[1] = strtod(q, &end);
+		if (end == q || !(d[1] > 0) || !isfinite(d[1]))
+			return "U[,V]: millimetres per UV unit, finite and > 0";
+	}
+	if (*end)
+		return "U[,V]: millimetres per UV unit, finite and > 0";
+	return NULL;
+}
+
 /* Pinhole camera at elevation el, azimuth az (radians) looking at target
    from distance dist. */
 static void place_camera(loom_camera *c, const double target[3], double dist,
@@ -168,6 +190,7 @@ int cmd_render(int argc, char **argv)
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 80, exposure = 0;
 	double dvoxel = 0;
 	double thickness = 0, uv_repeats = 1, warp_dir[3] = {0, 0, 1};
+	double uv_mm[2] = {0, 0}, vpu[2] = {0, 0}, pitch_mm[2] = {0, 0};
 	double sun[4] = {0, 35, 2.6, 0.53};
 	uint32_t field_smooth = 32;
 	int have_uv_stats = 0, field = 0;
@@ -230,8 +253,13 @@ int cmd_render(int argc, char **argv)
 		           "thickness in mesh units (default 1.5% of the mesh's bounding-box "
 		           "diagonal)"),
 		OPT_DOUBLE(0, "uv-repeats", &uv_repeats, "R", "()", 0, INFINITY, NULL,
-		           "design repeats per UV unit along u (default 1; without UVs a "
-		           "UV unit is the mesh's bounding-box diagonal)"),
+		           "design repeats per UV unit along u, the same voxel scale "
+		           "along v (default 1; without UVs a UV unit is the mesh's "
+		           "bounding-box diagonal)"),
+		OPT_CALLBACK(0, "uv-mm", uv_mm, "U[,V]", opt_uv_mm, "instead of "
+		             "--uv-repeats: millimetres of cloth per UV unit along u "
+		             "and v, crossings at the draft's sett (square when it "
+		             "states none), so square motifs stay square"),
 		OPT_CALLBACK(0, "sun", sun, "AZ,EL[,I[,A]]", opt_sun, "the sun: azimuth "
 		             "and elevation in degrees (measured as the camera's: a sun at "
 		             "the camera's angles lights from behind it), irradiance "
@@ -263,9 +291,13 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "--majorant applies to a flat patch; a mesh is tracked "
 		           "against one global bound");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats) ||
+	                   opt_given(&cmd, uv_mm) ||
 	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth)))
-		opts_usage(&cmd, "--thickness, --uv-repeats, --warp-dir and --field-smooth "
-		           "go with --mesh");
+		opts_usage(&cmd, "--thickness, --uv-repeats, --uv-mm, --warp-dir and "
+		           "--field-smooth go with --mesh");
+	if (opt_given(&cmd, &uv_repeats) && opt_given(&cmd, uv_mm))
+		opts_usage(&cmd, "--uv-repeats and --uv-mm both set the cloth's scale "
+		           "on the UVs; give one");
 	cli_check_output(prog, out); /* before minutes of rendering */
 	cli_diag_init(&diag, &quiet);
 
@@ -361,13 +393,23 @@ int cmd_render(int argc, char **argv)
 		}
 		sp.thickness = thickness > 0 ? thickness : 0.015 * diag_len;
 		sp.offset = -sp.thickness / 2;
-		sp.voxels_per_uv = (double)rep[0] * uv_repeats;
+		vpu[0] = vpu[1] = (double)rep[0] * uv_repeats;
+		if (opt_given(&cmd, uv_mm) &&
+		    loom_uv_mm_scale(uv_mm, id.block, src.voxel_mm > 0 ? src.voxel_mm
+		                     : 0.024, loom_fabric_design(f)->sett, vpu,
+		                     pitch_mm) != LOOM_OK) {
+			cli_error(prog, "--uv-mm %g,%g: no scale for crossings of %ux%u "
+			          "voxels of %g mm", uv_mm[0], uv_mm[1], id.block[0],
+			          id.block[1], src.voxel_mm);
+			goto fail;
+		}
+		sp.voxels_per_uv = vpu[0];
+		sp.voxels_per_uv_v = vpu[1];
 		sp.nz = src.nz;
 		{
 			/* the UVs' distortion and seams, modulo one design repeat;
 			   a seam: a mismatch over half a voxel */
-			double per[2] = {1.0 / uv_repeats,
-			                 (double)rep[1] / sp.voxels_per_uv};
+			double per[2] = {(double)rep[0] / vpu[0], (double)rep[1] / vpu[1]};
 			field = !mesh->tri_vt || opt_given(&cmd, warp_dir);
 			if (field) {
 				loom_field_uv_params fp = LOOM_FIELD_UV_PARAMS_INIT;
@@ -385,7 +427,8 @@ int cmd_render(int argc, char **argv)
 				mesh = fm;
 			}
 			have_uv_stats = loom_mesh_measure_uv(mesh, per,
-			                                     0.5 / sp.voxels_per_uv,
+			                                     0.5 / (vpu[0] > vpu[1] ? vpu[0]
+			                                            : vpu[1]),
 			                                     &uvst) == LOOM_OK;
 		}
 		if (loom_shell_new(mesh, &sp, &shell, &diag) != LOOM_OK) {
@@ -462,10 +505,14 @@ int cmd_render(int argc, char **argv)
 			jw_num(&w, "stretch_mean", uvst.stretch_mean);
 			jw_uint(&w, "interior_edges", uvst.interior_edges);
 			jw_uint(&w, "seam_edges", uvst.seam_edges);
-			jw_num(&w, "seam_mean_voxels", uvst.seam_mean * (double)rep[0] *
-			       uv_repeats);
-			jw_num(&w, "seam_max_voxels", uvst.seam_max * (double)rep[0] *
-			       uv_repeats);
+			jw_num(&w, "seam_mean_voxels", uvst.seam_mean * vpu[0]);
+			jw_num(&w, "seam_max_voxels", uvst.seam_max * vpu[0]);
+			jw_num(&w, "voxels_per_uv_u", vpu[0]);
+			jw_num(&w, "voxels_per_uv_v", vpu[1]);
+			if (pitch_mm[0] > 0) {
+				jw_num(&w, "crossing_mm_u", pitch_mm[0]);
+				jw_num(&w, "crossing_mm_v", pitch_mm[1]);
+			}
 			jw_close(&w);
 		}
 		jw_uint(&w, "cells", st.cells);

@@ -218,14 +218,38 @@ typedef struct loom_shell_params {
 	double thickness;       /* world length of the shell along normals, > 0 */
 	double offset;          /* height of the inner surface (0: on the mesh;
 	                           -thickness/2: cloth centred on the mesh) */
-	double voxels_per_uv;   /* voxels along x (and y) per UV unit, > 0 */
+	double voxels_per_uv;   /* voxels along x per UV unit (u), > 0; also
+	                           along y unless voxels_per_uv_v is set */
 	double uv_origin[2];    /* UV that maps to voxel x = y = 0 */
 	int64_t nz;             /* voxels across the thickness (the source's nz) */
 	uint32_t flags;         /* LOOM_SHELL_* */
+	double voxels_per_uv_v; /* voxels along y per UV unit (v); 0 = the same
+	                           as voxels_per_uv (loom_uv_mm_scale sets both
+	                           from millimetres per UV unit) */
 } loom_shell_params;
 
 #define LOOM_SHELL_PARAMS_INIT \
-	{sizeof(loom_shell_params), 0.0, 0.0, 0.0, {0.0, 0.0}, 0, 0u}
+	{sizeof(loom_shell_params), 0.0, 0.0, 0.0, {0.0, 0.0}, 0, 0u, 0.0}
+
+/*
+ * Voxels per UV unit in u and v for a cloth laid at uv_mm[0] x uv_mm[1]
+ * millimetres per UV unit, so that crossings keep the cloth's sett and
+ * square motifs stay square whatever the exemplar crossing's aspect:
+ *
+ *     pitch_u = 10 / sett[0] mm (ends per cm), pitch_v = 10 / sett[1]
+ *     voxels_per_uv[0] = uv_mm[0] * block[0] / pitch_u   (likewise v)
+ *
+ * A sett of 0 (not stated by the draft) stands for square crossings of the
+ * exemplar crossing's area: pitch = sqrt(block[0] block[1]) x voxel_mm in
+ * both directions; one side stated, that pitch in both.  A database generated for the draft's sett has
+ * block = pitch / voxel_mm, so the voxels keep their size (factor 1).
+ * pitch_mm[2] (may be NULL) receives the crossing size in mm used.
+ * Returns LOOM_OK; LOOM_EINVAL (NULL, a non-positive or non-finite
+ * uv_mm, block, voxel_mm or negative sett).  Thread-safe.
+ */
+LOOM_API int loom_uv_mm_scale(const double uv_mm[2], const uint32_t block[2],
+                              double voxel_mm, const float sett[2],
+                              double voxels_per_uv[2], double pitch_mm[2]);
 
 /*
  * Build the shell of mesh m (copied; m may be freed afterwards): vertex
