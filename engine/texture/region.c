@@ -228,6 +228,112 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
+/* One blended voxel r into sink k at offset off. */
+static inline void sink_put(const struct sink *k, size_t off, const rawvox *r)
+{
+	uint8_t *ok = k->k, *ot = k->ty;
+	if (k->raw) {
+		if (k->rd)
+			k->rd[off] = r->d;
+		if (k->rlo) {
+			k->rlo[off] = (uint8_t)r->o;
+			k->rhi[off] = (uint8_t)(r->o >> 8);
+		}
+		if (k->rl)
+			k->rl[off] = r->l;
+		ok = k->rk;
+		ot = k->rt;
+	} else {
+		if (k->d)
+			k->d[off] = r->d;
+		if (k->o)
+			k->o[off] = r->o;
+		if (k->l)
+			k->l[off] = r->l;
+	}
+	if (ok)
+		ok[off] = k->kl[r->l];
+	if (ot)
+		ot[off] = k->tl[r->l];
+}
+
+/* Source voxel zs of source column (sx, sy) of crossing e: density,
+   orientation and label planes (kind and type come from the sink's
+   tables); empty outside [0, b3), in a brick stored as nothing or whose
+   read fails (returns 1 then, *rc holds the first error). */
+static inline int src_planes(loom_texture *t, struct tslot *s, const struct xent *e,
+                             uint32_t sx, uint32_t sy, int64_t zs, rawvox *r, int *rc)
+{
+	uint64_t id;
+	size_t i;
+	const uint8_t *p;
+
+	memset(r, 0, sizeof *r);
+	if ((uint64_t)zs >= t->b3)
+		return 0;
+	id = e->ex->first_brick +
+	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+	             e->ex->nb[2] +
+	     brick_of(t, 2, (uint32_t)zs);
+	if (id != s->memo_id) {
+		int e2 = loom__memo_switch(t, s, id);
+		if (e2 != LOOM_OK) {
+			if (*rc == LOOM_OK)
+				*rc = e2;
+			return 1;
+		}
+	} else {
+		bump(&s->cnt.memo_hits, 1);
+	}
+	p = s->memo;
+	if (!p)
+		return 0;
+	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
+	    in_brick(t, 2, (uint32_t)zs);
+	r->d = p[i];
+	r->o = (uint16_t)(p[t->bv + i] | p[2 * t->bv + i] << 8);
+	r->l = p[3 * t->bv + i];
+	return 0;
+}
+
+/* The z-range [za, zb) of an output column whose offset has a fraction
+   (w whole voxels and f / DZ_SUB, f > 0), source column (sx, sy), into
+   sink k from offset off: voxel z blends source voxels z - w - 1 and
+   z - w (raw_blend), each read once going up the column. */
+static int col_frac(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
+                    uint32_t sy, int64_t w, int f, int64_t za, int64_t zb,
+                    const struct sink *k, size_t off)
+{
+	int64_t b3 = t->b3;
+	int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
+	rawvox a, b, r;
+	int rc = LOOM_OK, bad_a, want_o = (k->raw ? k->rlo : (uint8_t *)k->o) != NULL;
+
+	/* voxels with 0 <= z < b3 and z - w - 1 < b3, z - w >= 0 */
+	if (va < w)
+		va = w;
+	if (vb > b3 + w + 1)
+		vb = b3 + w + 1;
+	if (va >= vb) {
+		sink_empty(k, off, (size_t)(zb - za));
+		return LOOM_OK;
+	}
+	sink_empty(k, off, (size_t)(va - za));
+	sink_empty(k, off + (size_t)(vb - za), (size_t)(zb - vb));
+	bad_a = src_planes(t, s, e, sx, sy, va - w - 1, &a, &rc);
+	for (int64_t z = va; z < vb; z++) {
+		int bad_b = src_planes(t, s, e, sx, sy, z - w, &b, &rc);
+		if (bad_a || bad_b) /* a failed voxel stays empty */
+			memset(&r, 0, sizeof r);
+		else
+			raw_blend(&a, &b, f, want_o, &r);
+		sink_put(k, off + (size_t)(z - za), &r);
+		a = b;
+		bad_a = bad_b;
+	}
+	return rc;
+}
+
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
 
@@ -253,9 +359,17 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	int rc = LOOM_OK;
 
 	for (uint32_t c = 0; c < n; c++) {
-		int64_t dz = xent_dz(t, s, e, lx0 + c, ly);
+		int f;
+		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
 		int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
 		size_t o = off + c * cstride;
+		if (f) { /* a fractional offset: blended voxel by voxel */
+			int e2 = col_frac(t, s, e, sx + c, sy, dz, f, za, zb, k, o);
+			if (e2 != LOOM_OK && rc == LOOM_OK)
+				rc = e2;
+			sa[c] = sb[c] = 0;
+			continue;
+		}
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
 			va = dz;
@@ -573,12 +687,13 @@ static void chunk_extent(loom_texture *t, struct tslot *s, struct xent *e, uint3
 			}
 		if (klo >= 0)
 			for (uint32_t q = c; q < c + n; q++) {
-				int64_t dz = xent_dz(t, s, e, lx0 + q, ly);
-				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz;
+				int f;
+				int64_t dz = dz_split(xent_dz(t, s, e, lx0 + q, ly), &f);
+				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz + (f != 0);
 				if (lo < dz)
 					lo = dz;
-				if (hi > b3 + dz)
-					hi = b3 + dz;
+				if (hi > b3 + dz + (f != 0))
+					hi = b3 + dz + (f != 0);
 				if (lo < a)
 					a = lo;
 				if (hi > b)
