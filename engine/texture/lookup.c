@@ -278,15 +278,13 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	sy = e->sy0 + ly;
 	if (!f)
 		return src_raw(t, s, e, sx, sy, z - w, ch, r);
-	/* the orientation blend needs both densities and labels */
-	c2 = ch & CH_O ? ch | CH_D | CH_M : ch;
+	/* the representative (raw_blend) needs both densities */
+	c2 = ch & (CH_O | CH_M) ? ch | CH_D : ch;
 	rc = src_raw(t, s, e, sx, sy, z - w - 1, c2, &a);
 	rc2 = src_raw(t, s, e, sx, sy, z - w, c2, &b);
 	if (rc != LOOM_OK || rc2 != LOOM_OK) /* a failed voxel stays empty */
 		return rc != LOOM_OK ? rc : rc2;
-	raw_blend(&a, &b, f, (ch & CH_O) != 0, r);
-	if (!(ch & CH_M))
-		r->l = r->k = r->ty = 0;
+	raw_blend(&a, &b, f, r);
 	return LOOM_OK;
 }
 

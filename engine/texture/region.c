@@ -228,110 +228,145 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
-/* One blended voxel r into sink k at offset off. */
-static inline void sink_put(const struct sink *k, size_t off, const rawvox *r)
+/* Source densities of source column (sx, sy) of crossing e for source z
+   in [zs, zs + n) into d, zero outside [0, b3), in bricks stored as
+   nothing or whose read fails (*rc keeps the first error): brick runs. */
+static void src_dens(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
+                     uint32_t sy, int64_t zs, size_t n, uint8_t *d, int *rc)
 {
-	uint8_t *ok = k->k, *ot = k->ty;
-	if (k->raw) {
-		if (k->rd)
-			k->rd[off] = r->d;
-		if (k->rlo) {
-			k->rlo[off] = (uint8_t)r->o;
-			k->rhi[off] = (uint8_t)(r->o >> 8);
-		}
-		if (k->rl)
-			k->rl[off] = r->l;
-		ok = k->rk;
-		ot = k->rt;
-	} else {
-		if (k->d)
-			k->d[off] = r->d;
-		if (k->o)
-			k->o[off] = r->o;
-		if (k->l)
-			k->l[off] = r->l;
-	}
-	if (ok)
-		ok[off] = k->kl[r->l];
-	if (ot)
-		ot[off] = k->tl[r->l];
-}
+	int64_t b3 = t->b3, bz = t->bs[2], ze = zs + (int64_t)n;
+	uint64_t base = e->ex->first_brick +
+	                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+	                        e->ex->nb[2];
+	size_t col = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2];
 
-/* Source voxel zs of source column (sx, sy) of crossing e: density,
-   orientation and label planes (kind and type come from the sink's
-   tables); empty outside [0, b3), in a brick stored as nothing or whose
-   read fails (returns 1 then, *rc holds the first error). */
-static inline int src_planes(loom_texture *t, struct tslot *s, const struct xent *e,
-                             uint32_t sx, uint32_t sy, int64_t zs, rawvox *r, int *rc)
-{
-	uint64_t id;
-	size_t i;
-	const uint8_t *p;
-
-	memset(r, 0, sizeof *r);
-	if ((uint64_t)zs >= t->b3)
-		return 0;
-	id = e->ex->first_brick +
-	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
-	             e->ex->nb[2] +
-	     brick_of(t, 2, (uint32_t)zs);
-	if (id != s->memo_id) {
-		int e2 = loom__memo_switch(t, s, id);
-		if (e2 != LOOM_OK) {
-			if (*rc == LOOM_OK)
+	memset(d, 0, n);
+	for (int64_t z = zs > 0 ? zs : 0; z < ze && z < b3;) {
+		int64_t z0 = z / bz * bz, z1 = z0 + bz < ze ? z0 + bz : ze;
+		uint64_t id = base + (uint64_t)(z / bz);
+		if (z1 > b3)
+			z1 = b3;
+		if (id != s->memo_id) {
+			int e2 = loom__memo_switch(t, s, id);
+			if (e2 != LOOM_OK && *rc == LOOM_OK)
 				*rc = e2;
-			return 1;
+		} else {
+			bump(&s->cnt.memo_hits, 1);
 		}
-	} else {
-		bump(&s->cnt.memo_hits, 1);
+		if (s->memo_id == id && s->memo)
+			memcpy(d + (z - zs), s->memo + col + (size_t)(z - z0), (size_t)(z1 - z));
+		z = z1;
 	}
-	p = s->memo;
-	if (!p)
-		return 0;
-	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
-	    in_brick(t, 2, (uint32_t)zs);
-	r->d = p[i];
-	r->o = (uint16_t)(p[t->bv + i] | p[2 * t->bv + i] << 8);
-	r->l = p[3 * t->bv + i];
-	return 0;
 }
 
-/* The z-range [za, zb) of an output column whose offset has a fraction
-   (w whole voxels and f / DZ_SUB, f > 0), source column (sx, sy), into
-   sink k from offset off: voxel z blends source voxels z - w - 1 and
-   z - w (raw_blend), each read once going up the column. */
-static int col_frac(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
-                    uint32_t sy, int64_t w, int f, int64_t za, int64_t zb,
-                    const struct sink *k, size_t off)
-{
-	int64_t b3 = t->b3;
-	int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
-	rawvox a, b, r;
-	int rc = LOOM_OK, bad_a, want_o = (k->raw ? k->rlo : (uint8_t *)k->o) != NULL;
+/* Blend chunk: voxels handled per pass of blend_col. */
+#define BCH 256
 
-	/* voxels with 0 <= z < b3 and z - w - 1 < b3, z - w >= 0 */
-	if (va < w)
-		va = w;
-	if (vb > b3 + w + 1)
-		vb = b3 + w + 1;
-	if (va >= vb) {
-		sink_empty(k, off, (size_t)(zb - za));
-		return LOOM_OK;
+/* A column with a fractional offset (raw_blend), after its nearer source
+   voxels went into sink k like a whole-voxel offset wn (the group's run
+   copies): voxel z of the sink holds near(z), the farther voxel is
+   near(z + dir) (dir -1 or +1, weight g / DZ_SUB, 1 <= g <= DZ_SUB/2).
+   Blends output z in [ba, bb) in place (the sink's column starts at
+   output z = za at offset o): the densities in vectorisable passes over
+   chunks of BCH (copied first, so that each pass reads the old values;
+   chunks ordered so that the neighbour read is not yet rewritten), then,
+   only where a chunk has voxels whose nearer voxel is empty and the blend
+   not, the other planes of those voxels from the farther voxel.  The
+   farther voxel of the end voxel (ba for dir -1, bb - 1 for dir +1) lies
+   outside [ba, bb) and comes in x (density, orientation, label).
+   Without a density plane in the sink the nearer densities are read
+   again from the bricks (src_dens; source z = z - wn). */
+static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
+                      const struct sink *k, size_t o, int64_t za, int64_t ba, int64_t bb,
+                      int dir, unsigned g, const rawvox *x, uint32_t sx, uint32_t sy,
+                      int64_t wn, int *rc)
+{
+	uint8_t *D = k->raw ? k->rd : k->d, *L = k->raw ? k->rl : k->l;
+	uint8_t *K = k->raw ? k->rk : k->k, *T = k->raw ? k->rt : k->ty;
+	uint8_t *OL = k->raw ? k->rlo : NULL, *OH = k->raw ? k->rhi : NULL;
+	uint16_t *O = k->raw ? NULL : k->o;
+	int others = L || K || T || OL || O;
+	const unsigned gn = DZ_SUB - g;
+	uint8_t tmp[BCH + 1];
+
+	if (!D && !others)
+		return;
+	for (int64_t done = 0; done < bb - ba;) {
+		size_t n = bb - ba - done < BCH ? (size_t)(bb - ba - done) : BCH;
+		/* chunk [c0, c0 + n): from the top for dir -1, from the bottom
+		   for dir +1; tmp[i] = near(c0 + i + (dir < 0 ? -1 : 0)) */
+		int64_t c0 = dir < 0 ? bb - done - (int64_t)n : ba + done;
+		int64_t t0 = dir < 0 ? c0 - 1 : c0; /* z of tmp[0] */
+		unsigned any = 0;
+		uint8_t *dc = D ? D + o + (size_t)(c0 - za) : NULL;
+		if (!D) {
+			src_dens(t, s, e, sx, sy, t0 - wn, n + 1, tmp, rc);
+		} else if (dir < 0) {
+			memcpy(tmp + 1, dc, n);
+			tmp[0] = c0 == ba ? x->d : dc[-1];
+		} else {
+			memcpy(tmp, dc, n);
+			tmp[n] = c0 + (int64_t)n == bb ? x->d : dc[n];
+		}
+		{
+			const uint8_t *restrict nr = dir < 0 ? tmp + 1 : tmp;
+			const uint8_t *restrict fr = dir < 0 ? tmp : tmp + 1;
+			if (D) {
+				uint8_t *restrict out = dc;
+				for (size_t i = 0; i < n; i++) {
+					unsigned v = (g * fr[i] + gn * nr[i] + DZ_SUB / 2) / DZ_SUB;
+					out[i] = (uint8_t)v;
+					any |= (nr[i] == 0) & (v != 0);
+				}
+			} else {
+				for (size_t i = 0; i < n; i++)
+					any |= (nr[i] == 0) & (g * fr[i] + DZ_SUB / 2 >= DZ_SUB);
+			}
+		}
+		done += (int64_t)n;
+		if (!any || !others)
+			continue;
+		/* the representative is the farther voxel: near empty, blend not
+		   (near 0: the blend is (g far + DZ_SUB/2) / DZ_SUB); neighbours
+		   read before they are rewritten (descending for dir -1) */
+		for (size_t j = 0; j < n; j++) {
+			size_t i = dir < 0 ? n - 1 - j : j;
+			size_t at = o + (size_t)(c0 + (int64_t)i - za);
+			int end = dir < 0 ? c0 + (int64_t)i == ba : c0 + (int64_t)i == bb - 1;
+			uint8_t nd = dir < 0 ? tmp[i + 1] : tmp[i];
+			uint8_t fd = dir < 0 ? tmp[i] : tmp[i + 1];
+			size_t from = (size_t)((ptrdiff_t)at + dir);
+			if (nd || g * fd + DZ_SUB / 2 < DZ_SUB)
+				continue;
+			if (end) {
+				if (L)
+					L[at] = x->l;
+				if (K)
+					K[at] = k->kl[x->l];
+				if (T)
+					T[at] = k->tl[x->l];
+				if (O)
+					O[at] = x->o;
+				if (OL) {
+					OL[at] = (uint8_t)x->o;
+					OH[at] = (uint8_t)(x->o >> 8);
+				}
+				continue;
+			}
+			if (L)
+				L[at] = L[from];
+			if (K)
+				K[at] = K[from];
+			if (T)
+				T[at] = T[from];
+			if (O)
+				O[at] = O[from];
+			if (OL) {
+				OL[at] = OL[from];
+				OH[at] = OH[from];
+			}
+		}
 	}
-	sink_empty(k, off, (size_t)(va - za));
-	sink_empty(k, off + (size_t)(vb - za), (size_t)(zb - vb));
-	bad_a = src_planes(t, s, e, sx, sy, va - w - 1, &a, &rc);
-	for (int64_t z = va; z < vb; z++) {
-		int bad_b = src_planes(t, s, e, sx, sy, z - w, &b, &rc);
-		if (bad_a || bad_b) /* a failed voxel stays empty */
-			memset(&r, 0, sizeof r);
-		else
-			raw_blend(&a, &b, f, want_o, &r);
-		sink_put(k, off + (size_t)(z - za), &r);
-		a = b;
-		bad_a = bad_b;
-	}
-	return rc;
 }
 
 /* Columns handled together by group_fill at most. */
@@ -344,7 +379,12 @@ static int col_frac(loom_texture *t, struct tslot *s, const struct xent *e, uint
  * off + c*cstride (voxel za).  Steps 3-5 once per column (offset, valid
  * range), then per brick of the union of the columns' source z ranges:
  * one brick resolution (the slot's memo) and each column's run in it.
- * Voxels whose brick fails are empty; the first error is returned.
+ * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
+ * copied the same way with its nearer whole offset wn (w, or w + 1 when
+ * f > DZ_SUB/2), the one voxel past its end that the blend also needs is
+ * read in the same brick pass, and blend_col mixes it in place; fraction
+ * 0 is the whole-voxel path unchanged.  Voxels whose brick fails are
+ * empty (or blended with empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -352,23 +392,48 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 {
 	int64_t b3 = t->b3, bz = t->bs[2];
 	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
+	int64_t ba[GMAX], bb[GMAX], xz[GMAX];  /* blend range, end voxel's source z */
+	int8_t dir[GMAX];                      /* 0: whole offset; -1, +1: farther voxel */
+	uint8_t gw[GMAX];                      /* farther voxel's weight */
+	rawvox xv[GMAX];                       /* the end voxel */
 	int64_t smin = INT64_MAX, smax = INT64_MIN;
+	int64_t va0 = za > 0 ? za : 0, vb0 = zb < b3 ? zb : b3;
 	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
 	uint64_t base;
 	size_t col;
-	int rc = LOOM_OK;
+	int rc = LOOM_OK, nfrac = 0;
 
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
-		int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
+		int64_t va = va0, vb = vb0;
 		size_t o = off + c * cstride;
-		if (f) { /* a fractional offset: blended voxel by voxel */
-			int e2 = col_frac(t, s, e, sx + c, sy, dz, f, za, zb, k, o);
-			if (e2 != LOOM_OK && rc == LOOM_OK)
-				rc = e2;
-			sa[c] = sb[c] = 0;
-			continue;
+		dir[c] = 0;
+		xz[c] = -1;
+		if (f) {
+			int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
+			nfrac++;
+			gw[c] = (uint8_t)(far_up ? DZ_SUB - f : f);
+			dz += far_up;
+			dir[c] = (int8_t)(far_up ? 1 : -1);
+			dzs[c] = dz;
+			/* output voxels with either source voxel in [0, b3) */
+			ba[c] = va0 > dz - far_up ? va0 : dz - far_up;
+			bb[c] = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
+			memset(&xv[c], 0, sizeof xv[c]);
+			if (ba[c] >= bb[c]) {
+				dir[c] = 0;
+			} else {
+				/* the end voxel's farther voxel, when in the block */
+				int64_t z = far_up ? bb[c] - dz : ba[c] - dz - 1;
+				if (z >= 0 && z < b3) {
+					xz[c] = z;
+					if (z < smin)
+						smin = z;
+					if (z + 1 > smax)
+						smax = z + 1;
+				}
+			}
 		}
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
@@ -391,7 +456,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			smax = sb[c];
 	}
 	if (smin >= smax)
-		return LOOM_OK;
+		goto blend;
 	base = e->ex->first_brick +
 	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	               e->ex->nb[2];
@@ -415,6 +480,12 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			size_t o;
+			if (p && xz[c] >= z0 && xz[c] < z1) {
+				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(xz[c] - z0);
+				xv[c].d = v[0];
+				xv[c].o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
+				xv[c].l = v[3 * t->bv];
+			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
@@ -425,6 +496,12 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				sink_empty(k, o, (size_t)(b - a));
 		}
 	}
+blend:
+	if (nfrac)
+		for (uint32_t c = 0; c < n; c++)
+			if (dir[c])
+				blend_col(t, s, e, k, off + c * cstride, za, ba[c], bb[c], dir[c], gw[c],
+				          &xv[c], sx + c, sy, dzs[c], &rc);
 	return rc;
 }
 

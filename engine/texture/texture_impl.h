@@ -293,40 +293,23 @@ typedef struct rawvox {
 
 /* The voxel at source height z - w - f/DZ_SUB (0 < f < DZ_SUB) from its
    two source voxels a = z - w - 1 (weight f/DZ_SUB) and b = z - w (weight
-   1 - f/DZ_SUB): density byte blended linearly (rounded, integer
-   arithmetic); label, kind and type of the nearer voxel (b on a tie);
-   orientation: none where the blend is empty, the one voxel's where only
-   one has density, the common code where equal, the nearer voxel's where
-   the labels differ, else the density-weighted blend of the two decoded
-   directions (loom__orient_blend) encoded again; 0 when want_o is 0.
-   Needs the density and label planes of both wherever the orientation is
-   wanted. */
-static inline void raw_blend(const rawvox *a, const rawvox *b, int f, int want_o,
-                             rawvox *r)
+   1 - f/DZ_SUB): the density byte blended linearly and rounded, in integer
+   arithmetic, (f a + (DZ_SUB - f) b + DZ_SUB/2) / DZ_SUB; everything else
+   (orientation, label, kind, type) is one source voxel's, the
+   representative: the nearer one (b when f <= DZ_SUB/2), or the farther
+   one where the nearer is empty (density 0) and the blend is not, so a
+   voxel with density always carries the orientation and yarn of a voxel
+   with density.  (A blend of the two directions would cost a decode, a
+   normalisation and an encode per voxel; docs/engine.md.)  Needs the
+   density plane of both wherever another plane is wanted. */
+static inline void raw_blend(const rawvox *a, const rawvox *b, int f, rawvox *r)
 {
-	const rawvox *n = 2 * f > DZ_SUB ? a : b;
-	r->d = (uint8_t)(((unsigned)a->d * (unsigned)f + (unsigned)b->d * (unsigned)(DZ_SUB - f) +
-	                  DZ_SUB / 2) / DZ_SUB);
-	r->l = n->l;
-	r->k = n->k;
-	r->ty = n->ty;
-	if (!r->d || !want_o)
-		r->o = 0;
-	else if (!a->d)
-		r->o = b->o;
-	else if (!b->d || a->o == b->o)
-		r->o = a->o;
-	else if (a->l != b->l)
-		r->o = n->o;
-	else {
-		float w[2], v[2][3], o[3];
-		w[0] = (float)(f * a->d);
-		w[1] = (float)((DZ_SUB - f) * b->d);
-		loom__orient_decode(a->o, v[0]);
-		loom__orient_decode(b->o, v[1]);
-		loom__orient_blend(2, w, (const float(*)[3])v, o);
-		r->o = loom__orient_encode(o[0], o[1], o[2]);
-	}
+	const rawvox *n = 2 * f > DZ_SUB ? a : b, *o = 2 * f > DZ_SUB ? b : a;
+	uint8_t d = (uint8_t)(((unsigned)a->d * (unsigned)f +
+	                       (unsigned)b->d * (unsigned)(DZ_SUB - f) + DZ_SUB / 2) /
+	                      DZ_SUB);
+	*r = !n->d && d ? *o : *n;
+	r->d = d;
 }
 
 /* Brick coordinates: split v along axis a into brick index and offset. */

@@ -328,22 +328,14 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 	if (f == 0)
 		return b;
 	a = ref_src(r, I, J, lx, ly, z - w - 1);
-	v = f > 8 ? a : b; /* label, kind, type: the nearer voxel */
-	v.d = (uint8_t)((a.d * f + b.d * (16 - f) + 8) / 16);
-	if (v.d == 0)
-		v.o = 0;
-	else if (a.d == 0)
-		v.o = b.o;
-	else if (b.d == 0 || a.o == b.o)
-		v.o = a.o;
-	else if (a.l != b.l)
-		v.o = f > 8 ? a.o : b.o;
-	else {
-		float wt[2] = {(float)(f * a.d), (float)((16 - f) * b.d)}, dv[2][3], o[3];
-		loom_orientation_decode(a.o, dv[0]);
-		loom_orientation_decode(b.o, dv[1]);
-		loom__orient_blend(2, wt, (const float(*)[3])dv, o);
-		v.o = loom_orientation_encode(o);
+	/* density: linear blend, rounded; the rest: the nearer voxel's
+	   (b on a tie), the other's where the nearer is empty and the blend
+	   is not */
+	{
+		rv near = f > 8 ? a : b, other = f > 8 ? b : a;
+		uint8_t d = (uint8_t)((a.d * f + b.d * (16 - f) + 8) / 16);
+		v = near.d == 0 && d != 0 ? other : near;
+		v.d = d;
 	}
 	return v;
 }
