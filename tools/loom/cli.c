@@ -123,10 +123,16 @@ void cli_fabric_fits(const char *prog, const char *path, double budget, const ch
 	need = 5.0 * (double)rows * (double)cols;
 	if (need < budget)
 		return;
+	/* sizes below 1 MiB in bytes, as the texture's messages give them */
+	char bt[40];
+	if (budget < 1048576.0)
+		snprintf(bt, sizeof bt, "%.0f bytes", budget < 0 ? 0 : budget);
+	else
+		snprintf(bt, sizeof bt, "%.1f MiB", budget / 1048576.0);
 	fprintf(stderr, "%s: %s: the design and base assignment of %u x %u = %llu crossings "
-	        "need %.0f MiB in memory (5 bytes each), more than --budget %.0f MiB: "
+	        "need %.1f MiB in memory (5 bytes each), more than --budget %s: "
 	        "refused before loading the design\n", prog, path, rows, cols,
-	        (unsigned long long)rows * cols, ceil(need / 1048576.0), budget / 1048576.0);
+	        (unsigned long long)rows * cols, need / 1048576.0, bt);
 	/* the smallest whole MiB above the design's bytes: a lower bound */
 	fprintf(stderr, "%s: %s at least --budget %.0f (the design alone; the texture's "
 	        "cache and buffers come on top)\n", prog, what, floor(need / 1048576.0) + 1);
