@@ -17,8 +17,9 @@
  * hence discrete harmonic inside the block, so it takes its extremes on
  * the block's border (maximum principle): only the 2 (b1 + b2) - 4 border
  * columns are evaluated, not the b1 b2 of the map; a margin covers float
- * rounding, and the texture's rounding to a whole voxel stays inside
- * [floor(dz_lo), ceil(dz_hi)];
+ * rounding, and the texture's rounding to 1/16 voxel blends source voxels
+ * z - ceil(q/16) and z - floor(q/16) (q = round(16 dz)), both inside
+ * [z - ceil(dz_hi), z - floor(dz_lo)], with weights summing to 1;
  * output layer z reads source layer z - dz, so its bound is the largest
  * layer maximum over source z in [z - dz_hi, z - dz_lo].  A trilinear
  * lookup blends the 8 voxels around the point, which may lie in the

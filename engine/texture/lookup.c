@@ -16,10 +16,11 @@
  *            coefficients of the block, and an empty column bitmap.
  *   Step 3.  Column offset dz(lx, ly): computed on first use in the entry
  *            (4 dot products of length r with the fabric's basis fields,
- *            the same arithmetic as loom_edgefix_block), rounded to whole
- *            voxels (loom__dz_round), kept in the entry.
- *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - dz) of the block's
- *            exemplar; z - dz outside [0, b3): empty, done.
+ *            the same arithmetic as loom_edgefix_block), kept in the
+ *            entry in 1/16 voxel (loom__dz_fixed): q = 16 w + f.
+ *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - w) of the block's
+ *            exemplar (outside [0, b3): empty); when f > 0 also voxel
+ *            z - w - 1, and steps 5-6 for both, blended (raw_blend).
  *   Step 5.  Brick id of that voxel.  The thread's current brick (memo)
  *            answers without a cache call when the id matches; otherwise
  *            the memo's pin is released and the brick is taken from the
@@ -45,15 +46,15 @@
 #include <math.h>
 #include <stdlib.h>
 
-int loom__dz_round(float dz)
+int loom__dz_fixed(float dz)
 {
 	if (!(dz == dz))
 		return 0;
 	if (dz >= (float)DZ_LIMIT)
-		return DZ_LIMIT;
+		return DZ_LIMIT * DZ_SUB;
 	if (dz <= -(float)DZ_LIMIT)
-		return -DZ_LIMIT;
-	return (int)lroundf(dz);
+		return -DZ_LIMIT * DZ_SUB;
+	return (int)lroundf(dz * (float)DZ_SUB);
 }
 
 void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
@@ -197,12 +198,6 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	return LOOM_OK;
 }
 
-/* Raw voxel: the encodings plus kind and type. */
-typedef struct rawvox {
-	uint8_t d, l, k, ty;
-	uint16_t o;
-} rawvox;
-
 static const rawvox raw_empty;
 
 /* Planes a channel mask needs: density (also for orientation, which is
@@ -227,30 +222,17 @@ static inline void planes_read(const loom_texture *t, const struct xent *e,
 	}
 }
 
-/* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
-   reading only the planes of channel mask ch. */
-static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                            int64_t z, unsigned ch, rawvox *r)
+/* Steps 4-6 for source voxel (sx, sy, zs) of crossing e. */
+static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e,
+                          uint32_t sx, uint32_t sy, int64_t zs, unsigned ch, rawvox *r)
 {
-	struct xent *e = s->cur;
-	uint32_t lx, ly, sx, sy, sz;
 	uint64_t id;
-	int64_t zs;
 	size_t i;
-	const uint8_t *p;
+	uint32_t sz;
 
 	*r = raw_empty;
-	if ((uint64_t)z >= t->b3) /* Step 1 */
-		return LOOM_OK;
-	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
-		e = loom__xent_enter(t, s, x, y); /* Step 2 */
-	lx = (uint32_t)(x - e->x0);
-	ly = (uint32_t)(y - e->y0);
-	zs = z - xent_dz(t, s, e, lx, ly); /* Step 3 */
 	if ((uint64_t)zs >= t->b3) /* Step 4 */
 		return LOOM_OK;
-	sx = e->sx0 + lx;
-	sy = e->sy0 + ly;
 	sz = (uint32_t)zs;
 	id = e->ex->first_brick +
 	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
@@ -263,67 +245,47 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	} else {
 		bump(&s->cnt.memo_hits, 1);
 	}
-	p = s->memo;
-	if (!p)
+	if (!s->memo)
 		return LOOM_OK;
 	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
 	    in_brick(t, 2, sz); /* Step 6 */
-	planes_read(t, e, p, i, ch, r);
+	planes_read(t, e, s->memo, i, ch, r);
 	return LOOM_OK;
 }
 
-/* Steps 1-6 for the two voxels (x, y, z0) and (x, y, z0 + 1) of one
-   column (a trilinear lookup's corner pair): the crossing, the offset and,
-   when both fall in one brick, the brick are resolved once.  Returns the
-   first error (the failed voxel stays empty). */
-static inline int column_pair(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                              int64_t z0, unsigned ch, rawvox r[2])
+/* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
+   reading only the planes of channel mask ch: with a fractional offset,
+   the two source voxels blended (raw_blend). */
+static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                            int64_t z, unsigned ch, rawvox *r)
 {
 	struct xent *e = s->cur;
 	uint32_t lx, ly, sx, sy;
-	uint64_t col;
-	int64_t dz;
-	int rc = LOOM_OK;
+	int64_t w;
+	int f, rc, rc2;
+	unsigned c2;
+	rawvox a, b;
 
-	r[0] = r[1] = raw_empty;
-	if (z0 + 1 < 0 || z0 >= (int64_t)t->b3) /* Step 1, both */
+	*r = raw_empty;
+	if ((uint64_t)z >= t->b3) /* Step 1 */
 		return LOOM_OK;
 	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
 		e = loom__xent_enter(t, s, x, y); /* Step 2 */
 	lx = (uint32_t)(x - e->x0);
 	ly = (uint32_t)(y - e->y0);
-	dz = xent_dz(t, s, e, lx, ly); /* Step 3 */
+	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
 	sx = e->sx0 + lx;
 	sy = e->sy0 + ly;
-	col = e->ex->first_brick +
-	      ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) * e->ex->nb[2];
-	for (int k = 0; k < 2; k++) {
-		int64_t z = z0 + k, zs = z - dz;
-		uint64_t id;
-		const uint8_t *p;
-		if ((uint64_t)z >= t->b3 || (uint64_t)zs >= t->b3) /* Steps 1, 4 */
-			continue;
-		id = col + brick_of(t, 2, (uint32_t)zs);
-		if (id != s->memo_id) { /* Step 5 */
-			int e2 = loom__memo_switch(t, s, id);
-			if (e2 != LOOM_OK) {
-				if (rc == LOOM_OK)
-					rc = e2;
-				continue;
-			}
-		} else {
-			bump(&s->cnt.memo_hits, 1);
-		}
-		p = s->memo;
-		if (!p)
-			continue;
-		planes_read(t, e, p,
-		            ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) *
-		                            t->bs[2] +
-		                    in_brick(t, 2, (uint32_t)zs),
-		            ch, &r[k]);
-	}
-	return rc;
+	if (!f)
+		return src_raw(t, s, e, sx, sy, z - w, ch, r);
+	/* the representative (raw_blend) needs both densities */
+	c2 = ch & (CH_O | CH_M) ? ch | CH_D : ch;
+	rc = src_raw(t, s, e, sx, sy, z - w - 1, c2, &a);
+	rc2 = src_raw(t, s, e, sx, sy, z - w, c2, &b);
+	if (rc != LOOM_OK || rc2 != LOOM_OK) /* a failed voxel stays empty */
+		return rc != LOOM_OK ? rc : rc2;
+	raw_blend(&a, &b, f, r);
+	return LOOM_OK;
 }
 
 /* The texel of raw voxel r, the fields of the channels outside ch zero
@@ -416,10 +378,14 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	for (int c = 0; c < 8; c += 2) {
 		int dx = c >> 1 & 1, dy = c >> 2 & 1;
 		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
-		int e = cch ? column_pair(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c])
-		            : LOOM_OK;
-		if (!cch)
-			r[c] = r[c + 1] = raw_empty;
+		int e = LOOM_OK, e2 = LOOM_OK;
+		r[c] = r[c + 1] = raw_empty;
+		if (cch) {
+			e = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c]);
+			e2 = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2] + 1, cch, &r[c + 1]);
+		}
+		if (e == LOOM_OK)
+			e = e2;
 		if (e != LOOM_OK && rc == LOOM_OK)
 			rc = e;
 	}

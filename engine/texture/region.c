@@ -228,6 +228,305 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
+/* Source densities of source column (sx, sy) of crossing e for source z
+   in [zs, zs + n) into d, zero outside [0, b3), in bricks stored as
+   nothing or whose read fails (*rc keeps the first error): brick runs. */
+static void src_dens(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
+                     uint32_t sy, int64_t zs, size_t n, uint8_t *d, int *rc)
+{
+	int64_t b3 = t->b3, bz = t->bs[2], ze = zs + (int64_t)n;
+	uint64_t base = e->ex->first_brick +
+	                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
+	                        e->ex->nb[2];
+	size_t col = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2];
+
+	memset(d, 0, n);
+	for (int64_t z = zs > 0 ? zs : 0; z < ze && z < b3;) {
+		int64_t z0 = z / bz * bz, z1 = z0 + bz < ze ? z0 + bz : ze;
+		uint64_t id = base + (uint64_t)(z / bz);
+		if (z1 > b3)
+			z1 = b3;
+		if (id != s->memo_id) {
+			int e2 = loom__memo_switch(t, s, id);
+			if (e2 != LOOM_OK && *rc == LOOM_OK)
+				*rc = e2;
+		} else {
+			bump(&s->cnt.memo_hits, 1);
+		}
+		if (s->memo_id == id && s->memo)
+			memcpy(d + (z - zs), s->memo + col + (size_t)(z - z0), (size_t)(z1 - z));
+		z = z1;
+	}
+}
+
+/* The planes of a blended column besides density (NULL: not wanted) and
+   the label -> kind, type tables. */
+struct bplanes {
+	uint8_t *L, *K, *T, *OL, *OH;
+	uint16_t *O;
+	const uint8_t *kl, *tl;
+};
+
+/* The voxel at sink offset at takes the farther voxel as representative
+   (raw_blend): its planes from the sink voxel at + dir, or from x. */
+static inline void rep_far(const struct bplanes *b, size_t at, int dir, const rawvox *x)
+{
+	if (x) {
+		if (b->L)
+			b->L[at] = x->l;
+		if (b->K)
+			b->K[at] = b->kl[x->l];
+		if (b->T)
+			b->T[at] = b->tl[x->l];
+		if (b->O)
+			b->O[at] = x->o;
+		if (b->OL) {
+			b->OL[at] = (uint8_t)x->o;
+			b->OH[at] = (uint8_t)(x->o >> 8);
+		}
+		return;
+	}
+	size_t from = dir < 0 ? at - 1 : at + 1;
+	if (b->L)
+		b->L[at] = b->L[from];
+	if (b->K)
+		b->K[at] = b->K[from];
+	if (b->T)
+		b->T[at] = b->T[from];
+	if (b->O)
+		b->O[at] = b->O[from];
+	if (b->OL) {
+		b->OL[at] = b->OL[from];
+		b->OH[at] = b->OH[from];
+	}
+}
+
+#ifdef __SSE2__
+/* 16 blends (raw_blend's density): (g far + (DZ_SUB - g) near + DZ_SUB/2)
+   / DZ_SUB per byte. */
+static inline __m128i blend16(__m128i nr, __m128i fr, __m128i G, __m128i GN)
+{
+	const __m128i zero = _mm_setzero_si128(), H = _mm_set1_epi16(DZ_SUB / 2);
+	__m128i lo = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
+	                                         _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
+	                           H);
+	__m128i hi = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(fr, zero), G),
+	                                         _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
+	                           H);
+	return _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
+}
+
+/* Lanes where the nearer density is 0 and the blend is not. */
+static inline int rep_mask(__m128i nr, __m128i v)
+{
+	const __m128i zero = _mm_setzero_si128();
+	return _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero), _mm_cmpeq_epi8(nr, zero)));
+}
+
+/* blend_run in place for n >= 16 voxels whose nearer densities are A[0 ..
+   n), the farther ones A[i + dir] and xd past the end: 16 at a time in
+   the order that reads every farther density before it is rewritten
+   (down for dir -1, up for dir +1); the partial block at the far end is
+   computed first (from the old values, with xd) and stored last. */
+static void blend_inplace(uint8_t *A, size_t n, int dir, unsigned g, uint8_t xd,
+                          const struct bplanes *b, int others, size_t at0, const rawvox *x)
+{
+	const __m128i G = _mm_set1_epi16((short)g), GN = _mm_set1_epi16((short)(DZ_SUB - g));
+	uint8_t e[17];
+	size_t r = n % 16, i;
+	__m128i last, lnr;
+	int m;
+
+	/* the end block: [0, 16) for dir -1, [n - 16, n) for dir +1 */
+	if (dir < 0) {
+		e[0] = xd;
+		memcpy(e + 1, A, 16);
+		lnr = _mm_loadu_si128((const __m128i *)(e + 1));
+		last = blend16(lnr, _mm_loadu_si128((const __m128i *)e), G, GN);
+	} else {
+		memcpy(e, A + n - 16, 16);
+		e[16] = xd;
+		lnr = _mm_loadu_si128((const __m128i *)e);
+		last = blend16(lnr, _mm_loadu_si128((const __m128i *)(e + 1)), G, GN);
+	}
+	if (dir < 0) {
+		/* blocks [i, i + 16) from the top down to r (to 16 when r == 0) */
+		for (i = n - 16; i >= (r ? r : 16); i -= 16) {
+			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
+			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i - 1)), G, GN);
+			_mm_storeu_si128((__m128i *)(A + i), v);
+			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
+				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), -1, NULL);
+			if (i < 16)
+				break;
+		}
+		/* lanes [0, r) of the end block (all 16 when r == 0) */
+		{
+			uint8_t tmp[16];
+			size_t w = r ? r : 16;
+			_mm_storeu_si128((__m128i *)tmp, last);
+			memcpy(A, tmp, w);
+			for (m = others ? rep_mask(lnr, last) & ((1 << w) - 1) : 0; m; m &= m - 1) {
+				size_t j = (size_t)__builtin_ctz((unsigned)m);
+				rep_far(b, at0 + j, -1, j == 0 ? x : NULL);
+			}
+		}
+	} else {
+		size_t full = r ? n - r : n - 16; /* [0, full) in place */
+		for (i = 0; i < full; i += 16) {
+			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
+			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i + 1)), G, GN);
+			_mm_storeu_si128((__m128i *)(A + i), v);
+			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
+				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), 1, NULL);
+		}
+		/* lanes [16 - w, 16) of the end block: voxels [full, n) */
+		{
+			uint8_t tmp[16];
+			size_t w = n - full;
+			_mm_storeu_si128((__m128i *)tmp, last);
+			memcpy(A + full, tmp + 16 - w, w);
+			for (m = others ? (rep_mask(lnr, last) >> (16 - w)) : 0; m; m &= m - 1) {
+				size_t j = full + (size_t)__builtin_ctz((unsigned)m);
+				rep_far(b, at0 + j, 1, j == n - 1 ? x : NULL);
+			}
+		}
+	}
+}
+#endif
+
+/* Voxels per blend_run at most. */
+#define BCH 256
+
+/* n (1..BCH) consecutive output voxels of a column (sink offset at0 for
+   the first): their nearer densities are near[0 .. n), the farther ones
+   near[i + dir] (the array extends one voxel on that side).  Writes the
+   blends (weight g / DZ_SUB for the farther voxel) to out (unless NULL),
+   16 voxels at a time (SSE2; the last 16 overlapping); where the nearer
+   voxel is empty and the blend is not, the other planes from the farther
+   voxel (rep_far: past the end from x when x is not NULL, else from the
+   sink).  A farther voxel taken so has density, so it is never itself
+   rewritten: the order does not matter. */
+static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsigned g,
+                      const struct bplanes *b, int others, size_t at0, const rawvox *x)
+{
+	const uint8_t *far = near + dir;
+	const unsigned gn = DZ_SUB - g;
+	size_t i = 0;
+
+#ifdef __SSE2__
+	if (n >= 16) {
+		const __m128i zero = _mm_setzero_si128(), G = _mm_set1_epi16((short)g);
+		const __m128i GN = _mm_set1_epi16((short)gn), H = _mm_set1_epi16(DZ_SUB / 2);
+		for (;;) {
+			__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
+			__m128i fr = _mm_loadu_si128((const __m128i *)(far + i));
+			__m128i lo = _mm_add_epi16(
+			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
+			                      _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
+			        H);
+			__m128i hi = _mm_add_epi16(
+			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(fr, zero), G),
+			                      _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
+			        H);
+			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
+			if (out)
+				_mm_storeu_si128((__m128i *)(out + i), v);
+			if (others) {
+				int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+				                                           _mm_cmpeq_epi8(nr, zero)));
+				for (; m; m &= m - 1) {
+					size_t j = i + (size_t)__builtin_ctz((unsigned)m);
+					int end = dir < 0 ? j == 0 : j == n - 1;
+					rep_far(b, at0 + j, dir, end ? x : NULL);
+				}
+			}
+			if (i + 16 == n)
+				return;
+			i = i + 32 <= n ? i + 16 : n - 16;
+		}
+	}
+#endif
+	for (; i < n; i++) {
+		unsigned v = (g * far[i] + gn * near[i] + DZ_SUB / 2) / DZ_SUB;
+		if (out)
+			out[i] = (uint8_t)v;
+		if (others && !near[i] && v) {
+			int end = dir < 0 ? i == 0 : i == n - 1;
+			rep_far(b, at0 + i, dir, end ? x : NULL);
+		}
+	}
+}
+
+/* A column with a fractional offset (raw_blend), after its nearer source
+   voxels went into sink k like a whole-voxel offset wn (the group's run
+   copies): voxel z of the sink holds near(z), the farther voxel is
+   near(z + dir) (dir -1 or +1, weight g / DZ_SUB, 1 <= g <= DZ_SUB/2).
+   Blends output z in [ba, bb) in place (the sink's column starts at
+   output z = za at offset o), in chunks of BCH whose nearer densities are
+   copied first (blend_run reads the copy); chunks go from the top for
+   dir -1, from the bottom for dir +1, so that the sink's density past a
+   chunk is still the nearer one.  The farther voxel of the column's end
+   voxel (ba for dir -1, bb - 1 for dir +1) lies outside [ba, bb) and
+   comes in x (density, orientation, label).  Without a density plane in
+   the sink the nearer densities are read again from the bricks
+   (src_dens, source z = z - wn). */
+static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
+                      const struct sink *k, size_t o, int64_t za, int64_t ba, int64_t bb,
+                      int dir, unsigned g, const rawvox *x, uint32_t sx, uint32_t sy,
+                      int64_t wn, int *rc)
+{
+	uint8_t *D = k->raw ? k->rd : k->d;
+	struct bplanes b;
+	int others;
+	uint8_t tmp[BCH + 1];
+
+	b.L = k->raw ? k->rl : k->l;
+	b.K = k->raw ? k->rk : k->k;
+	b.T = k->raw ? k->rt : k->ty;
+	b.OL = k->raw ? k->rlo : NULL;
+	b.OH = k->raw ? k->rhi : NULL;
+	b.O = k->raw ? NULL : k->o;
+	b.kl = k->kl;
+	b.tl = k->tl;
+	others = b.L || b.K || b.T || b.OL || b.O;
+	if (!D && !others)
+		return;
+#ifdef __SSE2__
+	if (D && bb - ba >= 16) {
+		blend_inplace(D + o + (size_t)(ba - za), (size_t)(bb - ba), dir, g, x->d, &b, others,
+		              o + (size_t)(ba - za), x);
+		return;
+	}
+#endif
+	for (int64_t done = 0; done < bb - ba;) {
+		size_t n = bb - ba - done < BCH ? (size_t)(bb - ba - done) : BCH;
+		int64_t c0 = dir < 0 ? bb - done - (int64_t)n : ba + done;
+		int end = dir < 0 ? c0 == ba : c0 + (int64_t)n == bb;
+		uint8_t *dc = D ? D + o + (size_t)(c0 - za) : NULL;
+		/* tmp: near(c0 - 1 .. c0 + n) for dir -1, near(c0 .. c0 + n + 1)
+		   for dir +1 (past the column's end: x) */
+		if (dir < 0) {
+			if (D) {
+				memcpy(tmp + 1, dc, n);
+				tmp[0] = end ? x->d : dc[-1];
+			} else {
+				src_dens(t, s, e, sx, sy, c0 - 1 - wn, n + 1, tmp, rc);
+			}
+		} else {
+			if (D) {
+				memcpy(tmp, dc, n);
+				tmp[n] = end ? x->d : dc[n];
+			} else {
+				src_dens(t, s, e, sx, sy, c0 - wn, n + 1, tmp, rc);
+			}
+		}
+		blend_run(dc, dir < 0 ? tmp + 1 : tmp, n, dir, g, &b, others,
+		          o + (size_t)(c0 - za), end ? x : NULL);
+		done += (int64_t)n;
+	}
+}
+
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
 
@@ -238,7 +537,12 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
  * off + c*cstride (voxel za).  Steps 3-5 once per column (offset, valid
  * range), then per brick of the union of the columns' source z ranges:
  * one brick resolution (the slot's memo) and each column's run in it.
- * Voxels whose brick fails are empty; the first error is returned.
+ * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
+ * copied the same way with its nearer whole offset wn (w, or w + 1 when
+ * f > DZ_SUB/2), the one voxel past its end that the blend also needs is
+ * read in the same brick pass, and blend_col mixes it in place; fraction
+ * 0 is the whole-voxel path unchanged.  Voxels whose brick fails are
+ * empty (or blended with empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -246,16 +550,51 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 {
 	int64_t b3 = t->b3, bz = t->bs[2];
 	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
+	int64_t ba[GMAX], bb[GMAX], xz[GMAX];  /* blend range, end voxel's source z */
+	int8_t dir[GMAX];                      /* 0: whole offset; -1, +1: farther voxel */
+	uint8_t gw[GMAX];                      /* farther voxel's weight */
+	rawvox xv[GMAX];                       /* the end voxel */
 	int64_t smin = INT64_MAX, smax = INT64_MIN;
+	int64_t va0 = za > 0 ? za : 0, vb0 = zb < b3 ? zb : b3;
 	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
 	uint64_t base;
 	size_t col;
-	int rc = LOOM_OK;
+	int rc = LOOM_OK, nfrac = 0;
+	int want_o = (k->raw ? (void *)k->rlo : (void *)k->o) != NULL;
+	int want_l = (k->raw ? k->rl || k->rk || k->rt : k->l || k->k || k->ty) != 0;
 
 	for (uint32_t c = 0; c < n; c++) {
-		int64_t dz = xent_dz(t, s, e, lx0 + c, ly);
-		int64_t va = za > 0 ? za : 0, vb = zb < b3 ? zb : b3;
+		int f;
+		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
+		int64_t va = va0, vb = vb0;
 		size_t o = off + c * cstride;
+		dir[c] = 0;
+		xz[c] = -1;
+		if (f) {
+			int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
+			nfrac++;
+			gw[c] = (uint8_t)(far_up ? DZ_SUB - f : f);
+			dz += far_up;
+			dir[c] = (int8_t)(far_up ? 1 : -1);
+			dzs[c] = dz;
+			/* output voxels with either source voxel in [0, b3) */
+			ba[c] = va0 > dz - far_up ? va0 : dz - far_up;
+			bb[c] = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
+			memset(&xv[c], 0, sizeof xv[c]);
+			if (ba[c] >= bb[c]) {
+				dir[c] = 0;
+			} else {
+				/* the end voxel's farther voxel, when in the block */
+				int64_t z = far_up ? bb[c] - dz : ba[c] - dz - 1;
+				if (z >= 0 && z < b3) {
+					xz[c] = z;
+					if (z < smin)
+						smin = z;
+					if (z + 1 > smax)
+						smax = z + 1;
+				}
+			}
+		}
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
 			va = dz;
@@ -277,7 +616,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			smax = sb[c];
 	}
 	if (smin >= smax)
-		return LOOM_OK;
+		goto blend;
 	base = e->ex->first_brick +
 	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	               e->ex->nb[2];
@@ -301,6 +640,14 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			size_t o;
+			if (p && xz[c] >= z0 && xz[c] < z1) {
+				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(xz[c] - z0);
+				xv[c].d = v[0];
+				if (want_o) /* only the planes asked for (cache lines) */
+					xv[c].o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
+				if (want_l)
+					xv[c].l = v[3 * t->bv];
+			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
@@ -311,6 +658,12 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				sink_empty(k, o, (size_t)(b - a));
 		}
 	}
+blend:
+	if (nfrac)
+		for (uint32_t c = 0; c < n; c++)
+			if (dir[c])
+				blend_col(t, s, e, k, off + c * cstride, za, ba[c], bb[c], dir[c], gw[c],
+				          &xv[c], sx + c, sy, dzs[c], &rc);
 	return rc;
 }
 
@@ -573,12 +926,13 @@ static void chunk_extent(loom_texture *t, struct tslot *s, struct xent *e, uint3
 			}
 		if (klo >= 0)
 			for (uint32_t q = c; q < c + n; q++) {
-				int64_t dz = xent_dz(t, s, e, lx0 + q, ly);
-				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz;
+				int f;
+				int64_t dz = dz_split(xent_dz(t, s, e, lx0 + q, ly), &f);
+				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz + (f != 0);
 				if (lo < dz)
 					lo = dz;
-				if (hi > b3 + dz)
-					hi = b3 + dz;
+				if (hi > b3 + dz + (f != 0))
+					hi = b3 + dz + (f != 0);
 				if (lo < a)
 					a = lo;
 				if (hi > b)

@@ -35,7 +35,8 @@
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
 #define COORD_LIMIT ((int64_t)1 << 62) /* |x|, |y|, |z| below this */
-#define DZ_LIMIT 4096       /* |dz| clamp: b3 <= LOOM__DB_MAX_BLOCK */
+#define DZ_SUB 16           /* dz is kept in 1/DZ_SUB voxel (fixed point) */
+#define DZ_LIMIT 2047       /* |dz| clamp, voxels (int16 fixed point) */
 #define ALIGN 64
 #define RCOLS 64            /* columns gathered at once (x-fastest regions) */
 #define RZ 64               /* z values gathered at once */
@@ -65,7 +66,7 @@ struct xent {
 	uint8_t tlut[256];       /* label -> yarn type (region reads) */
 	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
 	uint64_t *have;          /* bit per column: dz computed */
-	int16_t *dz;             /* b1*b2 whole-voxel offsets, where have */
+	int16_t *dz;             /* b1*b2 offsets in 1/DZ_SUB voxel, where have */
 };
 
 /* Per-slot counters: written by the slot's current thread only (relaxed
@@ -259,17 +260,56 @@ static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
 	return sn + ss + sw + se;
 }
 
-/* Step 3, cached in the entry: the whole-voxel offset of column (lx, ly). */
+/* Step 3, cached in the entry: the offset of column (lx, ly) in 1/DZ_SUB
+   voxel (loom__dz_fixed). */
 static inline int xent_dz(const loom_texture *t, struct tslot *s, struct xent *e,
                           uint32_t lx, uint32_t ly)
 {
 	size_t c = (size_t)ly * t->b1 + lx;
 	if (!(e->have[c >> 6] >> (c & 63) & 1)) {
-		e->dz[c] = (int16_t)loom__dz_round(dz_eval(t, e->a, lx, ly));
+		e->dz[c] = (int16_t)loom__dz_fixed(dz_eval(t, e->a, lx, ly));
 		e->have[c >> 6] |= (uint64_t)1 << (c & 63);
 		bump(&s->cnt.dz, 1);
 	}
 	return e->dz[c];
+}
+
+/* Split a fixed-point offset q into whole voxels w = floor(q / DZ_SUB) and
+   the fraction f = q - w * DZ_SUB in [0, DZ_SUB). */
+static inline int dz_split(int q, int *f)
+{
+	int r = q % DZ_SUB;
+	if (r < 0)
+		r += DZ_SUB;
+	*f = r;
+	return (q - r) / DZ_SUB;
+}
+
+/* Raw voxel: the encodings plus kind and type. */
+typedef struct rawvox {
+	uint8_t d, l, k, ty;
+	uint16_t o;
+} rawvox;
+
+/* The voxel at source height z - w - f/DZ_SUB (0 < f < DZ_SUB) from its
+   two source voxels a = z - w - 1 (weight f/DZ_SUB) and b = z - w (weight
+   1 - f/DZ_SUB): the density byte blended linearly and rounded, in integer
+   arithmetic, (f a + (DZ_SUB - f) b + DZ_SUB/2) / DZ_SUB; everything else
+   (orientation, label, kind, type) is one source voxel's, the
+   representative: the nearer one (b when f <= DZ_SUB/2), or the farther
+   one where the nearer is empty (density 0) and the blend is not, so a
+   voxel with density always carries the orientation and yarn of a voxel
+   with density.  (A blend of the two directions would cost a decode, a
+   normalisation and an encode per voxel; docs/engine.md.)  Needs the
+   density plane of both wherever another plane is wanted. */
+static inline void raw_blend(const rawvox *a, const rawvox *b, int f, rawvox *r)
+{
+	const rawvox *n = 2 * f > DZ_SUB ? a : b, *o = 2 * f > DZ_SUB ? b : a;
+	uint8_t d = (uint8_t)(((unsigned)a->d * (unsigned)f +
+	                       (unsigned)b->d * (unsigned)(DZ_SUB - f) + DZ_SUB / 2) /
+	                      DZ_SUB);
+	*r = !n->d && d ? *o : *n;
+	r->d = d;
 }
 
 /* Brick coordinates: split v along axis a into brick index and offset. */

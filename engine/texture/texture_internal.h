@@ -20,9 +20,10 @@
 void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
                         float out[3]);
 
-/* Rounding of an edge-fix offset to whole voxels (nearest, halves away
-   from zero, clamped to +-4096; not-a-number gives 0). */
-int loom__dz_round(float dz);
+/* An edge-fix offset in fixed point, 1/16 voxel: dz * 16 rounded to the
+   nearest integer (halves away from zero), dz clamped to +-2047 voxels;
+   not-a-number gives 0. */
+int loom__dz_fixed(float dz);
 
 /* The edge-fix offset (unrounded) the engine computes for column (lx, ly)
    of crossing (I, J): the same arithmetic as loom_edgefix_block, which

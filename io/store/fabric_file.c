@@ -64,6 +64,15 @@ static int open_recorded_db(loom_fabric *f, const char *path, loom_diag *diag)
 	return loom__fail(diag, rc, "%s: cannot open its database: %s", path, d2.message);
 }
 
+LOOM_API int loom_fabric_file_size(const char *path, uint32_t *rows, uint32_t *cols,
+                                   loom_diag *diag)
+{
+	if (!path || !rows || !cols)
+		return loom__fail(diag, LOOM_EINVAL, "fabric file size: NULL argument");
+	*rows = *cols = 0;
+	return loom__fabric_read_size(path, rows, cols, diag);
+}
+
 LOOM_API int loom_fabric_open(const char *path, const loom_db *db,
                               unsigned flags, loom_fabric **out,
                               loom_diag *diag)

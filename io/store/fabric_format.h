@@ -106,6 +106,11 @@ int loom__fabric_write(const loom_fabric *f, const char *path,
 
 /* Parse a fabric file into a detached fabric, from a path (mem NULL) or
    from memory (mem, len; path used in messages only) (fabric_read.c). */
+/* Step 1 only: the design size from the 64-byte header (magic, version,
+   CRC, sizes checked), nothing else read (loom_fabric_file_size). */
+int loom__fabric_read_size(const char *path, uint32_t *rows, uint32_t *cols,
+                           loom_diag *diag);
+
 int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
                       loom_fabric **out, loom_diag *diag);
 

@@ -891,6 +891,25 @@ static int parse_all(fab_reader *r, loom_fabric *f)
 	return rc;
 }
 
+int loom__fabric_read_size(const char *path, uint32_t *rows, uint32_t *cols,
+                           loom_diag *diag)
+{
+	fab_reader r;
+	int rc;
+
+	memset(&r, 0, sizeof r);
+	r.name = path;
+	r.diag = diag;
+	r.fd = -1;
+	rc = loom__open_input(path, &r.fd, &r.size, diag);
+	if (rc)
+		return rc;
+	rc = r.size == 0 ? loom__fail(diag, LOOM_ETRUNCATED, "%s: empty file", r.name)
+	                 : read_header(&r, rows, cols);
+	close(r.fd);
+	return rc;
+}
+
 int loom__fabric_read(const char *path, const uint8_t *mem, size_t len,
                       loom_fabric **out, loom_diag *diag)
 {

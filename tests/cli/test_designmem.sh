@@ -42,6 +42,13 @@ export T
 # too small: usage error naming the smallest --budget (scan) and the
 # texture's minimum in MiB (sample: --budget is the texture's budget)
 expect_exit scan_small 2 "$LOOM" scan "$F" --region "$REG" --reduce checksum --budget 16
+# below the design's own 43 MiB: refused from the file's header, before
+# the design is read, naming the design's bound (test_hugedesign.sh)
+expect_err_contains scan_small_preload "refused before loading the design"
+LB=$(sed -n 's/.*this job needs at least --budget \([0-9]*\) (the design alone.*/\1/p' "$T/err")
+if [ "$LB" = 43 ]; then pass scan_small_bound; else fail scan_small_bound "bound '$LB': $(head -c 600 "$T/err")"; fi
+# at that bound: the texture's own check, with the exact minimum
+expect_exit scan_at_bound 2 "$LOOM" scan "$F" --region "$REG" --reduce checksum --budget "$LB"
 expect_err_contains scan_small_fabric "design and base assignment of 9000000 crossings"
 MIN=$(sed -n 's/.*this job needs at least --budget \([0-9]*\).*/\1/p' "$T/err")
 if [ -n "$MIN" ] && [ "$MIN" -gt 43 ] && [ "$MIN" -lt 64 ]; then pass scan_small_min "$MIN"; else

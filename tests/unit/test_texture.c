@@ -256,33 +256,17 @@ typedef struct rv {
 	uint16_t o;
 } rv;
 
-static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
+/* Source voxel zs of column (lx, ly) of crossing (I, J), straight from
+   the exemplar arrays; empty outside [0, b3). */
+static rv ref_src(ref *r, int64_t I, int64_t J, uint32_t lx, uint32_t ly, int64_t zs)
 {
 	rv v = {0, 0, 0, 0, 0};
-	int64_t I, J, zs;
-	uint32_t lx, ly, sx, sy;
 	loom_synth_block sb;
 	const loom_db_exemplar_info *e;
+	uint32_t sx, sy;
 	size_t i, cell;
 	uint16_t t;
-	long dzi;
 
-	if (z < 0 || z >= r->b3)
-		return v;
-	I = floor_div(y, r->b2);
-	J = floor_div(x, r->b1);
-	lx = (uint32_t)(x - J * r->b1);
-	ly = (uint32_t)(y - I * r->b2);
-	if (I != r->cI || J != r->cJ) {
-		loom_synth_nbhd nb;
-		loom_synth_nbhd_at(&r->lk, I, J, &nb);
-		loom_edgefix_block(r->ef, &nb, r->dz);
-		r->cI = I;
-		r->cJ = J;
-		r->n_dz_blocks++;
-	}
-	dzi = lroundf(r->dz[ly * r->b1 + lx]); /* documented rounding */
-	zs = z - dzi;
 	if (zs < 0 || zs >= r->b3)
 		return v;
 	t = loom_synth_src(&r->lk, I, J);
@@ -299,6 +283,60 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 	       (size_t)(((J % r->d->cols) + r->d->cols) % r->d->cols);
 	v.ty = v.k == LOOM_YARN_WARP ? r->d->warp_type[cell] :
 	       v.k == LOOM_YARN_WEFT ? r->d->weft_type[cell] : 0;
+	return v;
+}
+
+/* The documented offset in 1/16 voxel: dz clamped to +-2047, times 16,
+   rounded (halves away from zero). */
+static long ref_dz16(float dz)
+{
+	if (dz != dz)
+		return 0;
+	if (dz >= 2047.0f)
+		return 2047 * 16;
+	if (dz <= -2047.0f)
+		return -2047 * 16;
+	return lroundf(dz * 16.0f);
+}
+
+static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
+{
+	rv v = {0, 0, 0, 0, 0}, a, b;
+	int64_t I, J;
+	uint32_t lx, ly;
+	long q, f, w;
+
+	if (z < 0 || z >= r->b3)
+		return v;
+	I = floor_div(y, r->b2);
+	J = floor_div(x, r->b1);
+	lx = (uint32_t)(x - J * r->b1);
+	ly = (uint32_t)(y - I * r->b2);
+	if (I != r->cI || J != r->cJ) {
+		loom_synth_nbhd nb;
+		loom_synth_nbhd_at(&r->lk, I, J, &nb);
+		loom_edgefix_block(r->ef, &nb, r->dz);
+		r->cI = I;
+		r->cJ = J;
+		r->n_dz_blocks++;
+	}
+	/* source height z - q/16: voxels z - w - 1 (weight f/16) and z - w */
+	q = ref_dz16(r->dz[ly * r->b1 + lx]);
+	f = ((q % 16) + 16) % 16;
+	w = (q - f) / 16;
+	b = ref_src(r, I, J, lx, ly, z - w);
+	if (f == 0)
+		return b;
+	a = ref_src(r, I, J, lx, ly, z - w - 1);
+	/* density: linear blend, rounded; the rest: the nearer voxel's
+	   (b on a tie), the other's where the nearer is empty and the blend
+	   is not */
+	{
+		rv near = f > 8 ? a : b, other = f > 8 ? b : a;
+		uint8_t d = (uint8_t)((a.d * f + b.d * (16 - f) + 8) / 16);
+		v = near.d == 0 && d != 0 ? other : near;
+		v.d = d;
+	}
 	return v;
 }
 
@@ -574,12 +612,14 @@ static void orient_blend_no_cancel(void)
 	loom__orient_blend(2, w, (const float(*)[3])v, out);
 	CHECK(fabsf(out[0] - 0.70710678f) < 1e-6f && fabsf(out[1] - 0.70710678f) < 1e-6f);
 	/* rounding rule of dz */
-	CHECK_EQ_INT(loom__dz_round(0.5f), 1);
-	CHECK_EQ_INT(loom__dz_round(-0.5f), -1);
-	CHECK_EQ_INT(loom__dz_round(0.49999997f), 0);
-	CHECK_EQ_INT(loom__dz_round(-2.6f), -3);
-	CHECK_EQ_INT(loom__dz_round(1e9f), 4096);
-	CHECK_EQ_INT(loom__dz_round(NAN), 0);
+	CHECK_EQ_INT(loom__dz_fixed(0.5f / 16), 1);
+	CHECK_EQ_INT(loom__dz_fixed(-0.5f / 16), -1);
+	CHECK_EQ_INT(loom__dz_fixed(0.49999997f / 16), 0);
+	CHECK_EQ_INT(loom__dz_fixed(-2.6f), -42);
+	CHECK_EQ_INT(loom__dz_fixed(1.25f), 20);
+	CHECK_EQ_INT(loom__dz_fixed(1e9f), 2047 * 16);
+	CHECK_EQ_INT(loom__dz_fixed(-1e9f), -2047 * 16);
+	CHECK_EQ_INT(loom__dz_fixed(NAN), 0);
 }
 
 /* The fabric's own dz equals the reference built from the database
@@ -1547,6 +1587,89 @@ static void warp_on_top_real_designs(void)
 	loom_design_free(d);
 }
 
+/* Top surface of column (x, y): the highest height where the density
+   (nearest lookups) rises through thr going down, interpolated linearly
+   between the two voxels around it; -1 for a column that never does. */
+static float surface(loom_texture *t, int64_t x, int64_t y, uint32_t b3, float thr)
+{
+	float up = 0;
+	for (int64_t z = (int64_t)b3 - 1; z >= 0; z--) {
+		loom_texel tx;
+		if (loom_texture_voxel(t, x, y, z, &tx) != LOOM_OK)
+			return -2;
+		if (tx.density >= thr)
+			return (float)z + (tx.density - thr) / (tx.density - up);
+		up = tx.density;
+	}
+	return -1;
+}
+
+/* No terraces: between neighbouring columns of one block whose surfaces
+   differ by at most half a voxel in the fabric without the edge fix
+   (rank 0, the woven reference: same sources, no offsets) and whose
+   edge-fix offsets differ by at most a quarter voxel, the edge-fixed
+   surfaces differ by less than a whole voxel.  Offsets rounded to whole
+   voxels step by one voxel wherever the rounding changes, which this
+   catches (43 steps on this fabric with the old rounding, 0 now). */
+static void no_terraces(void)
+{
+	loom_texture *t[2] = {NULL, NULL};
+	loom_fabric *f[2] = {NULL, NULL};
+	loom_db_info info;
+	uint32_t b1, b2, b3;
+	int64_t W, H;
+	float *h[2] = {NULL, NULL};
+	long pairs = 0, steps = 0;
+
+	if (!g_ok)
+		return;
+	loom_db_get_info(g_db, &info);
+	b1 = info.block[0], b2 = info.block[1], b3 = info.block[2];
+	W = (int64_t)g_design->cols * b1;
+	H = (int64_t)g_design->rows * b2;
+	for (int k = 0; k < 2; k++) {
+		loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
+		loom_diag d = {0};
+		o.rank = k ? 0 : o.rank;
+		CHECK_EQ_INT(loom_fabric_synthesize(g_design, g_db, db_path, &o, &f[k], &d), LOOM_OK);
+		if (!f[k])
+			goto out;
+		t[k] = open_tex(f[k], g_db, 16u << 20, 1);
+		CHECK(t[k] != NULL);
+		if (!t[k])
+			goto out;
+		h[k] = malloc(sizeof(float) * (size_t)(W * H));
+		for (int64_t y = 0; y < H; y++)
+			for (int64_t x = 0; x < W; x++)
+				h[k][y * W + x] = surface(t[k], x, y, b3, 0.1f);
+	}
+	for (int64_t y = 0; y < H; y++)
+		for (int64_t x = 0; x + 1 < W; x++) {
+			int64_t I = y / b2, J = x / b1;
+			float r0 = h[1][y * W + x], r1 = h[1][y * W + x + 1];
+			float f0 = h[0][y * W + x], f1 = h[0][y * W + x + 1], d0, d1;
+			if ((x + 1) % b1 == 0 || r0 < 0 || r1 < 0 || f0 < 0 || f1 < 0 ||
+			    fabsf(r1 - r0) > 0.5f)
+				continue;
+			d0 = loom__texture_dz(t[0], I, J, (uint32_t)(x % b1), (uint32_t)(y % b2));
+			d1 = loom__texture_dz(t[0], I, J, (uint32_t)((x + 1) % b1), (uint32_t)(y % b2));
+			if (fabsf(d1 - d0) > 0.25f)
+				continue;
+			pairs++;
+			if (fabsf(f1 - f0) >= 1)
+				steps++;
+		}
+	printf("  %ld smooth neighbour pairs, %ld steps of a voxel\n", pairs, steps);
+	CHECK(pairs > 200);
+	CHECK_EQ_INT((int)steps, 0);
+out:
+	for (int k = 0; k < 2; k++) {
+		free(h[k]);
+		loom_texture_close(t[k]);
+		loom_fabric_free(f[k]);
+	}
+}
+
 int main(void)
 {
 	CHECK_MAIN_BEGIN("test_texture");
@@ -1568,6 +1691,7 @@ int main(void)
 	RUN(channel_masks);
 	RUN(corrupt_brick);
 	RUN(warp_on_top_real_designs);
+	RUN(no_terraces);
 	if (g_ok)
 		ref_free(&g_ref);
 	loom_fabric_free(g_fab);

@@ -2,6 +2,7 @@
 #include "cli.h"
 
 #include <errno.h>
+#include <math.h>
 #include <limits.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -107,6 +108,35 @@ void cli_warn_sink(void *user, const char *msg)
 	if (user && *(int *)user)
 		return;
 	fprintf(stderr, "loom: warning: %s\n", msg);
+}
+
+void cli_fabric_fits(const char *prog, const char *path, double budget, const char *what,
+                     int code)
+{
+	uint32_t rows, cols;
+	double need;
+	loom_diag d;
+
+	cli_diag_init(&d, NULL);
+	if (loom_fabric_file_size(path, &rows, &cols, &d) != LOOM_OK)
+		return; /* loom_fabric_open reports it */
+	need = 5.0 * (double)rows * (double)cols;
+	if (need < budget)
+		return;
+	/* sizes below 1 MiB in bytes, as the texture's messages give them */
+	char bt[40];
+	if (budget < 1048576.0)
+		snprintf(bt, sizeof bt, "%.0f bytes", budget < 0 ? 0 : budget);
+	else
+		snprintf(bt, sizeof bt, "%.1f MiB", budget / 1048576.0);
+	fprintf(stderr, "%s: %s: the design and base assignment of %u x %u = %llu crossings "
+	        "need %.1f MiB in memory (5 bytes each), more than --budget %s: "
+	        "refused before loading the design\n", prog, path, rows, cols,
+	        (unsigned long long)rows * cols, need / 1048576.0, bt);
+	/* the smallest whole MiB above the design's bytes: a lower bound */
+	fprintf(stderr, "%s: %s at least --budget %.0f (the design alone; the texture's "
+	        "cache and buffers come on top)\n", prog, what, floor(need / 1048576.0) + 1);
+	exit(code);
 }
 
 void cli_diag_init(loom_diag *d, int *quiet)

@@ -44,6 +44,14 @@ void cli_warn_sink(void *user, const char *msg);
 /* Initialise a diag with the CLI warning sink. */
 void cli_diag_init(loom_diag *d, int *quiet);
 
+/* Before loading fabric file path: if its design and base assignment (5
+   bytes a crossing, from the file's header) cannot fit in budget bytes,
+   print why and "prog: WHAT at least --budget N" (a lower bound: the
+   design alone) and exit with code.  Returns otherwise (also when the
+   header cannot be read: loom_fabric_open reports that). */
+void cli_fabric_fits(const char *prog, const char *path, double budget, const char *what,
+                     int code);
+
 /* Directory holding the default data (database, sample drafts), in the
    documented order: $LOOM_DATA, <exe dir>/share/loom (build tree),
    <exe dir>/../share/loom (installed).  Returns a static string or NULL. */

@@ -373,6 +373,8 @@ int cmd_sample(int argc, char **argv)
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
+	/* a design too large for --budget: refused before it is read */
+	cli_fabric_fits(prog, path, budget_mb * 1048576.0, "this fabric needs", EXIT_BAD_INPUT);
 	if (loom_fabric_open(path, db, 0, &f, &diag) != LOOM_OK) {
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);

@@ -288,6 +288,8 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 	cli_diag_init(&diag, NULL);
 	if (j->db_s && loom_db_open(j->db_s, &j->db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
+	/* a design too large for --budget: refused before it is read */
+	cli_fabric_fits(prog, path, j->budget_mb * 1048576.0, "this job needs", EXIT_USAGE);
 	if (loom_fabric_open(path, j->db, 0, &j->f, &diag) != LOOM_OK) {
 		loom_db_close(j->db);
 		cli_fail(prog, "%s", diag.message);

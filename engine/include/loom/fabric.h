@@ -162,6 +162,18 @@ LOOM_API int loom_fabric_open(const char *path, const loom_db *db,
                               unsigned flags, loom_fabric **out,
                               loom_diag *diag);
 
+/*
+ * The design size (rows x cols crossings) recorded in a fabric file's
+ * header, reading its first 64 bytes only (magic, version, header CRC and
+ * the size limits checked; nothing else): to refuse a job whose --budget
+ * cannot hold the design before loading it (the design and base
+ * assignment take 5 bytes a crossing once opened).  LOOM_OK; LOOM_EINVAL
+ * (NULL); the header errors of loom_fabric_open (LOOM_EIO, LOOM_EFORMAT,
+ * LOOM_ETRUNCATED, LOOM_EVERSION, LOOM_ECORRUPT, LOOM_ERANGE).
+ */
+LOOM_API int loom_fabric_file_size(const char *path, uint32_t *rows, uint32_t *cols,
+                                   loom_diag *diag);
+
 /* Free (and close the database if the fabric opened it); NULL is a no-op. */
 LOOM_API void loom_fabric_free(loom_fabric *f);
 
