@@ -65,6 +65,16 @@ LOOM_API void loom_fabric_free(loom_fabric *f)
 {
 	if (!f)
 		return;
+	if (f->parent) {
+		/* a painted weave: only the newest patch is this fabric's own */
+		loom__fabric_patch *p = (loom__fabric_patch *)f->patch;
+		free(p->src);
+		free(p->weave);
+		free(p);
+		loom_fabric_free(f->parent);
+		free(f);
+		return;
+	}
 	detach(f);
 	loom_db_close(f->db_owned);
 	loom_design_free(f->design);
@@ -401,6 +411,8 @@ size_t loom__fabric_bytes(const loom_fabric *f)
 		b += sizeof *f->blocks * (size_t)f->n_blocks;
 	if (f->heights)
 		b += sizeof(float) * LOOM_EDGE_RECORD(f->b1, f->b2) * (size_t)f->n_blocks;
+	for (const loom__fabric_patch *p = f->patch; p; p = p->prev)
+		b += sizeof *p + sizeof *f + 3 * (size_t)p->rows * p->cols;
 	return b;
 }
 

@@ -43,6 +43,21 @@
    The texture counts them against its budget (loom_texture_open). */
 size_t loom__fabric_bytes(const loom_fabric *f);
 
+/* A painted weave (loom__fabric_reweave): crossings [I0, I0+rows) x
+   [J0, J0+cols) of the bolt, of which those with src != LOOM_SYNTH_NONE
+   copy block src instead of the fabric's source and have warp-over bit
+   weave.  Patches chain: prev is applied first (a later one wins). */
+typedef struct loom__fabric_patch {
+	const struct loom__fabric_patch *prev;
+	int64_t I0, J0;
+	uint32_t rows, cols;
+	uint16_t *src;          /* rows*cols */
+	uint8_t *weave;         /* rows*cols, 0 or 1 */
+} loom__fabric_patch;
+
+/* Most crossings one patch may span (rows * cols): 3 bytes each. */
+#define LOOM__FABRIC_PATCH_MAX (1u << 22)
+
 /* Per source block t: where its voxels are. */
 typedef struct loom__fabric_block {
 	uint16_t exemplar;     /* u */
@@ -91,12 +106,40 @@ struct loom_fabric {
 	                          blocks (the database's, for the seam metric) */
 	loom_synth_lookup lk;  /* randomised O(1) source lookup; points into
 	                          set and base */
+
+	/* ---- painted weaves (a fabric made by loom__fabric_reweave) ---- */
+	const loom__fabric_patch *patch; /* newest first; NULL: none */
+	loom_fabric *parent;   /* owned: the fabric this one shares everything
+	                          above with (its struct was copied) */
 };
+
+/* The patch entry of (I, J), newest patch first: *k its index; NULL when
+   no patch covers (I, J). */
+static inline const loom__fabric_patch *
+loom__fabric_patch_at(const loom_fabric *f, int64_t I, int64_t J, size_t *k)
+{
+	for (const loom__fabric_patch *p = f->patch; p; p = p->prev) {
+		uint64_t di = (uint64_t)I - (uint64_t)p->I0;
+		uint64_t dj = (uint64_t)J - (uint64_t)p->J0;
+		if (di < p->rows && dj < p->cols &&
+		    p->src[di * p->cols + dj] != LOOM_SYNTH_NONE) {
+			*k = (size_t)(di * p->cols + dj);
+			return p;
+		}
+	}
+	return NULL;
+}
 
 /* Step 2: source block of absolute crossing (I, J). */
 static inline uint16_t loom__fabric_src(const loom_fabric *f, int64_t I,
                                         int64_t J)
 {
+	if (f->patch) {
+		size_t k;
+		const loom__fabric_patch *p = loom__fabric_patch_at(f, I, J, &k);
+		if (p)
+			return p->src[k];
+	}
 	return loom_synth_src(&f->lk, I, J);
 }
 
@@ -128,7 +171,15 @@ static inline void loom__fabric_types(const loom_fabric *f, int64_t I,
 static inline void loom__fabric_nbhd(const loom_fabric *f, int64_t I,
                                      int64_t J, loom_synth_nbhd *nb)
 {
-	loom_synth_nbhd_at(&f->lk, I, J, nb);
+	if (!f->patch) {
+		loom_synth_nbhd_at(&f->lk, I, J, nb);
+		return;
+	}
+	nb->self = loom__fabric_src(f, I, J);
+	nb->n = loom__fabric_src(f, I - 1, J);
+	nb->s = loom__fabric_src(f, I + 1, J);
+	nb->w = loom__fabric_src(f, I, J - 1);
+	nb->e = loom__fabric_src(f, I, J + 1);
 }
 
 /* Step 3: the block's dz map, dz[ly*b1 + lx] (b1*b2 floats), and one
@@ -156,10 +207,13 @@ typedef struct loom__fabric_xing {
 static inline void loom__fabric_crossing(const loom_fabric *f, int64_t I,
                                          int64_t J, loom__fabric_xing *x)
 {
-	size_t c = loom__fabric_cell(f, I, J);
-	loom_synth_nbhd_at(&f->lk, I, J, &x->nb);
+	size_t c = loom__fabric_cell(f, I, J), k;
+	const loom__fabric_patch *p;
+	loom__fabric_nbhd(f, I, J, &x->nb);
 	x->blk = &f->blocks[x->nb.self];
 	x->warp_over = f->design->weave[c];
+	if (f->patch && (p = loom__fabric_patch_at(f, I, J, &k)) != NULL)
+		x->warp_over = p->weave[k];
 	x->warp_type = f->design->warp_type[c];
 	x->weft_type = f->design->weft_type[c];
 }
@@ -179,5 +233,26 @@ loom_fabric *loom__fabric_alloc(void);
    not store them.  `name` names the fabric in messages. */
 int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
                       const char *name, loom_diag *diag);
+
+/*
+ * Paint another weave into the fabric *fp (engine/synth/reweave.c,
+ * docs/fabric.md "Painted weaves"): want[r*cols + c] for crossing
+ * (I0 + r, J0 + c) is 0 (not painted), 1 (painted, weft over) or 2
+ * (painted, warp over).  The painted crossings and every crossing within
+ * `band` (0..LOOM__FABRIC_BAND_MAX, Chebyshev distance) of them are
+ * assigned again, in raster order: the blocks of maximal consistency with
+ * the new weave bits around them (loom_synth_candidates), among them the
+ * most contiguous with the neighbours already fixed (the fabric's outside,
+ * the patch's earlier rows and columns), ties by a hash of (seed, I, J, t).
+ * On success *fp becomes a new fabric that owns the old one and shares its
+ * tables; the edge fix then runs across the patch's border as anywhere.
+ * Memory 3 bytes per crossing of the widened rectangle (at most
+ * LOOM__FABRIC_PATCH_MAX: LOOM_ERANGE).  LOOM_EINVAL, LOOM_EUNUSABLE
+ * (detached), LOOM_ENOMEM; *fp unchanged on failure.
+ */
+#define LOOM__FABRIC_BAND_MAX 8u
+int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
+                         uint32_t rows, uint32_t cols, const uint8_t *want,
+                         uint32_t band, loom_diag *diag);
 
 #endif /* LOOM_FABRIC_INTERNAL_H */

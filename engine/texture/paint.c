@@ -23,6 +23,7 @@
  */
 #include "core/internal.h"
 #include "loom/paint.h"
+#include "synth/fabric_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -45,16 +46,16 @@ struct loom_paint {
 };
 
 static const char *const effect_names[] = {
-	NULL, "yarn", "stain", "slub", "broken-end", "missing-pick", "pull"};
+	NULL, "yarn", "stain", "slub", "broken-end", "missing-pick", "pull", "weave"};
 
 LOOM_API const char *loom_paint_effect_name(int effect)
 {
-	return effect >= 1 && effect <= 6 ? effect_names[effect] : NULL;
+	return effect >= 1 && effect <= LOOM_PAINT_WEAVE ? effect_names[effect] : NULL;
 }
 
 LOOM_API int loom_paint_effect_parse(const char *name)
 {
-	for (int e = 1; e <= 6; e++)
+	for (int e = 1; e <= LOOM_PAINT_WEAVE; e++)
 		if (name && !strcmp(name, effect_names[e]))
 			return e;
 	return 0;
@@ -84,8 +85,10 @@ LOOM_API void loom_paint_free(loom_paint *p)
 {
 	if (!p)
 		return;
-	for (uint32_t i = 0; i < p->n; i++)
+	for (uint32_t i = 0; i < p->n; i++) {
 		free((void *)p->r[i].mask);
+		free((void *)p->r[i].weave);
+	}
 	free(p->r);
 	free(p->v);
 	free(p->fabric);
@@ -147,6 +150,15 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 		return loom__fail(diag, LOOM_EINVAL, "paint: slub radius must be 1..16 voxels");
 	if (r->effect == LOOM_PAINT_PULL && (r->amount < 1 || r->amount > 64))
 		return loom__fail(diag, LOOM_EINVAL, "paint: pull lift must be 1..64 voxels");
+	if (r->effect == LOOM_PAINT_WEAVE &&
+	    (r->weave_w < 1 || r->weave_h < 1 || r->weave_w > LOOM_PAINT_MAX_MASK ||
+	     r->weave_h > LOOM_PAINT_MAX_MASK || !r->weave))
+		return loom__fail(diag, LOOM_EINVAL, "paint: a weave region needs its "
+		                  "weave, 1..%u x 1..%u crossings", LOOM_PAINT_MAX_MASK,
+		                  LOOM_PAINT_MAX_MASK);
+	if (r->effect == LOOM_PAINT_WEAVE && r->band > LOOM_PAINT_MAX_BAND)
+		return loom__fail(diag, LOOM_EINVAL, "paint: weave band must be 0..%u "
+		                  "crossings", LOOM_PAINT_MAX_BAND);
 	if (p->n >= LOOM_PAINT_MAX_REGIONS)
 		return loom__fail(diag, LOOM_ERANGE, "paint: more than %u regions",
 		                  LOOM_PAINT_MAX_REGIONS);
@@ -160,12 +172,27 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 	}
 	c = *r;
 	c.mask = NULL;
+	c.weave = NULL;
+	if (r->effect != LOOM_PAINT_WEAVE) {
+		c.weave_w = c.weave_h = 0;
+		c.band = 0;
+	} else {
+		size_t nw = (size_t)r->weave_w * r->weave_h;
+		uint8_t *w = malloc(nw);
+		if (!w)
+			return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+		for (size_t i = 0; i < nw; i++)
+			w[i] = r->weave[i] ? 1 : 0;
+		c.weave = w;
+	}
 	if (r->mask_w) {
 		uint8_t *m;
 		cells = (size_t)r->mask_w * r->mask_h;
 		m = malloc(cells);
-		if (!m)
+		if (!m) {
+			free((void *)c.weave);
 			return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+		}
 		for (size_t i = 0; i < cells; i++)
 			m[i] = r->mask[i] ? 1 : 0;
 		c.mask = m;
@@ -176,7 +203,8 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 
 /* ---- the text format ---------------------------------------------------- */
 
-#define MAGIC "loom-paint 1"
+#define MAGIC "loom-paint 1"  /* version 2 (MAGIC2): weave regions */
+#define MAGIC2 "loom-paint 2"
 
 typedef struct growbuf {
 	char *s;
@@ -225,19 +253,34 @@ LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len)
 
 	if (!p || !text)
 		return LOOM_EINVAL;
-	put(&b, "%s\nfabric %s\n", MAGIC, p->fabric);
+	int v2 = 0;
+
+	for (uint32_t i = 0; i < p->n; i++)
+		v2 |= p->r[i].effect == LOOM_PAINT_WEAVE;
+	put(&b, "%s\nfabric %s\n", v2 ? MAGIC2 : MAGIC, p->fabric);
 	for (uint32_t i = 0; i < p->n; i++) {
 		const loom_paint_region *r = &p->r[i];
 		put(&b, "region %s %.15g %.15g %.15g %.15g kind=%s rgb=%.6g,%.6g,%.6g "
-		    "strength=%.6g blend=%.15g amount=%u\n",
+		    "strength=%.6g blend=%.15g amount=%u",
 		    loom_paint_effect_name(r->effect), r->x0, r->y0, r->x1, r->y1,
 		    kinds[r->kind], (double)r->rgb[0], (double)r->rgb[1],
 		    (double)r->rgb[2], (double)r->strength, r->blend_mm, r->amount);
+		if (r->effect == LOOM_PAINT_WEAVE)
+			put(&b, " band=%u", r->band);
+		put(&b, "\n");
 		if (r->mask_w) {
 			put(&b, "mask %u %u\n", r->mask_w, r->mask_h);
 			for (uint32_t y = 0; y < r->mask_h; y++) {
 				for (uint32_t x = 0; x < r->mask_w && !b.oom; x++)
 					put(&b, "%c", r->mask[(size_t)y * r->mask_w + x] ? '#' : '.');
+				put(&b, "\n");
+			}
+		}
+		if (r->effect == LOOM_PAINT_WEAVE) {
+			put(&b, "weave %u %u\n", r->weave_w, r->weave_h);
+			for (uint32_t y = 0; y < r->weave_h; y++) {
+				for (uint32_t x = 0; x < r->weave_w && !b.oom; x++)
+					put(&b, "%c", r->weave[(size_t)y * r->weave_w + x] ? '#' : '.');
 				put(&b, "\n");
 			}
 		}
@@ -342,6 +385,12 @@ static int region_opts(lines *L, char *rest, loom_paint_region *r)
 				return bad(L, LOOM_EFORMAT, "rgb needs three numbers", NULL);
 			for (int k = 0; k < 3; k++)
 				r->rgb[k] = (float)x[k];
+		} else if (!strcmp(tok, "band")) {
+			if (r->effect != LOOM_PAINT_WEAVE)
+				return bad(L, LOOM_EFORMAT, "band goes with 'region weave'", NULL);
+			if (!num(eq, &v) || v < 0 || v > LOOM_PAINT_MAX_BAND || v != floor(v))
+				return bad(L, LOOM_EFORMAT, "band must be a whole number 0..8", eq);
+			r->band = (uint32_t)v;
 		} else if (!strcmp(tok, "strength") || !strcmp(tok, "blend") ||
 		           !strcmp(tok, "amount")) {
 			if (!num(eq, &v))
@@ -356,9 +405,43 @@ static int region_opts(lines *L, char *rest, loom_paint_region *r)
 				return bad(L, LOOM_EFORMAT, "amount must be a whole number", eq);
 		} else {
 			return bad(L, LOOM_EFORMAT, "unknown key (kind, rgb, strength, "
-			           "blend, amount)", tok);
+			           "blend, amount, band)", tok);
 		}
 	}
+	return LOOM_OK;
+}
+
+/* "W H" then H rows of W characters '.' or '#' (a mask or a weave). */
+static int read_grid(lines *L, char *buf, size_t cap, char *wh, uint32_t *ow,
+                     uint32_t *oh, uint8_t **out, const char *what)
+{
+	double w, h;
+	char *sp = strchr(wh, ' ');
+	uint8_t *m;
+
+	if (!sp)
+		return bad(L, LOOM_EFORMAT, what, NULL);
+	*sp = 0;
+	if (!num(wh, &w) || !num(sp + 1, &h) || w != floor(w) || h != floor(h) ||
+	    w < 1 || h < 1 || w > LOOM_PAINT_MAX_MASK || h > LOOM_PAINT_MAX_MASK)
+		return bad(L, LOOM_EFORMAT, "grid size must be 1..4096 x 1..4096", NULL);
+	m = malloc((size_t)w * (size_t)h);
+	if (!m)
+		return loom__fail(L->diag, LOOM_ENOMEM, "paint: out of memory");
+	for (uint32_t y = 0; y < (uint32_t)h; y++) {
+		size_t n;
+		if (next_line(L, buf, cap) != 1 || (n = strlen(buf)) != (size_t)w ||
+		    strspn(buf, ".#") != n) {
+			free(m);
+			return bad(L, LOOM_EFORMAT, "expected a row of W characters '.' or '#'",
+			           NULL);
+		}
+		for (uint32_t x = 0; x < (uint32_t)w; x++)
+			m[(size_t)y * (size_t)w + x] = buf[x] == '#';
+	}
+	*ow = (uint32_t)w;
+	*oh = (uint32_t)h;
+	*out = m;
 	return LOOM_OK;
 }
 
@@ -368,11 +451,13 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 	lines L = {text, text + len, name ? name : "paint", 0, diag};
 	char *buf;
 	loom_paint *p = NULL;
-	int rc, k;
+	int rc, k, version;
 	const size_t cap = LOOM_PAINT_MAX_MASK + 4096;
 	loom_paint_region pend;
+	uint8_t *pmask = NULL, *pweave = NULL;
 	int have_pend = 0;
 	unsigned pend_line = 0;
+	const size_t ml = sizeof MAGIC - 1;
 
 	if (out)
 		*out = NULL;
@@ -381,14 +466,15 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 	if (len > LOOM_PAINT_MAX_FILE)
 		return loom__fail(diag, LOOM_ERANGE, "%s: %zu bytes, more than the %u a "
 		                  "paint file may have", L.name, len, LOOM_PAINT_MAX_FILE);
-	if (len < sizeof MAGIC - 1 || memcmp(text, MAGIC, sizeof MAGIC - 1) ||
-	    (len > sizeof MAGIC - 1 && text[sizeof MAGIC - 1] != '\n' &&
-	     text[sizeof MAGIC - 1] != '\r'))
+	if (len < ml || (memcmp(text, MAGIC, ml) && memcmp(text, MAGIC2, ml)) ||
+	    (len > ml && text[ml] != '\n' && text[ml] != '\r'))
 		return loom__fail(diag, LOOM_EFORMAT, "%s: not a loom paint file (the "
-		                  "first line must be '%s')", L.name, MAGIC);
+		                  "first line must be '%s' or '%s')", L.name, MAGIC, MAGIC2);
+	version = text[ml - 1] - '0';
 	buf = malloc(cap);
 	if (!buf)
 		return loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+	memset(&pend, 0, sizeof pend);
 	next_line(&L, buf, cap); /* the magic */
 	while ((k = next_line(&L, buf, cap)) != 0) {
 		char *s = buf;
@@ -416,59 +502,40 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 			goto fail;
 		}
 		if (have_pend) {
-			/* a region line may be followed by its mask */
+			/* a region line may be followed by its mask and its weave */
 			if (!strncmp(s, "mask ", 5)) {
-				double w, h;
-				char *sp = strchr(s + 5, ' ');
-				uint8_t *m;
-				if (!sp) {
-					rc = bad(&L, LOOM_EFORMAT, "expected 'mask W H'", s);
+				if (pmask) {
+					rc = bad(&L, LOOM_EFORMAT, "a second 'mask' for one region", NULL);
 					goto fail;
 				}
-				*sp = 0;
-				if (!num(s + 5, &w) || !num(sp + 1, &h) || w != floor(w) ||
-				    h != floor(h) || w < 1 || h < 1 || w > LOOM_PAINT_MAX_MASK ||
-				    h > LOOM_PAINT_MAX_MASK) {
-					rc = bad(&L, LOOM_EFORMAT, "mask size must be 1..4096 x 1..4096",
-					         NULL);
+				if ((rc = read_grid(&L, buf, cap, s + 5, &pend.mask_w, &pend.mask_h,
+				                    &pmask, "expected 'mask W H'")) != LOOM_OK)
 					goto fail;
-				}
-				m = malloc((size_t)w * (size_t)h);
-				if (!m) {
-					rc = loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
-					goto fail;
-				}
-				for (uint32_t y = 0; y < (uint32_t)h; y++) {
-					size_t n;
-					if (next_line(&L, buf, cap) != 1 ||
-					    (n = strlen(buf)) != (size_t)w ||
-					    strspn(buf, ".#") != n) {
-						free(m);
-						rc = bad(&L, LOOM_EFORMAT, "expected a mask row of W "
-						         "characters '.' or '#'", NULL);
-						goto fail;
-					}
-					for (uint32_t x = 0; x < (uint32_t)w; x++)
-						m[(size_t)y * (size_t)w + x] = buf[x] == '#';
-				}
-				pend.mask_w = (uint32_t)w;
-				pend.mask_h = (uint32_t)h;
-				pend.mask = m;
-				rc = loom_paint_add(p, &pend, diag);
-				free(m);
-				have_pend = 0;
-				if (rc) {
-					bad_region(&L, rc);
-					goto fail;
-				}
+				pend.mask = pmask;
 				continue;
 			}
-			if ((rc = loom_paint_add(p, &pend, diag))) {
+			if (!strncmp(s, "weave ", 6)) {
+				if (pend.effect != LOOM_PAINT_WEAVE || pweave) {
+					rc = bad(&L, LOOM_EFORMAT, "'weave W H' goes once after a "
+					         "'region weave' line", NULL);
+					goto fail;
+				}
+				if ((rc = read_grid(&L, buf, cap, s + 6, &pend.weave_w, &pend.weave_h,
+				                    &pweave, "expected 'weave W H'")) != LOOM_OK)
+					goto fail;
+				pend.weave = pweave;
+				continue;
+			}
+			rc = loom_paint_add(p, &pend, diag);
+			free(pmask);
+			free(pweave);
+			pmask = pweave = NULL;
+			have_pend = 0;
+			if (rc) {
 				L.line = pend_line;
 				bad_region(&L, rc);
 				goto fail;
 			}
-			have_pend = 0;
 		}
 		if (!strncmp(s, "region ", 7)) {
 			char *save = NULL, *tok[5];
@@ -480,7 +547,12 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 			if (!tok[4] || !(pend.effect = loom_paint_effect_parse(tok[0]))) {
 				rc = bad(&L, LOOM_EFORMAT, "expected 'region EFFECT X0 Y0 X1 Y1 "
 				         "[key=value...]' with EFFECT yarn, stain, slub, "
-				         "broken-end, missing-pick or pull", tok[0]);
+				         "broken-end, missing-pick, pull or weave", tok[0]);
+				goto fail;
+			}
+			if (pend.effect == LOOM_PAINT_WEAVE && version < 2) {
+				rc = bad(&L, LOOM_EFORMAT, "a weave region needs version 2 "
+				         "(first line '" MAGIC2 "')", NULL);
 				goto fail;
 			}
 			for (int i = 0; i < 4; i++)
@@ -499,7 +571,7 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 			pend_line = L.line;
 			continue;
 		}
-		rc = bad(&L, LOOM_EFORMAT, "expected 'region' or 'mask'", s);
+		rc = bad(&L, LOOM_EFORMAT, "expected 'region', 'mask' or 'weave'", s);
 		goto fail;
 	}
 	if (!p) {
@@ -511,10 +583,14 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 		bad_region(&L, rc);
 		goto fail;
 	}
+	free(pmask);
+	free(pweave);
 	free(buf);
 	*out = p;
 	return LOOM_OK;
 fail:
+	free(pmask);
+	free(pweave);
 	free(buf);
 	loom_paint_free(p);
 	return rc;
@@ -524,11 +600,9 @@ fail:
 
 /* Distance (voxels) from column centre (cx, cy) to region i's painted
    area: 0 inside. */
-static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
-                          double limit)
+static double region_dist_rv(const loom_paint_region *r, const vreg *v, double cx,
+                             double cy, double limit)
 {
-	const loom_paint_region *r = &p->r[i];
-	const vreg *v = &p->v[i];
 	double dx = fmax(fmax(v->x0 - cx, cx - v->x1), 0.0);
 	double dy = fmax(fmax(v->y0 - cy, cy - v->y1), 0.0);
 	double best = INFINITY;
@@ -571,6 +645,23 @@ static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
 	return best;
 }
 
+static double region_dist(const loom_paint *p, uint32_t i, double cx, double cy,
+                          double limit)
+{
+	return region_dist_rv(&p->r[i], &p->v[i], cx, cy, limit);
+}
+
+static void to_voxels(const loom_paint_region *r, double vmm, vreg *v)
+{
+	v->x0 = r->x0 / vmm;
+	v->y0 = r->y0 / vmm;
+	v->x1 = r->x1 / vmm;
+	v->y1 = r->y1 / vmm;
+	v->band = r->blend_mm / vmm;
+	v->cw = r->mask_w ? (v->x1 - v->x0) / r->mask_w : 0;
+	v->ch = r->mask_h ? (v->y1 - v->y0) / r->mask_h : 0;
+}
+
 static int base(const loom_paint *p, const double q[3], loom_texel *o)
 {
 	return loom_texture_sample(p->t, q, p->filter, o);
@@ -599,7 +690,8 @@ LOOM_API int loom_paint_sample(const loom_paint *p, const double q[3], loom_texe
 	for (uint32_t i = 0; i < p->n; i++) {
 		const loom_paint_region *r = &p->r[i];
 		loom_texel nb;
-		if (r->effect == LOOM_PAINT_YARN || r->effect == LOOM_PAINT_STAIN)
+		if (r->effect == LOOM_PAINT_YARN || r->effect == LOOM_PAINT_STAIN ||
+		    r->effect == LOOM_PAINT_WEAVE) /* weaves: in the fabric */
 			continue;
 		if (region_dist(p, i, cx, cy, 0.0) != 0)
 			continue;
@@ -722,16 +814,8 @@ LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
 	v = malloc((p->n ? p->n : 1) * sizeof *v);
 	if (!v)
 		return LOOM_ENOMEM;
-	for (uint32_t i = 0; i < p->n; i++) {
-		const loom_paint_region *r = &p->r[i];
-		v[i].x0 = r->x0 / vmm;
-		v[i].y0 = r->y0 / vmm;
-		v[i].x1 = r->x1 / vmm;
-		v[i].y1 = r->y1 / vmm;
-		v[i].band = r->blend_mm / vmm;
-		v[i].cw = r->mask_w ? (v[i].x1 - v[i].x0) / r->mask_w : 0;
-		v[i].ch = r->mask_h ? (v[i].y1 - v[i].y0) / r->mask_h : 0;
-	}
+	for (uint32_t i = 0; i < p->n; i++)
+		to_voxels(&p->r[i], vmm, &v[i]);
 	free(p->v);
 	p->v = v;
 	p->t = t;
@@ -741,4 +825,92 @@ LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
 	src->thread_init = src_thread_init;
 	src->thread_done = src_thread_done;
 	return LOOM_OK;
+}
+
+/* ---- painted weaves ----------------------------------------------------- */
+
+LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
+                                     loom_diag *diag)
+{
+	loom_fabric *cur;
+	double vmm;
+	int rc;
+
+	if (!p || !f || !*f)
+		return loom__fail(diag, LOOM_EINVAL, "loom_paint_apply_weaves: NULL argument");
+	cur = *f;
+	if (!cur->attached)
+		return loom__fail(diag, LOOM_EUNUSABLE, "paint: the fabric is detached");
+	vmm = (double)cur->voxel_size_um * 1e-3;
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		double b1 = cur->b1, b2 = cur->b2, fJ0, fJ1, fI0, fI1;
+		int64_t I0, J0;
+		uint32_t rows, cols;
+		uint8_t *want;
+		vreg v;
+		loom_fabric *next;
+
+		if (r->effect != LOOM_PAINT_WEAVE)
+			continue;
+		to_voxels(r, vmm, &v);
+		/* crossings whose centre may lie in the rectangle */
+		fJ0 = floor(v.x0 / b1 - 0.5);
+		fJ1 = ceil(v.x1 / b1 - 0.5);
+		fI0 = floor(v.y0 / b2 - 0.5);
+		fI1 = ceil(v.y1 / b2 - 0.5);
+		if (!(fJ1 - fJ0 + 1 <= LOOM__FABRIC_PATCH_MAX) ||
+		    !(fI1 - fI0 + 1 <= LOOM__FABRIC_PATCH_MAX) ||
+		    !((fJ1 - fJ0 + 1) * (fI1 - fI0 + 1) <= LOOM__FABRIC_PATCH_MAX) ||
+		    fabs(fJ0) > 1e15 || fabs(fI0) > 1e15) {
+			rc = loom__fail(diag, LOOM_ERANGE, "paint: weave region %u covers "
+			                "%.0f x %.0f crossings; at most %u", i + 1, fI1 - fI0 + 1,
+			                fJ1 - fJ0 + 1, LOOM__FABRIC_PATCH_MAX);
+			goto fail;
+		}
+		I0 = (int64_t)fI0;
+		J0 = (int64_t)fJ0;
+		rows = (uint32_t)(fI1 - fI0 + 1);
+		cols = (uint32_t)(fJ1 - fJ0 + 1);
+		want = malloc((size_t)rows * cols);
+		if (!want) {
+			rc = loom__fail(diag, LOOM_ENOMEM, "paint: out of memory");
+			goto fail;
+		}
+		for (uint32_t a = 0; a < rows; a++)
+			for (uint32_t c = 0; c < cols; c++) {
+				int64_t I = I0 + a, J = J0 + c;
+				double cx = ((double)J + 0.5) * b1, cy = ((double)I + 0.5) * b2;
+				uint8_t w = 0;
+				if (region_dist_rv(r, &v, cx, cy, 0.0) == 0) {
+					uint64_t wi = (uint64_t)loom_synth_floormod(I, r->weave_h);
+					uint64_t wj = (uint64_t)loom_synth_floormod(J, r->weave_w);
+					w = (uint8_t)(1 + r->weave[wi * r->weave_w + wj]);
+				}
+				want[(size_t)a * cols + c] = w;
+			}
+		next = cur;
+		rc = loom__fabric_reweave(&next, I0, J0, rows, cols, want, r->band, diag);
+		free(want);
+		if (rc != LOOM_OK)
+			goto fail;
+		cur = next;
+	}
+	*f = cur;
+	return LOOM_OK;
+fail:
+	/* undo the patches made here: free down to the caller's fabric */
+	while (cur != *f) {
+		loom_fabric *parent = cur->parent;
+		cur->parent = NULL;
+		{
+			loom__fabric_patch *q = (loom__fabric_patch *)cur->patch;
+			free(q->src);
+			free(q->weave);
+			free(q);
+		}
+		free(cur);
+		cur = parent;
+	}
+	return rc;
 }

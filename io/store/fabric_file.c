@@ -17,6 +17,10 @@ LOOM_API int loom_fabric_save(const loom_fabric *f, const char *path,
 	if (!f || !path)
 		return loom__fail(diag, LOOM_EINVAL, "fabric save: NULL %s",
 		                  f ? "path" : "fabric");
+	if (f->patch)
+		return loom__fail(diag, LOOM_EINVAL, "%s: a fabric with painted weaves "
+		                  "is saved as its paint file (loom paint), not as a "
+		                  "fabric", path);
 	if (!f->ef)
 		return loom__fail(diag, LOOM_EINVAL, "%s: the fabric has no edge-fix tables "
 		                  "(opened detached from a file that did not store them)",

@@ -1,6 +1,8 @@
 # `loom paint` end to end: regions as rectangles and as a mask image,
 # paint files chained (regions kept), the file read back, loom render of a
-# paint file (same bytes twice; differs from the unpainted fabric), and
+# paint file (same bytes twice; differs from the unpainted fabric), a
+# painted weave (file, render, errors), paint files in preview, export
+# and serve (the painted weave shown, unchanged away from it), and
 # bad input: options, hostile paint files (not regular, over the size
 # limit, bad magic, bad lines), a missing fabric.
 SUITE=paint
@@ -68,6 +70,81 @@ expect_err_contains paint_fabric_missing_msg "gone.loomp: its fabric"
 { printf 'loom-paint 1\nfabric %s\n' "$F"; head -c 17000000 /dev/zero | tr '\0' '#'; } >"$T/big.loomp"
 expect_exit too_big 1 "$LOOM" render "$T/big.loomp" $R -o "$T/x.png"
 expect_err_contains too_big_msg "more than the 16777216 a paint file may have"
+# another weave: the file (version 2), render differs from the fabric,
+# deterministic; chained after a stain; bad weave input
+expect_ok weave "$LOOM" paint "$F" --rect 1.5,1:4.5,3.3 --weave satin:1/4 --band 2 -q -o "$T/pw.loomp"
+if head -1 "$T/pw.loomp" | grep -qx 'loom-paint 2' &&
+   grep -q "^region weave 1.5 1 4.5 3.3 kind=any rgb=0,0,0 strength=0 blend=0 amount=0 band=2$" "$T/pw.loomp" &&
+   grep -qx 'weave 5 5' "$T/pw.loomp" && grep -qx '#....' "$T/pw.loomp"
+then pass weave_file; else fail weave_file "$(cat "$T/pw.loomp")"; fi
+expect_ok weave_design "$LOOM" paint "$T/p1.loomp" --rect 0,0:2,2 --weave "$T/tw.pbm" -q -o "$T/pw2.loomp"
+if [ "$(grep -c '^region ' "$T/pw2.loomp")" = 2 ] && grep -qx 'weave 10 10' "$T/pw2.loomp"
+then pass weave_chained; else fail weave_chained "$(cat "$T/pw2.loomp")"; fi
+expect_ok render_weave "$LOOM" render "$T/pw.loomp" $R -o "$T/rw.png"
+expect_ok render_weave2 "$LOOM" render "$T/pw.loomp" $R --threads 1 -o "$T/rwb.png"
+expect_same render_weave_deterministic "$T/rw.png" "$T/rwb.png"
+if cmp -s "$T/r0.png" "$T/rw.png"; then fail weave_changes_render "same bytes"; else pass weave_changes_render; fi
+expect_exit band_without_weave 2 "$LOOM" paint "$F" --rect 0,0:1,1 --defect stain --band 2 -o "$T/x.loomp"
+expect_exit band_too_wide 2 "$LOOM" paint "$F" --rect 0,0:1,1 --weave plain --band 9 -o "$T/x.loomp"
+expect_exit weave_unknown 1 "$LOOM" paint "$F" --rect 0,0:1,1 --weave glitter -o "$T/x.loomp"
+expect_err_contains weave_unknown_msg "--weave glitter: neither a weave name"
+expect_exit weave_too_large 1 "$LOOM" paint "$F" --rect 0,0:100000,100000 --weave plain -o "$T/x.loomp"
+expect_err_contains weave_too_large_msg "weave region 1 covers"
+printf 'loom-paint 2\nfabric %s\nregion weave 0 0 1e8 1e8 band=1\nweave 1 1\n#\n' "$F" >"$T/hugew.loomp"
+expect_exit weave_file_too_large 1 "$LOOM" render "$T/hugew.loomp" $R -o "$T/x.png"
+expect_err_contains weave_file_too_large_msg "hugew.loomp: paint: weave region 1 covers"
+# preview, export and serve of a paint file: the painted weave shows
+# (differs from the fabric) where painted, the picture is unchanged away
+# from it, and other regions are named in a warning
+P="--width 80 --quiet"
+expect_ok preview_plain "$LOOM" preview "$F" $P -o "$T/v0.png"
+expect_ok preview_weave "$LOOM" preview "$T/pw.loomp" $P -o "$T/vw.png"
+if cmp -s "$T/v0.png" "$T/vw.png"; then fail preview_weave_differs "same bytes"; else pass preview_weave_differs; fi
+# a weave far from the previewed box (a repeat is 80 x 60 voxels, 5.76 x 4.32 mm)
+expect_ok weave_far "$LOOM" paint "$F" --rect 40,40:42,42 --weave plain -q -o "$T/pfar.loomp"
+expect_ok preview_far "$LOOM" preview "$T/pfar.loomp" $P -o "$T/vfar.png"
+expect_same preview_far_unchanged "$T/v0.png" "$T/vfar.png"
+expect_ok preview_stain "$LOOM" preview "$T/p1.loomp" $P -o "$T/vs.png"
+expect_err_contains preview_stain_note "1 region of colour or defect (applied at lookup time) shown by loom render only"
+X="--region 0,0,0:40,30,12 --format vol --quiet"
+expect_ok export_plain "$LOOM" export "$F" $X -o "$T/e0"
+expect_ok export_weave "$LOOM" export "$T/pw.loomp" $X -o "$T/ew"
+expect_ok export_far "$LOOM" export "$T/pfar.loomp" $X -o "$T/efar"
+e0=$(find "$T/e0" -name '*.vol' | sort | head -1); ew=$(find "$T/ew" -name '*.vol' | sort | head -1)
+efar=$(find "$T/efar" -name '*.vol' | sort | head -1)
+if [ -n "$e0" ] && [ -n "$ew" ] && ! cmp -s "$e0" "$ew"; then pass export_weave_differs; else fail export_weave_differs "$e0 $ew"; fi
+if [ -n "$efar" ] && cmp -s "$e0" "$efar"; then pass export_far_unchanged; else fail export_far_unchanged "$e0 $efar"; fi
+# serve: a deep tile over the painted weave differs from the fabric's, one
+# far from it is the same
+SERVER=""
+stop_server() { [ -n "$SERVER" ] && kill "$SERVER" 2>/dev/null && wait "$SERVER" 2>/dev/null; SERVER=""; }
+trap stop_server EXIT
+serve_tiles() { # NAME FABRIC: tiles near and far into $T/NAME-near.png, -far.png
+	"$LOOM" serve "$2" --port 0 --budget 64 --cache "$T/cache-$1" >"$T/$1.out" 2>"$T/$1.err" &
+	SERVER=$!
+	URL=""
+	for _ in $(seq 1 100); do
+		URL=$(sed -n 's|^loom serve: \(http://[^ ]*\)/ .*|\1|p' "$T/$1.out")
+		[ -n "$URL" ] && break
+		kill -0 "$SERVER" 2>/dev/null || break
+		sleep 0.2
+	done
+	if [ -n "$URL" ]; then
+		top=$(curl -s "$URL/api/info" | sed -n 's/.*"max_level": *\([0-9]*\).*/\1/p')
+		c1=$(curl -s -o "$T/$1-near.png" -w '%{http_code}' "$URL/tile/$top/0/0.png")
+		c2=$(curl -s -o "$T/$1-far.png" -w '%{http_code}' "$URL/tile/$top/3/2.png")
+		if [ "$c1 $c2" = "200 200" ]; then pass "serve_$1"; else fail "serve_$1" "HTTP $c1 $c2"; fi
+	else
+		fail "serve_$1" "no URL: $(cat "$T/$1.err")"
+	fi
+	stop_server
+}
+serve_tiles s0 "$F"
+serve_tiles sw "$T/pw.loomp"
+if [ -s "$T/s0-near.png" ] && [ -s "$T/sw-near.png" ] && ! cmp -s "$T/s0-near.png" "$T/sw-near.png"
+then pass serve_weave_differs; else fail serve_weave_differs "same or missing tiles"; fi
+expect_same serve_far_unchanged "$T/s0-far.png" "$T/sw-far.png"
+
 mkdir -p "$T/dir.loomp"
 expect_exit paint_dir 1 "$LOOM" paint "$T/dir.loomp" --rect 0,0:1,1 --defect stain -o "$T/x.loomp"
 rm -rf "$T"

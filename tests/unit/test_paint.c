@@ -116,7 +116,7 @@ static void test_text_errors(void)
 	static const struct {
 		const char *text, *msg;
 	} cases[] = {
-		{"loom-paint 2\nfabric f\n", "not a loom paint file"},
+		{"loom-paint 3\nfabric f\n", "not a loom paint file"},
 		{"LOOM-paint 1\n", "not a loom paint file"},
 		{"loom-paint 1\nregion stain 0 0 1 1\n", "t:2: expected 'fabric PATH' first"},
 		{"loom-paint 1\n", "t:1: no 'fabric PATH' line"},
@@ -129,10 +129,17 @@ static void test_text_errors(void)
 		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1 rgb=1,2,0\n", "t:3: paint: rgb"},
 		{"loom-paint 1\nfabric f\nregion slub 0 0 1 1 amount=2\n", "needs kind warp or weft"},
 		{"loom-paint 1\nfabric f\nregion pull 0 0 1 1 kind=warp amount=65\n", "lift must be 1..64"},
-		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 2 2\n#.\n#\n", "t:6: expected a mask row"},
-		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 5000 1\n", "mask size"},
-		{"loom-paint 1\nfabric f\nmask 1 1\n#\n", "t:3: expected 'region' or 'mask'"},
-		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\n\nbogus\n", "t:5: expected 'region' or 'mask'"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 2 2\n#.\n#\n", "t:6: expected a row of W characters"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\nmask 5000 1\n", "t:4: grid size must be"},
+		{"loom-paint 1\nfabric f\nmask 1 1\n#\n", "t:3: expected 'region', 'mask' or 'weave'"},
+		{"loom-paint 1\nfabric f\nregion stain 0 0 1 1\n\nbogus\n", "t:5: expected 'region', 'mask' or 'weave'"},
+		{"loom-paint 1\nfabric f\nregion weave 0 0 1 1\nweave 1 1\n#\n", "t:3: a weave region needs version 2"},
+		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1 band=1\n", "t:3: paint: a weave region needs its weave"},
+		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1 band=9\nweave 1 1\n#\n", "t:3: band must be a whole number 0..8"},
+		{"loom-paint 2\nfabric f\nregion stain 0 0 1 1 band=1\n", "t:3: band goes with 'region weave'"},
+		{"loom-paint 2\nfabric f\nregion stain 0 0 1 1\nweave 1 1\n#\n", "t:4: 'weave W H' goes once after"},
+		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1\nweave 2 1\n#\n", "t:5: expected a row of W"},
+		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1\nweave 1 1\n#\nweave 1 1\n#\n", "t:6: 'weave W H' goes once"},
 	};
 	for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
 		loom_paint *p = NULL;
@@ -324,6 +331,168 @@ static void test_regions_brute_force(void)
 	CHECK(pull_ok);
 }
 
+
+/* Top yarn kind of the column at (x, y) voxels: the first voxel with yarn
+   from the top; 0 for an empty column. */
+static int top_kind(loom_texture *t, double x, double y)
+{
+	for (int64_t z = (int64_t)g_b[2] - 1; z >= 0; z--) {
+		double q[3] = {x, y, z + 0.5};
+		loom_texel a;
+		if (loom_texture_sample(t, q, LOOM_FILTER_NEAREST, &a) != LOOM_OK)
+			return -1;
+		if (a.kind)
+			return a.kind;
+	}
+	return 0;
+}
+
+/*
+ * A painted weave (a 2/2 twill into the plain weave, band 1): every voxel
+ * of a box 3 crossings beyond the region is compared with the unpainted
+ * texture, and changes only within the re-assigned crossings (painted and
+ * band) and their four neighbours (whose edge fix sees them); the top
+ * yarn at the painted crossings' centres is the twill's; the seam jumps
+ * (loom_fabric_seam_block, after the edge fix) around the border are no
+ * larger on average than over the unpainted repeat.
+ */
+static void test_weave(void)
+{
+	loom_paint *p = NULL;
+	loom_paint_region r;
+	loom_weave_params wp;
+	loom_design *tw = NULL;
+	loom_fabric *f2 = NULL, *keep;
+	loom_texture *t2 = NULL;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_diag d;
+	const int64_t PI0 = 2, PI1 = 6, PJ0 = 3, PJ1 = 10, M = 3; /* painted, margin */
+	const uint32_t band = 1;
+	uint64_t changed = 0, outside = 0, tops = 0, top_ok = 0, base_ok = 0;
+	double seam_border = 0, seam_all = 0;
+	uint64_t n_border = 0, n_all = 0;
+	double vx = g_vmm;
+
+	memset(&d, 0, sizeof d);
+	if (!g_tex || !g_fab) {
+		CHECK(0);
+		return;
+	}
+	CHECK_EQ_INT(loom_weave_parse("twill:2/2", &wp, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_design_make(&wp, 0, 0, &tw, NULL), LOOM_OK);
+	if (!tw)
+		return;
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_WEAVE;
+	/* the crossings PI0..PI1-1 x PJ0..PJ1-1: their centres, +- a quarter */
+	r.x0 = (PJ0 + 0.25) * g_b[0] * vx;
+	r.x1 = (PJ1 - 0.25) * g_b[0] * vx;
+	r.y0 = (PI0 + 0.25) * g_b[1] * vx;
+	r.y1 = (PI1 - 0.25) * g_b[1] * vx;
+	r.weave_w = tw->cols;
+	r.weave_h = tw->rows;
+	r.weave = tw->weave;
+	r.band = band;
+	CHECK_EQ_INT(loom_paint_new("f", &p, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_add(p, &r, &d), LOOM_OK);
+	/* the text round trip keeps the weave (version 2) */
+	{
+		char *text = NULL;
+		size_t len = 0;
+		loom_paint *q = NULL;
+		const loom_paint_region *rq;
+		CHECK_EQ_INT(loom_paint_format(p, &text, &len), LOOM_OK);
+		CHECK(text && !strncmp(text, "loom-paint 2\n", 13));
+		CHECK_EQ_INT(loom_paint_parse(text, len, "w", &q, &d), LOOM_OK);
+		rq = loom_paint_get(q, 0);
+		CHECK(rq && rq->effect == LOOM_PAINT_WEAVE && rq->band == band &&
+		      rq->weave_w == tw->cols && rq->weave_h == tw->rows &&
+		      !memcmp(rq->weave, tw->weave, (size_t)tw->rows * tw->cols));
+		loom_paint_free(q);
+		free(text);
+	}
+	/* a second fabric, the same as g_fab, painted */
+	CHECK_EQ_INT(loom_fabric_synthesize(loom_fabric_design(g_fab), g_db, db_path, NULL,
+	                                    &f2, &d), LOOM_OK);
+	keep = f2;
+	CHECK_EQ_INT(loom_paint_apply_weaves(p, &f2, &d), LOOM_OK);
+	CHECK(f2 != keep);
+	o.max_threads = 2;
+	CHECK_EQ_INT(loom_texture_open(f2, g_db, &o, &t2, &d), LOOM_OK);
+	if (!t2)
+		goto done;
+	for (int64_t I = PI0 - M; I < PI1 + M; I++)
+		for (int64_t J = PJ0 - M; J < PJ1 + M; J++) {
+			/* Chebyshev distance to the painted crossings */
+			int64_t di = I < PI0 ? PI0 - I : I >= PI1 ? I - PI1 + 1 : 0;
+			int64_t dj = J < PJ0 ? PJ0 - J : J >= PJ1 ? J - PJ1 + 1 : 0;
+			int64_t cheb = di > dj ? di : dj;
+			/* re-assigned, or a 4-neighbour of one re-assigned */
+			int allowed = cheb <= (int64_t)band + 1 &&
+			              !(di == (int64_t)band + 1 && dj == (int64_t)band + 1);
+			int painted = cheb == 0;
+			for (uint32_t ly = 0; ly < g_b[1]; ly++)
+				for (uint32_t lx = 0; lx < g_b[0]; lx++)
+					for (uint32_t z = 0; z < g_b[2]; z++) {
+						double q[3] = {J * (double)g_b[0] + lx + 0.5,
+						               I * (double)g_b[1] + ly + 0.5, z + 0.5};
+						loom_texel a, b;
+						CHECK_EQ_INT(loom_texture_sample(g_tex, q, LOOM_FILTER_NEAREST,
+						                                 &a), LOOM_OK);
+						CHECK_EQ_INT(loom_texture_sample(t2, q, LOOM_FILTER_NEAREST,
+						                                 &b), LOOM_OK);
+						if (!same(&a, &b)) {
+							changed++;
+							outside += !allowed;
+						}
+					}
+			if (painted) {
+				double cx = (J + 0.5) * g_b[0], cy = (I + 0.5) * g_b[1];
+				int want = loom_design_at(tw, (uint32_t)(I % tw->rows),
+				                          (uint32_t)(J % tw->cols));
+				loom_fabric_source src;
+				tops++;
+				top_ok += top_kind(t2, cx, cy) == (want ? LOOM_YARN_WARP : LOOM_YARN_WEFT);
+				base_ok += top_kind(g_tex, cx, cy) ==
+				           (((I + J) % 2) ? LOOM_YARN_WARP : LOOM_YARN_WEFT);
+				CHECK_EQ_INT(loom_fabric_source_at(f2, I, J, &src), LOOM_OK);
+				CHECK_EQ_INT(src.warp_over, want);
+			}
+			if (cheb >= 1 && cheb <= (int64_t)band + 1) {
+				/* the border: crossings around the painted area */
+				double s[4];
+				CHECK_EQ_INT(loom_fabric_seam_block(f2, I, J, s), LOOM_OK);
+				seam_border += s[1] + s[3];
+				n_border++;
+			}
+		}
+	for (int64_t I = 0; I < 24; I++)
+		for (int64_t J = 0; J < 24; J++) {
+			double s[4];
+			CHECK_EQ_INT(loom_fabric_seam_block(g_fab, I, J, s), LOOM_OK);
+			seam_all += s[1] + s[3];
+			n_all++;
+		}
+	seam_border /= (double)n_border;
+	seam_all /= (double)n_all;
+	printf("  weave: %llu voxels changed, %llu outside; top yarn as painted at "
+	       "%llu/%llu centres (unpainted fabric: %llu/%llu as its design); seam "
+	       "after the fix: border %.3f, unpainted %.3f voxels\n",
+	       (unsigned long long)changed, (unsigned long long)outside,
+	       (unsigned long long)top_ok, (unsigned long long)tops,
+	       (unsigned long long)base_ok, (unsigned long long)tops, seam_border, seam_all);
+	CHECK(outside == 0);
+	CHECK(changed > 1000);
+	CHECK(tops == (uint64_t)((PI1 - PI0) * (PJ1 - PJ0)));
+	CHECK(top_ok == tops);
+	CHECK(seam_border <= seam_all * 1.1 + 1e-9);
+done:
+	loom_texture_close(t2);
+	loom_fabric_free(f2);
+	loom_paint_free(p);
+	loom_design_free(tw);
+}
+
 static void test_bad_args(void)
 {
 	loom_paint *p = NULL;
@@ -365,6 +534,7 @@ int main(void)
 	RUN(test_text_round_trip);
 	RUN(test_text_errors);
 	RUN(test_regions_brute_force);
+	RUN(test_weave);
 	RUN(test_bad_args);
 	loom_texture_close(g_tex);
 	loom_fabric_free(g_fab);

@@ -34,7 +34,8 @@ static const char about[] =
 	"files, sizes and CRC-32s (docs/batch.md).  Re-running the same command\n"
 	"skips the tiles already complete and verified, so a killed job resumes.\n"
 	"Runs of one shard at once are refused (a lock in DIR); --status reports the\n"
-	"complete, missing and damaged tiles and the shards to run again.\n";
+	"complete, missing and damaged tiles and the shards to run again.  FABRIC\n"
+	"may be a paint file (loom paint): its painted weaves are exported.\n";
 
 static const opt_choice format_names[] = {
 	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {"vdb", F_VDB}, {"nvdb", F_NVDB},

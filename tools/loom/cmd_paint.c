@@ -21,8 +21,8 @@
 
 int cli_is_paint(const char *path)
 {
-	static const char magic[] = "loom-paint 1";
-	char buf[sizeof magic - 1];
+	static const char magic[] = "loom-paint ";
+	char buf[sizeof magic];
 	struct stat st;
 	int fd = open(path, O_RDONLY | O_NONBLOCK), ok;
 
@@ -30,7 +30,8 @@ int cli_is_paint(const char *path)
 		return 0;
 	ok = fstat(fd, &st) == 0 && S_ISREG(st.st_mode) &&
 	     read(fd, buf, sizeof buf) == (ssize_t)sizeof buf &&
-	     !memcmp(buf, magic, sizeof buf);
+	     !memcmp(buf, magic, sizeof magic - 1) &&
+	     (buf[sizeof magic - 1] == '1' || buf[sizeof magic - 1] == '2');
 	close(fd);
 	return ok;
 }
@@ -101,8 +102,31 @@ int cli_open_painted(const char *path, loom_db *db, loom_fabric **f,
 		snprintf(diag->message, sizeof diag->message, "%.200s: its fabric: %.280s", path, msg);
 		loom_paint_free(*paint);
 		*paint = NULL;
+		return rc;
+	}
+	/* painted weaves re-synthesise crossings: the fabric carries them */
+	if ((rc = loom_paint_apply_weaves(*paint, f, diag)) != LOOM_OK) {
+		char msg[sizeof diag->message];
+		memcpy(msg, diag->message, sizeof msg);
+		snprintf(diag->message, sizeof diag->message, "%.200s: %.280s", path, msg);
+		loom_fabric_free(*f);
+		*f = NULL;
+		loom_paint_free(*paint);
+		*paint = NULL;
 	}
 	return rc;
+}
+
+void cli_paint_note(const char *prog, const char *path, const loom_paint *p)
+{
+	uint32_t other = 0;
+
+	for (uint32_t i = 0; i < loom_paint_count(p); i++)
+		other += loom_paint_get(p, i)->effect != LOOM_PAINT_WEAVE;
+	if (other)
+		fprintf(stderr, "%s: warning: %s: %u region%s of colour or defect "
+		        "(applied at lookup time) shown by loom render only; painted "
+		        "weaves are shown\n", prog, path, other, other == 1 ? "" : "s");
 }
 
 /* ---- loom paint ------------------------------------------------------------ */
@@ -110,13 +134,15 @@ int cli_open_painted(const char *path, loom_db *db, loom_fabric **f,
 static const char usage[] =
 	"loom paint FABRIC (--rect X0,Y0:X1,Y1 | --mask PNG [--at X,Y]\n"
 	"           [--cell W,H]) (--yarn warp|weft|any --rgb R,G,B |\n"
+	"            --weave WEAVE|DESIGN [--band N] |\n"
 	"            --defect stain|slub|broken-end|missing-pick|pull)\n"
 	"           [--rgb R,G,B] [--strength S] [--blend MM] [--radius V]\n"
 	"           [--lift V] [--kind warp|weft] [--db DB] [--quiet] -o PAINT\n";
 
 static const char about[] =
-	"Paint a region of the cloth: recolour a yarn kind, stain it, or add a\n"
-	"defect (slub, broken end, missing pick, pulled thread).  FABRIC is a\n"
+	"Paint a region of the cloth: recolour a yarn kind, stain it, weave it\n"
+	"in another weave (its crossings and a band around them re-synthesised),\n"
+	"or add a defect (slub, broken end, missing pick, pulled thread).  FABRIC is a\n"
 	"fabric or a paint file (its regions are kept and the new one added);\n"
 	"PAINT is a paint file naming the fabric, which loom render opens like a\n"
 	"fabric and evaluates at lookup time (docs/fabric.md).  Coordinates are\n"
@@ -209,11 +235,13 @@ int cmd_paint(int argc, char **argv)
 {
 	const char *prog = "loom paint";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *mask_path = NULL;
+	const char *weave_arg = NULL;
+	loom_design *weave = NULL;
 	double rect[4] = {0, 0, 0, 0}, at[2] = {0, 0}, cell[2] = {0, 0};
 	double strength = 0.7, blend = 0.2;
 	float rgb[3] = {0.35f, 0.22f, 0.08f};
 	int yarn = -1, defect = 0, kind = LOOM_YARN_WARP, quiet = 0, rc = EXIT_BAD_INPUT;
-	uint32_t radius = 2, lift = 4;
+	uint32_t radius = 2, lift = 4, band = 1;
 	loom_paint *p = NULL;
 	loom_fabric *f = NULL;
 	loom_db *db = NULL;
@@ -233,6 +261,11 @@ int cmd_paint(int argc, char **argv)
 		             "one crossing)"),
 		OPT_ENUM(0, "yarn", &yarn, "KIND", kind_names, "recolour the yarns of KIND "
 		         "(warp, weft or any) to --rgb"),
+		OPT_STRING(0, "weave", &weave_arg, "WEAVE", "weave the region in another "
+		           "weave: a name (plain, twill:2/2, satin:1/4, ...) or a design "
+		           "file (WIF, PBM, PNG), tiled from crossing 0,0"),
+		OPT_U32(0, "band", &band, "N", 0, 8, "weave: crossings re-synthesised "
+		        "around the region, %r (default 1)"),
 		OPT_ENUM(0, "defect", &defect, "D", defect_names, "add a defect: stain, "
 		         "slub, broken-end, missing-pick or pull"),
 		OPT_CALLBACK(0, "rgb", rgb, "R,G,B", opt_rgb, "yarn colour or stain tint, "
@@ -263,8 +296,12 @@ int cmd_paint(int argc, char **argv)
 		opts_usage(&cmd, "--at and --cell go with --mask");
 	if (opt_given(&cmd, cell) && !(cell[0] > 0 && cell[1] > 0))
 		opts_usage(&cmd, "--cell: W,H must be > 0");
-	if ((yarn >= 0) == (defect != 0))
-		opts_usage(&cmd, "give exactly one of --yarn and --defect");
+	if ((yarn >= 0) + (defect != 0) + (weave_arg != NULL) != 1)
+		opts_usage(&cmd, "give exactly one of --yarn, --weave and --defect");
+	if (opt_given(&cmd, &band) && !weave_arg)
+		opts_usage(&cmd, "--band goes with --weave");
+	if (weave_arg && opt_given(&cmd, rgb))
+		opts_usage(&cmd, "--rgb goes with --yarn or --defect stain");
 	if (yarn >= 0 && !opt_given(&cmd, rgb))
 		opts_usage(&cmd, "--yarn needs --rgb R,G,B");
 	if (opt_given(&cmd, &kind) && defect != LOOM_PAINT_SLUB && defect != LOOM_PAINT_PULL)
@@ -296,10 +333,36 @@ int cmd_paint(int argc, char **argv)
 		}
 	}
 	memset(&r, 0, sizeof r);
-	r.effect = yarn >= 0 ? LOOM_PAINT_YARN : defect;
+	r.effect = yarn >= 0 ? LOOM_PAINT_YARN : weave_arg ? LOOM_PAINT_WEAVE : defect;
+	if (weave_arg) {
+		loom_weave_params wp;
+		loom_diag wd;
+		memset(&wd, 0, sizeof wd);
+		if (loom_weave_parse(weave_arg, &wp, &wd) == LOOM_OK) {
+			if (loom_design_make(&wp, 0, 0, &weave, &diag) != LOOM_OK) {
+				cli_error(prog, "--weave %s: %s", weave_arg, diag.message);
+				goto done;
+			}
+		} else if (loom_design_read(weave_arg, &weave, &diag) != LOOM_OK) {
+			cli_error(prog, "--weave %s: neither a weave name (%s) nor a design "
+			          "file: %s", weave_arg, wd.message, diag.message);
+			goto done;
+		}
+		if (weave->rows > LOOM_PAINT_MAX_MASK || weave->cols > LOOM_PAINT_MAX_MASK) {
+			cli_error(prog, "--weave %s: %ux%u crossings; a painted weave may have "
+			          "at most %ux%u", weave_arg, weave->rows, weave->cols,
+			          LOOM_PAINT_MAX_MASK, LOOM_PAINT_MAX_MASK);
+			goto done;
+		}
+		r.weave_w = weave->cols;
+		r.weave_h = weave->rows;
+		r.weave = weave->weave;
+		r.band = band;
+	}
 	r.kind = yarn >= 0 ? yarn : (defect == LOOM_PAINT_SLUB || defect == LOOM_PAINT_PULL)
 	                            ? kind : 0;
-	memcpy(r.rgb, rgb, sizeof rgb);
+	if (!weave_arg)
+		memcpy(r.rgb, rgb, sizeof rgb);
 	r.strength = defect == LOOM_PAINT_STAIN ? (float)strength : 0.0f;
 	r.blend_mm = (r.effect == LOOM_PAINT_YARN || r.effect == LOOM_PAINT_STAIN) ? blend : 0;
 	r.amount = defect == LOOM_PAINT_SLUB ? radius : defect == LOOM_PAINT_PULL ? lift : 0;
@@ -355,6 +418,22 @@ int cmd_paint(int argc, char **argv)
 		rc = EXIT_BAD_INPUT;
 		goto done;
 	}
+	if (weave_arg) {
+		/* synthesise the new weave once now: its errors (a region too
+		   large, no exemplar block) belong to this command */
+		loom_paint *one = NULL;
+		loom_fabric *g = f;
+		rc = EXIT_BAD_INPUT;
+		if (loom_paint_new(loom_paint_fabric(p), &one, &diag) != LOOM_OK ||
+		    loom_paint_add(one, &r, &diag) != LOOM_OK ||
+		    loom_paint_apply_weaves(one, &g, &diag) != LOOM_OK) {
+			cli_error(prog, "%s", diag.message);
+			loom_paint_free(one);
+			goto done;
+		}
+		loom_paint_free(one);
+		f = g;
+	}
 	rc = EXIT_BAD_INPUT;
 	if (loom_paint_format(p, &text, &len) != LOOM_OK) {
 		cli_error(prog, "out of memory");
@@ -371,6 +450,7 @@ int cmd_paint(int argc, char **argv)
 done:
 	free(text);
 	loom_image_free(img);
+	loom_design_free(weave);
 	loom_paint_free(p);
 	loom_fabric_free(f);
 	loom_db_close(db);

@@ -5,6 +5,7 @@
  */
 #include "cli.h"
 #include "commands.h"
+#include "paintfile.h"
 #include "opts.h"
 #include "picture.h"
 #include "progress.h"
@@ -26,7 +27,8 @@ static const char about[] =
 	"any width), each shaded from its top surface and fibre direction with one\n"
 	"light and coloured by its yarn (docs/preview.md).  Streamed through the\n"
 	"virtual texture in bounded memory and written band by band; a 4096-pixel\n"
-	"preview of a whole large fabric takes seconds.\n";
+	"preview of a whole large fabric takes seconds.  FABRIC may be a paint\n"
+	"file (loom paint): its painted weaves are shown.\n";
 
 static const opt_choice filter_names[] = {
 	{"auto", LOOM_PREVIEW_AUTO}, {"exact", LOOM_PREVIEW_EXACT},
@@ -113,6 +115,7 @@ int cmd_preview(int argc, char **argv)
 	loom_fabric_db_identity id;
 	loom_db *db = NULL;
 	loom_fabric *f = NULL;
+	loom_paint *paint = NULL;
 	loom_texture *t = NULL;
 	cli_progress pr;
 	pic_out pic;
@@ -168,9 +171,14 @@ int cmd_preview(int argc, char **argv)
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
-	if (loom_fabric_open(path, db, 0, &f, &diag) != LOOM_OK) {
+	if (cli_open_painted(path, db, &f, &paint, &diag) != LOOM_OK) {
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
+	}
+	if (paint) {
+		/* painted weaves are in the fabric now */
+		cli_paint_note(prog, path, paint);
+		loom_paint_free(paint);
 	}
 	loom_fabric_get_db_identity(f, &id);
 	if (!opt_given(&c, &box)) {

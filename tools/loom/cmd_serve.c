@@ -38,6 +38,7 @@
 #include "commands.h"
 #include "opts.h"
 #include "picture.h"
+#include "paintfile.h"
 #include "progress.h"
 #include "serve.h"
 #include "views.h"
@@ -75,7 +76,8 @@ static const char about[] =
 	"from the virtual texture within --budget and cached on disk; the colour\n"
 	"drawdown beside it, synchronised; yarn colours editable (no new\n"
 	"synthesis); a button for a render of the view.  A DRAFT (WIF or any\n"
-	"design) is synthesized first over the exemplar database.  Stop with\n"
+	"design) is synthesized first over the exemplar database.  FABRIC may\n"
+	"be a paint file (loom paint): its painted weaves are shown.  Stop with\n"
 	"Ctrl-C.\n";
 
 typedef struct server {
@@ -669,13 +671,29 @@ static void on_signal(int sig)
 
 /* Open FABRIC, or synthesize a DRAFT (any design loom reads). */
 static void load(const char *prog, const char *in, const char *db_opt, server *s,
-                 loom_diag *diag)
+                 uint64_t *paint_hash, loom_diag *diag)
 {
-	if (cli_ends_with(in, ".loomf")) {
+	*paint_hash = 0;
+	if (cli_ends_with(in, ".loomf") || cli_is_paint(in)) {
+		loom_paint *paint = NULL;
 		if (db_opt && loom_db_open(db_opt, &s->db, diag) != LOOM_OK)
 			cli_fail(prog, "%s", diag->message);
-		if (loom_fabric_open(in, s->db, 0, &s->f, diag) != LOOM_OK)
+		if (cli_open_painted(in, s->db, &s->f, &paint, diag) != LOOM_OK)
 			cli_fail(prog, "%s", diag->message);
+		if (paint) {
+			/* painted weaves are in the fabric now; the tile cache is
+			   keyed by the paint's text too */
+			char *text = NULL;
+			size_t len = 0;
+			cli_paint_note(prog, in, paint);
+			if (loom_paint_format(paint, &text, &len) != LOOM_OK)
+				cli_fail(prog, "out of memory");
+			*paint_hash = 0xcbf29ce484222325ull;
+			for (size_t k = 0; k < len; k++)
+				*paint_hash = (*paint_hash ^ (unsigned char)text[k]) * 0x100000001b3ull;
+			free(text);
+			loom_paint_free(paint);
+		}
 	} else {
 		const char *db_path = cli_db_require(db_opt, prog);
 		loom_design *d = NULL;
@@ -702,6 +720,7 @@ int cmd_serve(int argc, char **argv)
 	struct sockaddr_in addr;
 	const union MHD_DaemonInfo *info;
 	char cache_dir[4300], err[600];
+	uint64_t paint_hash = 0;
 	uint64_t rep[3];
 	size_t reserve;
 	loom_diag diag;
@@ -753,7 +772,7 @@ int cmd_serve(int argc, char **argv)
 			         "with npm: tools/web/package.json)", s.web);
 	}
 	cli_diag_init(&diag, &quiet);
-	load(prog, in, db_opt, &s, &diag);
+	load(prog, in, db_opt, &s, &paint_hash, &diag);
 	s.d = loom_fabric_design(s.f);
 	loom_fabric_get_db_identity(s.f, &s.id);
 	loom_fabric_repeat_voxels(s.f, rep);
@@ -788,7 +807,8 @@ int cmd_serve(int argc, char **argv)
 			cli_fail(prog, "%s: %s", base, strerror(errno));
 		snprintf(cache_dir, sizeof cache_dir, "%s/%016llx-%u-%u", base,
 		         (unsigned long long)s.id.content_hash ^
-		         table_hash(s.d->types, s.d->n_types) ^ ((uint64_t)s.d->rows << 32 | s.d->cols),
+		         table_hash(s.d->types, s.d->n_types) ^ ((uint64_t)s.d->rows << 32 | s.d->cols) ^
+		         paint_hash,
 		         s.reps[0], s.reps[1]);
 	}
 	s.cache = serve_cache_open(cache_dir, (uint64_t)(cache_mb * 1048576.0), err,

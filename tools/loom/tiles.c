@@ -3,6 +3,7 @@
  * pool of `loom export` and `loom scan` (tiles.h).
  */
 #include "tiles.h"
+#include "paintfile.h"
 #include "io/core/file.h" /* io/: loom__open_input */
 
 #include <ctype.h>
@@ -290,9 +291,17 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 		cli_fail(prog, "%s", diag.message);
 	/* a design too large for --budget: refused before it is read */
 	cli_fabric_fits(prog, path, j->budget_mb * 1048576.0, "this job needs", EXIT_USAGE);
-	if (loom_fabric_open(path, j->db, 0, &j->f, &diag) != LOOM_OK) {
-		loom_db_close(j->db);
-		cli_fail(prog, "%s", diag.message);
+	{
+		loom_paint *paint = NULL;
+		if (cli_open_painted(path, j->db, &j->f, &paint, &diag) != LOOM_OK) {
+			loom_db_close(j->db);
+			cli_fail(prog, "%s", diag.message);
+		}
+		if (paint) {
+			/* painted weaves are in the fabric now */
+			cli_paint_note(prog, path, paint);
+			loom_paint_free(paint);
+		}
 	}
 	loom_fabric_repeat_voxels(j->f, j->rep);
 	loom_fabric_get_db_identity(j->f, &id);

@@ -2,7 +2,7 @@
  * loom/paint.h - painted regions of a fabric (engine/texture/paint.c,
  * docs/fabric.md "Painted regions", docs/formats.md "Paint file"):
  * rectangles or masks in cloth millimetres that recolour a yarn kind, stain
- * the cloth, or add a defect (slub, broken end, missing pick, pulled
+ * the cloth, weave another weave, or add a defect (slub, broken end, missing pick, pulled
  * thread), evaluated at lookup time over a fabric's texture.  Include
  * <loom.h>, not this file.
  */
@@ -23,12 +23,14 @@ enum loom_paint_effect {
 	LOOM_PAINT_SLUB = 3,         /* yarns of `kind` thicker by `amount` voxels */
 	LOOM_PAINT_BROKEN_END = 4,   /* warp voxels removed */
 	LOOM_PAINT_MISSING_PICK = 5, /* weft voxels removed */
-	LOOM_PAINT_PULL = 6          /* yarns of `kind` lifted `amount` voxels */
+	LOOM_PAINT_PULL = 6,         /* yarns of `kind` lifted `amount` voxels */
+	LOOM_PAINT_WEAVE = 7         /* another weave: crossings re-synthesised */
 };
 
 #define LOOM_PAINT_MAX_REGIONS 4096u
 #define LOOM_PAINT_MAX_MASK 4096u    /* mask width and height limit */
 #define LOOM_PAINT_MAX_FILE (16u << 20) /* paint file size limit, bytes */
+#define LOOM_PAINT_MAX_BAND 8u       /* weave: border band limit, crossings */
 
 typedef struct loom_paint_region {
 	int effect;             /* enum loom_paint_effect */
@@ -43,6 +45,14 @@ typedef struct loom_paint_region {
 	float strength;         /* stain strength 0..1 */
 	double blend_mm;        /* colour effects: soft edge outside the region */
 	uint32_t amount;        /* slub radius 1..16, pull lift 1..64 voxels */
+	/* LOOM_PAINT_WEAVE only: the weave's repeat, weave_w ends x weave_h
+	   picks (1..LOOM_PAINT_MAX_MASK each), weave[i*weave_w + j] = 1 where
+	   the warp is over at pick i, end j; tiled from crossing (0, 0) of
+	   the bolt (copied by loom_paint_add) */
+	uint32_t weave_w, weave_h;
+	const uint8_t *weave;
+	uint32_t band;          /* weave: crossings re-synthesised around the
+	                           painted ones, 0..LOOM_PAINT_MAX_BAND */
 } loom_paint_region;
 
 typedef struct loom_paint loom_paint;
@@ -67,6 +77,22 @@ LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len);
    "missing-pick", "pull"; NULL for others. */
 LOOM_API const char *loom_paint_effect_name(int effect);
 LOOM_API int loom_paint_effect_parse(const char *name);
+
+/*
+ * The fabric with the painted weaves applied (LOOM_PAINT_WEAVE regions, in
+ * file order; docs/fabric.md "Painted weaves"): the crossings whose
+ * centre a weave region contains take its weave, and they and `band`
+ * crossings around them are assigned exemplar blocks again with the
+ * synthesis rules; the edge fix then runs across the border.  On success
+ * *f is replaced by a fabric that owns the old one (free only the new
+ * one; it cannot be saved as a fabric file); with no weave region *f is
+ * kept.  Open the texture on the result.  Memory 3 bytes per crossing of
+ * each region's rectangle widened by its band.  LOOM_EINVAL, LOOM_ERANGE
+ * (a region over more than 4194304 crossings), LOOM_EUNUSABLE (detached),
+ * LOOM_ENOMEM; *f unchanged on failure.
+ */
+LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
+                                     loom_diag *diag);
 
 /*
  * A volume source over texture t (of fabric f) with the paint applied at
