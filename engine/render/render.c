@@ -54,6 +54,14 @@
 #define MAX_TENTATIVE (1u << 22) /* tentative collisions per path, a guard
                                     against endless grazing rays */
 
+/* A light prepared for sampling. */
+typedef struct plight {
+	const loom_light *l;
+	double dir[3];           /* distant: unit direction towards the light */
+	double u[3], v[3];       /* frame around dir */
+	double cos_disc;         /* cosine of the disc's half angle (1: point) */
+} plight;
+
 typedef struct rctx {
 	const loom_volume_source *src;
 	const loom_render_options *o;
@@ -67,10 +75,11 @@ typedef struct rctx {
 	double mu_cell;          /* cell bound (density) -> majorant factor */
 	/* camera */
 	double eye[3], fwd[3], right[3], up[3], tan_x, tan_y;
-	/* light */
-	double ldir[3];
-	double lu[3], lv[3];     /* frame around ldir */
-	double cos_disc;         /* cosine of the disc's half angle (1: point) */
+	double lens_r, focus;    /* thin lens: radius (0 = pinhole), focus
+	                            distance along fwd */
+	/* lights: opt.light (when not NONE) and opt.lights */
+	plight pl[1 + LOOM_RENDER_MAX_LIGHTS];
+	uint32_t n_pl;
 	/* work */
 	uint32_t tile, tiles_x, tiles_y;
 	uint64_t n_tiles, tiles_done;
@@ -481,7 +490,12 @@ static int transmittance(tstate *t, const double o[3], const double d[3],
 
 /* ---- one path ---------------------------------------------------------- */
 
-static int camera_ray(const rctx *c, double sx, double sy, double o[3], double d[3])
+/* Camera ray through image point (sx, sy) in [0,1)^2.  A thin lens draws
+   two more numbers from rng (a pinhole none, so aperture 0 gives the
+   pinhole's bytes): a point uniform on the lens disc, aimed at where the
+   pinhole ray meets the plane in focus. */
+static int camera_ray(const rctx *c, double sx, double sy, uint64_t *rng,
+                      double o[3], double d[3])
 {
 	const loom_camera *cam = &c->o->camera;
 	if (cam->kind == LOOM_CAMERA_ORTHO) {
@@ -497,22 +511,96 @@ static int camera_ray(const rctx *c, double sx, double sy, double o[3], double d
 			d[j] = c->fwd[j] + (2 * sx - 1) * c->tan_x * c->right[j] +
 			       (1 - 2 * sy) * c->tan_y * c->up[j];
 		}
+		if (c->lens_r > 0) {
+			/* d . fwd = 1 here: the focus point is eye + focus d */
+			double r = c->lens_r * sqrt(loom__rand01(rng));
+			double ph = 2.0 * M_PI * loom__rand01(rng);
+			double lx = r * cos(ph), ly = r * sin(ph);
+			for (int j = 0; j < 3; j++) {
+				double fp = c->eye[j] + c->focus * d[j];
+				o[j] = c->eye[j] + lx * c->right[j] + ly * c->up[j];
+				d[j] = fp - o[j];
+			}
+		}
 		loom__normalize3(d);
 	}
 	return 0;
 }
 
-/* A direction uniform over the distant light's disc (a cone of half angle
-   acos(cos_disc) around ldir): the irradiance times the phase function and
-   transmittance along it is an unbiased estimate of the disc's
-   contribution (uniform radiance over the disc). */
-static void sun_direction(const rctx *c, uint64_t *rng, double wl[3])
+/* A direction uniform in solid angle over the cone of half angle
+   acos(cos_max) around unit axis (frame u, v). */
+static void cone_direction(const double axis[3], const double u[3],
+                           const double v[3], double cos_max, uint64_t *rng,
+                           double wl[3])
 {
-	double ct = 1.0 - loom__rand01(rng) * (1.0 - c->cos_disc);
+	double ct = 1.0 - loom__rand01(rng) * (1.0 - cos_max);
 	double st = sqrt(fmax(0.0, 1.0 - ct * ct)), ph = 2.0 * M_PI * loom__rand01(rng);
 	for (int j = 0; j < 3; j++)
-		wl[j] = ct * c->ldir[j] + st * (cos(ph) * c->lu[j] + sin(ph) * c->lv[j]);
+		wl[j] = ct * axis[j] + st * (cos(ph) * u[j] + sin(ph) * v[j]);
 	loom__normalize3(wl);
+}
+
+/* Unit vectors u, v completing unit a to an orthonormal frame. */
+static void frame_of(const double a[3], double u[3], double v[3])
+{
+	double t[3] = {0, 0, 0};
+	t[fabs(a[0]) < 0.6 ? 0 : fabs(a[1]) < 0.6 ? 1 : 2] = 1.0;
+	loom__cross3(a, t, u);
+	loom__normalize3(u);
+	loom__cross3(a, u, v);
+}
+
+/*
+ * Next-event estimation of one light from a real collision at pos (medium
+ * m, wi towards where the path came from): adds beta x the estimate to L.
+ * Distant lights with a disc and spheres draw a direction uniform in
+ * solid angle over the disc / the cone the sphere subtends (radiance is
+ * uniform over either), so irradiance-per-solid-angle x phase x
+ * transmittance over the cone's pdf is unbiased.  Returns 0 or a negative
+ * lookup error.
+ */
+static int light_nee(tstate *t, const plight *p, const medium *m,
+                     const double pos[3], const double wi[3],
+                     const double beta[3], double L[3])
+{
+	const loom_light *l = p->l;
+	double wl[3], dist = INFINITY, scale = 1.0, T, f;
+	int rc;
+
+	if (l->kind == LOOM_LIGHT_DISTANT && p->cos_disc < 1.0) {
+		cone_direction(p->dir, p->u, p->v, p->cos_disc, &t->rng, wl);
+	} else if (l->kind == LOOM_LIGHT_DISTANT) {
+		memcpy(wl, p->dir, sizeof wl);
+	} else if (l->kind == LOOM_LIGHT_POINT) {
+		for (int j = 0; j < 3; j++)
+			wl[j] = l->pos[j] - pos[j];
+		dist = loom__normalize3(wl);
+		scale = dist > 0 ? 1.0 / (dist * dist) : 0.0;
+	} else { /* sphere */
+		double a[3], u[3], v[3], dc, r = l->radius, cmax, ct, disc;
+		for (int j = 0; j < 3; j++)
+			a[j] = l->pos[j] - pos[j];
+		dc = loom__normalize3(a);
+		if (!(dc > r)) /* inside the light: it lights nothing here */
+			return 0;
+		cmax = sqrt(fmax(0.0, 1.0 - (r / dc) * (r / dc)));
+		frame_of(a, u, v);
+		cone_direction(a, u, v, cmax, &t->rng, wl);
+		ct = loom__dot3(wl, a);
+		disc = r * r - dc * dc * fmax(0.0, 1.0 - ct * ct);
+		dist = dc * ct - sqrt(fmax(0.0, disc));
+		/* radiance I / (pi r^2) over the cone's pdf 1 / (2 pi (1 - cmax)) */
+		scale = 2.0 * (1.0 - cmax) / (r * r);
+	}
+	f = loom_microflake_eval(m->s, m->w, wi, wl);
+	if (scale > 0 && f > 0) {
+		t->st.rays++;
+		if ((rc = transmittance(t, pos, wl, dist, &T)))
+			return rc;
+		for (int j = 0; j < 3; j++)
+			L[j] += beta[j] * l->rgb[j] * scale * T * f;
+	}
+	return 0;
 }
 
 /* Radiance of one camera sample; returns 0 or a lookup error code. */
@@ -520,14 +608,14 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 {
 	rctx *c = t->c;
 	const loom_render_options *o = c->o;
-	double org[3], dir[3], pos[3], beta[3] = {1, 1, 1};
+	double org[3], dir[3], pos[3], beta[3] = {1, 1, 1}, phase_pdf = 0;
 	uint32_t depth = 0;
 	medium m;
 
 	L[0] = L[1] = L[2] = 0;
 	t->tentative = 0;
 	t->hint = LOOM_MESH_NONE;
-	camera_ray(c, sx, sy, org, dir);
+	camera_ray(c, sx, sy, &t->rng, org, dir);
 	t->st.paths++;
 	for (;;) {
 		int r;
@@ -538,8 +626,20 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 		if (r < 0)
 			return -r;
 		if (r == 0) {
-			for (int j = 0; j < 3; j++)
-				L[j] += beta[j] * o->env[j];
+			if (o->envmap) {
+				/* weighted against environment sampling when the path
+				   scattered (its direction had the phase pdf) */
+				double le[3], wgt = 1.0;
+				loom_envmap_eval(o->envmap, dir, le);
+				if (depth > 0)
+					wgt = loom_mis_power(phase_pdf,
+					                     loom_envmap_pdf(o->envmap, dir));
+				for (int j = 0; j < 3; j++)
+					L[j] += beta[j] * le[j] * wgt;
+			} else {
+				for (int j = 0; j < 3; j++)
+					L[j] += beta[j] * o->env[j];
+			}
 			return 0;
 		}
 		depth++;
@@ -550,27 +650,30 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 		}
 		if (beta[0] == 0 && beta[1] == 0 && beta[2] == 0)
 			return 0;
-		/* Next-event estimation of the light. */
-		if (o->light.kind != LOOM_LIGHT_NONE) {
-			double wl[3], dist = INFINITY, scale = 1.0, T, f;
+		/* Next-event estimation of every light. */
+		for (uint32_t k = 0; k < c->n_pl; k++) {
+			int rc = light_nee(t, &c->pl[k], &m, pos, wi, beta, L);
+			if (rc)
+				return -rc;
+		}
+		/* Next-event estimation of the environment map, weighted
+		   against phase sampling (the phase pdf is f itself). */
+		if (o->envmap) {
+			double wl[3], T, f, pe, le[3], wgt;
 			int rc;
-			if (o->light.kind == LOOM_LIGHT_DISTANT && c->cos_disc < 1.0) {
-				sun_direction(c, &t->rng, wl);
-			} else if (o->light.kind == LOOM_LIGHT_DISTANT) {
-				memcpy(wl, c->ldir, sizeof wl);
-			} else {
-				for (int j = 0; j < 3; j++)
-					wl[j] = o->light.pos[j] - pos[j];
-				dist = loom__normalize3(wl);
-				scale = dist > 0 ? 1.0 / (dist * dist) : 0.0;
-			}
-			f = loom_microflake_eval(m.s, m.w, wi, wl);
-			if (scale > 0 && f > 0) {
-				t->st.rays++;
-				if ((rc = transmittance(t, pos, wl, dist, &T)))
-					return -rc;
-				for (int j = 0; j < 3; j++)
-					L[j] += beta[j] * o->light.rgb[j] * scale * T * f;
+			double u1 = loom__rand01(&t->rng), u2 = loom__rand01(&t->rng);
+			pe = loom_envmap_sample(o->envmap, u1, u2, wl);
+			if (pe > 0) {
+				f = loom_microflake_eval(m.s, m.w, wi, wl);
+				if (f > 0) {
+					t->st.rays++;
+					if ((rc = transmittance(t, pos, wl, INFINITY, &T)))
+						return -rc;
+					loom_envmap_eval(o->envmap, wl, le);
+					wgt = loom_mis_power(pe, f) / pe;
+					for (int j = 0; j < 3; j++)
+						L[j] += beta[j] * le[j] * f * T * wgt;
+				}
 			}
 		}
 		if (depth >= o->max_depth)
@@ -585,6 +688,8 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 			}
 		}
 		loom_microflake_sample(m.s, m.w, wi, &t->rng, wo);
+		if (o->envmap)
+			phase_pdf = loom_microflake_eval(m.s, m.w, wi, wo);
 		memcpy(org, pos, sizeof org);
 		memcpy(dir, wo, sizeof dir);
 	}
@@ -684,7 +789,7 @@ static int finite3(const double v[3])
 static int setup_camera(rctx *c, loom_diag *diag)
 {
 	const loom_camera *cam = &c->o->camera;
-	double f[3], r[3], u[3];
+	double f[3], r[3], u[3], dist;
 
 	if (cam->kind != LOOM_CAMERA_ORTHO && cam->kind != LOOM_CAMERA_PINHOLE)
 		return loom__fail(diag, LOOM_EINVAL, "render: unknown camera kind %d",
@@ -693,7 +798,7 @@ static int setup_camera(rctx *c, loom_diag *diag)
 		return loom__fail(diag, LOOM_EINVAL, "render: camera vectors must be finite");
 	for (int j = 0; j < 3; j++)
 		f[j] = cam->target[j] - cam->eye[j];
-	if (loom__normalize3(f) <= 0)
+	if ((dist = loom__normalize3(f)) <= 0)
 		return loom__fail(diag, LOOM_EINVAL, "render: camera target equals eye");
 	loom__cross3(f, cam->up, r);
 	if (loom__normalize3(r) < 1e-9)
@@ -711,6 +816,17 @@ static int setup_camera(rctx *c, loom_diag *diag)
 			                  cam->fov_y_deg);
 		c->tan_y = tan(cam->fov_y_deg * M_PI / 360.0);
 		c->tan_x = c->tan_y * c->o->width / c->o->height;
+		if (!(cam->aperture >= 0) || !isfinite(cam->aperture) ||
+		    !(cam->focus_dist >= 0) || !isfinite(cam->focus_dist))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: aperture and focus_dist must be finite and "
+			                  ">= 0, got %g and %g", cam->aperture, cam->focus_dist);
+		c->lens_r = 0.5 * cam->aperture;
+		c->focus = cam->focus_dist > 0 ? cam->focus_dist : dist;
+	} else if (cam->aperture != 0) {
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: an orthographic camera has no lens (aperture %g)",
+		                  cam->aperture);
 	} else if (!(cam->ortho_size[0] > 0 && cam->ortho_size[1] > 0 &&
 	             isfinite(cam->ortho_size[0]) && isfinite(cam->ortho_size[1]))) {
 		return loom__fail(diag, LOOM_EINVAL,
@@ -758,19 +874,51 @@ static int check_options(const loom_volume_source *src, const loom_render_option
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "render: alignment must be > 0, got %g", o->alignment);
 	for (int j = 0; j < 3; j++)
-		if (!(o->env[j] >= 0) || !isfinite(o->env[j]) ||
-		    !(o->light.rgb[j] >= 0) || !isfinite(o->light.rgb[j]))
+		if (!(o->env[j] >= 0) || !isfinite(o->env[j]))
 			return loom__fail(diag, LOOM_EINVAL,
 			                  "render: env and light colours must be finite and >= 0");
-	if (o->light.kind != LOOM_LIGHT_NONE && o->light.kind != LOOM_LIGHT_DISTANT &&
-	    o->light.kind != LOOM_LIGHT_POINT)
-		return loom__fail(diag, LOOM_EINVAL, "render: unknown light kind %d",
-		                  o->light.kind);
-	if (o->light.kind == LOOM_LIGHT_POINT && !finite3(o->light.pos))
-		return loom__fail(diag, LOOM_EINVAL, "render: point light position must be finite");
 	if (!(o->world_per_voxel >= 0) || !isfinite(o->world_per_voxel))
 		return loom__fail(diag, LOOM_EINVAL, "render: world_per_voxel must be >= 0");
 	return LOOM_OK;
+}
+
+/* Check light l and prepare it for sampling. */
+static int prep_light(const loom_light *l, plight *p, loom_diag *diag)
+{
+	memset(p, 0, sizeof *p);
+	p->l = l;
+	p->cos_disc = 1.0;
+	for (int j = 0; j < 3; j++)
+		if (!(l->rgb[j] >= 0) || !isfinite(l->rgb[j]))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: env and light colours must be finite and >= 0");
+	switch (l->kind) {
+	case LOOM_LIGHT_DISTANT:
+		memcpy(p->dir, l->dir, sizeof p->dir);
+		if (!finite3(p->dir) || loom__normalize3(p->dir) <= 0)
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: distant light direction must be finite and non-zero");
+		if (!(l->angle_deg >= 0 && l->angle_deg <= 90))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: distant light angle_deg must be in [0, 90], got %g",
+			                  l->angle_deg);
+		frame_of(p->dir, p->u, p->v);
+		if (l->angle_deg > 0)
+			p->cos_disc = cos(0.5 * l->angle_deg * M_PI / 180.0);
+		return LOOM_OK;
+	case LOOM_LIGHT_POINT:
+		if (!finite3(l->pos))
+			return loom__fail(diag, LOOM_EINVAL, "render: point light position must be finite");
+		return LOOM_OK;
+	case LOOM_LIGHT_SPHERE:
+		if (!finite3(l->pos) || !(l->radius > 0) || !isfinite(l->radius))
+			return loom__fail(diag, LOOM_EINVAL,
+			                  "render: sphere light needs a finite position and a "
+			                  "radius > 0, got radius %g", l->radius);
+		return LOOM_OK;
+	default:
+		return loom__fail(diag, LOOM_EINVAL, "render: unknown light kind %d", l->kind);
+	}
 }
 
 static double now_s(void)
@@ -829,24 +977,17 @@ LOOM_API int loom_render(const loom_volume_source *src,
 		                  "render: the source's majorant cell is %lld x %lld x %lld; "
 		                  "each side must be > 0", (long long)src->cell[0],
 		                  (long long)src->cell[1], (long long)src->cell[2]);
-	if (o->light.kind == LOOM_LIGHT_DISTANT) {
-		memcpy(c.ldir, o->light.dir, sizeof c.ldir);
-		if (!finite3(c.ldir) || loom__normalize3(c.ldir) <= 0)
-			return loom__fail(diag, LOOM_EINVAL,
-			                  "render: distant light direction must be finite and non-zero");
-		if (!(o->light.angle_deg >= 0 && o->light.angle_deg <= 90))
-			return loom__fail(diag, LOOM_EINVAL,
-			                  "render: distant light angle_deg must be in [0, 90], got %g",
-			                  o->light.angle_deg);
-		{
-			double t[3] = {0, 0, 0};
-			t[fabs(c.ldir[0]) < 0.6 ? 0 : fabs(c.ldir[1]) < 0.6 ? 1 : 2] = 1.0;
-			loom__cross3(c.ldir, t, c.lu);
-			loom__normalize3(c.lu);
-			loom__cross3(c.ldir, c.lu, c.lv);
-		}
-		c.cos_disc = o->light.angle_deg > 0 ? cos(0.5 * o->light.angle_deg * M_PI / 180.0)
-		                                    : 1.0;
+	if (o->n_lights > LOOM_RENDER_MAX_LIGHTS || (o->n_lights && !o->lights))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: n_lights %u: at most %u, with lights != NULL",
+		                  o->n_lights, LOOM_RENDER_MAX_LIGHTS);
+	for (uint32_t k = 0; k <= o->n_lights; k++) {
+		const loom_light *l = k == 0 ? &o->light : &o->lights[k - 1];
+		if (l->kind == LOOM_LIGHT_NONE)
+			continue;
+		if ((rc = prep_light(l, &c.pl[c.n_pl], diag)))
+			return rc;
+		c.n_pl++;
 	}
 	c.tile = o->tile ? o->tile : 16;
 	c.tiles_x = (o->width + c.tile - 1) / c.tile;

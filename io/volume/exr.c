@@ -771,8 +771,9 @@ static int read_pixels(exr_context_t ctx, rd_state *s, const char *name,
 	return rc;
 }
 
-LOOM_API int loom_exr_parse(const uint8_t *data, size_t len, const char *name,
-                            loom_exr_image **out, loom_diag *diag)
+static int exr_parse_max(const uint8_t *data, size_t len, const char *name,
+                         uint64_t max_pixels, loom_exr_image **out,
+                         loom_diag *diag)
 {
 	exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
 	exr_context_t ctx = NULL;
@@ -833,6 +834,12 @@ LOOM_API int loom_exr_parse(const uint8_t *data, size_t len, const char *name,
 	if (w64 <= INT32_MAX && h64 <= INT32_MAX && /* then w64*h64 < 2^62 */
 	    w64 * h64 <= (UINT64_MAX >> 2) / (uint64_t)chl->num_channels)
 		values = w64 * h64 * (uint64_t)chl->num_channels;
+	if (w64 > max_pixels || h64 > max_pixels / w64) {
+		rc = loom__fail(diag, LOOM_ERANGE, "%s: %llux%llu image is larger than "
+		                "%llu pixels", name, (unsigned long long)w64,
+		                (unsigned long long)h64, (unsigned long long)max_pixels);
+		goto done;
+	}
 	if (values == 0 || values / 1032 / 2 > len + 4096 ||
 	    values > (SIZE_MAX / 8)) {
 		rc = loom__fail(diag, LOOM_ERANGE, "%s: %llux%llu image with %d "
@@ -902,6 +909,12 @@ done:
 	return LOOM_OK;
 }
 
+LOOM_API int loom_exr_parse(const uint8_t *data, size_t len, const char *name,
+                            loom_exr_image **out, loom_diag *diag)
+{
+	return exr_parse_max(data, len, name, UINT64_MAX, out, diag);
+}
+
 /* an OpenEXR file starts with the magic number 20000630 (76 2f 31 01) */
 static int exr_head(const uint8_t *head, size_t n, const char *path,
                     loom_diag *diag)
@@ -929,6 +942,26 @@ LOOM_API int loom_exr_read(const char *path, loom_exr_image **out,
 	if (rc)
 		return rc;
 	rc = loom_exr_parse(data, len, path, out, diag);
+	free(data);
+	return rc;
+}
+
+LOOM_API int loom_exr_read_max(const char *path, uint64_t max_pixels,
+                               size_t max_bytes, loom_exr_image **out,
+                               loom_diag *diag)
+{
+	uint8_t *data;
+	size_t len;
+	int rc;
+
+	if (!path || !out)
+		return loom__fail(diag, LOOM_EINVAL, "loom_exr_read_max: NULL argument");
+	*out = NULL;
+	rc = loom__read_file_checked(path, max_bytes, "OpenEXR", exr_head, &data,
+	                             &len, diag);
+	if (rc)
+		return rc;
+	rc = exr_parse_max(data, len, path, max_pixels, out, diag);
 	free(data);
 	return rc;
 }

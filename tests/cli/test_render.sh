@@ -90,6 +90,89 @@ json_check density_voxel_json "j['density_per_voxel'] == 3.6"
 expect_exit density_both 2 "$LOOM" render "$F" --density-scale 50 --density-per-voxel 3 -o x.png
 expect_err_contains density_both_msg "give one"
 expect_exit bad_majorant 2 "$LOOM" render "$F" --majorant tight -o x.png
+# camera by --look-from/--look-at in mm of the cloth's frame: the
+# --elevation/--azimuth camera (printed in the JSON) typed back in gives the
+# same bytes; --up, --ortho and --aperture change the picture
+expect_ok cam_short "$LOOM" render "$F" $R --elevation 30 --azimuth 20 --json -o "$T/cs.png"
+LF=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["camera"]["look_from"])' "$T/out")
+LA=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["camera"]["look_at"])' "$T/out")
+json_check cam_json "j['camera']['units'] == 'mm' and j['camera']['kind'] == 'perspective'"
+expect_ok cam_short_sun "$LOOM" render "$F" $R --elevation 30 --azimuth 20 --sun 170,35 --quiet -o "$T/css.png"
+expect_ok cam_look "$LOOM" render "$F" $R --look-from "$LF" --look-at "$LA" --sun 170,35 --quiet -o "$T/cl.png"
+expect_same look_from_equals_shorthand "$T/css.png" "$T/cl.png"
+# the default sun follows the camera's azimuth (20 + 150 degrees)
+expect_ok cam_look_sun "$LOOM" render "$F" $R --look-from "$LF" --look-at "$LA" --quiet -o "$T/cl2.png"
+if python3 - "$T/cs.png" "$T/cl2.png" "$T/a.png" <<'PY' 2>"$T/pyerr"; then pass default_sun_follows_camera; else fail default_sun_follows_camera "$(cat "$T/pyerr")"; fi
+import sys, zlib, struct
+def mean(p):
+    b = open(p, 'rb').read(); i = 8; data = b''
+    while i < len(b):
+        n, t = struct.unpack('>I4s', b[i:i+8]); c = b[i+8:i+8+n]; i += 12 + n
+        if t == b'IHDR': w, h = struct.unpack('>II', c[:8])
+        if t == b'IDAT': data += c
+    raw = zlib.decompress(data); s = 0
+    for y in range(h):
+        s += sum(raw[y*(3*w+1)+1:(y+1)*(3*w+1)])
+    return s / (3*w*h)
+a, b = mean(sys.argv[1]), mean(sys.argv[2])
+assert abs(a - b) < 0.03 * a + 1, (a, b)
+PY
+expect_ok cam_look_at_only "$LOOM" render "$F" $R --elevation 30 --azimuth 20 --look-at "$LA" --quiet -o "$T/ca.png"
+expect_same look_at_keeps_offset "$T/cs.png" "$T/ca.png"
+expect_ok cam_ap0 "$LOOM" render "$F" $R --elevation 30 --azimuth 20 --aperture 0 --focus 3 --quiet -o "$T/c0.png"
+expect_same aperture0_is_pinhole "$T/cs.png" "$T/c0.png"
+expect_ok cam_lens "$LOOM" render "$F" $R --elevation 30 --azimuth 20 --aperture 2 --focus 20 --quiet -o "$T/cd.png"
+if cmp -s "$T/cs.png" "$T/cd.png"; then fail lens_matters "--aperture 2 gave the pinhole picture"; else pass lens_matters; fi
+expect_ok cam_ortho "$LOOM" render "$F" $R --look-from 2.88,2.16,10 --look-at 2.88,2.16,0 --up 0,1,0 --ortho 2 --json -o "$T/co.exr"
+json_check ortho_json "j['camera']['kind'] == 'ortho' and j['camera']['up'] == '0,1,0'"
+expect_ok cam_ortho_threads "$LOOM" render "$F" $R --look-from 2.88,2.16,10 --look-at 2.88,2.16,0 --up 0,1,0 --ortho 2 --threads 1 --quiet -o "$T/co1.exr"
+expect_same ortho_threads_same_bytes "$T/co.exr" "$T/co1.exr"
+expect_exit cam_same_point 1 "$LOOM" render "$F" $R --look-from 1,1,1 --look-at 1,1,1 -o "$T/x.png"
+expect_err_contains cam_same_point_msg "same point"
+expect_exit cam_up_parallel 1 "$LOOM" render "$F" $R --look-from 1,1,5 --look-at 1,1,0 -o "$T/x.png"
+expect_err_contains cam_up_parallel_msg "--up"
+expect_exit cam_bad_point 2 "$LOOM" render "$F" --look-from 1,2 -o x.png
+expect_err_contains cam_bad_point_msg "--look-from"
+expect_exit cam_ortho_lens 2 "$LOOM" render "$F" --ortho 3 --aperture 1 -o x.png
+expect_exit cam_focus_alone 2 "$LOOM" render "$F" --focus 3 -o x.png
+expect_exit cam_aperture_neg 2 "$LOOM" render "$F" --aperture -1 -o x.png
+# --envmap: a small latitude-longitude EXR written by an independent writer
+ENVPY="python3 $LOOM_TOP/tests/cli/exr_envmap.py"
+$ENVPY "$T/sky.exr" 64 32 sky
+$ENVPY "$T/skyf.exr" 32 16 sky R,G,B float
+$ENVPY "$T/lum.exr" 8 4 const:1 Y
+$ENVPY "$T/huge.exr" 4097 1025 header
+expect_ok env "$LOOM" render "$F" $R --envmap "$T/sky.exr" --json -o "$T/env.png"
+json_check env_json "j['envmap_bytes'] > 64 * 32 * 12"
+expect_ok env_threads "$LOOM" render "$F" $R --envmap "$T/sky.exr" --threads 1 --quiet -o "$T/env1.png"
+expect_same env_threads_same_bytes "$T/env.png" "$T/env1.png"
+if cmp -s "$T/env.png" "$T/a.png"; then fail env_matters "--envmap gave the studio picture"; else pass env_matters; fi
+expect_ok env_rotate "$LOOM" render "$F" $R --envmap "$T/sky.exr" --env-rotate 90 --quiet -o "$T/envr.png"
+if cmp -s "$T/env.png" "$T/envr.png"; then fail env_rotate_matters "--env-rotate 90 changed nothing"; else pass env_rotate_matters; fi
+expect_ok env_float "$LOOM" render "$F" $R --envmap "$T/skyf.exr" --env-intensity 2 --sun 30,40 --quiet -o "$T/envf.png"
+expect_exit env_not_exr 1 "$LOOM" render "$F" $R --envmap "$T/a.png" -o "$T/x.png"
+expect_err_contains env_not_exr_msg "a.png: not an OpenEXR file"
+expect_exit env_channels 1 "$LOOM" render "$F" $R --envmap "$T/lum.exr" -o "$T/x.png"
+expect_err_contains env_channels_msg "lum.exr: channels Y; an environment map needs R, G and B"
+expect_exit env_huge 1 "$LOOM" render "$F" $R --envmap "$T/huge.exr" -o "$T/x.png"
+expect_err_contains env_huge_msg "huge.exr: 4097x1025 image is larger than 4194304 pixels"
+expect_exit env_missing 1 "$LOOM" render "$F" $R --envmap "$T/nope.exr" -o "$T/x.png"
+expect_err_contains env_missing_msg "nope.exr"
+expect_exit env_budget 1 "$LOOM" render "$F" $R --envmap "$T/sky.exr" --budget 0.01 -o "$T/x.png"
+expect_err_contains env_budget_msg "cannot hold the environment map"
+expect_exit env_rotate_alone 2 "$LOOM" render "$F" --env-rotate 10 -o x.png
+expect_exit env_intensity_neg 2 "$LOOM" render "$F" --envmap x.exr --env-intensity -1 -o x.png
+# --light (spherical lamps, mm) and repeatable --sun
+expect_ok lamps "$LOOM" render "$F" $R --light 1,0,3,0.3,40 --light 5,5,3,0.3,20 --sun 30,40,1 --sun 200,20,1 --quiet -o "$T/lamp.png"
+expect_ok lamps_threads "$LOOM" render "$F" $R --light 1,0,3,0.3,40 --light 5,5,3,0.3,20 --sun 30,40,1 --sun 200,20,1 --threads 1 --quiet -o "$T/lamp1.png"
+expect_same lamps_threads_same_bytes "$T/lamp.png" "$T/lamp1.png"
+expect_ok one_sun "$LOOM" render "$F" $R --sun 30,40,1 --quiet -o "$T/sun1.png"
+if cmp -s "$T/lamp.png" "$T/sun1.png"; then fail lamps_matter "lamps and a second sun changed nothing"; else pass lamps_matter; fi
+expect_exit lamp_radius 2 "$LOOM" render "$F" --light 1,2,3,0,4 -o x.png
+expect_err_contains lamp_radius_msg "RADIUS > 0"
+expect_exit lamp_four 2 "$LOOM" render "$F" --light 1,2,3,4 -o x.png
+expect_exit suns_17 2 "$LOOM" render "$F" $(for i in 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17; do printf -- '--sun %d,30 ' "$i"; done) -o x.png
+expect_err_contains suns_17_msg "at most 16 times"
 if command -v exrheader >/dev/null 2>&1; then
 	expect_ok exrheader exrheader "$T/e.exr"
 	expect_out_contains exr_size "(0 0) - (63 47)"

@@ -469,6 +469,80 @@ static void test_sun_disc(void)
 	free(img);
 }
 
+static void rows_mean(const float *img, uint32_t w, uint32_t r0, uint32_t r1,
+                      double *mean, double *se);
+
+/* A small sphere light far away lights the cloth as a sun of the same
+   irradiance and angular size; a sun given in opt.lights is the same
+   light as opt.light (same bytes); two half suns make one. */
+static void test_sphere_and_extra_lights(void)
+{
+	synth s = {SRC_CONST, 1.0f, {0.2f, 1, 0.1f}, {0.8f, 0.8f, 0.8f}, 0.3f, 0};
+	loom_volume_source src;
+	loom_render_options o;
+	loom_light extra[2];
+	loom_diag d = {0};
+	size_t n = 16 * 16 * 3;
+	float *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b);
+	double dir[3] = {0.3, -0.5, 0.8}, D = 2000.0, r = 10.0, ma, mb, sa, sb;
+	double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+
+	init_src(&src, &s, 0, 0, 6);
+	init_opt(&o, 16, 16, 64);
+	o.camera.kind = LOOM_CAMERA_ORTHO;
+	o.camera.eye[0] = 8;
+	o.camera.eye[1] = 8;
+	o.camera.eye[2] = 20;
+	o.camera.target[0] = 8;
+	o.camera.target[1] = 8;
+	o.camera.target[2] = 0;
+	o.camera.ortho_size[0] = o.camera.ortho_size[1] = 16;
+	o.env[0] = o.env[1] = o.env[2] = 0;
+	o.density_scale = 1.0;
+	o.light.kind = LOOM_LIGHT_SPHERE;
+	for (int j = 0; j < 3; j++) {
+		o.light.pos[j] = 8.0 * (j < 2) + 3.0 * (j == 2) + D * dir[j] / len;
+		o.light.rgb[j] = (float)(3.0 * D * D);
+	}
+	o.light.radius = r;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	o.light.kind = LOOM_LIGHT_DISTANT;
+	memcpy(o.light.dir, dir, sizeof dir);
+	o.light.rgb[0] = o.light.rgb[1] = o.light.rgb[2] = 3.0f;
+	o.light.angle_deg = 2.0 * asin(r / D) * 180.0 / M_PI;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, NULL), LOOM_OK);
+	rows_mean(a, 16, 0, 16, &ma, &sa);
+	rows_mean(b, 16, 0, 16, &mb, &sb);
+	printf("  sphere light %.5f +- %.5f, sun %.5f +- %.5f\n", ma, sa, mb, sb);
+	CHECK(mb > 0.05);
+	CHECK(fabs(ma - mb) < 4 * sqrt(sa * sa + sb * sb) + 0.005 * mb);
+	/* the sun as an extra light: the same bytes */
+	extra[0] = o.light;
+	o.light.kind = LOOM_LIGHT_NONE;
+	o.lights = extra;
+	o.n_lights = 1;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	CHECK(memcmp(a, b, n * sizeof *a) == 0);
+	/* two half suns */
+	extra[0].rgb[0] = extra[0].rgb[1] = extra[0].rgb[2] = 1.5f;
+	extra[1] = extra[0];
+	o.n_lights = 2;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	rows_mean(a, 16, 0, 16, &ma, &sa);
+	printf("  two half suns %.5f +- %.5f\n", ma, sa);
+	CHECK(fabs(ma - mb) < 4 * sqrt(sa * sa + sb * sb));
+	/* bad lights */
+	extra[1].kind = LOOM_LIGHT_SPHERE;
+	extra[1].radius = 0;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "radius");
+	o.n_lights = LOOM_RENDER_MAX_LIGHTS + 1;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "n_lights");
+	free(a);
+	free(b);
+}
+
 static void test_determinism(void)
 {
 	synth s = {SRC_YARN, 1.0f, {0, 1, 0}, {0.8f, 0.6f, 0.4f}, 0.2f, 0};
@@ -505,6 +579,132 @@ static void test_determinism(void)
 	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, NULL), LOOM_OK);
 	CHECK(memcmp(a, b, n * sizeof *a) != 0);
 	CHECK(image_mean(a, n / 3, 0) > 0.01);
+	free(a);
+	free(b);
+}
+
+/* Mean and standard error of channel 0 over rows [r0, r1) of a w-wide
+   image whose pixels all have the same expectation. */
+static void rows_mean(const float *img, uint32_t w, uint32_t r0, uint32_t r1,
+                      double *mean, double *se)
+{
+	double s = 0, s2 = 0, n = (double)w * (r1 - r0);
+	for (uint32_t y = r0; y < r1; y++)
+		for (uint32_t x = 0; x < w; x++) {
+			double v = img[3 * ((size_t)y * w + x)];
+			s += v;
+			s2 += v * v;
+		}
+	*mean = s / n;
+	*se = sqrt(fmax(0.0, s2 / n - *mean * *mean) / n);
+}
+
+/* Column profile (channel 0 averaged over the rows) and its largest jump
+   between neighbouring columns. */
+static double max_column_jump(const float *img, uint32_t w, uint32_t h)
+{
+	double prev = 0, jump = 0;
+	for (uint32_t x = 0; x < w; x++) {
+		double c = 0;
+		for (uint32_t y = 0; y < h; y++)
+			c += img[3 * ((size_t)y * w + x)];
+		c /= h;
+		if (x > 0 && fabs(c - prev) > jump)
+			jump = fabs(c - prev);
+		prev = c;
+	}
+	return jump;
+}
+
+static void test_camera_lens_and_ortho(void)
+{
+	synth s = {SRC_HALF, 1.0f, {0, 0, 0}, {0.8f, 0.8f, 0.8f}, 0.3f, 16.0};
+	loom_volume_source src;
+	loom_render_options o;
+	loom_diag d = {0};
+	uint32_t w = 32, h = 8;
+	size_t n = (size_t)w * h * 3;
+	float *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b);
+	double sharp, in_focus, blurred, m0, m1, se0, se1;
+
+	/* straight down on an edge (dense where x < 16), 16 voxels across */
+	init_src(&src, &s, 0, 0, 6);
+	init_opt(&o, w, h, 64);
+	o.env[0] = o.env[1] = o.env[2] = 0;
+	o.density_scale = 2.0;
+	o.camera.kind = LOOM_CAMERA_PINHOLE;
+	o.camera.eye[0] = 16;
+	o.camera.eye[1] = 4;
+	o.camera.eye[2] = 40;
+	o.camera.target[0] = 16;
+	o.camera.target[1] = 4;
+	o.camera.target[2] = 6;
+	o.camera.up[0] = 0;
+	o.camera.up[1] = 1;
+	o.camera.up[2] = 0;
+	o.camera.fov_y_deg = 2.0 * atan(8.0 / 34.0 / 4.0) * 180.0 / M_PI;
+	o.light.dir[0] = 0;
+	o.light.dir[1] = 0;
+	o.light.dir[2] = 1;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	sharp = max_column_jump(a, w, h);
+	/* aperture 0 is the pinhole, byte for byte, whatever the focus */
+	o.camera.focus_dist = 3.0;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, NULL), LOOM_OK);
+	CHECK(memcmp(a, b, n * sizeof *a) == 0);
+	/* a wide lens focused on the top of the cloth keeps the edge sharp;
+	   focused far behind it blurs the edge over several pixels */
+	o.camera.aperture = 8.0;
+	o.camera.focus_dist = 34.0;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, NULL), LOOM_OK);
+	CHECK(memcmp(a, b, n * sizeof *a) != 0);
+	in_focus = max_column_jump(b, w, h);
+	o.camera.focus_dist = 340.0;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, NULL), LOOM_OK);
+	blurred = max_column_jump(b, w, h);
+	printf("  edge step: pinhole %.4f, lens in focus %.4f, out of focus %.4f\n",
+	       sharp, in_focus, blurred);
+	CHECK(sharp > 0.05);
+	CHECK(in_focus > 0.6 * sharp);
+	CHECK(blurred < 0.35 * sharp);
+	o.camera.aperture = -1;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "aperture");
+	o.camera.aperture = 1;
+	o.camera.kind = LOOM_CAMERA_ORTHO;
+	o.camera.ortho_size[0] = o.camera.ortho_size[1] = 8;
+	CHECK_EQ_INT(loom_render(&src, &o, b, NULL, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "no lens");
+
+	/* A uniform unbounded slab seen obliquely: every orthographic ray sees
+	   the same thing, so the top and bottom halves agree within the Monte
+	   Carlo error; a wide pinhole sees grazing rays at the top. */
+	s.kind = SRC_CONST;
+	o.camera.aperture = 0;
+	o.camera.kind = LOOM_CAMERA_ORTHO;
+	o.camera.eye[0] = 0;
+	o.camera.eye[1] = -40;
+	o.camera.eye[2] = 40;
+	o.camera.target[0] = o.camera.target[1] = o.camera.target[2] = 0;
+	o.camera.up[0] = o.camera.up[1] = 0;
+	o.camera.up[2] = 1;
+	o.camera.ortho_size[0] = 64;
+	o.camera.ortho_size[1] = 16;
+	o.light.dir[1] = -0.5;
+	o.spp = 16;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	rows_mean(a, w, 0, h / 2, &m0, &se0);
+	rows_mean(a, w, h / 2, h, &m1, &se1);
+	printf("  ortho: top %.4f +- %.4f, bottom %.4f +- %.4f\n", m0, se0, m1, se1);
+	CHECK(m0 > 0.01);
+	CHECK(fabs(m0 - m1) < 4.0 * sqrt(se0 * se0 + se1 * se1));
+	o.camera.kind = LOOM_CAMERA_PINHOLE;
+	o.camera.fov_y_deg = 60;
+	CHECK_EQ_INT(loom_render(&src, &o, a, NULL, NULL), LOOM_OK);
+	rows_mean(a, w, 0, h / 2, &m0, &se0);
+	rows_mean(a, w, h / 2, h, &m1, &se1);
+	printf("  pinhole: top %.4f +- %.4f, bottom %.4f +- %.4f\n", m0, se0, m1, se1);
+	CHECK(fabs(m0 - m1) > 4.0 * sqrt(se0 * se0 + se1 * se1));
 	free(a);
 	free(b);
 }
@@ -830,7 +1030,9 @@ int main(void)
 	RUN(test_transmittance);
 	RUN(test_single_scattering);
 	RUN(test_sun_disc);
+	RUN(test_sphere_and_extra_lights);
 	RUN(test_determinism);
+	RUN(test_camera_lens_and_ortho);
 	RUN(test_half_dense_preview);
 	RUN(test_shell_matches_slab);
 	RUN(test_shell_unbounded);

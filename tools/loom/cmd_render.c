@@ -29,6 +29,10 @@ static const char usage[] =
 	"            [--uv-repeats R | --uv-mm U[,V]] [--warp-dir X,Y,Z]\n"
 	"            [--field-smooth N]\n"
 	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
+	"            [--look-from X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z]\n"
+	"            [--ortho WIDTH_MM] [--aperture MM [--focus MM]]\n"
+	"            [--envmap FILE.exr [--env-rotate DEG] [--env-intensity K]]\n"
+	"            [--light X,Y,Z,RADIUS,INTENSITY]...\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
@@ -50,10 +54,19 @@ static const opt_choice filter_names[] = {
 static const opt_choice majorant_names[] = {
 	{"grid", 0}, {"global", 1}, {NULL, 0}};
 
-/* --sun AZ,EL[,INTENSITY[,ANGLE]] into double[4]. */
+#define MAX_CLI_LIGHTS 16 /* --sun and --light, each */
+
+/* Repeatable light options: one row of numbers per occurrence. */
+typedef struct light_list {
+	int n;
+	double v[MAX_CLI_LIGHTS][5];
+} light_list;
+
+/* --sun AZ,EL[,INTENSITY[,ANGLE]] appended to a light_list. */
 static const char *opt_sun(const char *text, void *dest)
 {
-	double *v = dest, w[4] = {0, 0, 2.6, 0.53};
+	light_list *ll = dest;
+	double *v, w[4] = {0, 0, 2.6, 0.53};
 	int n = 0;
 	const char *p = text;
 
@@ -80,7 +93,34 @@ static const char *opt_sun(const char *text, void *dest)
 		return "AZ,EL[,INTENSITY[,ANGLE]] with INTENSITY >= 0";
 	if (!(w[3] >= 0 && w[3] <= 90))
 		return "AZ,EL[,INTENSITY[,ANGLE]] with the disc's ANGLE in [0, 90] degrees";
+	if (ll->n >= MAX_CLI_LIGHTS)
+		return "AZ,EL[,INTENSITY[,ANGLE]], given at most 16 times";
+	v = ll->v[ll->n++];
 	memcpy(v, w, sizeof w);
+	return NULL;
+}
+
+/* --light X,Y,Z,RADIUS,INTENSITY appended to a light_list. */
+static const char *opt_light(const char *text, void *dest)
+{
+	light_list *ll = dest;
+	double w[5];
+	const char *q = text;
+	char *end;
+
+	for (int k = 0; k < 5; k++) {
+		w[k] = strtod(q, &end);
+		if (end == q || !isfinite(w[k]) || (k < 4 && *end != ',') ||
+		    (k == 4 && *end))
+			return "X,Y,Z,RADIUS,INTENSITY: five finite numbers separated by "
+			       "commas";
+		q = end + 1;
+	}
+	if (!(w[3] > 0) || !(w[4] >= 0))
+		return "X,Y,Z,RADIUS,INTENSITY with RADIUS > 0 and INTENSITY >= 0";
+	if (ll->n >= MAX_CLI_LIGHTS)
+		return "X,Y,Z,RADIUS,INTENSITY, given at most 16 times";
+	memcpy(ll->v[ll->n++], w, sizeof w);
 	return NULL;
 }
 
@@ -164,6 +204,23 @@ static const char *opt_uv_mm(const char *text, void *dest)
 	return NULL;
 }
 
+/* --look-from / --look-at / --up X,Y,Z into double[3] (any finite). */
+static const char *opt_point3(const char *text, void *dest)
+{
+	double *d = dest;
+	char *end;
+	const char *q = text;
+
+	for (int k = 0; k < 3; k++) {
+		d[k] = strtod(q, &end);
+		if (end == q || !isfinite(d[k]) || (k < 2 && *end != ',') ||
+		    (k == 2 && *end))
+			return "X,Y,Z: three finite numbers separated by commas";
+		q = end + 1;
+	}
+	return NULL;
+}
+
 /* Pinhole camera at elevation el, azimuth az (radians) looking at target
    from distance dist. */
 static void place_camera(loom_camera *c, const double target[3], double dist,
@@ -191,7 +248,14 @@ int cmd_render(int argc, char **argv)
 	double dvoxel = 0;
 	double thickness = 0, uv_repeats = 1, warp_dir[3] = {0, 0, 1};
 	double uv_mm[2] = {0, 0}, vpu[2] = {0, 0}, pitch_mm[2] = {0, 0};
-	double sun[4] = {0, 35, 2.6, 0.53};
+	light_list suns = {0, {{0}}}, spheres = {0, {{0}}};
+	loom_light extra[2 * MAX_CLI_LIGHTS];
+	double look_from[3] = {0, 0, 0}, look_at[3] = {0, 0, 0}, cam_up[3] = {0, 0, 1};
+	double ortho_w = 0, aperture = 0, focus = 0, unit = 1;
+	const char *env_path = NULL;
+	double env_rot = 0, env_k = 1;
+	loom_envmap *envmap = NULL;
+	size_t env_bytes = 0;
 	uint32_t field_smooth = 32;
 	int have_uv_stats = 0, field = 0;
 	loom_mesh_uv_stats uvst;
@@ -260,11 +324,47 @@ int cmd_render(int argc, char **argv)
 		             "--uv-repeats: millimetres of cloth per UV unit along u "
 		             "and v, crossings at the draft's sett (square when it "
 		             "states none), so square motifs stay square"),
-		OPT_CALLBACK(0, "sun", sun, "AZ,EL[,I[,A]]", opt_sun, "the sun: azimuth "
+		OPT_CALLBACK(0, "sun", &suns, "AZ,EL[,I[,A]]", opt_sun, "a sun (repeatable, "
+		             "up to 16): azimuth "
 		             "and elevation in degrees (measured as the camera's: a sun at "
 		             "the camera's angles lights from behind it), irradiance "
 		             "(default 2.6) and disc diameter in degrees (default 0.53); "
 		             "default: 150 degrees round from the camera, 35 up"),
+		OPT_CALLBACK(0, "look-from", look_from, "X,Y,Z", opt_point3, "camera "
+		             "position in millimetres of the cloth's frame (docs/"
+		             "rendering.md; with --mesh: mesh units); default: from "
+		             "--elevation, --azimuth and a distance that frames the view"),
+		OPT_CALLBACK(0, "look-at", look_at, "X,Y,Z", opt_point3, "point looked "
+		             "at, same units (default: the region's centre at mid-"
+		             "thickness, or the mesh's box centre); without --look-from "
+		             "the camera keeps its --elevation/--azimuth offset from it"),
+		OPT_CALLBACK(0, "up", cam_up, "X,Y,Z", opt_point3, "camera up hint, not "
+		             "along the view (default 0,0,1: the cloth's normal)"),
+		OPT_DOUBLE(0, "ortho", &ortho_w, "WIDTH_MM", "()", 0, INFINITY, NULL,
+		           "orthographic camera whose view is WIDTH_MM wide (mesh units "
+		           "with --mesh); --fov is then unused"),
+		OPT_DOUBLE(0, "aperture", &aperture, "MM", "[)", 0, INFINITY, NULL,
+		           "thin-lens diameter in mm for depth of field (default 0: a "
+		           "pinhole, everything sharp)"),
+		OPT_DOUBLE(0, "focus", &focus, "MM", "()", 0, INFINITY, NULL,
+		           "distance in mm along the view direction of the plane in "
+		           "focus (default: from the camera to --look-at)"),
+		OPT_STRING(0, "envmap", &env_path, "FILE.exr", "light the cloth with "
+		           "this HDR environment map (latitude-longitude, R, G, B half or "
+		           "float; row 0 straight up along +z; at most 4 Mi pixels, counted "
+		           "in --budget); it replaces the grey studio sky and, unless "
+		           "--sun is given, the sun"),
+		OPT_DOUBLE(0, "env-rotate", &env_rot, "DEG", "()", -INFINITY, INFINITY,
+		           "a finite number of degrees", "turn the map about the "
+		           "vertical (default 0: column 0 towards +x, columns running "
+		           "counter-clockwise towards +y)"),
+		OPT_DOUBLE(0, "env-intensity", &env_k, "K", "[]", 0, 1e9, NULL,
+		           "scale the map's radiance, %r (default 1)"),
+		OPT_CALLBACK(0, "light", &spheres, "X,Y,Z,R,I", opt_light, "a spherical "
+		             "lamp (repeatable, up to 16): centre and radius in mm of the "
+		             "cloth's frame (mesh units with --mesh) and intensity I, the "
+		             "irradiance I / d^2 it gives at distance d mm; lamps light "
+		             "the cloth but are not seen in the picture"),
 		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
@@ -298,8 +398,62 @@ int cmd_render(int argc, char **argv)
 	if (opt_given(&cmd, &uv_repeats) && opt_given(&cmd, uv_mm))
 		opts_usage(&cmd, "--uv-repeats and --uv-mm both set the cloth's scale "
 		           "on the UVs; give one");
+	if (opt_given(&cmd, &ortho_w) && opt_given(&cmd, &aperture))
+		opts_usage(&cmd, "--aperture is a lens of the perspective camera; it "
+		           "does not go with --ortho");
+	if (opt_given(&cmd, &focus) && !opt_given(&cmd, &aperture))
+		opts_usage(&cmd, "--focus goes with --aperture");
+	if (!env_path && (opt_given(&cmd, &env_rot) || opt_given(&cmd, &env_k)))
+		opts_usage(&cmd, "--env-rotate and --env-intensity go with --envmap");
 	cli_check_output(prog, out); /* before minutes of rendering */
 	cli_diag_init(&diag, &quiet);
+	budget = (size_t)(budget_mb * 1048576.0);
+	if (env_path) {
+		/* read before the texture: its bytes come out of --budget */
+		loom_exr_image *ei = NULL;
+		int ch[3];
+		float *px = NULL;
+		size_t n;
+		if (loom_exr_read_max(env_path, LOOM_ENVMAP_MAX_PIXELS,
+		                      (size_t)LOOM_ENVMAP_MAX_PIXELS * 16 + (1u << 20),
+		                      &ei, &diag) != LOOM_OK)
+			cli_fail(prog, "--envmap: %s", diag.message);
+		ch[0] = loom_exr_image_channel(ei, "R");
+		ch[1] = loom_exr_image_channel(ei, "G");
+		ch[2] = loom_exr_image_channel(ei, "B");
+		if (ch[0] < 0 || ch[1] < 0 || ch[2] < 0) {
+			char names[256] = "";
+			for (uint32_t c = 0; c < ei->n_channels && strlen(names) < 200; c++)
+				snprintf(names + strlen(names), sizeof names - strlen(names),
+				         "%s%s", c ? "," : "", ei->names[c]);
+			loom_exr_image_free(ei);
+			cli_fail(prog, "%s: channels %s; an environment map needs R, G "
+			         "and B (A and others are ignored)", env_path, names);
+		}
+		n = (size_t)ei->width * ei->height;
+		env_bytes = loom_envmap_bytes(ei->width, ei->height);
+		if (env_bytes >= budget) {
+			loom_exr_image_free(ei);
+			cli_error(prog, "--budget %g MiB cannot hold the environment map "
+			          "%s (%zu bytes) and the texture", budget_mb, env_path,
+			          env_bytes);
+			return EXIT_BAD_INPUT;
+		}
+		px = malloc(3 * n * sizeof *px);
+		if (!px) {
+			loom_exr_image_free(ei);
+			cli_fail(prog, "%s: out of memory", env_path);
+		}
+		for (size_t i = 0; i < n; i++)
+			for (int c = 0; c < 3; c++)
+				px[3 * i + c] = ei->data[(size_t)ch[c] * n + i];
+		rc = loom_envmap_new(px, ei->width, ei->height, env_rot, env_k, &envmap,
+		                     &diag);
+		free(px);
+		loom_exr_image_free(ei);
+		if (rc != LOOM_OK)
+			cli_fail(prog, "%s: %s", env_path, diag.message);
+	}
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
@@ -310,7 +464,6 @@ int cmd_render(int argc, char **argv)
 	loom_fabric_get_db_identity(f, &id);
 	loom_fabric_repeat_voxels(f, rep);
 	to.max_threads = threads ? threads : 64;
-	budget = (size_t)(budget_mb * 1048576.0);
 	/* The majorant grid (flat patches) is counted in --budget: the texture
 	   gets what it leaves. */
 	if (!mesh_path && !global_mj && !paint) {
@@ -320,7 +473,7 @@ int cmd_render(int argc, char **argv)
 			cli_fail(prog, "%s", diag.message);
 		}
 		mj_bytes = loom_majorant_bytes(mj, to.max_threads);
-		if (mj_bytes >= budget) {
+		if (mj_bytes + env_bytes >= budget) {
 			cli_error(prog, "--budget %g MiB cannot hold the majorant grid (%zu "
 			          "bytes) and the texture", budget_mb, mj_bytes);
 			loom_majorant_free(mj);
@@ -329,7 +482,7 @@ int cmd_render(int argc, char **argv)
 			return EXIT_BAD_INPUT;
 		}
 	}
-	to.budget_bytes = budget - mj_bytes;
+	to.budget_bytes = budget - mj_bytes - env_bytes;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
 		loom_majorant_free(mj);
 		loom_fabric_free(f);
@@ -354,19 +507,6 @@ int cmd_render(int argc, char **argv)
 	ro.density_scale = opt_given(&cmd, &dvoxel) ? dvoxel
 	                   : dscale * (src.voxel_mm > 0 ? src.voxel_mm : 0.024);
 	ro.max_depth = 32;
-	/* The sun: towards the light = where a camera at (AZ, EL) would stand
-	   (see place_camera).  The studio default stands 150 degrees round from
-	   the camera, so the cloth is lit from the far side at a raking angle
-	   (yarn relief and sheen), never flat from behind the viewer. */
-	if (!opt_given(&cmd, sun))
-		sun[0] = az + 150.0;
-	ro.light.kind = LOOM_LIGHT_DISTANT;
-	ro.light.dir[0] = -sin(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
-	ro.light.dir[1] = -cos(sun[0] * M_PI / 180.0) * cos(sun[1] * M_PI / 180.0);
-	ro.light.dir[2] = sin(sun[1] * M_PI / 180.0);
-	ro.light.rgb[0] = ro.light.rgb[1] = ro.light.rgb[2] = (float)sun[2];
-	ro.light.angle_deg = sun[3];
-	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
 	if (mesh_path) {
 		loom_shell_params sp = LOOM_SHELL_PARAMS_INIT;
 		double blo[3], bhi[3], c[3], diag_len = 0, dist;
@@ -457,6 +597,103 @@ int cmd_render(int argc, char **argv)
 		       cos(el * M_PI / 180.0);
 		place_camera(&ro.camera, c, dist, el * M_PI / 180.0, az * M_PI / 180.0, fov);
 	}
+	/* The camera in the user's units (mm of the cloth's frame; mesh units
+	   with a mesh): the --elevation/--azimuth camera is converted to them
+	   and every camera goes back to scene units the same way, so a
+	   --look-from/--look-at equal to it gives the same bytes. */
+	unit = !mesh_path && src.voxel_mm > 0 ? src.voxel_mm : 1.0;
+	{
+		loom_camera *cam = &ro.camera;
+		double e[3], a[3], fw[3], r[3], len = 0, rl = 0;
+		for (int k = 0; k < 3; k++) {
+			e[k] = cam->eye[k] * unit;
+			a[k] = cam->target[k] * unit;
+		}
+		if (opt_given(&cmd, look_at)) {
+			for (int k = 0; k < 3; k++) {
+				e[k] += look_at[k] - a[k];
+				a[k] = look_at[k];
+			}
+		}
+		if (opt_given(&cmd, look_from)) {
+			memcpy(e, look_from, sizeof e);
+			if (e[0] != a[0] || e[1] != a[1])
+				az = atan2(a[0] - e[0], a[1] - e[1]) * 180.0 / M_PI;
+		}
+		memcpy(look_from, e, sizeof e);
+		memcpy(look_at, a, sizeof a);
+		for (int k = 0; k < 3; k++) {
+			fw[k] = a[k] - e[k];
+			len += fw[k] * fw[k];
+		}
+		r[0] = fw[1] * cam_up[2] - fw[2] * cam_up[1];
+		r[1] = fw[2] * cam_up[0] - fw[0] * cam_up[2];
+		r[2] = fw[0] * cam_up[1] - fw[1] * cam_up[0];
+		rl = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+		if (!(len > 0)) {
+			cli_error(prog, "--look-from and --look-at are the same point");
+			goto fail;
+		}
+		if (!(rl > 1e-18 * len * (cam_up[0] * cam_up[0] + cam_up[1] * cam_up[1] +
+		                          cam_up[2] * cam_up[2]))) {
+			cli_error(prog, "--up (%g,%g,%g) is zero or along the view direction",
+			          cam_up[0], cam_up[1], cam_up[2]);
+			goto fail;
+		}
+		for (int k = 0; k < 3; k++) {
+			cam->eye[k] = e[k] / unit;
+			cam->target[k] = a[k] / unit;
+			cam->up[k] = cam_up[k];
+		}
+		if (ortho_w > 0) {
+			cam->kind = LOOM_CAMERA_ORTHO;
+			cam->ortho_size[0] = ortho_w / unit;
+			cam->ortho_size[1] = ortho_w / unit * height / width;
+		}
+		cam->aperture = aperture / unit;
+		cam->focus_dist = focus / unit;
+	}
+	/* Suns: towards the light = where a camera at (AZ, EL) would stand
+	   (see place_camera).  The studio default (no --sun, --light or
+	   --envmap) stands 150 degrees round from the camera, so the cloth is
+	   lit from the far side at a raking angle (yarn relief and sheen),
+	   never flat from behind the viewer; with --look-from, round from that
+	   camera's azimuth.  The first sun is ro.light, the others and the
+	   lamps ro.lights. */
+	if (suns.n == 0 && spheres.n == 0 && !envmap) {
+		suns.v[0][0] = az + 150.0;
+		suns.v[0][1] = 35.0;
+		suns.v[0][2] = 2.6;
+		suns.v[0][3] = 0.53;
+		suns.n = 1;
+	}
+	ro.light.kind = LOOM_LIGHT_NONE;
+	for (int k = 0; k < suns.n + spheres.n; k++) {
+		loom_light *l = k == 0 ? &ro.light : &extra[k - 1];
+		memset(l, 0, sizeof *l);
+		if (k < suns.n) {
+			const double *v = suns.v[k];
+			l->kind = LOOM_LIGHT_DISTANT;
+			l->dir[0] = -sin(v[0] * M_PI / 180.0) * cos(v[1] * M_PI / 180.0);
+			l->dir[1] = -cos(v[0] * M_PI / 180.0) * cos(v[1] * M_PI / 180.0);
+			l->dir[2] = sin(v[1] * M_PI / 180.0);
+			l->rgb[0] = l->rgb[1] = l->rgb[2] = (float)v[2];
+			l->angle_deg = v[3];
+		} else {
+			const double *v = spheres.v[k - suns.n];
+			l->kind = LOOM_LIGHT_SPHERE;
+			for (int j = 0; j < 3; j++)
+				l->pos[j] = v[j] / unit;
+			l->radius = v[3] / unit;
+			l->rgb[0] = l->rgb[1] = l->rgb[2] = (float)(v[4] / (unit * unit));
+		}
+	}
+	if (suns.n + spheres.n > 1) {
+		ro.lights = extra;
+		ro.n_lights = (uint32_t)(suns.n + spheres.n - 1);
+	}
+	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
+	ro.envmap = envmap;
 	rgb = malloc((size_t)width * height * 3 * sizeof *rgb);
 	if (!rgb) {
 		cli_error(prog, "out of memory for a %ux%u image", width, height);
@@ -515,9 +752,24 @@ int cmd_render(int argc, char **argv)
 			}
 			jw_close(&w);
 		}
+		{
+			char buf[3][96];
+			const double *v[3] = {look_from, look_at, cam_up};
+			for (int k = 0; k < 3; k++)
+				snprintf(buf[k], sizeof buf[k], "%.17g,%.17g,%.17g", v[k][0],
+				         v[k][1], v[k][2]);
+			jw_obj(&w, "camera");
+			jw_str(&w, "kind", ortho_w > 0 ? "ortho" : "perspective");
+			jw_str(&w, "units", mesh_path ? "mesh" : "mm");
+			jw_str(&w, "look_from", buf[0]);
+			jw_str(&w, "look_at", buf[1]);
+			jw_str(&w, "up", buf[2]);
+			jw_close(&w);
+		}
 		jw_uint(&w, "cells", st.cells);
 		jw_str(&w, "majorant", mj ? "grid" : "global");
 		jw_uint(&w, "majorant_bytes", mj_bytes);
+		jw_uint(&w, "envmap_bytes", env_bytes);
 		jw_num(&w, "seconds", st.seconds);
 		jw_end(&w);
 	} else if (!quiet) {
@@ -534,6 +786,7 @@ int cmd_render(int argc, char **argv)
 	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
+	loom_envmap_free(envmap);
 	return 0;
 fail:
 	free(rgb);
@@ -544,5 +797,6 @@ fail:
 	loom_majorant_free(mj);
 	loom_fabric_free(f);
 	loom_db_close(db);
+	loom_envmap_free(envmap);
 	return EXIT_BAD_INPUT;
 }

@@ -358,6 +358,11 @@ typedef struct loom_camera {
 	double up[3];           /* up hint (not parallel to target - eye) */
 	double fov_y_deg;       /* pinhole: vertical field of view, (0, 180) */
 	double ortho_size[2];   /* ortho: width and height of the view (world) */
+	double aperture;        /* pinhole: thin-lens diameter (world); 0 = a
+	                           pinhole (everything sharp) */
+	double focus_dist;      /* thin lens: distance of the plane in focus
+	                           along the view direction (world); 0 = the
+	                           distance from eye to target */
 } loom_camera;
 
 /*
@@ -372,7 +377,10 @@ LOOM_API int loom_camera_top(const loom_volume_source *src, double x0,
 enum loom_light_kind {
 	LOOM_LIGHT_NONE = 0,
 	LOOM_LIGHT_DISTANT = 1,  /* parallel light from direction `dir` */
-	LOOM_LIGHT_POINT = 2     /* isotropic point at `pos` */
+	LOOM_LIGHT_POINT = 2,    /* isotropic point at `pos` */
+	LOOM_LIGHT_SPHERE = 3    /* sphere of uniform radiance, centre `pos`,
+	                            `radius`; lights the scene but is not seen
+	                            by camera or scattered rays */
 };
 
 typedef struct loom_light {
@@ -384,7 +392,58 @@ typedef struct loom_light {
 	double angle_deg;  /* distant: angular diameter of the light's disc,
 	                      [0, 90]; 0 = a point (sharp shadows), the sun
 	                      is about 0.53 */
+	double radius;     /* sphere: radius (world), > 0; rgb is then the
+	                      intensity, irradiance I / d^2 at distance d from
+	                      the centre (radiance I / (pi radius^2)) */
 } loom_light;
+
+/* ======================================================================
+ * HDR environment maps (engine/render/envmap.c)
+ * ======================================================================
+ *
+ * A latitude-longitude map of linear RGB radiance: pixel (x, y) of a W x H
+ * map covers azimuth [360 x / W, 360 (x+1) / W) degrees, counter-clockwise
+ * from +x towards +y, plus the rotation, and polar angle
+ * [180 y / H, 180 (y+1) / H) from +z (row 0 = straight up; in the slab
+ * scene +z is the cloth's normal).  Radiance is constant over a pixel.
+ * Sampling picks a pixel with probability proportional to its luminance
+ * times its solid angle (marginal CDF over rows, conditional per row) and
+ * a direction uniform in solid angle inside it.
+ */
+typedef struct loom_envmap loom_envmap;
+
+#define LOOM_ENVMAP_MAX_PIXELS (1ull << 22) /* 4 Mi pixels (e.g. 2896 x
+                                               1448): 64 MiB */
+
+/* Bytes a W x H map takes (count it in a memory budget). */
+LOOM_API size_t loom_envmap_bytes(uint32_t width, uint32_t height);
+
+/* Build a map from rgb (3 floats per pixel, row 0 = zenith, copied),
+   rotated about +z by rotate_deg and scaled by intensity.  LOOM_ERANGE
+   for an empty map or more than LOOM_ENVMAP_MAX_PIXELS; LOOM_EINVAL for a
+   negative or non-finite value (the pixel is named) or bad parameters;
+   LOOM_ENOMEM.  The map is immutable; every query is thread-safe. */
+LOOM_API int loom_envmap_new(const float *rgb, uint32_t width, uint32_t height,
+                             double rotate_deg, double intensity,
+                             loom_envmap **out, loom_diag *diag);
+LOOM_API void loom_envmap_free(loom_envmap *m);
+
+/* Radiance arriving from unit direction d (d points away from the
+   scene, towards the sky). */
+LOOM_API void loom_envmap_eval(const loom_envmap *m, const double d[3],
+                               double rgb[3]);
+
+/* Sample a direction from (u1, u2) in [0, 1)^2; returns its pdf per
+   steradian (0 for an all-black map: d is then not set). */
+LOOM_API double loom_envmap_sample(const loom_envmap *m, double u1, double u2,
+                                   double d[3]);
+
+/* The pdf per steradian with which loom_envmap_sample returns d. */
+LOOM_API double loom_envmap_pdf(const loom_envmap *m, const double d[3]);
+
+/* Power heuristic (exponent 2) weight of a sample drawn with pdf_a when
+   the other strategy has pdf_b: a^2 / (a^2 + b^2); 0 when pdf_a is 0. */
+LOOM_API double loom_mis_power(double pdf_a, double pdf_b);
 
 typedef struct loom_render_options {
 	size_t size;            /* sizeof(loom_render_options) */
@@ -413,7 +472,17 @@ typedef struct loom_render_options {
 	                           a time */
 	void *progress_user;
 	uint32_t flags;         /* LOOM_RENDER_* bits */
+	const loom_light *lights; /* n_lights more lights, each sampled at
+	                           every scattering event as `light` is */
+	uint32_t n_lights;      /* <= LOOM_RENDER_MAX_LIGHTS */
+	const loom_envmap *envmap; /* NULL: the constant env; else this map is
+	                           the environment (and background), sampled
+	                           at every scattering event and combined with
+	                           phase sampling by multiple importance
+	                           sampling; env is then unused */
 } loom_render_options;
+
+#define LOOM_RENDER_MAX_LIGHTS 64u /* extra lights (opt.lights) */
 
 #define LOOM_RENDER_GLOBAL_MAJORANT 1u /* ignore the source's majorant grid:
                                           track against max_density
@@ -422,9 +491,11 @@ typedef struct loom_render_options {
 
 #define LOOM_RENDER_OPTIONS_INIT                                              \
 	{sizeof(loom_render_options), 256, 256, 16, 64, 4, 1, 0, 16, 1.0, 0.3,    \
-	 {LOOM_CAMERA_ORTHO, {0, 0, 1}, {0, 0, 0}, {0, 1, 0}, 40.0, {1, 1}},      \
-	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0},\
-	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u}
+	 {LOOM_CAMERA_ORTHO, {0, 0, 1}, {0, 0, 0}, {0, 1, 0}, 40.0, {1, 1}, 0.0,  \
+	  0.0},                                                                    \
+	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0,\
+	  0.0},                                                                    \
+	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u, NULL, 0u, NULL}
 
 typedef struct loom_render_stats {
 	uint64_t paths;          /* camera samples (width * height * spp) */

@@ -401,6 +401,12 @@ LOOM_API int loom_exr_read(const char *path, loom_exr_image **out,
                            loom_diag *diag);
 LOOM_API int loom_exr_parse(const uint8_t *data, size_t len, const char *name,
                             loom_exr_image **out, loom_diag *diag);
+/* The same, refusing files over max_bytes (before reading them) and
+   images over max_pixels (from the header, before reading pixels):
+   LOOM_ERANGE naming the file. */
+LOOM_API int loom_exr_read_max(const char *path, uint64_t max_pixels,
+                               size_t max_bytes, loom_exr_image **out,
+                               loom_diag *diag);
 /* Index of the channel called `name`, or -1. */
 LOOM_API int loom_exr_image_channel(const loom_exr_image *img, const char *name);
 LOOM_API void loom_exr_image_free(loom_exr_image *img);
