@@ -5,12 +5,17 @@
 # database's geometry, seed 1), the same with seed 2 (the floor: how far
 # two weavings of the same design differ), synthesize the design from the
 # default database with the edge fix (rank 15) and without (rank 0), and
-# compare each with the seed-1 reference.  Prints a markdown table.
-#   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR]
+# compare each with the seed-1 reference.  The sample WIFs of data/ are
+# woven as their first WINDOW x WINDOW crossings (--window; default 96) and
+# compared over that corner of the synthesized whole design.  Prints a
+# markdown table.
+#   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR] [WINDOW]
+#   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
 W=${3:-build/fidelity}
+WIN=${4:-96}
 TOP=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$W"
 "$LOOM" pattern make herringbone --size 32x32 -q -o "$W/herringbone.pbm"
@@ -20,16 +25,28 @@ mkdir -p "$W"
 "$LOOM" pattern make satin:1/7 --size 32x32 -q -o "$W/satin-1-7.pbm"
 cp "$TOP/data/herringbone-8.wif" "$TOP/data/overshot-sampler.wif" "$W/"
 get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
+# block size of DB (b1 b2)
+set -- $("$LOOM" exemplar info "$DB" --json | python3 -c "import json,sys; b=json.load(sys.stdin)['block']; print(b[0], b[1])")
+B1=$1; B2=$2
 printf '| design | crossings | consistency | pair | top agreement (columns) | height RMSE debiased | block-offset SD | histogram L1 | seam ratio (ref %s) |\n' "->"
 printf '|---|---|---|---|---|---|---|---|---|\n'
-for d in herringbone wavy-twill broken-twill basket satin-1-7 herringbone-8 overshot-sampler; do
+for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-7 herringbone-8 overshot-sampler}; do
 	f=$W/$d.pbm
-	[ -e "$f" ] || f=$W/$d.wif
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 --quiet -o "$W/$d-gt1.ldb"
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 --quiet -o "$W/$d-gt2.ldb"
+	win=""
+	region=""
+	if [ ! -e "$f" ]; then
+		f=$W/$d.wif
+		win="--window 0,0:$WIN,$WIN"
+		region="--region 0,0:$((WIN * B1)),$((WIN * B2))"
+	fi
+	# shellcheck disable=SC2086
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win --quiet -o "$W/$d-gt1.ldb"
+	# shellcheck disable=SC2086
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win --quiet -o "$W/$d-gt2.ldb"
 	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
 	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")
+	[ -n "$win" ] && rows="$rows ($WIN x $WIN compared)"
 	cons=$(get "$W/$d-synth.json" consistency)
 	for pair in floor synth rank0; do
 		case $pair in
@@ -40,7 +57,7 @@ for d in herringbone wavy-twill broken-twill basket satin-1-7 herringbone-8 over
 		pics=""
 		[ "$pair" = synth ] && pics="--pictures $W/$d-pictures"
 		# shellcheck disable=SC2086
-		"$LOOM" compare "$W/$d-gt1.ldb#0" "$b" --json $pics >"$W/$d-$pair.json"
+		"$LOOM" compare "$W/$d-gt1.ldb#0" "$b" --json $pics $region >"$W/$d-$pair.json"
 		j=$W/$d-$pair.json
 		printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s -> %s |\n' "$d" "$rows" "$cons" \
 			"$label" "$(get "$j" top_agreement_columns)" "$(get "$j" height_rmse_debiased)" \

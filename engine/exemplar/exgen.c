@@ -1490,10 +1490,17 @@ float loom__exgen_mid_z(const loom__exgen *g)
 
 /* ---- presets ------------------------------------------------------------ */
 
-static const char *const default_weaves[8] = {
+/* The paper's eight, then three that complete the neighbourhood codes
+   (docs/fidelity.md, "Exemplar coverage"): the S twills give the corners
+   of herringbone turns, broken twills and baskets (codes 10, 11, 20, 21),
+   basket 1/3 the warp and weft ribs (6, 9, 14, 17, 22, 25), so every code
+   of loom_synth_code has a source block. */
+static const char *const default_weaves[] = {
 	"twill:2/3", "twill:3/2", "twill:1/4", "twill:4/1",
 	"satin:2/3", "satin:3/2", "satin:1/4", "satin:4/1",
+	"twill:2/3:s", "twill:3/2:s", "basket:1/3",
 };
+#define N_DEFAULT_WEAVES (sizeof default_weaves / sizeof default_weaves[0])
 
 LOOM_API int loom_exgen_preset(const char *name, loom_exgen_params *p)
 {
@@ -1516,8 +1523,8 @@ LOOM_API int loom_exgen_preset(const char *name, loom_exgen_params *p)
 		p->size = sizeof *p;
 		memcpy(p->block, presets[i].b, sizeof p->block);
 		p->voxel_size_um = presets[i].vs;
-		p->n_weaves = 8;
-		for (int k = 0; k < 8; k++)
+		p->n_weaves = (uint32_t)N_DEFAULT_WEAVES;
+		for (size_t k = 0; k < N_DEFAULT_WEAVES; k++)
 			p->weaves[k] = default_weaves[k];
 		p->seed = 1;
 		p->brick[0] = LOOM_DB_DEFAULT_BRICK_X;

@@ -231,3 +231,78 @@ w, h = pngread.read(sys.argv[5] + "/height-difference.png")[:2]
 assert (w, h) == (nx, ny), (w, h)
 PY
 then pass cmp_brute_force; else fail cmp_brute_force "$(head -c 900 "$T/py")"; fi
+
+# volume inputs: a fabric against its own exported tile (.vol and NRRD,
+# density + kind), a shifted copy, another cloth, and bad geometry
+expect_ok vol_export "$LOOM" export "$T/syn.loomf" --all --format vol --channels density,kind \
+	--tile 1000,1000 --quiet -o "$T/v_syn"
+VD=$(find "$T/v_syn" -name '*.density.vol')
+ND=$(find "$T/x_syn" -name '*.density.nrrd')
+expect_ok vol_self "$LOOM" compare "$T/syn.loomf" "$VD" --json
+cp "$T/out" "$T/vself.json"
+expect_ok nrrd_self "$LOOM" compare "$T/syn.loomf" "$ND" --json
+cp "$T/out" "$T/nself.json"
+expect_ok vol_nrrd "$LOOM" compare "$VD" "$ND" --block 8x6x12 --json
+cp "$T/out" "$T/vn.json"
+# the same comparison with B read from the fabric and from its NRRD export
+expect_ok vol_gt_fabric "$LOOM" compare "$T/id.loomf" "$T/syn.loomf" --json
+cp "$T/out" "$T/idsyn.json"
+expect_ok vol_gt_nrrd "$LOOM" compare "$T/id.loomf" "$ND" --json
+cp "$T/out" "$T/idnrrd.json"
+# a copy of the tile placed one voxel further along x (its header's origin),
+# and one with 50 um voxels
+mkdir -p "$T/shift"
+python3 - "${ND%.density.nrrd}" "$T/shift" <<'PY'
+import sys
+src, dst = sys.argv[1], sys.argv[2]
+for c in ("density", "kind"):
+    b = open("%s.%s.nrrd" % (src, c), "rb").read()
+    i = b.index(b"\n\n")
+    h = b[:i].decode()
+    assert "space origin: (0.036," in h, h
+    open("%s/s.%s.nrrd" % (dst, c), "wb").write(
+        h.replace("space origin: (0.036,", "space origin: (0.108,").encode() + b[i:])
+    assert "(0.072,0,0) (0,0.072,0) (0,0,0.072)" in h, h
+    open("%s/v50.%s.nrrd" % (dst, c), "wb").write(
+        h.replace("(0.072,0,0) (0,0.072,0) (0,0,0.072)",
+                  "(0.05,0,0) (0,0.05,0) (0,0,0.05)").encode() + b[i:])
+PY
+expect_ok vol_shifted "$LOOM" compare "$T/syn.loomf" "$T/shift/s.density.nrrd" --json
+cp "$T/out" "$T/shift.json"
+if python3 - "$T" >"$T/py" 2>&1 <<'PY'
+import json, sys
+t = sys.argv[1]
+J = lambda n: json.load(open("%s/%s.json" % (t, n)))
+for n in ("vself", "nself", "vn"):
+    j = J(n)
+    for k in ("top_agreement_centres", "top_agreement_columns"):
+        assert j[k] == 1, (n, k, j[k])
+    for k in ("height_rmse", "height_rmse_debiased", "block_offset_sd", "histogram_l1"):
+        assert j[k] == 0, (n, k, j[k])
+    assert j["coverage_a"] == j["coverage_b"] > 0.9, (n, j)
+    assert j["seam_ratio_a"] == j["seam_ratio_b"] > 0, (n, j)
+    assert j["voxels"] == 128 * 72 * 12, (n, j["voxels"])
+a, b = J("idsyn"), J("idnrrd")
+for k in a:
+    if k != "seconds":
+        assert a[k] == b[k], (k, a[k], b[k])
+assert a["height_rmse"] > 0 and a["top_agreement_columns"] < 1, a
+s = J("shift")
+assert s["voxels"] == 128 * 72 * 12, s
+assert s["top_agreement_columns"] < 0.99 and s["height_rmse"] > 0.1, s
+PY
+then pass vol_figures; else fail vol_figures "$(head -c 900 "$T/py")"; fi
+# bad input: another voxel size, no kind volume, two volumes without --block,
+# a region outside the volume, different boxes
+expect_exit vol_voxel_size 1 "$LOOM" compare "$T/syn.loomf" "$T/shift/v50.density.nrrd"
+expect_err_contains vol_voxel_size_a "syn.loomf has blocks of 8x6x12 voxels of 72 um"
+expect_err_contains vol_voxel_size_b "v50.density.nrrd 8x6x12 of 50 um"
+cp "$T/shift/s.density.nrrd" "$T/shift/alone.density.nrrd"
+expect_exit vol_no_kind 1 "$LOOM" compare "$T/syn.loomf" "$T/shift/alone.density.nrrd"
+expect_err_contains vol_no_kind_msg "alone.kind.nrrd"
+expect_exit vol_no_block 2 "$LOOM" compare "$VD" "$ND"
+expect_err_contains vol_no_block_msg "--block"
+expect_exit vol_region_out 1 "$LOOM" compare "$T/syn.loomf" "$VD" --region 64,0:200,12
+expect_err_contains vol_region_out_msg "not inside"
+expect_exit vol_boxes 1 "$LOOM" compare "$VD" "$T/shift/s.density.nrrd" --block 8x6x12
+expect_err_contains vol_boxes_msg "0,0,0:128,72,12"

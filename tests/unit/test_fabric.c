@@ -921,16 +921,17 @@ static int make_db(const char *path, uint64_t seed, int twelve, loom_db **out)
 	static const char *const w12[12] = {"twill:2/3", "twill:3/2", "twill:1/4", "twill:4/1",
 	                                    "satin:1/4", "satin:4/1", "satin:2/3", "satin:3/2",
 	                                    "plain", "basket:2", "twill:2/2", "twill:1/3"};
+	/* the paper's eight (200 blocks: one-byte base entries) */
+	static const char *const w8[8] = {"twill:2/3", "twill:3/2", "twill:1/4", "twill:4/1",
+	                                  "satin:2/3", "satin:3/2", "satin:1/4", "satin:4/1"};
 	loom_exgen_params p;
 	loom_diag d = {0};
 	if (loom_exgen_preset("tiny", &p) != LOOM_OK)
 		return -1;
 	p.seed = seed;
-	if (twelve) {
-		p.n_weaves = 12;
-		for (int k = 0; k < 12; k++)
-			p.weaves[k] = w12[k];
-	}
+	p.n_weaves = twelve ? 12 : 8;
+	for (uint32_t k = 0; k < p.n_weaves; k++)
+		p.weaves[k] = twelve ? w12[k] : w8[k];
 	if (loom_exgen_write_db(path, &p, NULL, &d) != LOOM_OK ||
 	    loom_db_open(path, out, &d) != LOOM_OK) {
 		printf("  database %s: %s\n", path, d.message);

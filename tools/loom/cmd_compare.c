@@ -6,8 +6,10 @@
  *                [--threshold D] [--json] [--pictures DIR] [--budget MB]
  *
  * A and B are fabrics (.loomf, read through the virtual texture's region
- * reads) or exemplars (DB.ldb#K, K an index or a name, read with
- * loom_db_read_box).  Both are streamed one block row at a time, in
+ * reads), exemplars (DB.ldb#K, K an index or a name, read with
+ * loom_db_read_box) or density volumes (.vol, NRRD) with the kind volume
+ * beside them (NAME.density.EXT and NAME.kind.EXT, as `loom export`
+ * writes them; placed by their origin).  Both are streamed one block row at a time, in
  * chunks of whole blocks along x that fit the budget; per column only the
  * top surface (height, kind and top-yarn thickness) is kept, for the
  * current and the previous row.  Definitions: docs/fidelity.md.
@@ -29,14 +31,31 @@ static const char about[] =
 	"difference removed, per-block mean offsets), density histograms per\n"
 	"yarn kind, coverage, and each input's seam ratio (mean height jump\n"
 	"across block edges over the same inside blocks).  A and B are fabrics\n"
-	"(.loomf) or exemplars (DB.ldb#K, K an index or a name); they must have\n"
-	"the same voxel size, block size and extent.  Streamed in bounded\n"
-	"memory.  Definitions: docs/fidelity.md.\n";
+	"(.loomf), exemplars (DB.ldb#K, K an index or a name) or volumes\n"
+	"(NAME.density.vol or .nrrd, with NAME.kind.vol or .nrrd beside it, as\n"
+	"`loom export` writes the density and kind channels, placed by their\n"
+	"origin); they must have the same voxel size, block size and extent.\n"
+	"Streamed in bounded memory.  Definitions: docs/fidelity.md.\n";
 
 #define HIST_BINS 16
 #define PIC_MAX 1024u
 
-enum { SRC_FABRIC, SRC_EXEMPLAR };
+enum { SRC_FABRIC, SRC_EXEMPLAR, SRC_VOLUME };
+
+/* One channel of a volume input: a .vol read box by box, a raw NRRD read
+   row by row at its data offset, or a compressed NRRD read whole (within
+   the budget). */
+typedef struct volfile {
+	char *path;
+	loom_vol_reader *vr;
+	FILE *fp;                /* raw NRRD data */
+	uint64_t off;
+	int type, big_endian, scale_int;
+	loom_volbuf *whole;
+	uint32_t n[3];
+	double spacing[3], origin[3];
+	uint8_t *row;            /* one run of x of raw NRRD values */
+} volfile;
 
 typedef struct src {
 	int type;
@@ -45,6 +64,9 @@ typedef struct src {
 	loom_fabric *f;
 	loom_texture *t;
 	uint32_t ex;
+	volfile vd, vk;         /* volume: density, kind */
+	int64_t lo[3];          /* volume: position of its voxel (0,0,0) */
+	float *vbuf;            /* volume: one chunk of floats */
 	uint8_t kind_of[256];   /* exemplar label -> kind */
 	uint64_t size[3];       /* extent: repeat or exemplar */
 	uint32_t b1, b2, b3;
@@ -71,6 +93,230 @@ static double now_s(void)
 	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+
+/* ---- volume inputs ------------------------------------------------------------ */
+
+/* Open one channel (1 value per voxel).  max_whole: the most bytes a
+   compressed NRRD read whole may take; scale: integers are read as 0..1
+   (density; not for kinds). */
+static void vol_open(const char *prog, volfile *v, const char *path, size_t max_whole,
+                     int scale, loom_diag *diag)
+{
+	memset(v, 0, sizeof *v);
+	v->path = strdup(path);
+	if (!v->path)
+		cli_fail(prog, "out of memory");
+	if (cli_ends_with(path, ".vol")) {
+		const loom_vol_header *h;
+		if (loom_vol_open(path, &v->vr, diag) != LOOM_OK)
+			cli_fail(prog, "%s", diag->message);
+		h = loom_vol_reader_header(v->vr);
+		if (h->channels != 1)
+			cli_fail(prog, "%s: %u values per voxel, expected 1 (density or kind)",
+			         path, h->channels);
+		v->n[0] = h->xres;
+		v->n[1] = h->yres;
+		v->n[2] = h->zres;
+		for (int a = 0; a < 3; a++) {
+			double ext = (double)h->bbox_max[a] - h->bbox_min[a];
+			/* Mitsuba 0.6: sample i at min + i * extent / (res - 1) */
+			v->spacing[a] = v->n[a] > 1 ? ext / (v->n[a] - 1) : ext;
+			v->origin[a] = h->bbox_min[a];
+		}
+		return;
+	}
+	{
+		loom_nrrd_info I;
+		loom_raw_reader *rr = NULL;
+		int rc = loom_nrrd_open(path, &I, &rr, diag);
+		loom_raw_close(rr);
+		if (rc == LOOM_OK && I.line_skip == 0 && I.byte_skip >= -1) {
+			/* raw: read rows at the data offset ourselves */
+			const char *slash = strrchr(path, '/');
+			char dpath[4096];
+			struct stat st;
+			uint64_t need;
+			if (!I.data_file[0])
+				snprintf(dpath, sizeof dpath, "%s", path);
+			else if (I.data_file[0] == '/' || !slash)
+				snprintf(dpath, sizeof dpath, "%s", I.data_file);
+			else
+				snprintf(dpath, sizeof dpath, "%.*s%s", (int)(slash - path + 1), path,
+				         I.data_file);
+			v->fp = fopen(dpath, "rb");
+			if (!v->fp || fstat(fileno(v->fp), &st) != 0)
+				cli_fail(prog, "%s: %s", dpath, strerror(errno));
+			need = (uint64_t)I.nx * I.ny * I.nz * I.channels * loom_scalar_size(I.type);
+			if (I.byte_skip == -1)
+				v->off = (uint64_t)st.st_size - need;
+			else
+				v->off = (I.data_file[0] ? 0 : I.header_bytes) + (uint64_t)I.byte_skip;
+			v->type = I.type;
+			v->big_endian = I.big_endian == 1;
+		} else if (rc == LOOM_OK || rc == LOOM_EUNSUPPORTED) {
+			/* gzip, ascii or a line skip: whole, within the budget */
+			int rr2 = loom_nrrd_read(path, max_whole, &I, &v->whole, diag);
+			if (rr2 != LOOM_OK)
+				cli_fail(prog, "%s%s", diag->message, rr2 == LOOM_EBUDGET ?
+				         " (a compressed NRRD is read whole: raise --budget, or "
+				         "store it raw)" : "");
+			v->type = I.type;
+		} else {
+			cli_fail(prog, "%s", diag->message);
+		}
+		if (I.channels != 1)
+			cli_fail(prog, "%s: %u values per voxel, expected 1 (density or kind)",
+			         path, I.channels);
+		v->n[0] = I.nx;
+		v->n[1] = I.ny;
+		v->n[2] = I.nz;
+		for (int a = 0; a < 3; a++) {
+			v->spacing[a] = I.spacing[a];
+			v->origin[a] = I.origin[a];
+		}
+		v->scale_int = scale && I.type != LOOM_SCALAR_F16 && I.type != LOOM_SCALAR_F32 &&
+		               I.type != LOOM_SCALAR_F64;
+		v->row = malloc((size_t)v->n[0] * 8);
+		if (!v->row)
+			cli_fail(prog, "out of memory");
+	}
+}
+
+static void vol_close(volfile *v)
+{
+	loom_vol_close(v->vr);
+	if (v->fp)
+		fclose(v->fp);
+	loom_volbuf_free(v->whole);
+	free(v->row);
+	free(v->path);
+}
+
+/* One stored value of a raw NRRD as a float (integers unscaled). */
+static float raw_value(const uint8_t *p, int type, int big)
+{
+	size_t n = loom_scalar_size(type);
+	uint8_t b[8];
+	for (size_t i = 0; i < n; i++)
+		b[i] = big ? p[n - 1 - i] : p[i];
+	switch (type) {
+	case LOOM_SCALAR_U8: return b[0];
+	case LOOM_SCALAR_I8: return (int8_t)b[0];
+	case LOOM_SCALAR_U16: return (uint16_t)(b[0] | b[1] << 8);
+	case LOOM_SCALAR_I16: return (int16_t)(b[0] | b[1] << 8);
+	case LOOM_SCALAR_F16: return loom_half_to_float((uint16_t)(b[0] | b[1] << 8));
+	case LOOM_SCALAR_U32: case LOOM_SCALAR_I32: case LOOM_SCALAR_F32: {
+		uint32_t u = (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 |
+		             (uint32_t)b[3] << 24;
+		float f;
+		if (type == LOOM_SCALAR_U32)
+			return (float)u;
+		if (type == LOOM_SCALAR_I32)
+			return (float)(int32_t)u;
+		memcpy(&f, &u, 4);
+		return f;
+	}
+	case LOOM_SCALAR_F64: {
+		uint64_t u = 0;
+		double d;
+		for (int i = 7; i >= 0; i--)
+			u = u << 8 | b[i];
+		memcpy(&d, &u, 8);
+		return (float)d;
+	}
+	}
+	return 0;
+}
+
+/* Box of the file (its own coordinates, inside it) into out, x fastest. */
+static void vol_read(const char *prog, volfile *v, uint32_t x0, uint32_t y0, uint32_t z0,
+                     uint32_t nx, uint32_t ny, uint32_t nz, float *out, loom_diag *diag)
+{
+	if (v->vr) {
+		if (loom_vol_read_box(v->vr, x0, y0, z0, nx, ny, nz, out, diag) != LOOM_OK)
+			cli_fail(prog, "%s", diag->message);
+		return;
+	}
+	for (uint32_t z = 0; z < nz; z++)
+		for (uint32_t y = 0; y < ny; y++) {
+			float *o = out + ((size_t)z * ny + y) * nx;
+			uint64_t i = ((uint64_t)(z0 + z) * v->n[1] + y0 + y) * v->n[0] + x0;
+			if (v->whole) {
+				memcpy(o, v->whole->data + i, nx * sizeof *o);
+			} else {
+				size_t sz = loom_scalar_size(v->type);
+				if (fseeko(v->fp, (off_t)(v->off + i * sz), SEEK_SET) != 0 ||
+				    fread(v->row, sz, nx, v->fp) != nx)
+					cli_fail(prog, "%s: cannot read %u values at byte %llu (file "
+					         "changed or too short?)", v->path, nx,
+					         (unsigned long long)(v->off + i * sz));
+				for (uint32_t x = 0; x < nx; x++)
+					o[x] = raw_value(v->row + x * sz, v->type, v->big_endian);
+			}
+			if (v->scale_int)
+				for (uint32_t x = 0; x < nx; x++)
+					o[x] *= v->type == LOOM_SCALAR_U16 ? 1.0f / 65535 : 1.0f / 255;
+		}
+}
+
+/* NAME.density.EXT -> NAME.kind.EXT (NULL when the name has no ".density."). */
+static char *kind_path(const char *path)
+{
+	const char *d = strstr(path, ".density.");
+	char *k;
+	if (!d)
+		return NULL;
+	k = malloc(strlen(path) + 1);
+	if (k)
+		sprintf(k, "%.*s.kind.%s", (int)(d - path), path, d + 9);
+	return k;
+}
+
+static int is_volume(const char *arg)
+{
+	return cli_ends_with(arg, ".vol") || cli_ends_with(arg, ".nrrd") ||
+	       cli_ends_with(arg, ".nhdr");
+}
+
+static void open_volume(const char *prog, src *s, const char *arg, size_t budget,
+                        loom_diag *diag)
+{
+	char *kp = kind_path(arg);
+	struct stat st;
+
+	s->type = SRC_VOLUME;
+	if (!kp || stat(kp, &st) != 0)
+		cli_fail(prog, "%s: a volume is compared with its kind volume beside it "
+		         "(%s; NAME.density.EXT and NAME.kind.EXT, as `loom export "
+		         "--channels density,kind` writes them)", arg,
+		         kp ? kp : "the name must contain .density.");
+	vol_open(prog, &s->vd, arg, budget / 2, 1, diag);
+	vol_open(prog, &s->vk, kp, budget / 2, 0, diag);
+	for (int a = 0; a < 3; a++)
+		if (s->vd.n[a] != s->vk.n[a] ||
+		    fabs(s->vd.origin[a] - s->vk.origin[a]) > 1e-3 * s->vd.spacing[0])
+			cli_fail(prog, "%s is %ux%ux%u voxels at (%g, %g, %g), its kind volume %s "
+			         "%ux%ux%u at (%g, %g, %g): they must match", arg, s->vd.n[0],
+			         s->vd.n[1], s->vd.n[2], s->vd.origin[0], s->vd.origin[1],
+			         s->vd.origin[2], kp, s->vk.n[0], s->vk.n[1], s->vk.n[2],
+			         s->vk.origin[0], s->vk.origin[1], s->vk.origin[2]);
+	free(kp);
+	for (int a = 1; a < 3; a++)
+		if (s->vd.n[a] > 1 && fabs(s->vd.spacing[a] - s->vd.spacing[0]) >
+		                      1e-4 * s->vd.spacing[0])
+			cli_fail(prog, "%s: voxels of %g x %g x %g (file units): compare needs "
+			         "cubic voxels", arg, s->vd.spacing[0], s->vd.spacing[1],
+			         s->vd.spacing[2]);
+	if (!(s->vd.spacing[0] > 0))
+		cli_fail(prog, "%s: no voxel size (spacing %g)", arg, s->vd.spacing[0]);
+	/* loom writes millimetres; the origin is the centre of voxel (0,0,0) */
+	s->vs = (float)(s->vd.spacing[0] * 1000.0);
+	for (int a = 0; a < 3; a++) {
+		s->lo[a] = (int64_t)floor(s->vd.origin[a] / s->vd.spacing[0] + 1e-3);
+		s->size[a] = s->vd.n[a];
+	}
+}
+
 static void open_src(const char *prog, src *s, const char *arg, size_t budget,
                      loom_diag *diag)
 {
@@ -78,6 +324,10 @@ static void open_src(const char *prog, src *s, const char *arg, size_t budget,
 
 	memset(s, 0, sizeof *s);
 	s->arg = arg;
+	if (is_volume(arg)) {
+		open_volume(prog, s, arg, budget, diag);
+		return;
+	}
 	if (hash && hash > arg) {
 		char *path = strndup(arg, (size_t)(hash - arg));
 		loom_db_info info;
@@ -104,7 +354,8 @@ static void open_src(const char *prog, src *s, const char *arg, size_t budget,
 		return;
 	}
 	if (!cli_ends_with(arg, ".loomf"))
-		cli_fail(prog, "%s: expected a fabric (.loomf) or an exemplar DB.ldb#K", arg);
+		cli_fail(prog, "%s: expected a fabric (.loomf), an exemplar DB.ldb#K or a "
+		         "volume (.vol, .nrrd, .nhdr)", arg);
 	s->type = SRC_FABRIC;
 	{
 		loom_fabric_db_identity id;
@@ -129,6 +380,11 @@ static void close_src(src *s)
 	loom_texture_close(s->t);
 	loom_fabric_free(s->f);
 	loom_db_close(s->db);
+	if (s->type == SRC_VOLUME) {
+		vol_close(&s->vd);
+		vol_close(&s->vk);
+	}
+	free(s->vbuf);
 	free(s->dens);
 	free(s->kind);
 	free(s->h);
@@ -151,6 +407,18 @@ static void read_box(const char *prog, src *s, int64_t x0, int64_t y0, int64_t z
 		r.layout = LOOM_REGION_X_FASTEST;
 		if (loom_texture_read_region(s->t, lo, hi, &r) != LOOM_OK)
 			cli_fail(prog, "%s: %s", s->arg, loom_texture_errmsg(s->t));
+	} else if (s->type == SRC_VOLUME) {
+		uint32_t o[3] = {(uint32_t)(x0 - s->lo[0]), (uint32_t)(y0 - s->lo[1]),
+		                 (uint32_t)(z0 - s->lo[2])};
+		vol_read(prog, &s->vd, o[0], o[1], o[2], nx, ny, nz, s->vbuf, diag);
+		for (size_t i = 0; i < n; i++) {
+			float v = s->vbuf[i];
+			s->dens[i] = (uint8_t)(v > 0 ? (v < 1 ? lroundf(v * 255.0f) : 255) : 0);
+		}
+		vol_read(prog, &s->vk, o[0], o[1], o[2], nx, ny, nz, s->vbuf, diag);
+		for (size_t i = 0; i < n; i++)
+			s->kind[i] = s->vbuf[i] == 1.0f ? LOOM_YARN_WARP :
+			             s->vbuf[i] == 2.0f ? LOOM_YARN_WEFT : 0;
 	} else {
 		uint32_t org[3] = {(uint32_t)x0, (uint32_t)y0, (uint32_t)z0};
 		uint32_t sz[3] = {nx, ny, nz};
@@ -190,6 +458,21 @@ static const char *opt_region(const char *text, void *dest)
 	for (int a = 0; a < (b->has_z ? 3 : 2); a++)
 		if (b->lo[a] < 0 || b->hi[a] <= b->lo[a] || b->hi[a] > ((int64_t)1 << 40))
 			return "0 <= X0 < X1, 0 <= Y0 < Y1 (and Z) below 2^40";
+	return NULL;
+}
+
+/* --block B1xB2xB3 (volume inputs). */
+static const char *opt_block(const char *text, void *dest)
+{
+	uint32_t *b = dest;
+	unsigned v[3];
+	char tail;
+
+	if (sscanf(text, "%ux%ux%u%c", &v[0], &v[1], &v[2], &tail) != 3 || !v[0] || !v[1] ||
+	    !v[2] || v[0] > 65536 || v[1] > 65536 || v[2] > 65536)
+		return "B1xB2xB3, each 1..65536 voxels";
+	for (int a = 0; a < 3; a++)
+		b[a] = v[a];
 	return NULL;
 }
 
@@ -405,6 +688,7 @@ int cmd_compare(int argc, char **argv)
 	double budget_mb = 64, thr = 0.2, t0 = now_s();
 	int json = 0, quiet = 0;
 	box r;
+	uint32_t blk[3] = {0, 0, 0};
 	src A, B;
 	acc ac;
 	pics pic;
@@ -416,6 +700,8 @@ int cmd_compare(int argc, char **argv)
 		OPT_CALLBACK(0, "region", &r, "BOX", opt_region, "voxels, half-open: "
 		             "X0,Y0:X1,Y1 or X0,Y0,Z0:X1,Y1,Z1 (default: the whole extent, "
 		             "which must be the same for A and B)"),
+		OPT_CALLBACK(0, "block", blk, "B1xB2xB3", opt_block, "block size of volume "
+		             "inputs (default: the other input's; required when both are volumes)"),
 		OPT_DOUBLE(0, "threshold", &thr, "D", "(]", 0, 1, "",
 		           "density of the top surface, %r (default 0.2)"),
 		OPT_STRING(0, "pictures", &picdir, "DIR", "write DIR/side-by-side.png (A "
@@ -439,12 +725,51 @@ int cmd_compare(int argc, char **argv)
 		opts_usage(&c, "--budget: at least 8 MiB");
 	open_src(prog, &A, pos[0], budget / 4, &diag);
 	open_src(prog, &B, pos[1], budget / 4, &diag);
+	for (int k = 0; k < 2; k++) {
+		src *s = k ? &B : &A, *o = k ? &A : &B;
+		if (s->type != SRC_VOLUME)
+			continue;
+		if (opt_given(&c, blk)) {
+			s->b1 = blk[0], s->b2 = blk[1], s->b3 = blk[2];
+		} else if (o->type != SRC_VOLUME) {
+			s->b1 = o->b1, s->b2 = o->b2, s->b3 = o->b3;
+		} else {
+			opts_usage(&c, "two volumes: give their block size with --block B1xB2xB3");
+		}
+		for (int a = 0; a < 3; a++)
+			if (s->lo[a] < 0)
+				cli_fail(prog, "%s starts at voxel %lld along %c (its origin): compare "
+				         "reads boxes at non-negative coordinates", s->arg,
+				         (long long)s->lo[a], "xyz"[a]);
+	}
 	if (!same_geometry(&A, &B))
 		cli_fail(prog, "%s has blocks of %ux%ux%u voxels of %g um, %s %ux%ux%u of %g "
 		         "um: compare cloths of the same geometry (loom exemplar generate "
 		         "--like DB)", A.arg, A.b1, A.b2, A.b3, (double)A.vs, B.arg, B.b1,
 		         B.b2, B.b3, (double)B.vs);
-	if (!opt_given(&c, &r)) {
+	if (!opt_given(&c, &r) && (A.type == SRC_VOLUME || B.type == SRC_VOLUME)) {
+		/* the volume's box (both: the same box) */
+		const src *v = A.type == SRC_VOLUME ? &A : &B;
+		if (A.type == SRC_VOLUME && B.type == SRC_VOLUME)
+			for (int a = 0; a < 3; a++)
+				if (A.lo[a] != B.lo[a] || A.size[a] != B.size[a])
+					cli_fail(prog, "%s is voxels %lld,%lld,%lld:%lld,%lld,%lld, %s "
+					         "%lld,%lld,%lld:%lld,%lld,%lld: compare the same box or "
+					         "give --region", A.arg, (long long)A.lo[0],
+					         (long long)A.lo[1], (long long)A.lo[2],
+					         (long long)(A.lo[0] + (int64_t)A.size[0]),
+					         (long long)(A.lo[1] + (int64_t)A.size[1]),
+					         (long long)(A.lo[2] + (int64_t)A.size[2]), B.arg,
+					         (long long)B.lo[0], (long long)B.lo[1], (long long)B.lo[2],
+					         (long long)(B.lo[0] + (int64_t)B.size[0]),
+					         (long long)(B.lo[1] + (int64_t)B.size[1]),
+					         (long long)(B.lo[2] + (int64_t)B.size[2]));
+		for (int a = 0; a < 3; a++) {
+			r.lo[a] = v->lo[a];
+			r.hi[a] = v->lo[a] + (int64_t)v->size[a];
+		}
+		r.has_z = 1;
+	} else if (!opt_given(&c, &r)) {
 		if (memcmp(A.size, B.size, sizeof A.size) != 0)
 			cli_fail(prog, "%s is %llux%llux%llu voxels, %s %llux%llux%llu: compare "
 			         "the same extent or give --region", A.arg,
@@ -471,6 +796,18 @@ int cmd_compare(int argc, char **argv)
 					         (unsigned long long)s->size[1],
 					         (unsigned long long)s->size[2], (long long)r.hi[0],
 					         (long long)r.hi[1], (long long)r.hi[2]);
+		if (s->type == SRC_VOLUME)
+			for (int a = 0; a < 3; a++)
+				if (r.lo[a] < s->lo[a] || r.hi[a] > s->lo[a] + (int64_t)s->size[a])
+					cli_fail(prog, "%s holds voxels %lld,%lld,%lld:%lld,%lld,%lld; the "
+					         "region %lld,%lld,%lld:%lld,%lld,%lld is not inside it",
+					         s->arg, (long long)s->lo[0], (long long)s->lo[1],
+					         (long long)s->lo[2],
+					         (long long)(s->lo[0] + (int64_t)s->size[0]),
+					         (long long)(s->lo[1] + (int64_t)s->size[1]),
+					         (long long)(s->lo[2] + (int64_t)s->size[2]),
+					         (long long)r.lo[0], (long long)r.lo[1], (long long)r.lo[2],
+					         (long long)r.hi[0], (long long)r.hi[1], (long long)r.hi[2]);
 	}
 	if (r.hi[2] > (int64_t)A.b3)
 		cli_fail(prog, "--region: z ends at %lld, the cloth is %u voxels thick",
@@ -478,8 +815,10 @@ int cmd_compare(int argc, char **argv)
 	W = (size_t)(r.hi[0] - r.lo[0]);
 	nz = (uint32_t)(r.hi[2] - r.lo[2]);
 	band = A.b2;
-	/* chunk: whole blocks along x; 2 bytes per voxel per input */
-	per_col = (size_t)band * nz * 2 * 2;
+	/* chunk: whole blocks along x; 2 bytes per voxel per input, 4 more for
+	   a volume input's floats */
+	per_col = (size_t)band * nz *
+	          (4 + 4 * (size_t)(A.type == SRC_VOLUME) + 4 * (size_t)(B.type == SRC_VOLUME));
 	chunk_cols = (budget / 2) / per_col;
 	chunk_cols -= chunk_cols % A.b1;
 	if (chunk_cols < A.b1)
@@ -499,6 +838,9 @@ int cmd_compare(int argc, char **argv)
 		s->h = malloc(W * band * sizeof *s->h);
 		s->hprev = malloc(W * sizeof *s->hprev);
 		s->k = malloc(W * band);
+		if (s->type == SRC_VOLUME &&
+		    !(s->vbuf = malloc(chunk_cols * band * nz * sizeof *s->vbuf)))
+			cli_fail(prog, "out of memory");
 		if (!s->dens || !s->kind || !s->h || !s->hprev || !s->k)
 			cli_fail(prog, "out of memory");
 	}
