@@ -10,7 +10,9 @@
  *   2. generation time of the small and paper presets (2 threads);
  *   3. reader open time and resident memory (in a fresh child process).
  *
- *   build/bench/bench_db [--quick]     (--quick: fewer shapes, no paper DB)
+ *   build/bench/bench_db [--quick] [--fibre F]
+ *       --quick: fewer shapes, no paper DB; --fibre F: fibre-level yarns of
+ *       preset F (cotton, ...) instead of the smooth ones
  *
  * Prints a human table and JSON lines (starting with '{').
  */
@@ -320,6 +322,8 @@ static void study(const volume *v, const uint32_t bs[3], int level, int json_onl
 
 /* ---- generation ---------------------------------------------------------------- */
 
+static const char *fibre; /* --fibre F, or NULL: smooth yarns */
+
 static void gen_db(const char *preset, const char *path)
 {
 	loom_exgen_params p;
@@ -331,6 +335,7 @@ static void gen_db(const char *preset, const char *path)
 
 
 	loom_exgen_preset(preset, &p);
+	p.fibre[0] = p.fibre[1] = fibre;
 	t0 = now_s();
 	c0 = proc_cpu_s();
 	if (loom_exgen_write_db(path, &p, NULL, &d) != LOOM_OK) {
@@ -368,7 +373,7 @@ int main(int argc, char **argv)
 		{32, 32, 16}, {32, 32, 64}, {64, 64, 32}, {64, 64, 64}, {16, 16, 300},
 	};
 	static const int levels[] = {1, 6, 9};
-	int quick = argc > 1 && strcmp(argv[1], "--quick") == 0;
+	int quick = 0;
 	const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
 	char small_path[4096], paper_path[4096];
 	loom_exgen_params p;
@@ -380,6 +385,17 @@ int main(int argc, char **argv)
 
 	if (argc > 2 && strcmp(argv[1], "--open") == 0)
 		return child_open(argv[2]);
+	for (int i = 1; i < argc; i++) {
+		if (strcmp(argv[i], "--quick") == 0)
+			quick = 1;
+		else if (strcmp(argv[i], "--fibre") == 0 && i + 1 < argc)
+			fibre = argv[++i];
+		else {
+			fprintf(stderr, "usage: bench_db [--quick] [--fibre F]\n");
+			return 2;
+		}
+	}
+	printf("yarns: %s\n", fibre ? fibre : "smooth");
 	snprintf(small_path, sizeof small_path, "%s/bench_db_small.%d.ldb", tmp, (int)getpid());
 	snprintf(paper_path, sizeof paper_path, "%s/bench_db_paper.%d.ldb", tmp, (int)getpid());
 
@@ -397,6 +413,7 @@ int main(int argc, char **argv)
 
 	/* one paper-scale exemplar in memory */
 	loom_exgen_preset("paper", &p);
+	p.fibre[0] = p.fibre[1] = fibre;
 	p.n_weaves = 1;
 	p.weaves[0] = "twill:2/3";
 	if (loom__exgen_new(&p, 0, 0, &g, &d) != LOOM_OK) {

@@ -66,6 +66,8 @@
                             crimp amplitude above an interlacing */
 #define COMPRESS 0.2f    /* half-height lost where a yarn is pressed */
 #define SPREAD 0.12f     /* half-width gained in a long float's middle */
+#define HAIR_CLEAR 0.25f /* yarn radii a hair or loop reaches at least
+                            beyond the surface (so all are flyaways) */
 
 /* ---- hashing and noise ------------------------------------------------- */
 
@@ -127,7 +129,7 @@ typedef struct fibre_preset {
 	uint32_t plies;
 	float ply_deg;      /* ply helix angle at the ply centres */
 	float fib_deg;      /* fibre helix angle at the ply surface */
-	float packing;      /* fibre area fraction a ply is filled to */
+	float fill;         /* fibre area fraction of the yarn's cross-section */
 	float eps, beta;    /* radial density */
 	float rmin, rmax;   /* migration range, fraction of a fibre's radius */
 	float mig;          /* migration period, yarn diameters */
@@ -137,13 +139,13 @@ typedef struct fibre_preset {
 } fibre_preset;
 
 static const fibre_preset fibre_presets[] = {
-	/* name          d   ply ply  fib  pack  eps   beta rmin rmax mig hair loop len  out */
-	{"cotton",      15,  2, 20,  28, 0.20f, 0.05f, 1.5f, .85f, 1, 2.0f, 3,  5, 400, 0.6f},
-	{"rayon",       13,  2, 18,  22, 0.20f, 0.10f, 1.0f, .88f, 1, 3.0f, 1,  3, 300, 0.4f},
-	{"silk",        11,  2, 12,  10, 0.21f, 0.20f, 0.5f, .92f, 1, 4.0f, 0.3f, 1, 200, 0.3f},
-	{"polyester",   14,  1,  0,  14, 0.16f, 0.20f, 0.5f, .90f, 1, 4.0f, 0.3f, 2, 250, 0.3f},
-	{"wool",        24,  2, 22,  30, 0.19f, 0.05f, 2.0f, .80f, 1, 1.5f, 5,  8, 600, 0.9f},
-	{"linen",       18,  1,  0,  20, 0.20f, 0.10f, 1.0f, .85f, 1, 2.5f, 2,  3, 500, 0.5f},
+	/* name          d   ply ply  fib  fill  eps   beta rmin rmax mig hair loop len  out */
+	{"cotton",      15,  2, 20,  28, 0.58f, 0.05f, 1.5f, .85f, 1, 2.0f, 3,  5, 400, 0.6f},
+	{"rayon",       13,  2, 18,  22, 0.60f, 0.10f, 1.0f, .88f, 1, 3.0f, 1,  3, 300, 0.4f},
+	{"silk",        11,  2, 12,  10, 0.60f, 0.20f, 0.5f, .92f, 1, 4.0f, 0.3f, 1, 200, 0.3f},
+	{"polyester",   14,  1,  0,  14, 0.60f, 0.20f, 0.5f, .90f, 1, 4.0f, 0.3f, 2, 250, 0.3f},
+	{"wool",        24,  2, 22,  30, 0.52f, 0.05f, 2.0f, .80f, 1, 1.5f, 5,  8, 600, 0.9f},
+	{"linen",       18,  1,  0,  20, 0.58f, 0.10f, 1.0f, .85f, 1, 2.5f, 2,  3, 500, 0.5f},
 	{"monofilament", 0,  1,  0,   0, 1.00f, 0.00f, 1.0f, 1.0f, 1, 1.0f, 0,  0,   0, 0.0f},
 };
 
@@ -173,7 +175,10 @@ typedef struct kind_params {
 	/* fibre-level yarns (fp != NULL) */
 	const struct fibre_preset *fp;
 	uint32_t plies, per_ply; /* fibres per ply (as packed) */
-	float rp;            /* ply radius, fraction of the yarn's */
+	float rp;            /* ply half-axis towards the yarn centre, fraction
+	                        of the yarn's radius (the ply centre at 1 - rp) */
+	float rt;            /* ply half-axis across it (rt >= rp: plies pressed
+	                        against each other widen) */
 	float om_p, om_f;    /* ply and fibre twist, rad per um */
 	float w1, w2;        /* fibre footprint in the cross-section, um */
 	float mig_k;         /* migration, rad per um */
@@ -533,7 +538,7 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 	float cm = cosf(kp->mig_k * s), sm = sinf(kp->mig_k * s);
 	float rmid = 0.5f * (kp->fp->rmin + kp->fp->rmax);
 	float ramp = 0.5f * (kp->fp->rmax - kp->fp->rmin);
-	float cx[8], cy[8], dcx[8], dcy[8], dir[3];
+	float cx[8], cy[8], dcx[8], dcy[8], cp[8], sp[8], dir[3];
 
 	if (kp->fp->d == 0.0f) { /* monofilament: the fibre is the yarn */
 		for (int z = zs; z < ze; z++) {
@@ -555,11 +560,17 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 		}
 		return;
 	}
+	/* ply j: centre (cx, cy) turning at om_p, its frame (cp, sp) the
+	   direction from the yarn centre; a fibre at (R, alpha) in the ply
+	   frame (alpha = its own angle less the frame's) sits at R (rp cos
+	   alpha, rt sin alpha) in it */
 	for (uint32_t j = 0; j < np; j++) {
 		float psi = kp->om_p * s + y->phase + 6.2831853f * (float)j / (float)np;
 		float rc = np > 1 ? 1.0f - kp->rp : 0.0f;
-		cx[j] = rc * cosf(psi);
-		cy[j] = rc * sinf(psi);
+		cp[j] = cosf(psi);
+		sp[j] = sinf(psi);
+		cx[j] = rc * cp[j];
+		cy[j] = rc * sp[j];
 		dcx[j] = -kp->om_p * cy[j];
 		dcy[j] = kp->om_p * cx[j];
 	}
@@ -567,11 +578,15 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 		const float *f = y->fib + 6 * i;
 		uint32_t j = (uint32_t)f[5];
 		float cph = f[1] * cf - f[2] * sf, sph = f[2] * cf + f[1] * sf;
+		float ca = cph * cp[j] + sph * sp[j], sa = sph * cp[j] - cph * sp[j];
 		float cmi = f[3] * cm - f[4] * sm, smi = f[4] * cm + f[3] * sm;
 		float R = f[0] * (rmid + ramp * cmi), dR = -f[0] * ramp * smi * kp->mig_k;
-		float X = cx[j] + kp->rp * R * cph, Y = cy[j] + kp->rp * R * sph;
-		float dX = dcx[j] + kp->rp * (dR * cph - R * kp->om_f * sph);
-		float dY = dcy[j] + kp->rp * (dR * sph + R * kp->om_f * cph);
+		float da = kp->om_f - kp->om_p;
+		float A = kp->rp * R * ca, B = kp->rt * R * sa;
+		float dA = kp->rp * (dR * ca - R * da * sa), dB = kp->rt * (dR * sa + R * da * ca);
+		float X = cx[j] + A * cp[j] - B * sp[j], Y = cy[j] + A * sp[j] + B * cp[j];
+		float dX = dcx[j] + dA * cp[j] - dB * sp[j] - kp->om_p * (A * sp[j] + B * cp[j]);
+		float dY = dcy[j] + dA * sp[j] + dB * cp[j] + kp->om_p * (A * cp[j] - B * sp[j]);
 		fibre_dir(h, dX, dY, dir);
 		splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor, blab);
 	}
@@ -591,8 +606,13 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 			float t = (s - s0) / len, th, out, R, dR, X, Y, dX, dY;
 			if (t < 0.0f || t > 1.0f)
 				continue;
-			out = kp->fp->hair_out * (0.4f + 0.6f * u01(mix64(hh ^ 3)));
-			th = 6.2831853f * u01(mix64(hh ^ 4)) + kp->om_f * (s - s0);
+			/* every one clears the yarn by HAIR_CLEAR radii at least */
+			out = HAIR_CLEAR + kp->fp->hair_out * (0.4f + 0.6f * u01(mix64(hh ^ 3)));
+			/* it leaves the top or the bottom face, within 50 degrees of
+			   the vertical (sideways it would run into the next yarn), and
+			   no longer follows the twist once it is out */
+			th = (u01(mix64(hh ^ 5)) < 0.5f ? 1.5707963f : -1.5707963f) +
+			     1.7453293f * (u01(mix64(hh ^ 4)) - 0.5f);
 			if (is_hair) {
 				R = 0.95f + out * t;
 				dR = out / len;
@@ -602,8 +622,8 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 			}
 			X = R * cosf(th);
 			Y = R * sinf(th);
-			dX = dR * cosf(th) - R * kp->om_f * Y / (R > 0 ? R : 1);
-			dY = dR * sinf(th) + R * kp->om_f * X / (R > 0 ? R : 1);
+			dX = dR * cosf(th);
+			dY = dR * sinf(th);
 			fibre_dir(h, dX, dY, dir);
 			splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor,
 			            blab);
@@ -825,8 +845,20 @@ static void fibre_setup(loom__exgen *g, int kind, const fibre_preset *fp)
 	kp->plies = fp->plies;
 	sn = sinf((float)M_PI / (float)fp->plies);
 	kp->rp = fp->plies > 1 ? sn / (1.0f + sn) : 1.0f;
+	/* two plies pressed together flatten against each other and widen into
+	   the room beside them (Zhao et al.'s elliptical plies): half-axes
+	   0.6 towards the yarn centre (centres 0.4 from it, so that the plies
+	   meet along a chord instead of touching at a point, with no hole down
+	   the middle of the yarn) and 0.75 across */
+	if (fp->plies == 2) {
+		kp->rp = 0.6f;
+		kp->rt = 0.75f;
+	} else {
+		kp->rt = kp->rp;
+	}
 	if (fp->d > 0.0f) {
-		n = fp->packing * kp->rp * kp->rp * 4.0f * Req * Req / (fp->d * fp->d);
+		/* the fibres cover fp->fill of the yarn's (round) section */
+		n = fp->fill * 4.0f * Req * Req / ((float)fp->plies * fp->d * fp->d);
 		n = fminf(fmaxf(n, 1.0f), (float)(MAX_FIB / fp->plies));
 		kp->per_ply = (uint32_t)lroundf(n);
 	} else {
@@ -835,14 +867,16 @@ static void fibre_setup(loom__exgen *g, int kind, const fibre_preset *fp)
 	/* singles twisted Z, plied S on the warp; the weft the other way.  The
 	   angles are those seen on the top of the flattened yarn (as under a
 	   microscope): a fibre at the ply surface (its mean migration radius
-	   less the fibre's radius) and a ply centre, at half-width a */
+	   less the fibre's radius) and a ply centre, at half-width a.  On the
+	   ply's outer side a fibre moves across at R (rt (om_f - om_p) +
+	   rp om_p) per um (the fibre turns at om_f, the ply frame at om_p) */
 	{
-		float rtop = 0.5f * (fp->rmin + fp->rmax) * (1.0f - (fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0));
-		kp->om_f = sgn * tanf(fp->fib_deg * (float)M_PI / 180.0f) /
-		           (kp->a * kp->rp * rtop);
+		float rtop = 0.5f * (fp->rmin + fp->rmax) * (1.0f - (fp->d > 0 ? 0.5f * fp->d / (kp->rt * Req) : 0));
+		float want = tanf(fp->fib_deg * (float)M_PI / 180.0f) / (kp->a * rtop);
 		kp->om_p = fp->plies > 1 ? -sgn * tanf(fp->ply_deg * (float)M_PI / 180.0f) /
 		                                   ((1.0f - kp->rp) * kp->a)
 		                         : 0.0f;
+		kp->om_f = sgn * want / kp->rt + kp->om_p * (1.0f - kp->rp / kp->rt);
 	}
 	/* the fibre footprint: a disc of the fibre's area, flattened with the
 	   yarn (half-width a, half-height c against the round yarn of radius
@@ -852,7 +886,7 @@ static void fibre_setup(loom__exgen *g, int kind, const fibre_preset *fp)
 	kp->mig_k = 2.0f * (float)M_PI / (fp->mig * 2.0f * Req);
 	kp->cell = fp->hair + fp->loop > 0.0f ? 1000.0f / (fp->hair + fp->loop) : 0.0f;
 	kp->hair_max = 1.5f * fp->hair_len;
-	kp->out = 1.0f + 1.05f * fp->hair_out + fp->d / fminf(kp->a, kp->c);
+	kp->out = 1.0f + 1.05f * (HAIR_CLEAR + fp->hair_out) + fp->d / fminf(kp->a, kp->c);
 	if (fp->d == 0.0f)
 		kp->out = 1.0f;
 }
@@ -866,34 +900,66 @@ static float fibre_density(const fibre_preset *fp, float R)
 }
 
 /* Fibres of yarn y (tab: 6 floats per fibre): per ply, darts drawn from the
-   radial density and kept at least 1.5 fibre diameters from the ply's
-   other fibres (in the round yarn), until per_ply are placed or 60 darts
-   in a row miss.  Returns the number placed. */
-static uint32_t make_fibres(const loom__exgen *g, yarn *y, float *tab)
+   radial density in the ply's unit disc and kept FIB_GAP fibre diameters
+   apart from the ply's other fibres (in the round yarn, the disc scaled
+   to the ply's larger half-axis; fibres of a pressed ply and of different
+   plies may overlap a little, as in a compressed yarn), until per_ply are
+   placed or FIB_MISS darts in a row miss.  A grid of cells one gap wide
+   finds the neighbours.  Sets y->n_fib; LOOM_ENOMEM. */
+#define FIB_GAP 0.8f
+#define FIB_MISS 400
+static int make_fibres(const loom__exgen *g, yarn *y, float *tab)
 {
 	const kind_params *kp = &g->kp[y->kind];
 	const fibre_preset *fp = kp->fp;
 	float Req = sqrtf(kp->a * kp->c);
-	float fr = fp->d > 0 ? 0.5f * fp->d / (kp->rp * Req) : 0.0f; /* ply units */
-	float dmin = 3.0f * fr, Rmax = 1.0f - fr;
-	uint32_t n = 0;
+	float fr = fp->d > 0 ? 0.5f * fp->d / (kp->rt * Req) : 0.0f; /* ply units */
+	float dmin = 2.0f * FIB_GAP * fr, Rmax = 1.0f - fr, cell;
+	uint32_t n = 0, G;
+	int32_t *head, *next;
 
 	y->fib = tab;
+	y->n_fib = 0;
+	G = dmin > 0.0f ? (uint32_t)ceilf(2.0f / dmin) : 1;
+	if (G > 256)
+		G = 256;
+	cell = 2.0f / (float)G;
+	head = malloc(sizeof *head * (size_t)G * G);
+	next = malloc(sizeof *next * (kp->per_ply + 1));
+	if (!head || !next) {
+		free(head);
+		free(next);
+		return LOOM_ENOMEM;
+	}
 	for (uint32_t j = 0; j < kp->plies; j++) {
 		uint32_t first = n, miss = 0;
 		uint64_t k = 0;
-		while (n - first < kp->per_ply && miss < 60) {
+		for (size_t c = 0; c < (size_t)G * G; c++)
+			head[c] = -1;
+		while (n - first < kp->per_ply && miss < FIB_MISS) {
 			uint64_t h = hash2(y->seed ^ 0xf1b, j, (int64_t)k++);
 			float R = fp->d > 0 ? Rmax * sqrtf(u01(h)) : 0.0f;
 			float th = 6.2831853f * u01(mix64(h ^ 1)), X, Y;
 			int ok = fp->d == 0.0f || u01(mix64(h ^ 2)) < fibre_density(fp, R);
+			int gx, gy;
 			X = R * cosf(th);
 			Y = R * sinf(th);
-			for (uint32_t i = first; ok && i < n; i++) {
-				float *f = tab + 6 * i, dx = f[0] * f[1] - X, dy = f[0] * f[2] - Y;
-				if (dx * dx + dy * dy < dmin * dmin)
-					ok = 0;
-			}
+			gx = (int)((X + 1.0f) / cell);
+			gy = (int)((Y + 1.0f) / cell);
+			gx = gx < 0 ? 0 : gx >= (int)G ? (int)G - 1 : gx;
+			gy = gy < 0 ? 0 : gy >= (int)G ? (int)G - 1 : gy;
+			for (int yy = gy - 1; ok && yy <= gy + 1; yy++)
+				for (int xx = gx - 1; ok && xx <= gx + 1; xx++) {
+					if (xx < 0 || yy < 0 || xx >= (int)G || yy >= (int)G)
+						continue;
+					for (int32_t i = head[yy * (int)G + xx]; ok && i >= 0;
+					     i = next[i]) {
+						const float *f = tab + 6 * (first + (uint32_t)i);
+						float dx = f[0] * f[1] - X, dy = f[0] * f[2] - Y;
+						if (dx * dx + dy * dy < dmin * dmin)
+							ok = 0;
+					}
+				}
 			if (!ok) {
 				miss++;
 				continue;
@@ -908,11 +974,15 @@ static uint32_t make_fibres(const loom__exgen *g, yarn *y, float *tab)
 				f[4] = sinf(mu);
 				f[5] = (float)j;
 			}
+			next[n - first] = head[gy * (int)G + gx];
+			head[gy * (int)G + gx] = (int32_t)(n - first);
 			n++;
 		}
 	}
+	free(head);
+	free(next);
 	y->n_fib = n;
-	return n;
+	return LOOM_OK;
 }
 
 /*
@@ -1300,15 +1370,25 @@ static int model_yarns(loom__exgen *g, const loom_exgen_params *p)
 			yarn_mechanics(g, &g->wefts[r], t);
 	}
 	if (g->kp[KIND_WARP].fp) {
-		size_t tot = (size_t)(g->cols + g->rows + 4) * MAX_FIB * 6, used = 0;
+		size_t used = 0;
+		size_t tot = 6 * ((size_t)(g->cols + 2) * g->kp[KIND_WARP].plies *
+		                          g->kp[KIND_WARP].per_ply +
+		                  (size_t)(g->rows + 2) * g->kp[KIND_WEFT].plies *
+		                          g->kp[KIND_WEFT].per_ply);
 		g->fibres = 1;
 		g->fibs = malloc(sizeof(float) * tot);
 		if (!g->fibs)
 			return LOOM_ENOMEM;
-		for (uint32_t c = 0; c < g->cols + 2; c++)
-			used += 6 * (size_t)make_fibres(g, &g->warps[c], g->fibs + used);
-		for (uint32_t r = 0; r < g->rows + 2; r++)
-			used += 6 * (size_t)make_fibres(g, &g->wefts[r], g->fibs + used);
+		for (uint32_t c = 0; c < g->cols + 2; c++) {
+			if (make_fibres(g, &g->warps[c], g->fibs + used) != LOOM_OK)
+				return LOOM_ENOMEM;
+			used += 6 * (size_t)g->warps[c].n_fib;
+		}
+		for (uint32_t r = 0; r < g->rows + 2; r++) {
+			if (make_fibres(g, &g->wefts[r], g->fibs + used) != LOOM_OK)
+				return LOOM_ENOMEM;
+			used += 6 * (size_t)g->wefts[r].n_fib;
+		}
 	}
 	g->n_fly = g->rows * g->cols / 4;
 	if (g->n_fly < 2)
@@ -1486,6 +1566,19 @@ void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f)
 float loom__exgen_mid_z(const loom__exgen *g)
 {
 	return g->z0 / g->vs - 0.5f;
+}
+
+void loom__exgen_section(const loom__exgen *g, int kind, int index, float t,
+                         float out[4])
+{
+	const yarn *y = kind == 2 ? &g->wefts[index + 1] : &g->warps[index + 1];
+	float lat, zc, a, c;
+
+	yarn_eval(g, y, (t + 0.5f) * g->vs, &lat, &zc, &a, &c);
+	out[0] = lat / g->vs - 0.5f;
+	out[1] = zc / g->vs - 0.5f;
+	out[2] = a / g->vs;
+	out[3] = c / g->vs;
 }
 
 /* ---- presets ------------------------------------------------------------ */

@@ -73,4 +73,10 @@ void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f);
 /* Nominal mid-plane of the cloth, in voxels (for tests). */
 float loom__exgen_mid_z(const loom__exgen *g);
 
+/* Yarn index (-1 .. cols or rows) of a kind (1 warp, 2 weft) at voxel t
+   along it: out = lateral centre and height (voxel indices), half-width
+   and half-height (voxels) of its cross-section (for tests). */
+void loom__exgen_section(const loom__exgen *g, int kind, int index, float t,
+                         float out[4]);
+
 #endif /* LOOM_EXGEN_H */

@@ -220,7 +220,7 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 #define LOOM_EXGEN_MAX_WEAVES 64
 /* Revision of the generator's output: bumped whenever the same parameters
    give different bytes (caches of generated databases key on it). */
-#define LOOM_EXGEN_REVISION 4
+#define LOOM_EXGEN_REVISION 5
 
 /* Generator parameters.  Initialise with loom_exgen_preset(). */
 typedef struct loom_exgen_params {
