@@ -10,6 +10,8 @@
 #   tools/deps.sh fuzz    build + clang with libFuzzer (make fuzz, fuzz-run)
 #   tools/deps.sh blender Blender (Cycles) for tests/extra/blender.sh and the
 #                         Cycles comparison of bench/cycles.sh; only on request
+#   tools/deps.sh paraview ParaView's pvpython and xvfb-run for
+#                         tools/paraview/render_nrrd.py; only on request
 #
 # Missing packages are installed with apt-get (as root, or through sudo -n)
 # and named as they are installed.  Where that is impossible the script
@@ -35,6 +37,11 @@ if [ "$what" = slurm ]; then
 	need munge        command -v munged
 elif [ "$what" = blender ]; then
 	need blender        command -v blender
+elif [ "$what" = paraview ]; then
+	need paraview         command -v paraview
+	need python3-paraview command -v pvpython
+	need xvfb             command -v xvfb-run
+	need xauth            command -v xauth
 elif [ "$what" = openvdb ]; then
 	need g++            command -v g++
 	need libopenvdb-dev has_header openvdb/openvdb.h
