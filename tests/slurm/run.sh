@@ -102,7 +102,16 @@ while [ "$(squeue -h -j "${aid}_3" -o %T 2>/dev/null)" != RUNNING ] && [ $i -lt 
 	i=$((i + 1))
 done
 sleep 1.6
-scancel --signal=KILL "${aid}_3"
+# scancel --signal goes straight to slurmd: a KILL sent while slurmd is
+# still starting the batch step is lost (seen once under load: shard 3
+# then finished and the merge succeeded), so repeat it until the task
+# leaves RUNNING (it has 6 tiles of 0.7 s to do, so it cannot end first)
+i=0
+while [ "$(squeue -h -j "${aid}_3" -o %T 2>/dev/null)" = RUNNING ] && [ $i -lt 60 ]; do
+	scancel --signal=KILL "${aid}_3" 2>/dev/null
+	sleep 0.25
+	i=$((i + 1))
+done
 st=$(wait_job "$mid")
 if [ "$st" = FAILED ]; then pass merge_fails; else fail merge_fails "the merge job ended $st"; fi
 mlog=$W/logs/slurm-$mid.out
