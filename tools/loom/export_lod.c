@@ -19,50 +19,33 @@
 #include <math.h>
 #include <string.h>
 
-/* Eigenvector of the largest eigenvalue of the symmetric 3x3 matrix a
-   (cyclic Jacobi rotations, a fixed number of sweeps: deterministic). */
+/* Unit eigenvector of the largest eigenvalue of the symmetric 3x3 matrix a,
+   by loom_scan_eigen_min (the scan's structure-tensor solver) on -a.  When
+   the two largest eigenvalues are equal, any axis normal to the smallest
+   one's eigenvector is principal; when all three are, any axis is. */
 static void principal_eigvec(double a[3][3], double out[3])
 {
-	double v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-	int best = 0;
+	double m[6] = {-a[0][0], -a[0][1], -a[0][2], -a[1][1], -a[1][2], -a[2][2]};
+	double n[3], len;
+	int k = 0;
 
-	for (int sweep = 0; sweep < 32; sweep++) {
-		double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-		double scale = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]);
-		if (off <= 1e-15 * scale || off == 0.0)
-			break;
-		for (int p = 0; p < 2; p++)
-			for (int q = p + 1; q < 3; q++) {
-				double theta, t, c, s;
-				if (a[p][q] == 0.0)
-					continue;
-				theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-				t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
-				c = 1.0 / sqrt(t * t + 1.0);
-				s = t * c;
-				/* A' = R^T A R with the rotation in the (p, q) plane */
-				for (int k = 0; k < 3; k++) {
-					double akp = a[k][p], akq = a[k][q];
-					a[k][p] = c * akp - s * akq;
-					a[k][q] = s * akp + c * akq;
-				}
-				for (int k = 0; k < 3; k++) {
-					double apk = a[p][k], aqk = a[q][k];
-					a[p][k] = c * apk - s * aqk;
-					a[q][k] = s * apk + c * aqk;
-				}
-				for (int k = 0; k < 3; k++) {
-					double vkp = v[k][p], vkq = v[k][q];
-					v[k][p] = c * vkp - s * vkq;
-					v[k][q] = s * vkp + c * vkq;
-				}
-			}
+	if (loom_scan_eigen_min(m, out, NULL))
+		return;
+	for (int i = 0; i < 6; i++)
+		m[i] = -m[i];
+	if (!loom_scan_eigen_min(m, n, NULL)) {
+		out[0] = 1, out[1] = 0, out[2] = 0;
+		return;
 	}
-	for (int k = 1; k < 3; k++)
-		if (a[k][k] > a[best][best])
-			best = k;
-	for (int k = 0; k < 3; k++)
-		out[k] = v[k][best];
+	for (int i = 1; i < 3; i++) /* the axis least aligned with n */
+		if (fabs(n[i]) < fabs(n[k]))
+			k = i;
+	out[0] = k == 0 ? 0 : k == 1 ? -n[2] : n[1]; /* n x e_k */
+	out[1] = k == 0 ? n[2] : k == 1 ? 0 : -n[0];
+	out[2] = k == 0 ? -n[1] : k == 1 ? n[0] : 0;
+	len = sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+	for (int i = 0; i < 3; i++)
+		out[i] /= len;
 }
 
 void export_lod_tile(const struct export_ctx *c, struct ewstate *w, const int64_t n[3])
