@@ -164,8 +164,8 @@ static void progress_cb(void *user, uint64_t done, uint64_t total)
 	pthread_mutex_unlock(&r->lock);
 }
 
-/* --warp-dir X,Y,Z into double[3], not all zero. */
-static const char *opt_dir3(const char *text, void *dest)
+/* --look-from / --look-at / --up X,Y,Z into double[3] (any finite). */
+static const char *opt_point3(const char *text, void *dest)
 {
 	double *d = dest;
 	char *end;
@@ -175,10 +175,18 @@ static const char *opt_dir3(const char *text, void *dest)
 		d[k] = strtod(q, &end);
 		if (end == q || !isfinite(d[k]) || (k < 2 && *end != ',') ||
 		    (k == 2 && *end))
-			return "X,Y,Z: three finite numbers, not all zero";
+			return "X,Y,Z: three finite numbers separated by commas";
 		q = end + 1;
 	}
-	if (d[0] == 0 && d[1] == 0 && d[2] == 0)
+	return NULL;
+}
+
+/* --warp-dir X,Y,Z into double[3], not all zero. */
+static const char *opt_dir3(const char *text, void *dest)
+{
+	const double *d = dest;
+
+	if (opt_point3(text, dest) || (d[0] == 0 && d[1] == 0 && d[2] == 0))
 		return "X,Y,Z: three finite numbers, not all zero";
 	return NULL;
 }
@@ -201,23 +209,6 @@ static const char *opt_uv_mm(const char *text, void *dest)
 	}
 	if (*end)
 		return "U[,V]: millimetres per UV unit, finite and > 0";
-	return NULL;
-}
-
-/* --look-from / --look-at / --up X,Y,Z into double[3] (any finite). */
-static const char *opt_point3(const char *text, void *dest)
-{
-	double *d = dest;
-	char *end;
-	const char *q = text;
-
-	for (int k = 0; k < 3; k++) {
-		d[k] = strtod(q, &end);
-		if (end == q || !isfinite(d[k]) || (k < 2 && *end != ',') ||
-		    (k == 2 && *end))
-			return "X,Y,Z: three finite numbers separated by commas";
-		q = end + 1;
-	}
 	return NULL;
 }
 
