@@ -103,6 +103,9 @@ typedef struct medium {
 	double albedo[3];
 	double w[3];              /* unit fibre direction (scene); zero = none */
 	double s;                 /* microflake roughness */
+	double dens;              /* density (clamped to the bound) */
+	int surf;                 /* 1: the ground (Lambertian about n) */
+	double n[3];
 } medium;
 
 /* ---- medium lookups ---------------------------------------------------- */
@@ -126,6 +129,8 @@ static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
 	int rc, have_jac = 0;
 
 	m->mu = 0;
+	m->dens = 0;
+	m->surf = 0;
 	if (c->shell) {
 		if (!loom__shell_map(c->shell, x, &t->hint, v, jac, &t->st.shell_queries))
 			return 0;
@@ -149,6 +154,7 @@ static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
 		return 0;
 	if (dens > c->dmax)
 		dens = c->dmax;
+	m->dens = dens;
 	for (int j = 0; j < 3; j++) {
 		double a = ms.albedo[j];
 		m->albedo[j] = a > 0 ? (a < 1 ? a : 1) : 0;
@@ -447,6 +453,10 @@ static int transmittance(tstate *t, const double o[3], const double d[3],
 	medium m;
 
 	*T = 1.0;
+	if (c->o->ground.enabled && loom__ground_hit(&c->o->ground, o, d) < tmax) {
+		*T = 0.0; /* the floor is opaque */
+		return 0;
+	}
 	if (!(c->mu_bar > 0))
 		return 0;
 	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
@@ -550,6 +560,23 @@ static void frame_of(const double a[3], double u[3], double v[3])
 	loom__cross3(a, u, v);
 }
 
+/* The phase function at a collision, the Lambertian lobe on the ground
+   (both exact samplers: pdf = value). */
+static double scat_eval(const medium *m, const double wi[3], const double wo[3])
+{
+	return m->surf ? loom__lambert_eval(m->n, wo)
+	               : loom_microflake_eval(m->s, m->w, wi, wo);
+}
+
+static void scat_sample(const medium *m, const double wi[3], uint64_t *rng,
+                        double wo[3])
+{
+	if (m->surf)
+		loom__lambert_sample(m->n, rng, wo);
+	else
+		loom_microflake_sample(m->s, m->w, wi, rng, wo);
+}
+
 /*
  * Next-event estimation of one light from a real collision at pos (medium
  * m, wi towards where the path came from): adds beta x the estimate to L.
@@ -592,7 +619,7 @@ static int light_nee(tstate *t, const plight *p, const medium *m,
 		/* radiance I / (pi r^2) over the cone's pdf 1 / (2 pi (1 - cmax)) */
 		scale = 2.0 * (1.0 - cmax) / (r * r);
 	}
-	f = loom_microflake_eval(m->s, m->w, wi, wl);
+	f = scat_eval(m, wi, wl);
 	if (scale > 0 && f > 0) {
 		t->st.rays++;
 		if ((rc = transmittance(t, pos, wl, dist, &T)))
@@ -603,8 +630,62 @@ static int light_nee(tstate *t, const plight *p, const medium *m,
 	return 0;
 }
 
-/* Radiance of one camera sample; returns 0 or a lookup error code. */
-static int trace_path(tstate *t, double sx, double sy, double L[3])
+/* The floor hit at distance tg along (org, dir) as an event: a Lambertian
+   surface facing the ray (position exactly on the plane, so rays leaving
+   it do not hit it again). */
+static void ground_event(const loom_ground *g, const double org[3],
+                         const double dir[3], double tg, double pos[3], medium *m)
+{
+	memset(m, 0, sizeof *m);
+	for (int j = 0; j < 3; j++) {
+		pos[j] = org[j] + tg * dir[j];
+		m->albedo[j] = g->albedo[j];
+	}
+	pos[2] = g->height;
+	m->surf = 1;
+	m->n[2] = dir[2] < 0 ? 1.0 : -1.0;
+}
+
+/* The AOVs of a camera ray's first event at pos: albedo, depth and the
+   normal (the plane's, or from the density gradient by central
+   differences one voxel apart).  Lookups only: the path's random numbers
+   and so the beauty image are unchanged.  Returns 0 or a lookup error. */
+static int first_event(tstate *t, const double org[3], const double dir[3],
+                       const double pos[3], const medium *m, loom__aov_hit *h)
+{
+	double g[3] = {0, 0, 0}, d2 = 0;
+	uint32_t hint = t->hint;
+
+	h->hit = 1;
+	for (int j = 0; j < 3; j++) {
+		h->albedo[j] = m->albedo[j];
+		d2 += (pos[j] - org[j]) * (pos[j] - org[j]);
+	}
+	h->depth = sqrt(d2);
+	if (m->surf) {
+		memcpy(h->normal, m->n, sizeof h->normal);
+		return 0;
+	}
+	for (int j = 0; j < 3; j++) {
+		for (int k = -1; k <= 1; k += 2) {
+			double p[3] = {pos[0], pos[1], pos[2]};
+			medium q;
+			int rc;
+			p[j] += k * t->c->len_voxel;
+			if ((rc = medium_at(t, p, dir, &q)))
+				return rc;
+			g[j] += k * q.dens;
+		}
+	}
+	t->hint = hint;
+	loom__aov_normal(g, dir, h->normal);
+	return 0;
+}
+
+/* Radiance of one camera sample; returns 0 or a lookup error code.  h (may
+   be NULL) receives the first event's AOVs. */
+static int trace_path(tstate *t, double sx, double sy, double L[3],
+                      loom__aov_hit *h)
 {
 	rctx *c = t->c;
 	const loom_render_options *o = c->o;
@@ -613,6 +694,8 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 	medium m;
 
 	L[0] = L[1] = L[2] = 0;
+	if (h)
+		h->hit = 0;
 	t->tentative = 0;
 	t->hint = LOOM_MESH_NONE;
 	camera_ray(c, sx, sy, &t->rng, org, dir);
@@ -620,11 +703,17 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 	for (;;) {
 		int r;
 		double wi[3], wo[3];
+		double tg = o->ground.enabled ? loom__ground_hit(&o->ground, org, dir)
+		                              : INFINITY;
 
 		t->st.rays++;
-		r = track(t, org, dir, INFINITY, pos, &m);
+		r = track(t, org, dir, tg, pos, &m);
 		if (r < 0)
 			return -r;
+		if (r == 0 && tg < INFINITY) {
+			ground_event(&o->ground, org, dir, tg, pos, &m);
+			r = 1;
+		}
 		if (r == 0) {
 			if (o->envmap) {
 				/* weighted against environment sampling when the path
@@ -642,6 +731,8 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 			}
 			return 0;
 		}
+		if (depth == 0 && h && (r = first_event(t, org, dir, pos, &m, h)))
+			return r;
 		depth++;
 		t->st.scatterings++;
 		for (int j = 0; j < 3; j++) {
@@ -664,7 +755,7 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 			double u1 = loom__rand01(&t->rng), u2 = loom__rand01(&t->rng);
 			pe = loom_envmap_sample(o->envmap, u1, u2, wl);
 			if (pe > 0) {
-				f = loom_microflake_eval(m.s, m.w, wi, wl);
+				f = scat_eval(&m, wi, wl);
 				if (f > 0) {
 					t->st.rays++;
 					if ((rc = transmittance(t, pos, wl, INFINITY, &T)))
@@ -687,9 +778,9 @@ static int trace_path(tstate *t, double sx, double sy, double L[3])
 					beta[j] /= q;
 			}
 		}
-		loom_microflake_sample(m.s, m.w, wi, &t->rng, wo);
+		scat_sample(&m, wi, &t->rng, wo);
 		if (o->envmap)
-			phase_pdf = loom_microflake_eval(m.s, m.w, wi, wo);
+			phase_pdf = scat_eval(&m, wi, wo);
 		memcpy(org, pos, sizeof org);
 		memcpy(dir, wo, sizeof dir);
 	}
@@ -722,13 +813,17 @@ static int render_tile(tstate *t, uint64_t tile)
 		for (uint32_t x = x0; x < x1; x++) {
 			uint64_t pix = (uint64_t)y * o->width + x;
 			double acc[3] = {0, 0, 0};
+			loom__aov_acc aa;
+			loom__aov_hit ah;
+			loom__aov_begin(&aa);
 			for (uint32_t k = 0; k < o->spp; k++) {
 				double L[3], jx, jy;
 				int rc;
 				t->rng = hash64(o->seed ^ hash64(pix * 0x9e3779b97f4a7c15ull + k + 1));
 				jx = loom__rand01(&t->rng);
 				jy = loom__rand01(&t->rng);
-				rc = trace_path(t, (x + jx) / o->width, (y + jy) / o->height, L);
+				rc = trace_path(t, (x + jx) / o->width, (y + jy) / o->height, L,
+				                o->aov ? &ah : NULL);
 				if (rc) {
 					int expected = 0;
 					atomic_compare_exchange_strong(&c->error, &expected, rc);
@@ -736,7 +831,11 @@ static int render_tile(tstate *t, uint64_t tile)
 				}
 				for (int j = 0; j < 3; j++)
 					acc[j] += isfinite(L[j]) ? L[j] : 0.0;
+				if (o->aov)
+					loom__aov_add(&aa, L, &ah);
 			}
+			if (o->aov)
+				loom__aov_store(&aa, o->aov, pix);
 			for (int j = 0; j < 3; j++)
 				c->rgb[3 * pix + j] = (float)(acc[j] / o->spp);
 		}
@@ -952,6 +1051,8 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	c.rgb = rgb;
 	c.len_voxel = 1.0;
 	if ((rc = setup_camera(&c, diag)))
+		return rc;
+	if ((rc = loom__ground_check(&o->ground, diag)))
 		return rc;
 	if (c.shell) {
 		if (loom__shell_failed(c.shell))

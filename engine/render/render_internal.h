@@ -111,4 +111,33 @@ int64_t loom__shell_nz(const loom_shell *s);
 /* Nonzero after Embree reported an error on the shell's device. */
 int loom__shell_failed(const loom_shell *s);
 
+/* ---- the floor (ground.c) ----------------------------------------------- */
+
+/* Distance t > 0 along (o, d) to the ground plane; INFINITY when none (a
+   ray starting on the plane does not hit it again). */
+double loom__ground_hit(const loom_ground *g, const double o[3], const double d[3]);
+/* Lambertian lobe max(0, n . wo) / pi (albedo excluded) and its exact
+   cosine-weighted sampler (pdf = the lobe). */
+double loom__lambert_eval(const double n[3], const double wo[3]);
+void loom__lambert_sample(const double n[3], uint64_t *rng, double wo[3]);
+/* LOOM_OK or LOOM_EINVAL (with the reason) for a bad enabled ground. */
+int loom__ground_check(const loom_ground *g, loom_diag *diag);
+
+/* ---- AOV accumulation (aov.c) ------------------------------------------ */
+
+typedef struct loom__aov_hit {  /* one camera sample's first event */
+	int hit;
+	double albedo[3], normal[3], depth;
+} loom__aov_hit;
+
+typedef struct loom__aov_acc {  /* one pixel's sums, in sample order */
+	uint32_t n, n_hit;
+	double s[3], s2[3], albedo[3], normal[3], depth;
+} loom__aov_acc;
+
+void loom__aov_begin(loom__aov_acc *a);
+void loom__aov_add(loom__aov_acc *a, const double L[3], const loom__aov_hit *h);
+void loom__aov_store(const loom__aov_acc *a, const loom_render_aov *out, size_t pix);
+void loom__aov_normal(const double g[3], const double d[3], double n[3]);
+
 #endif /* LOOM_RENDER_INTERNAL_H */

@@ -33,6 +33,8 @@ static const char usage[] =
 	"            [--ortho WIDTH_MM] [--aperture MM [--focus MM]]\n"
 	"            [--envmap FILE.exr [--env-rotate DEG] [--env-intensity K]]\n"
 	"            [--light X,Y,Z,RADIUS,INTENSITY]...\n"
+	"            [--cloth-size W[,H]] [--ground [--ground-z MM]\n"
+	"            [--ground-albedo A[,G,B]]] [--tone linear|filmic]\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
@@ -50,6 +52,9 @@ static const char about[] =
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
+
+static const opt_choice tone_names[] = {
+	{"linear", LOOM_TONE_LINEAR}, {"filmic", LOOM_TONE_FILMIC}, {NULL, 0}};
 
 static const opt_choice majorant_names[] = {
 	{"grid", 0}, {"global", 1}, {NULL, 0}};
@@ -212,6 +217,102 @@ static const char *opt_uv_mm(const char *text, void *dest)
 	return NULL;
 }
 
+/* --cloth-size W[,H] into double[2]: millimetres, finite and > 0. */
+static const char *opt_size_mm(const char *text, void *dest)
+{
+	double *d = dest;
+	char *end;
+	const char *q = text;
+
+	for (int k = 0; k < 2; k++) {
+		d[k] = strtod(q, &end);
+		if (end == q || !(d[k] > 0) || !isfinite(d[k]))
+			return "W[,H]: millimetres, finite and > 0";
+		if (k == 0 && *end != ',') {
+			d[1] = d[0];
+			break;
+		}
+		q = end + 1;
+	}
+	if (*end)
+		return "W[,H]: millimetres, finite and > 0";
+	return NULL;
+}
+
+/* --ground-albedo A or R,G,B into double[3], each in [0, 1]. */
+static const char *opt_albedo(const char *text, void *dest)
+{
+	double *d = dest;
+	char *end;
+	const char *q = text;
+	int k;
+
+	for (k = 0; k < 3; k++) {
+		d[k] = strtod(q, &end);
+		if (end == q || !(d[k] >= 0 && d[k] <= 1))
+			return "A or R,G,B: reflectances in [0, 1]";
+		if (*end != ',')
+			break;
+		q = end + 1;
+	}
+	if (*end || k == 1)
+		return "A or R,G,B: reflectances in [0, 1]";
+	if (k == 0)
+		d[1] = d[2] = d[0];
+	return NULL;
+}
+
+/* The PNG through the tone curve. */
+static int write_png_tone(const char *path, const float *rgb, uint32_t w,
+                          uint32_t h, double exposure, int tone, loom_diag *diag)
+{
+	loom_image *img = NULL;
+	int rc;
+
+	if ((rc = loom_image_new(w, h, 3, &img)) != LOOM_OK)
+		return rc;
+	loom_render_to_srgb8_tone(rgb, (size_t)w * h, exposure, tone, img->pixels);
+	rc = loom_image_write(path, img, diag);
+	loom_image_free(img);
+	return rc;
+}
+
+/* The EXR: linear RGB and the AOV layers (docs/rendering.md, "EXR
+   output"), float; depth from scene units to the user's (x unit). */
+static int write_exr_aov(const char *path, const float *rgb,
+                         const loom_render_aov *a, uint32_t w, uint32_t h,
+                         double unit, loom_diag *diag)
+{
+	static const loom_exr_channel ch[13] = {
+		{"R", LOOM_EXR_FLOAT}, {"G", LOOM_EXR_FLOAT}, {"B", LOOM_EXR_FLOAT},
+		{"albedo.R", LOOM_EXR_FLOAT}, {"albedo.G", LOOM_EXR_FLOAT},
+		{"albedo.B", LOOM_EXR_FLOAT}, {"normal.X", LOOM_EXR_FLOAT},
+		{"normal.Y", LOOM_EXR_FLOAT}, {"normal.Z", LOOM_EXR_FLOAT},
+		{"Z", LOOM_EXR_FLOAT}, {"noise.R", LOOM_EXR_FLOAT},
+		{"noise.G", LOOM_EXR_FLOAT}, {"noise.B", LOOM_EXR_FLOAT}};
+	size_t npx = (size_t)w * h;
+	float *rows = malloc(npx * 13 * sizeof *rows);
+	int rc;
+
+	if (!rows) {
+		snprintf(diag->message, sizeof diag->message, "%s: out of memory", path);
+		return LOOM_ENOMEM;
+	}
+	for (size_t i = 0; i < npx; i++) {
+		float *r = rows + 13 * i;
+		for (int k = 0; k < 3; k++) {
+			r[k] = rgb[3 * i + (size_t)k];
+			r[3 + k] = a->albedo[3 * i + (size_t)k];
+			r[6 + k] = a->normal[3 * i + (size_t)k];
+			r[10 + k] = a->noise[3 * i + (size_t)k];
+		}
+		r[9] = (float)(a->depth[i] * unit);
+	}
+	rc = cli_write_exr(path, w, h, ch, 13, rows, diag);
+	free(rows);
+	return rc;
+}
+
 /* Pinhole camera at elevation el, azimuth az (radians) looking at target
    from distance dist. */
 static void place_camera(loom_camera *c, const double target[3], double dist,
@@ -248,6 +349,11 @@ int cmd_render(int argc, char **argv)
 	loom_envmap *envmap = NULL;
 	size_t env_bytes = 0;
 	uint32_t field_smooth = 32;
+	int ground = 0, tone = LOOM_TONE_LINEAR, is_exr;
+	double ground_z = 0, ground_alb[3] = {0.6, 0.6, 0.6}, cloth_mm[2] = {0, 0};
+	double floor_scene = 0; /* default floor height, scene units */
+	float *aovbuf = NULL;
+	loom_render_aov aov;
 	int have_uv_stats = 0, field = 0;
 	loom_mesh_uv_stats uvst;
 	int64_t box[4] = {0, 0, 0, 0}, *lo = box, *hi = box + 2;
@@ -356,11 +462,31 @@ int cmd_render(int argc, char **argv)
 		             "cloth's frame (mesh units with --mesh) and intensity I, the "
 		             "irradiance I / d^2 it gives at distance d mm; lamps light "
 		             "the cloth but are not seen in the picture"),
+		OPT_CALLBACK(0, "cloth-size", cloth_mm, "W[,H]", opt_size_mm, "flat "
+		             "patch: a piece of cloth W x H mm (H = W when not given) "
+		             "cut from the bolt at its origin instead of the endless "
+		             "bolt, so its edges show; the camera frames the whole piece "
+		             "with a margin unless --region is given"),
+		OPT_FLAG(0, "ground", &ground, "a diffuse floor under the cloth that "
+		         "catches its shadows (flat patch: at the slab's underside; "
+		         "mesh: under its bounding box)"),
+		OPT_DOUBLE(0, "ground-z", &ground_z, "MM", "()", -INFINITY, INFINITY,
+		           "a finite number", "the floor's height in mm of the cloth's "
+		           "frame (mesh units with --mesh) instead of the default"),
+		OPT_CALLBACK(0, "ground-albedo", ground_alb, "A[,G,B]", opt_albedo,
+		             "the floor's diffuse reflectance, grey or per channel, "
+		             "each in [0, 1] (default 0.6)"),
+		OPT_ENUM(0, "tone", &tone, "T", tone_names, "PNG: linear (default: "
+		         "clip at 1) or filmic (an ACES-like curve with a soft "
+		         "shoulder: highlights roll off instead of clipping; docs/"
+		         "rendering.md)"),
 		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
 		         "comparison)"),
-		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB)"),
+		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB "
+		           "plus the AOV layers albedo, normal, Z and noise; docs/"
+		           "rendering.md)"),
 		OPT_JSON(&json, "print figures as JSON on stdout"),
 		OPT_QUIET(&quiet, "no progress or summary"),
 		OPT_END()
@@ -396,6 +522,14 @@ int cmd_render(int argc, char **argv)
 		opts_usage(&cmd, "--focus goes with --aperture");
 	if (!env_path && (opt_given(&cmd, &env_rot) || opt_given(&cmd, &env_k)))
 		opts_usage(&cmd, "--env-rotate and --env-intensity go with --envmap");
+	is_exr = cli_ends_with(out, ".exr");
+	if (mesh_path && opt_given(&cmd, cloth_mm))
+		opts_usage(&cmd, "--cloth-size cuts a flat patch; a mesh's UV layout "
+		           "bounds its cloth");
+	if (!ground && (opt_given(&cmd, &ground_z) || opt_given(&cmd, ground_alb)))
+		opts_usage(&cmd, "--ground-z and --ground-albedo go with --ground");
+	if (is_exr && opt_given(&cmd, &tone))
+		opts_usage(&cmd, "--tone shapes a PNG; an .exr keeps linear radiance");
 	cli_check_output(prog, out); /* before minutes of rendering */
 	cli_diag_init(&diag, &quiet);
 	budget = (size_t)(budget_mb * 1048576.0);
@@ -489,6 +623,19 @@ int cmd_render(int argc, char **argv)
 		goto fail;
 	}
 
+	if (opt_given(&cmd, cloth_mm)) {
+		/* a piece [0, W) x [0, H) mm of the bolt: the slab bounded */
+		double vmm = src.voxel_mm > 0 ? src.voxel_mm : 0.024;
+		for (int k = 0; k < 2; k++) {
+			double n = floor(cloth_mm[k] / vmm + 0.5);
+			if (n > 1e9) {
+				cli_error(prog, "--cloth-size %g mm: at most 1e9 voxels of %g "
+				          "mm across", cloth_mm[k], vmm);
+				goto fail;
+			}
+			(k ? &src.ny : &src.nx)[0] = n > 1 ? (int64_t)n : 1;
+		}
+	}
 	ro.width = width;
 	ro.height = height;
 	ro.spp = spp;
@@ -524,6 +671,7 @@ int cmd_render(int argc, char **argv)
 		}
 		sp.thickness = thickness > 0 ? thickness : 0.015 * diag_len;
 		sp.offset = -sp.thickness / 2;
+		floor_scene = blo[2] - sp.thickness / 2; /* under the shell */
 		vpu[0] = vpu[1] = (double)rep[0] * uv_repeats;
 		if (opt_given(&cmd, uv_mm) &&
 		    loom_uv_mm_scale(uv_mm, id.block, src.voxel_mm > 0 ? src.voxel_mm
@@ -574,7 +722,13 @@ int cmd_render(int argc, char **argv)
 	} else {
 		double c[3], wspan, dist, aspect = (double)width / height;
 		double tanh_y = tan(0.5 * fov * M_PI / 180.0);
-		if (!opt_given(&cmd, box)) {
+		if (!opt_given(&cmd, box) && src.nx > 0) {
+			/* the whole piece and a fifth of its size round it */
+			int64_t m = (src.nx > src.ny ? src.nx : src.ny) / 5;
+			lo[0] = lo[1] = -m;
+			hi[0] = src.nx + m;
+			hi[1] = src.ny + m;
+		} else if (!opt_given(&cmd, box)) {
 			hi[0] = (int64_t)rep[0];
 			hi[1] = (int64_t)rep[1];
 		}
@@ -685,6 +839,27 @@ int cmd_render(int argc, char **argv)
 	}
 	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
 	ro.envmap = envmap;
+	if (ground) {
+		ro.ground.enabled = 1;
+		ro.ground.height = opt_given(&cmd, &ground_z) ? ground_z / unit : floor_scene;
+		for (int k = 0; k < 3; k++)
+			ro.ground.albedo[k] = (float)ground_alb[k];
+	}
+	if (is_exr) {
+		/* AOVs: albedo 3, normal 3, depth 1, noise 3 */
+		size_t npx = (size_t)width * height;
+		aovbuf = malloc(npx * 10 * sizeof *aovbuf);
+		if (!aovbuf) {
+			cli_error(prog, "out of memory for the AOVs of a %ux%u image",
+			          width, height);
+			goto fail;
+		}
+		aov.albedo = aovbuf;
+		aov.normal = aovbuf + 3 * npx;
+		aov.depth = aovbuf + 6 * npx;
+		aov.noise = aovbuf + 7 * npx;
+		ro.aov = &aov;
+	}
 	rgb = malloc((size_t)width * height * 3 * sizeof *rgb);
 	if (!rgb) {
 		cli_error(prog, "out of memory for a %ux%u image", width, height);
@@ -706,7 +881,9 @@ int cmd_render(int argc, char **argv)
 		cli_error(prog, "%s", diag.message[0] ? diag.message : loom_strerror(rc));
 		goto fail;
 	}
-	if (cli_write_rgb(out, rgb, width, height, exposure, &diag) != LOOM_OK) {
+	if ((is_exr ? write_exr_aov(out, rgb, &aov, width, height, unit, &diag)
+	            : write_png_tone(out, rgb, width, height, exposure, tone,
+	                             &diag)) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}
@@ -761,6 +938,14 @@ int cmd_render(int argc, char **argv)
 		jw_str(&w, "majorant", mj ? "grid" : "global");
 		jw_uint(&w, "majorant_bytes", mj_bytes);
 		jw_uint(&w, "envmap_bytes", env_bytes);
+		jw_str(&w, "tone", is_exr ? "none" : tone == LOOM_TONE_FILMIC ? "filmic"
+		                                                           : "linear");
+		if (ground)
+			jw_num(&w, "ground_z", ro.ground.height * unit);
+		if (src.nx > 0) {
+			jw_num(&w, "cloth_w_mm", (double)src.nx * unit);
+			jw_num(&w, "cloth_h_mm", (double)src.ny * unit);
+		}
 		jw_num(&w, "seconds", st.seconds);
 		jw_end(&w);
 	} else if (!quiet) {
@@ -770,6 +955,7 @@ int cmd_render(int argc, char **argv)
 		        (unsigned long long)st.lookups);
 	}
 	free(rgb);
+	free(aovbuf);
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);
@@ -781,6 +967,7 @@ int cmd_render(int argc, char **argv)
 	return 0;
 fail:
 	free(rgb);
+	free(aovbuf);
 	loom_shell_free(shell);
 	loom_mesh_free(mesh);
 	loom_texture_close(t);

@@ -445,6 +445,42 @@ LOOM_API double loom_envmap_pdf(const loom_envmap *m, const double d[3]);
    the other strategy has pdf_b: a^2 / (a^2 + b^2); 0 when pdf_a is 0. */
 LOOM_API double loom_mis_power(double pdf_a, double pdf_b);
 
+/*
+ * An optional floor: the opaque plane z = height (scene units) with a
+ * Lambertian (diffuse) surface of reflectance albedo, seen from either
+ * side.  Camera, scattered and shadow rays all hit it, so it catches the
+ * cloth's shadows; the environment and the lights light it like the cloth.
+ */
+typedef struct loom_ground {
+	int enabled;            /* 0: no floor (the default) */
+	double height;          /* z of the plane, scene units, finite */
+	float albedo[3];        /* diffuse reflectance per channel, [0, 1] */
+} loom_ground;
+
+/*
+ * Optional per-pixel outputs besides the beauty image (arbitrary output
+ * variables, for denoisers and compositing).  Each non-NULL buffer holds
+ * width * height values of the given count, row 0 at the top, filled in
+ * sample order (same bytes for any thread count; asking for them does not
+ * change the beauty image).  "First event" is a camera ray's first real
+ * collision in the medium or its hit on the ground; samples whose camera
+ * ray escapes give 0 to albedo and normal and nothing to depth.
+ */
+typedef struct loom_render_aov {
+	float *albedo;          /* 3: mean single-scattering albedo at the
+	                           first event (the ground's albedo there) */
+	float *normal;          /* 3: mean unit normal at the first event:
+	                           minus the density gradient (central
+	                           differences one voxel apart) turned towards
+	                           the camera; the plane's normal on the
+	                           ground; scene axes */
+	float *depth;           /* 1: mean distance (scene units) from the ray's
+	                           origin to the first event over the samples
+	                           that had one; 0 when none had */
+	float *noise;           /* 3: standard error of the pixel's mean,
+	                           sqrt(sample variance / spp) (0 at 1 spp) */
+} loom_render_aov;
+
 typedef struct loom_render_options {
 	size_t size;            /* sizeof(loom_render_options) */
 	uint32_t width, height; /* pixels, 1 .. 65536 each */
@@ -480,6 +516,8 @@ typedef struct loom_render_options {
 	                           at every scattering event and combined with
 	                           phase sampling by multiple importance
 	                           sampling; env is then unused */
+	loom_ground ground;     /* optional floor (ground.enabled = 0: none) */
+	const loom_render_aov *aov; /* NULL: the beauty image only */
 } loom_render_options;
 
 #define LOOM_RENDER_MAX_LIGHTS 64u /* extra lights (opt.lights) */
@@ -495,7 +533,8 @@ typedef struct loom_render_options {
 	  0.0},                                                                    \
 	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0,\
 	  0.0},                                                                    \
-	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u, NULL, 0u, NULL}
+	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u, NULL, 0u, NULL,           \
+	 {0, 0.0, {0.5f, 0.5f, 0.5f}}, NULL}
 
 typedef struct loom_render_stats {
 	uint64_t paths;          /* camera samples (width * height * spp) */
@@ -533,6 +572,27 @@ LOOM_API int loom_render(const loom_volume_source *src,
  */
 LOOM_API void loom_render_to_srgb8(const float *rgb, size_t n_pixels,
                                    double exposure, uint8_t *out);
+
+/* Tone curves for loom_render_to_srgb8_tone (engine/render/tone.c). */
+enum loom_tone {
+	LOOM_TONE_LINEAR = 0,  /* clamp to [0, 1] (loom_render_to_srgb8) */
+	LOOM_TONE_FILMIC = 1   /* f(x) = x (2.51 x + 0.03) / (x (2.43 x + 0.59)
+	                          + 0.14), clamped to [0, 1]: a toe, a
+	                          straight middle and a soft shoulder that
+	                          reaches white at x = 7.24 (K. Narkowicz's
+	                          2015 fit of the ACES film curve, applied per
+	                          channel) */
+};
+
+/* The filmic curve above for one linear value (>= 0; NaN gives 0). */
+LOOM_API double loom_tone_filmic(double x);
+
+/* As loom_render_to_srgb8 with a tone curve (enum loom_tone) applied
+   to value * 2^exposure before the sRGB transfer curve; LOOM_TONE_LINEAR
+   gives loom_render_to_srgb8's bytes.  An unknown tone is treated as
+   linear. */
+LOOM_API void loom_render_to_srgb8_tone(const float *rgb, size_t n_pixels,
+                                        double exposure, int tone, uint8_t *out);
 
 #ifdef __cplusplus
 }
