@@ -228,37 +228,6 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
-/* Source densities of source column (sx, sy) of crossing e for source z
-   in [zs, zs + n) into d, zero outside [0, b3), in bricks stored as
-   nothing or whose read fails (*rc keeps the first error): brick runs. */
-static void src_dens(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
-                     uint32_t sy, int64_t zs, size_t n, uint8_t *d, int *rc)
-{
-	int64_t b3 = t->b3, bz = t->bs[2], ze = zs + (int64_t)n;
-	uint64_t base = e->ex->first_brick +
-	                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
-	                        e->ex->nb[2];
-	size_t col = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2];
-
-	memset(d, 0, n);
-	for (int64_t z = zs > 0 ? zs : 0; z < ze && z < b3;) {
-		int64_t z0 = z / bz * bz, z1 = z0 + bz < ze ? z0 + bz : ze;
-		uint64_t id = base + (uint64_t)(z / bz);
-		if (z1 > b3)
-			z1 = b3;
-		if (id != s->memo_id) {
-			int e2 = loom__memo_switch(t, s, id);
-			if (e2 != LOOM_OK && *rc == LOOM_OK)
-				*rc = e2;
-		} else {
-			bump(&s->cnt.memo_hits, 1);
-		}
-		if (s->memo_id == id && s->memo)
-			memcpy(d + (z - zs), s->memo + col + (size_t)(z - z0), (size_t)(z1 - z));
-		z = z1;
-	}
-}
-
 /* The planes of a blended column besides density (NULL: not wanted) and
    the label -> kind, type tables. */
 struct bplanes {
@@ -301,115 +270,36 @@ static inline void rep_far(const struct bplanes *b, size_t at, int dir, const ra
 	}
 }
 
-#ifdef __SSE2__
-/* 16 blends (raw_blend's density): (g far + (DZ_SUB - g) near + DZ_SUB/2)
-   / DZ_SUB per byte. */
-static inline __m128i blend16(__m128i nr, __m128i fr, __m128i G, __m128i GN)
+/* The SIMD blends below compute raw_blend's density with a shift by 4. */
+_Static_assert(DZ_SUB == 16, "region blends assume 1/16-voxel offsets");
+
+/* One blended voxel at sink offset at (raw_blend): nearer density nr,
+   farther fr (weight g / DZ_SUB) into D (unless NULL); where the nearer
+   is empty and the blend is not, the other planes from the farther voxel
+   (the sink voxel at + dir, or x). */
+static inline void blend1(uint8_t *D, const struct bplanes *b, int others, size_t at,
+                          unsigned nr, unsigned fr, unsigned g, int dir, const rawvox *x)
 {
-	const __m128i zero = _mm_setzero_si128(), H = _mm_set1_epi16(DZ_SUB / 2);
-	__m128i lo = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
-	                                         _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
-	                           H);
-	__m128i hi = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(fr, zero), G),
-	                                         _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
-	                           H);
-	return _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
+	unsigned v = (g * fr + (DZ_SUB - g) * nr + DZ_SUB / 2) / DZ_SUB;
+	if (D)
+		D[at] = (uint8_t)v;
+	if (others && !nr && v)
+		rep_far(b, at, dir, x);
 }
 
-/* Lanes where the nearer density is 0 and the blend is not. */
-static inline int rep_mask(__m128i nr, __m128i v)
+/* n >= 1 consecutive output voxels of a column (sink offset at0 for the
+   first) straight from a brick's density run: their nearer densities are
+   near[0 .. n), the farther ones near[i + dir], both inside the brick.
+   Writes the blends (weight g / DZ_SUB for the farther voxel) to D at
+   at0 .. at0 + n - 1 (unless D is NULL), 16 voxels at a time (SSE2; the last 16 overlapping);
+   where the nearer voxel is empty and the blend is not, the other planes
+   from the farther voxel, which the sink already holds at at + dir (its
+   run was copied first).  A farther voxel taken so has density, so it is
+   never itself rewritten: the order does not matter. */
+static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
+                      const struct bplanes *b, int others, size_t at0)
 {
-	const __m128i zero = _mm_setzero_si128();
-	return _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero), _mm_cmpeq_epi8(nr, zero)));
-}
-
-/* blend_run in place for n >= 16 voxels whose nearer densities are A[0 ..
-   n), the farther ones A[i + dir] and xd past the end: 16 at a time in
-   the order that reads every farther density before it is rewritten
-   (down for dir -1, up for dir +1); the partial block at the far end is
-   computed first (from the old values, with xd) and stored last. */
-static void blend_inplace(uint8_t *A, size_t n, int dir, unsigned g, uint8_t xd,
-                          const struct bplanes *b, int others, size_t at0, const rawvox *x)
-{
-	const __m128i G = _mm_set1_epi16((short)g), GN = _mm_set1_epi16((short)(DZ_SUB - g));
-	uint8_t e[17];
-	size_t r = n % 16, i;
-	__m128i last, lnr;
-	int m;
-
-	/* the end block: [0, 16) for dir -1, [n - 16, n) for dir +1 */
-	if (dir < 0) {
-		e[0] = xd;
-		memcpy(e + 1, A, 16);
-		lnr = _mm_loadu_si128((const __m128i *)(e + 1));
-		last = blend16(lnr, _mm_loadu_si128((const __m128i *)e), G, GN);
-	} else {
-		memcpy(e, A + n - 16, 16);
-		e[16] = xd;
-		lnr = _mm_loadu_si128((const __m128i *)e);
-		last = blend16(lnr, _mm_loadu_si128((const __m128i *)(e + 1)), G, GN);
-	}
-	if (dir < 0) {
-		/* blocks [i, i + 16) from the top down to r (to 16 when r == 0) */
-		for (i = n - 16; i >= (r ? r : 16); i -= 16) {
-			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
-			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i - 1)), G, GN);
-			_mm_storeu_si128((__m128i *)(A + i), v);
-			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
-				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), -1, NULL);
-			if (i < 16)
-				break;
-		}
-		/* lanes [0, r) of the end block (all 16 when r == 0) */
-		{
-			uint8_t tmp[16];
-			size_t w = r ? r : 16;
-			_mm_storeu_si128((__m128i *)tmp, last);
-			memcpy(A, tmp, w);
-			for (m = others ? rep_mask(lnr, last) & ((1 << w) - 1) : 0; m; m &= m - 1) {
-				size_t j = (size_t)__builtin_ctz((unsigned)m);
-				rep_far(b, at0 + j, -1, j == 0 ? x : NULL);
-			}
-		}
-	} else {
-		size_t full = r ? n - r : n - 16; /* [0, full) in place */
-		for (i = 0; i < full; i += 16) {
-			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
-			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i + 1)), G, GN);
-			_mm_storeu_si128((__m128i *)(A + i), v);
-			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
-				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), 1, NULL);
-		}
-		/* lanes [16 - w, 16) of the end block: voxels [full, n) */
-		{
-			uint8_t tmp[16];
-			size_t w = n - full;
-			_mm_storeu_si128((__m128i *)tmp, last);
-			memcpy(A + full, tmp + 16 - w, w);
-			for (m = others ? (rep_mask(lnr, last) >> (16 - w)) : 0; m; m &= m - 1) {
-				size_t j = full + (size_t)__builtin_ctz((unsigned)m);
-				rep_far(b, at0 + j, 1, j == n - 1 ? x : NULL);
-			}
-		}
-	}
-}
-#endif
-
-/* Voxels per blend_run at most. */
-#define BCH 256
-
-/* n (1..BCH) consecutive output voxels of a column (sink offset at0 for
-   the first): their nearer densities are near[0 .. n), the farther ones
-   near[i + dir] (the array extends one voxel on that side).  Writes the
-   blends (weight g / DZ_SUB for the farther voxel) to out (unless NULL),
-   16 voxels at a time (SSE2; the last 16 overlapping); where the nearer
-   voxel is empty and the blend is not, the other planes from the farther
-   voxel (rep_far: past the end from x when x is not NULL, else from the
-   sink).  A farther voxel taken so has density, so it is never itself
-   rewritten: the order does not matter. */
-static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsigned g,
-                      const struct bplanes *b, int others, size_t at0, const rawvox *x)
-{
+	uint8_t *out = D ? D + at0 : NULL;
 	const uint8_t *far = near + dir;
 	const unsigned gn = DZ_SUB - g;
 	size_t i = 0;
@@ -432,103 +322,107 @@ static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsi
 			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
 			if (out)
 				_mm_storeu_si128((__m128i *)(out + i), v);
-			if (others) {
-				int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
-				                                           _mm_cmpeq_epi8(nr, zero)));
-				for (; m; m &= m - 1) {
-					size_t j = i + (size_t)__builtin_ctz((unsigned)m);
-					int end = dir < 0 ? j == 0 : j == n - 1;
-					rep_far(b, at0 + j, dir, end ? x : NULL);
-				}
-			}
+			if (others)
+				for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+				                                                _mm_cmpeq_epi8(nr, zero)));
+				     m; m &= m - 1)
+					rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), dir, NULL);
 			if (i + 16 == n)
 				return;
 			i = i + 32 <= n ? i + 16 : n - 16;
 		}
 	}
 #endif
-	for (; i < n; i++) {
-		unsigned v = (g * far[i] + gn * near[i] + DZ_SUB / 2) / DZ_SUB;
-		if (out)
-			out[i] = (uint8_t)v;
-		if (others && !near[i] && v) {
-			int end = dir < 0 ? i == 0 : i == n - 1;
-			rep_far(b, at0 + i, dir, end ? x : NULL);
-		}
-	}
+	for (; i < n; i++)
+		blend1(D, b, others, at0 + i, near[i], far[i], g, dir, NULL);
 }
 
-/* A column with a fractional offset (raw_blend), after its nearer source
-   voxels went into sink k like a whole-voxel offset wn (the group's run
-   copies): voxel z of the sink holds near(z), the farther voxel is
-   near(z + dir) (dir -1 or +1, weight g / DZ_SUB, 1 <= g <= DZ_SUB/2).
-   Blends output z in [ba, bb) in place (the sink's column starts at
-   output z = za at offset o), in chunks of BCH whose nearer densities are
-   copied first (blend_run reads the copy); chunks go from the top for
-   dir -1, from the bottom for dir +1, so that the sink's density past a
-   chunk is still the nearer one.  The farther voxel of the column's end
-   voxel (ba for dir -1, bb - 1 for dir +1) lies outside [ba, bb) and
-   comes in x (density, orientation, label).  Without a density plane in
-   the sink the nearer densities are read again from the bricks
-   (src_dens, source z = z - wn). */
-static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
-                      const struct sink *k, size_t o, int64_t za, int64_t ba, int64_t bb,
-                      int dir, unsigned g, const rawvox *x, uint32_t sx, uint32_t sy,
-                      int64_t wn, int *rc)
+#ifdef HAVE_KT_SSSE3
+/* blend_run with PSHUFB's sibling PMADDUBSW (the CPU checked at open, as
+   for kind_type): the nearer and farther bytes interleaved, multiplied by
+   (DZ_SUB - g, g) and summed in one instruction; PMULHRSW by 2^11 then
+   gives (s + 8) >> 4 exactly (s <= 255 * 16).  n >= 16. */
+__attribute__((target("ssse3"))) static void blend_run_ssse3(uint8_t *D, const uint8_t *near,
+                                                             size_t n, int dir, unsigned g,
+                                                             const struct bplanes *b,
+                                                             int others, size_t at0)
 {
-	uint8_t *D = k->raw ? k->rd : k->d;
-	struct bplanes b;
-	int others;
-	uint8_t tmp[BCH + 1];
+	uint8_t *out = D ? D + at0 : NULL;
+	const uint8_t *far = near + dir;
+	const __m128i zero = _mm_setzero_si128();
+	const __m128i W = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
+	const __m128i R = _mm_set1_epi16(1 << 11);
+	size_t i = 0;
 
-	b.L = k->raw ? k->rl : k->l;
-	b.K = k->raw ? k->rk : k->k;
-	b.T = k->raw ? k->rt : k->ty;
-	b.OL = k->raw ? k->rlo : NULL;
-	b.OH = k->raw ? k->rhi : NULL;
-	b.O = k->raw ? NULL : k->o;
-	b.kl = k->kl;
-	b.tl = k->tl;
-	others = b.L || b.K || b.T || b.OL || b.O;
-	if (!D && !others)
-		return;
-#ifdef __SSE2__
-	if (D && bb - ba >= 16) {
-		blend_inplace(D + o + (size_t)(ba - za), (size_t)(bb - ba), dir, g, x->d, &b, others,
-		              o + (size_t)(ba - za), x);
-		return;
-	}
-#endif
-	for (int64_t done = 0; done < bb - ba;) {
-		size_t n = bb - ba - done < BCH ? (size_t)(bb - ba - done) : BCH;
-		int64_t c0 = dir < 0 ? bb - done - (int64_t)n : ba + done;
-		int end = dir < 0 ? c0 == ba : c0 + (int64_t)n == bb;
-		uint8_t *dc = D ? D + o + (size_t)(c0 - za) : NULL;
-		/* tmp: near(c0 - 1 .. c0 + n) for dir -1, near(c0 .. c0 + n + 1)
-		   for dir +1 (past the column's end: x) */
-		if (dir < 0) {
-			if (D) {
-				memcpy(tmp + 1, dc, n);
-				tmp[0] = end ? x->d : dc[-1];
-			} else {
-				src_dens(t, s, e, sx, sy, c0 - 1 - wn, n + 1, tmp, rc);
-			}
-		} else {
-			if (D) {
-				memcpy(tmp, dc, n);
-				tmp[n] = end ? x->d : dc[n];
-			} else {
-				src_dens(t, s, e, sx, sy, c0 - wn, n + 1, tmp, rc);
-			}
-		}
-		blend_run(dc, dir < 0 ? tmp + 1 : tmp, n, dir, g, &b, others,
-		          o + (size_t)(c0 - za), end ? x : NULL);
-		done += (int64_t)n;
+	for (;;) {
+		__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
+		__m128i fr = _mm_loadu_si128((const __m128i *)(far + i));
+		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
+		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
+		__m128i v = _mm_packus_epi16(lo, hi);
+		if (out)
+			_mm_storeu_si128((__m128i *)(out + i), v);
+		if (others)
+			for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+			                                                _mm_cmpeq_epi8(nr, zero)));
+			     m; m &= m - 1)
+				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), dir, NULL);
+		if (i + 16 == n)
+			return;
+		i = i + 32 <= n ? i + 16 : n - 16;
 	}
 }
+#endif
 
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
+
+/* Per fractional column of a group: how its voxels blend. */
+struct fcol {
+	int8_t dir;    /* 0: whole offset; -1, +1: the farther voxel */
+	uint8_t g;     /* the farther voxel's weight, 1 .. DZ_SUB/2 */
+	uint8_t cy;    /* dir -1: density of the source voxel below the next
+	                  run voxel; dir +1: of the last run voxel (its blend
+	                  waits for the voxel above) */
+	int64_t ba, bb; /* output voxels blended (either source voxel in the
+	                   block) */
+	int64_t xz;    /* source z of the end voxel (-1: outside the block) */
+	rawvox xv;     /* the end voxel: below the run for dir -1, above it
+	                  for dir +1 */
+};
+
+/* The density of one brick run [a, b) of a fractional column (sink
+   offset o for a; q: its densities in the brick, NULL when the brick
+   failed: zeros), in the brick pass, after the run's other planes went
+   into the sink.  Every output voxel whose two source voxels lie in the
+   run is blended straight from the brick (blend_run); the voxel that
+   needs the previous brick's or the end voxel's density (dir -1: a;
+   dir +1: a - 1, the previous run's last or, at the run's start, the
+   voxel below it when the blend range reaches it) from fc->cy. */
+static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b, int others,
+                     struct fcol *fc, size_t o, const uint8_t *q, size_t n, int first,
+                     int ext)
+{
+	unsigned g = fc->g, n0 = q ? q[0] : 0;
+	int dir = fc->dir;
+
+	if (dir < 0)
+		blend1(D, b, others, o, n0, fc->cy, g, -1, first ? &fc->xv : NULL);
+	else if (!first || ext)
+		blend1(D, b, others, o - 1, first ? 0 : fc->cy, n0, g, 1, NULL);
+	if (q && n > 1) {
+		const uint8_t *nr = dir < 0 ? q + 1 : q;
+		size_t at = o + (dir < 0);
+#ifdef HAVE_KT_SSSE3
+		if (t->ssse3 && n - 1 >= 16)
+			blend_run_ssse3(D, nr, n - 1, dir, g, b, others, at);
+		else
+#endif
+			blend_run(D, nr, n - 1, dir, g, b, others, at);
+	}
+	(void)t;
+	fc->cy = q ? q[n - 1] : 0;
+}
 
 /*
  * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
@@ -539,10 +433,13 @@ static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
  * one brick resolution (the slot's memo) and each column's run in it.
  * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
- * f > DZ_SUB/2), the one voxel past its end that the blend also needs is
- * read in the same brick pass, and blend_col mixes it in place; fraction
- * 0 is the whole-voxel path unchanged.  Voxels whose brick fails are
- * empty (or blended with empty); the first error is returned.
+ * f > DZ_SUB/2), all planes but density; its densities are blended in
+ * the same pass straight from the brick (frac_run; the voxel at a brick
+ * boundary from the density carried over from the previous brick), and
+ * the one voxel past its end that the blend also needs is read in the
+ * same brick pass; fraction 0 is the whole-voxel path unchanged.  Voxels
+ * whose brick fails are empty (or blended with empty); the first error
+ * is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -550,10 +447,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 {
 	int64_t b3 = t->b3, bz = t->bs[2];
 	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
-	int64_t ba[GMAX], bb[GMAX], xz[GMAX];  /* blend range, end voxel's source z */
-	int8_t dir[GMAX];                      /* 0: whole offset; -1, +1: farther voxel */
-	uint8_t gw[GMAX];                      /* farther voxel's weight */
-	rawvox xv[GMAX];                       /* the end voxel */
+	struct fcol fc[GMAX];
 	int64_t smin = INT64_MAX, smax = INT64_MIN;
 	int64_t va0 = za > 0 ? za : 0, vb0 = zb < b3 ? zb : b3;
 	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
@@ -562,32 +456,49 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	int rc = LOOM_OK, nfrac = 0;
 	int want_o = (k->raw ? (void *)k->rlo : (void *)k->o) != NULL;
 	int want_l = (k->raw ? k->rl || k->rk || k->rt : k->l || k->k || k->ty) != 0;
+	/* fractional columns: the planes but density through sink kn */
+	struct sink kn = *k;
+	uint8_t *D = k->raw ? k->rd : k->d;
+	struct bplanes bp;
+	int others;
 
+	kn.rd = kn.d = NULL;
+	bp.L = k->raw ? k->rl : k->l;
+	bp.K = k->raw ? k->rk : k->k;
+	bp.T = k->raw ? k->rt : k->ty;
+	bp.OL = k->raw ? k->rlo : NULL;
+	bp.OH = k->raw ? k->rhi : NULL;
+	bp.O = k->raw ? NULL : k->o;
+	bp.kl = k->kl;
+	bp.tl = k->tl;
+	others = bp.L || bp.K || bp.T || bp.OL || bp.O;
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
 		int64_t va = va0, vb = vb0;
 		size_t o = off + c * cstride;
-		dir[c] = 0;
-		xz[c] = -1;
+		struct fcol *F = &fc[c];
+		F->dir = 0;
 		if (f) {
 			int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
 			nfrac++;
-			gw[c] = (uint8_t)(far_up ? DZ_SUB - f : f);
+			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
 			dz += far_up;
-			dir[c] = (int8_t)(far_up ? 1 : -1);
+			F->dir = (int8_t)(far_up ? 1 : -1);
+			F->cy = 0;
+			F->xz = -1;
 			dzs[c] = dz;
 			/* output voxels with either source voxel in [0, b3) */
-			ba[c] = va0 > dz - far_up ? va0 : dz - far_up;
-			bb[c] = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
-			memset(&xv[c], 0, sizeof xv[c]);
-			if (ba[c] >= bb[c]) {
-				dir[c] = 0;
+			F->ba = va0 > dz - far_up ? va0 : dz - far_up;
+			F->bb = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
+			memset(&F->xv, 0, sizeof F->xv);
+			if (F->ba >= F->bb) {
+				F->dir = 0;
 			} else {
 				/* the end voxel's farther voxel, when in the block */
-				int64_t z = far_up ? bb[c] - dz : ba[c] - dz - 1;
+				int64_t z = far_up ? F->bb - dz : F->ba - dz - 1;
 				if (z >= 0 && z < b3) {
-					xz[c] = z;
+					F->xz = z;
 					if (z < smin)
 						smin = z;
 					if (z + 1 > smax)
@@ -616,7 +527,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			smax = sb[c];
 	}
 	if (smin >= smax)
-		goto blend;
+		goto ends;
 	base = e->ex->first_brick +
 	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	               e->ex->nb[2];
@@ -639,31 +550,62 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		p = ok ? s->memo : NULL;
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
+			struct fcol *F = &fc[c];
+			const uint8_t *q;
 			size_t o;
-			if (p && xz[c] >= z0 && xz[c] < z1) {
-				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(xz[c] - z0);
-				xv[c].d = v[0];
+			if (F->dir && p && F->xz >= z0 && F->xz < z1) {
+				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(F->xz - z0);
+				F->xv.d = v[0];
 				if (want_o) /* only the planes asked for (cache lines) */
-					xv[c].o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
+					F->xv.o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
 				if (want_l)
-					xv[c].l = v[3 * t->bv];
+					F->xv.l = v[3 * t->bv];
+				if (F->dir < 0) /* below the run: before its first voxel */
+					F->cy = v[0];
 			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
-			if (p)
-				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
-				         (size_t)(b - a));
-			else
+			q = p ? p + col + (size_t)c * bz + (size_t)(a - z0) : NULL;
+			if (!F->dir) {
+				if (q)
+					sink_run(t, k, o, q, (size_t)(b - a));
+				else
+					sink_empty(k, o, (size_t)(b - a));
+				continue;
+			}
+			if (!q)
 				sink_empty(k, o, (size_t)(b - a));
+			else if (others)
+				sink_run(t, &kn, o, q, (size_t)(b - a));
+			frac_run(t, D, &bp, others, F, o, q, (size_t)(b - a), a == sa[c],
+			         a + dzs[c] > F->ba);
 		}
 	}
-blend:
+ends:
+	/* the voxel past the run on the farther side (dir -1: above it,
+	   its nearer voxel outside the block; dir +1: the run's last, its
+	   farther voxel the end voxel), or the single voxel of a column whose
+	   run is empty */
 	if (nfrac)
-		for (uint32_t c = 0; c < n; c++)
-			if (dir[c])
-				blend_col(t, s, e, k, off + c * cstride, za, ba[c], bb[c], dir[c], gw[c],
-				          &xv[c], sx + c, sy, dzs[c], &rc);
+		for (uint32_t c = 0; c < n; c++) {
+			struct fcol *F = &fc[c];
+			size_t o = off + c * cstride;
+			int empty = sa[c] >= sb[c];
+			if (!F->dir)
+				continue;
+			if (F->dir < 0) {
+				if (F->bb > (empty ? F->ba : sb[c] + dzs[c]))
+					blend1(D, &bp, others, o + (size_t)(F->bb - 1 - za), 0, F->cy, F->g,
+					       -1, empty ? &F->xv : NULL);
+			} else if (empty) {
+				blend1(D, &bp, others, o + (size_t)(F->ba - za), 0, F->xv.d, F->g, 1,
+				       &F->xv);
+			} else {
+				blend1(D, &bp, others, o + (size_t)(sb[c] - 1 + dzs[c] - za), F->cy,
+				       F->xv.d, F->g, 1, &F->xv);
+			}
+		}
 	return rc;
 }
 
