@@ -289,15 +289,20 @@ static inline void blend1(uint8_t *D, const struct bplanes *b, int others, size_
 
 /* n >= 1 consecutive output voxels of a column (sink offset at0 for the
    first) straight from a brick's density run: their nearer densities are
-   near[0 .. n), the farther ones near[i + dir], both inside the brick.
-   Writes the blends (weight g / DZ_SUB for the farther voxel) to D at
-   at0 .. at0 + n - 1 (unless D is NULL), 16 voxels at a time (SSE2; the last 16 overlapping);
+   near[0 .. n), the farther ones near[i + dir], inside the brick, except
+   that with c0 >= 0 (dir -1 only) voxel 0's farther density is c0 (from
+   the previous brick or the end voxel; near[-1] is not read) and its
+   planes x0 (NULL: the sink's).  Writes the blends (weight g / DZ_SUB for
+   the farther voxel) to D at at0 .. at0 + n - 1 (unless D is NULL), 16
+   voxels at a time (SSE2; the last 16 overlapping; the first block's
+   farther densities for c0 >= 0 are the nearer ones shifted by a byte);
    where the nearer voxel is empty and the blend is not, the other planes
    from the farther voxel, which the sink already holds at at + dir (its
    run was copied first).  A farther voxel taken so has density, so it is
    never itself rewritten: the order does not matter. */
 static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                      const struct bplanes *b, int others, size_t at0)
+                      const struct bplanes *b, int others, size_t at0, int c0,
+                      const rawvox *x0)
 {
 	uint8_t *out = D ? D + at0 : NULL;
 	const uint8_t *far = near + dir;
@@ -310,7 +315,9 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
 		const __m128i GN = _mm_set1_epi16((short)gn), H = _mm_set1_epi16(DZ_SUB / 2);
 		for (;;) {
 			__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
-			__m128i fr = _mm_loadu_si128((const __m128i *)(far + i));
+			__m128i fr = c0 >= 0 && i == 0
+			                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
+			                     : _mm_loadu_si128((const __m128i *)(far + i));
 			__m128i lo = _mm_add_epi16(
 			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
 			                      _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
@@ -325,14 +332,20 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
 			if (others)
 				for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
 				                                                _mm_cmpeq_epi8(nr, zero)));
-				     m; m &= m - 1)
-					rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), dir, NULL);
+				     m; m &= m - 1) {
+					size_t j = i + (size_t)__builtin_ctz((unsigned)m);
+					rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
+				}
 			if (i + 16 == n)
 				return;
 			i = i + 32 <= n ? i + 16 : n - 16;
 		}
 	}
 #endif
+	if (c0 >= 0) {
+		blend1(D, b, others, at0, near[0], (unsigned)c0, g, dir, x0);
+		i = 1;
+	}
 	for (; i < n; i++)
 		blend1(D, b, others, at0 + i, near[i], far[i], g, dir, NULL);
 }
@@ -342,10 +355,9 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
    for kind_type): the nearer and farther bytes interleaved, multiplied by
    (DZ_SUB - g, g) and summed in one instruction; PMULHRSW by 2^11 then
    gives (s + 8) >> 4 exactly (s <= 255 * 16).  n >= 16. */
-__attribute__((target("ssse3"))) static void blend_run_ssse3(uint8_t *D, const uint8_t *near,
-                                                             size_t n, int dir, unsigned g,
-                                                             const struct bplanes *b,
-                                                             int others, size_t at0)
+__attribute__((target("ssse3"))) static void
+blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
+                const struct bplanes *b, int others, size_t at0, int c0, const rawvox *x0)
 {
 	uint8_t *out = D ? D + at0 : NULL;
 	const uint8_t *far = near + dir;
@@ -356,7 +368,9 @@ __attribute__((target("ssse3"))) static void blend_run_ssse3(uint8_t *D, const u
 
 	for (;;) {
 		__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
-		__m128i fr = _mm_loadu_si128((const __m128i *)(far + i));
+		__m128i fr = c0 >= 0 && i == 0
+		                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
+		                     : _mm_loadu_si128((const __m128i *)(far + i));
 		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
 		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
 		__m128i v = _mm_packus_epi16(lo, hi);
@@ -365,8 +379,10 @@ __attribute__((target("ssse3"))) static void blend_run_ssse3(uint8_t *D, const u
 		if (others)
 			for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
 			                                                _mm_cmpeq_epi8(nr, zero)));
-			     m; m &= m - 1)
-				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), dir, NULL);
+			     m; m &= m - 1) {
+				size_t j = i + (size_t)__builtin_ctz((unsigned)m);
+				rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
+			}
 		if (i + 16 == n)
 			return;
 		i = i + 32 <= n ? i + 16 : n - 16;
@@ -394,34 +410,48 @@ struct fcol {
 /* The density of one brick run [a, b) of a fractional column (sink
    offset o for a; q: its densities in the brick, NULL when the brick
    failed: zeros), in the brick pass, after the run's other planes went
-   into the sink.  Every output voxel whose two source voxels lie in the
-   run is blended straight from the brick (blend_run); the voxel that
-   needs the previous brick's or the end voxel's density (dir -1: a;
-   dir +1: a - 1, the previous run's last or, at the run's start, the
-   voxel below it when the blend range reaches it) from fc->cy. */
+   into the sink.  The output voxels are blended straight from the brick
+   (blend_run); the farther density that lies outside the run comes from
+   fc->cy: for dir -1 that of voxel a (the previous run's last, or the end
+   voxel below the run), inside blend_run's first block; for dir +1 the
+   voxel a - 1 waits for this run (it is the previous run's last, or at
+   the run's start the voxel below it when the blend range reaches it),
+   and this run's last waits for the next run or the end voxel. */
 static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b, int others,
                      struct fcol *fc, size_t o, const uint8_t *q, size_t n, int first,
                      int ext)
 {
-	unsigned g = fc->g, n0 = q ? q[0] : 0;
+	unsigned g = fc->g;
 	int dir = fc->dir;
+	const uint8_t *nr = q;
+	size_t at = o, m = n;
+	int c0 = -1;
 
-	if (dir < 0)
-		blend1(D, b, others, o, n0, fc->cy, g, -1, first ? &fc->xv : NULL);
-	else if (!first || ext)
-		blend1(D, b, others, o - 1, first ? 0 : fc->cy, n0, g, 1, NULL);
-	if (q && n > 1) {
-		const uint8_t *nr = dir < 0 ? q + 1 : q;
-		size_t at = o + (dir < 0);
+	if (!q) { /* a failed brick: nearer densities 0 */
+		if (dir < 0)
+			blend1(D, b, others, o, 0, fc->cy, g, -1, first ? &fc->xv : NULL);
+		else if (!first)
+			blend1(D, b, others, o - 1, fc->cy, 0, g, 1, NULL);
+		fc->cy = 0;
+		return;
+	}
+	if (dir < 0) { /* all n, voxel 0's farther density carried */
+		c0 = fc->cy;
+	} else { /* the voxel below first, then n - 1 (the last waits) */
+		if (!first || ext)
+			blend1(D, b, others, o - 1, first ? 0 : fc->cy, q[0], g, 1, NULL);
+		m = n - 1;
+	}
+	if (m) {
 #ifdef HAVE_KT_SSSE3
-		if (t->ssse3 && n - 1 >= 16)
-			blend_run_ssse3(D, nr, n - 1, dir, g, b, others, at);
+		if (t->ssse3 && m >= 16)
+			blend_run_ssse3(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
 		else
 #endif
-			blend_run(D, nr, n - 1, dir, g, b, others, at);
+			blend_run(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
 	}
 	(void)t;
-	fc->cy = q ? q[n - 1] : 0;
+	fc->cy = q[n - 1];
 }
 
 /*
@@ -951,7 +981,7 @@ static void zero_rect(const loom_texture_region *out, const struct region *g, in
    is gathered group by group into the thread's buffer and transposed. */
 static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct region *g,
                   const struct sink *k, int kt_after, int64_t x, int64_t xc, int64_t y,
-                  int64_t zc, size_t zn)
+                  int64_t zc, size_t zn, const int64_t *ext)
 {
 	const loom_texture_region *out = g->out;
 	const uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
@@ -962,8 +992,12 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	int64_t ea, eb;
 	int rc = LOOM_OK;
 
-	chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn, &ea,
-	             &eb);
+	if (ext) {
+		ea = ext[0], eb = ext[1];
+	} else {
+		chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn,
+		             &ea, &eb);
+	}
 	if (ea >= eb || eb <= zc || ea >= zc + (int64_t)zn) {
 		zero_rows(out, o, g->plane, 0, zn, cn);
 		return LOOM_OK;
@@ -1006,10 +1040,15 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	return rc;
 }
 
+/* Chunk extents (chunk_extent) region_xfast keeps per crossing piece for
+   its slabs, at most (4 KiB of stack). */
+#define XEXT 256
+
 /* x-fastest: crossing by crossing; per crossing, slabs of RZ z values
    (outermost, so the rows written meanwhile stay few whatever the plane
-   size), rows, chunks of up to RCOLS columns (xchunk).  z planes outside
-   [0, b3) are zeroed whole. */
+   size), rows, chunks of up to RCOLS columns (xchunk; each chunk's
+   extent computed once per crossing piece, not per slab).  z planes
+   outside [0, b3) are zeroed whole. */
 static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g)
 {
 	const loom_texture_region *out = g->out;
@@ -1019,6 +1058,7 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 	int64_t za0 = g->lo[2] > 0 ? g->lo[2] : 0, zb0 = g->hi[2] < b3 ? g->hi[2] : b3;
 	int rc = LOOM_OK;
 	struct sink k = {0};
+	int64_t ext[2 * XEXT];
 
 	for (int64_t z = g->lo[2]; z < g->hi[2]; z++) {
 		size_t o = (size_t)(z - g->lo[2]) * g->plane;
@@ -1066,11 +1106,18 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 			   empty: zeroed plane by plane, row after row (sequential);
 			   the slabs cover the rest */
 			int64_t pa = INT64_MAX, pb = INT64_MIN, zs = za0, ze = zb0;
+			/* the chunks' extents, kept for the slabs when they fit */
+			int keep = (ye - yb) * ((xe - xb + RCOLS - 1) / RCOLS) <= XEXT;
+			size_t ne = 0;
 			for (int64_t y = yb; y < ye; y++)
 				for (int64_t x = xb; x < xe; x += RCOLS) {
 					int64_t xc = xe - x > RCOLS ? x + RCOLS : xe, a, b;
 					chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
 					             (uint32_t)(xc - x), &a, &b);
+					if (keep) {
+						ext[ne++] = a;
+						ext[ne++] = b;
+					}
 					if (a < b && a < pa)
 						pa = a;
 					if (a < b && b > pb)
@@ -1093,10 +1140,12 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 			zero_rect(out, g, xb, xe, yb, ye, ze, zb0);
 			for (int64_t zc = zs; zc < ze; zc += RZ) {
 				size_t zn = ze - zc < RZ ? (size_t)(ze - zc) : RZ;
+				ne = 0;
 				for (int64_t y = yb; y < ye; y++)
-					for (int64_t x = xb; x < xe; x += RCOLS) {
+					for (int64_t x = xb; x < xe; x += RCOLS, ne += 2) {
 						int64_t xc = xe - x > RCOLS ? x + RCOLS : xe;
-						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn);
+						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn,
+						                keep ? ext + ne : NULL);
 						if (e2 != LOOM_OK && rc == LOOM_OK)
 							rc = e2;
 					}
