@@ -8,7 +8,10 @@
  *   bricks (up to a brick's width, at most GMAX; group_fill): steps 3-4 once per
  *   column (offset and valid z range), step 5 once per brick of the group,
  *   then each column's z-run in that brick is copied; z above, below or
- *   beyond the source block is filled with zeros.  label -> kind / type
+ *   beyond the source block is filled with zeros.  A column whose offset
+ *   has a fraction is blended in the same pass straight from the brick
+ *   (frac_run: SSE2, SSSE3 PMADDUBSW, or AVX-512 masks), the density
+ *   outside a run carried from brick to brick.  label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
  *   (kind_type), else through 256-entry tables.  z-fastest output: the
