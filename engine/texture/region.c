@@ -8,7 +8,10 @@
  *   bricks (up to a brick's width, at most GMAX; group_fill): steps 3-4 once per
  *   column (offset and valid z range), step 5 once per brick of the group,
  *   then each column's z-run in that brick is copied; z above, below or
- *   beyond the source block is filled with zeros.  label -> kind / type
+ *   beyond the source block is filled with zeros.  A column whose offset
+ *   has a fraction is blended in the same pass straight from the brick
+ *   (frac_run: SSE2, SSSE3 PMADDUBSW, or AVX-512 masks), the density
+ *   outside a run carried from brick to brick.  label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
  *   (kind_type), else through 256-entry tables.  z-fastest output: the
@@ -31,7 +34,7 @@
 #include <emmintrin.h>
 #endif
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
-#include <tmmintrin.h> /* SSSE3, used under a target attribute after a CPU check */
+#include <immintrin.h> /* SSSE3, AVX-512: under target attributes after CPU checks */
 #define HAVE_KT_SSSE3 1
 #endif
 
@@ -228,37 +231,6 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
-/* Source densities of source column (sx, sy) of crossing e for source z
-   in [zs, zs + n) into d, zero outside [0, b3), in bricks stored as
-   nothing or whose read fails (*rc keeps the first error): brick runs. */
-static void src_dens(loom_texture *t, struct tslot *s, const struct xent *e, uint32_t sx,
-                     uint32_t sy, int64_t zs, size_t n, uint8_t *d, int *rc)
-{
-	int64_t b3 = t->b3, bz = t->bs[2], ze = zs + (int64_t)n;
-	uint64_t base = e->ex->first_brick +
-	                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
-	                        e->ex->nb[2];
-	size_t col = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2];
-
-	memset(d, 0, n);
-	for (int64_t z = zs > 0 ? zs : 0; z < ze && z < b3;) {
-		int64_t z0 = z / bz * bz, z1 = z0 + bz < ze ? z0 + bz : ze;
-		uint64_t id = base + (uint64_t)(z / bz);
-		if (z1 > b3)
-			z1 = b3;
-		if (id != s->memo_id) {
-			int e2 = loom__memo_switch(t, s, id);
-			if (e2 != LOOM_OK && *rc == LOOM_OK)
-				*rc = e2;
-		} else {
-			bump(&s->cnt.memo_hits, 1);
-		}
-		if (s->memo_id == id && s->memo)
-			memcpy(d + (z - zs), s->memo + col + (size_t)(z - z0), (size_t)(z1 - z));
-		z = z1;
-	}
-}
-
 /* The planes of a blended column besides density (NULL: not wanted) and
    the label -> kind, type tables. */
 struct bplanes {
@@ -301,115 +273,41 @@ static inline void rep_far(const struct bplanes *b, size_t at, int dir, const ra
 	}
 }
 
-#ifdef __SSE2__
-/* 16 blends (raw_blend's density): (g far + (DZ_SUB - g) near + DZ_SUB/2)
-   / DZ_SUB per byte. */
-static inline __m128i blend16(__m128i nr, __m128i fr, __m128i G, __m128i GN)
+/* The SIMD blends below compute raw_blend's density with a shift by 4. */
+_Static_assert(DZ_SUB == 16, "region blends assume 1/16-voxel offsets");
+
+/* One blended voxel at sink offset at (raw_blend): nearer density nr,
+   farther fr (weight g / DZ_SUB) into D (unless NULL); where the nearer
+   is empty and the blend is not, the other planes from the farther voxel
+   (the sink voxel at + dir, or x). */
+static inline void blend1(uint8_t *D, const struct bplanes *b, int others, size_t at,
+                          unsigned nr, unsigned fr, unsigned g, int dir, const rawvox *x)
 {
-	const __m128i zero = _mm_setzero_si128(), H = _mm_set1_epi16(DZ_SUB / 2);
-	__m128i lo = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
-	                                         _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
-	                           H);
-	__m128i hi = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(fr, zero), G),
-	                                         _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
-	                           H);
-	return _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
+	unsigned v = (g * fr + (DZ_SUB - g) * nr + DZ_SUB / 2) / DZ_SUB;
+	if (D)
+		D[at] = (uint8_t)v;
+	if (others && !nr && v)
+		rep_far(b, at, dir, x);
 }
 
-/* Lanes where the nearer density is 0 and the blend is not. */
-static inline int rep_mask(__m128i nr, __m128i v)
+/* n >= 1 consecutive output voxels of a column (sink offset at0 for the
+   first) straight from a brick's density run: their nearer densities are
+   near[0 .. n), the farther ones near[i + dir], inside the brick, except
+   that with c0 >= 0 (dir -1 only) voxel 0's farther density is c0 (from
+   the previous brick or the end voxel; near[-1] is not read) and its
+   planes x0 (NULL: the sink's).  Writes the blends (weight g / DZ_SUB for
+   the farther voxel) to D at at0 .. at0 + n - 1 (unless D is NULL), 16
+   voxels at a time (SSE2; the last 16 overlapping; the first block's
+   farther densities for c0 >= 0 are the nearer ones shifted by a byte);
+   where the nearer voxel is empty and the blend is not, the other planes
+   from the farther voxel, which the sink already holds at at + dir (its
+   run was copied first).  A farther voxel taken so has density, so it is
+   never itself rewritten: the order does not matter. */
+static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
+                      const struct bplanes *b, int others, size_t at0, int c0,
+                      const rawvox *x0)
 {
-	const __m128i zero = _mm_setzero_si128();
-	return _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero), _mm_cmpeq_epi8(nr, zero)));
-}
-
-/* blend_run in place for n >= 16 voxels whose nearer densities are A[0 ..
-   n), the farther ones A[i + dir] and xd past the end: 16 at a time in
-   the order that reads every farther density before it is rewritten
-   (down for dir -1, up for dir +1); the partial block at the far end is
-   computed first (from the old values, with xd) and stored last. */
-static void blend_inplace(uint8_t *A, size_t n, int dir, unsigned g, uint8_t xd,
-                          const struct bplanes *b, int others, size_t at0, const rawvox *x)
-{
-	const __m128i G = _mm_set1_epi16((short)g), GN = _mm_set1_epi16((short)(DZ_SUB - g));
-	uint8_t e[17];
-	size_t r = n % 16, i;
-	__m128i last, lnr;
-	int m;
-
-	/* the end block: [0, 16) for dir -1, [n - 16, n) for dir +1 */
-	if (dir < 0) {
-		e[0] = xd;
-		memcpy(e + 1, A, 16);
-		lnr = _mm_loadu_si128((const __m128i *)(e + 1));
-		last = blend16(lnr, _mm_loadu_si128((const __m128i *)e), G, GN);
-	} else {
-		memcpy(e, A + n - 16, 16);
-		e[16] = xd;
-		lnr = _mm_loadu_si128((const __m128i *)e);
-		last = blend16(lnr, _mm_loadu_si128((const __m128i *)(e + 1)), G, GN);
-	}
-	if (dir < 0) {
-		/* blocks [i, i + 16) from the top down to r (to 16 when r == 0) */
-		for (i = n - 16; i >= (r ? r : 16); i -= 16) {
-			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
-			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i - 1)), G, GN);
-			_mm_storeu_si128((__m128i *)(A + i), v);
-			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
-				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), -1, NULL);
-			if (i < 16)
-				break;
-		}
-		/* lanes [0, r) of the end block (all 16 when r == 0) */
-		{
-			uint8_t tmp[16];
-			size_t w = r ? r : 16;
-			_mm_storeu_si128((__m128i *)tmp, last);
-			memcpy(A, tmp, w);
-			for (m = others ? rep_mask(lnr, last) & ((1 << w) - 1) : 0; m; m &= m - 1) {
-				size_t j = (size_t)__builtin_ctz((unsigned)m);
-				rep_far(b, at0 + j, -1, j == 0 ? x : NULL);
-			}
-		}
-	} else {
-		size_t full = r ? n - r : n - 16; /* [0, full) in place */
-		for (i = 0; i < full; i += 16) {
-			__m128i nr = _mm_loadu_si128((const __m128i *)(A + i));
-			__m128i v = blend16(nr, _mm_loadu_si128((const __m128i *)(A + i + 1)), G, GN);
-			_mm_storeu_si128((__m128i *)(A + i), v);
-			for (m = others ? rep_mask(nr, v) : 0; m; m &= m - 1)
-				rep_far(b, at0 + i + (size_t)__builtin_ctz((unsigned)m), 1, NULL);
-		}
-		/* lanes [16 - w, 16) of the end block: voxels [full, n) */
-		{
-			uint8_t tmp[16];
-			size_t w = n - full;
-			_mm_storeu_si128((__m128i *)tmp, last);
-			memcpy(A + full, tmp + 16 - w, w);
-			for (m = others ? (rep_mask(lnr, last) >> (16 - w)) : 0; m; m &= m - 1) {
-				size_t j = full + (size_t)__builtin_ctz((unsigned)m);
-				rep_far(b, at0 + j, 1, j == n - 1 ? x : NULL);
-			}
-		}
-	}
-}
-#endif
-
-/* Voxels per blend_run at most. */
-#define BCH 256
-
-/* n (1..BCH) consecutive output voxels of a column (sink offset at0 for
-   the first): their nearer densities are near[0 .. n), the farther ones
-   near[i + dir] (the array extends one voxel on that side).  Writes the
-   blends (weight g / DZ_SUB for the farther voxel) to out (unless NULL),
-   16 voxels at a time (SSE2; the last 16 overlapping); where the nearer
-   voxel is empty and the blend is not, the other planes from the farther
-   voxel (rep_far: past the end from x when x is not NULL, else from the
-   sink).  A farther voxel taken so has density, so it is never itself
-   rewritten: the order does not matter. */
-static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsigned g,
-                      const struct bplanes *b, int others, size_t at0, const rawvox *x)
-{
+	uint8_t *out = D ? D + at0 : NULL;
 	const uint8_t *far = near + dir;
 	const unsigned gn = DZ_SUB - g;
 	size_t i = 0;
@@ -420,7 +318,9 @@ static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsi
 		const __m128i GN = _mm_set1_epi16((short)gn), H = _mm_set1_epi16(DZ_SUB / 2);
 		for (;;) {
 			__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
-			__m128i fr = _mm_loadu_si128((const __m128i *)(far + i));
+			__m128i fr = c0 >= 0 && i == 0
+			                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
+			                     : _mm_loadu_si128((const __m128i *)(far + i));
 			__m128i lo = _mm_add_epi16(
 			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
 			                      _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
@@ -432,103 +332,180 @@ static void blend_run(uint8_t *out, const uint8_t *near, size_t n, int dir, unsi
 			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
 			if (out)
 				_mm_storeu_si128((__m128i *)(out + i), v);
-			if (others) {
-				int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
-				                                           _mm_cmpeq_epi8(nr, zero)));
-				for (; m; m &= m - 1) {
+			if (others)
+				for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+				                                                _mm_cmpeq_epi8(nr, zero)));
+				     m; m &= m - 1) {
 					size_t j = i + (size_t)__builtin_ctz((unsigned)m);
-					int end = dir < 0 ? j == 0 : j == n - 1;
-					rep_far(b, at0 + j, dir, end ? x : NULL);
+					rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
 				}
-			}
 			if (i + 16 == n)
 				return;
 			i = i + 32 <= n ? i + 16 : n - 16;
 		}
 	}
 #endif
-	for (; i < n; i++) {
-		unsigned v = (g * far[i] + gn * near[i] + DZ_SUB / 2) / DZ_SUB;
-		if (out)
-			out[i] = (uint8_t)v;
-		if (others && !near[i] && v) {
-			int end = dir < 0 ? i == 0 : i == n - 1;
-			rep_far(b, at0 + i, dir, end ? x : NULL);
-		}
+	if (c0 >= 0) {
+		blend1(D, b, others, at0, near[0], (unsigned)c0, g, dir, x0);
+		i = 1;
 	}
+	for (; i < n; i++)
+		blend1(D, b, others, at0 + i, near[i], far[i], g, dir, NULL);
 }
 
-/* A column with a fractional offset (raw_blend), after its nearer source
-   voxels went into sink k like a whole-voxel offset wn (the group's run
-   copies): voxel z of the sink holds near(z), the farther voxel is
-   near(z + dir) (dir -1 or +1, weight g / DZ_SUB, 1 <= g <= DZ_SUB/2).
-   Blends output z in [ba, bb) in place (the sink's column starts at
-   output z = za at offset o), in chunks of BCH whose nearer densities are
-   copied first (blend_run reads the copy); chunks go from the top for
-   dir -1, from the bottom for dir +1, so that the sink's density past a
-   chunk is still the nearer one.  The farther voxel of the column's end
-   voxel (ba for dir -1, bb - 1 for dir +1) lies outside [ba, bb) and
-   comes in x (density, orientation, label).  Without a density plane in
-   the sink the nearer densities are read again from the bricks
-   (src_dens, source z = z - wn). */
-static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
-                      const struct sink *k, size_t o, int64_t za, int64_t ba, int64_t bb,
-                      int dir, unsigned g, const rawvox *x, uint32_t sx, uint32_t sy,
-                      int64_t wn, int *rc)
+#ifdef HAVE_KT_SSSE3
+/* blend_run with PSHUFB's sibling PMADDUBSW (the CPU checked at open, as
+   for kind_type): the nearer and farther bytes interleaved, multiplied by
+   (DZ_SUB - g, g) and summed in one instruction; PMULHRSW by 2^11 then
+   gives (s + 8) >> 4 exactly (s <= 255 * 16).  n >= 16. */
+__attribute__((target("ssse3"))) static void
+blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
+                const struct bplanes *b, int others, size_t at0, int c0, const rawvox *x0)
 {
-	uint8_t *D = k->raw ? k->rd : k->d;
-	struct bplanes b;
-	int others;
-	uint8_t tmp[BCH + 1];
+	uint8_t *out = D ? D + at0 : NULL;
+	const uint8_t *far = near + dir;
+	const __m128i zero = _mm_setzero_si128();
+	const __m128i W = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
+	const __m128i R = _mm_set1_epi16(1 << 11);
+	size_t i = 0;
 
-	b.L = k->raw ? k->rl : k->l;
-	b.K = k->raw ? k->rk : k->k;
-	b.T = k->raw ? k->rt : k->ty;
-	b.OL = k->raw ? k->rlo : NULL;
-	b.OH = k->raw ? k->rhi : NULL;
-	b.O = k->raw ? NULL : k->o;
-	b.kl = k->kl;
-	b.tl = k->tl;
-	others = b.L || b.K || b.T || b.OL || b.O;
-	if (!D && !others)
-		return;
-#ifdef __SSE2__
-	if (D && bb - ba >= 16) {
-		blend_inplace(D + o + (size_t)(ba - za), (size_t)(bb - ba), dir, g, x->d, &b, others,
-		              o + (size_t)(ba - za), x);
-		return;
-	}
-#endif
-	for (int64_t done = 0; done < bb - ba;) {
-		size_t n = bb - ba - done < BCH ? (size_t)(bb - ba - done) : BCH;
-		int64_t c0 = dir < 0 ? bb - done - (int64_t)n : ba + done;
-		int end = dir < 0 ? c0 == ba : c0 + (int64_t)n == bb;
-		uint8_t *dc = D ? D + o + (size_t)(c0 - za) : NULL;
-		/* tmp: near(c0 - 1 .. c0 + n) for dir -1, near(c0 .. c0 + n + 1)
-		   for dir +1 (past the column's end: x) */
-		if (dir < 0) {
-			if (D) {
-				memcpy(tmp + 1, dc, n);
-				tmp[0] = end ? x->d : dc[-1];
-			} else {
-				src_dens(t, s, e, sx, sy, c0 - 1 - wn, n + 1, tmp, rc);
+	for (;;) {
+		__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
+		__m128i fr = c0 >= 0 && i == 0
+		                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
+		                     : _mm_loadu_si128((const __m128i *)(far + i));
+		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
+		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
+		__m128i v = _mm_packus_epi16(lo, hi);
+		if (out)
+			_mm_storeu_si128((__m128i *)(out + i), v);
+		if (others)
+			for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+			                                                _mm_cmpeq_epi8(nr, zero)));
+			     m; m &= m - 1) {
+				size_t j = i + (size_t)__builtin_ctz((unsigned)m);
+				rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
 			}
-		} else {
-			if (D) {
-				memcpy(tmp, dc, n);
-				tmp[n] = end ? x->d : dc[n];
-			} else {
-				src_dens(t, s, e, sx, sy, c0 - wn, n + 1, tmp, rc);
-			}
-		}
-		blend_run(dc, dir < 0 ? tmp + 1 : tmp, n, dir, g, &b, others,
-		          o + (size_t)(c0 - za), end ? x : NULL);
-		done += (int64_t)n;
+		if (i + 16 == n)
+			return;
+		i = i + 32 <= n ? i + 16 : n - 16;
 	}
 }
+#endif
+
+#ifdef HAVE_KT_SSSE3
+#define HAVE_BLEND_AVX512 1
+/* blend_run_ssse3 32 voxels at a time for any n >= 1 with AVX-512BW/VL
+   masks (checked at run time, under the same switch as SSSE3): the
+   partial block at the end loaded and stored under a mask, so the short
+   runs a brick boundary leaves need no scalar loop; voxel 0's farther
+   density for c0 >= 0 goes in lane 0 (near[-1] masked off, never read). */
+__attribute__((target("avx2,avx512bw,avx512vl"))) static void
+blend_run_avx512(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
+                 const struct bplanes *b, int others, size_t at0, int c0, const rawvox *x0)
+{
+	uint8_t *out = D ? D + at0 : NULL;
+	const uint8_t *far = near + dir;
+	const __m256i W = _mm256_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
+	const __m256i R = _mm256_set1_epi16(1 << 11), zero = _mm256_setzero_si256();
+
+	for (size_t i = 0; i < n; i += 32) {
+		__mmask32 m = n - i >= 32 ? ~(__mmask32)0 : ((__mmask32)1 << (n - i)) - 1;
+		__mmask32 mf = c0 >= 0 && i == 0 ? m & ~(__mmask32)1 : m;
+		__m256i nr = _mm256_maskz_loadu_epi8(m, near + i);
+		__m256i fr = _mm256_maskz_loadu_epi8(mf, far + i);
+		if (mf != m)
+			fr = _mm256_mask_set1_epi8(fr, 1, (char)c0);
+		__m256i lo = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpacklo_epi8(nr, fr), W),
+		                                 R);
+		__m256i hi = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpackhi_epi8(nr, fr), W),
+		                                 R);
+		__m256i v = _mm256_packus_epi16(lo, hi);
+		if (out)
+			_mm256_mask_storeu_epi8(out + i, m, v);
+		if (others)
+			for (__mmask32 r = _mm256_mask_cmpeq_epi8_mask(m, nr, zero) &
+			                   _mm256_cmpneq_epi8_mask(v, zero);
+			     r; r &= r - 1) {
+				size_t j = i + (size_t)__builtin_ctz(r);
+				rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
+			}
+	}
+}
+
+/* The CPU has AVX-512BW and VL (blend_run_avx512). */
+static inline int cpu_avx512(void)
+{
+	return __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
+}
+#endif
 
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
+
+/* Per fractional column of a group: how its voxels blend. */
+struct fcol {
+	int8_t dir;    /* 0: whole offset; -1, +1: the farther voxel */
+	uint8_t g;     /* the farther voxel's weight, 1 .. DZ_SUB/2 */
+	uint8_t cy;    /* dir -1: density of the source voxel below the next
+	                  run voxel; dir +1: of the last run voxel (its blend
+	                  waits for the voxel above) */
+	int64_t ba, bb; /* output voxels blended (either source voxel in the
+	                   block) */
+	int64_t xz;    /* source z of the end voxel (-1: outside the block) */
+	rawvox xv;     /* the end voxel: below the run for dir -1, above it
+	                  for dir +1 */
+};
+
+/* The density of one brick run [a, b) of a fractional column (sink
+   offset o for a; q: its densities in the brick, NULL when the brick
+   failed: zeros), in the brick pass, after the run's other planes went
+   into the sink.  The output voxels are blended straight from the brick
+   (blend_run); the farther density that lies outside the run comes from
+   fc->cy: for dir -1 that of voxel a (the previous run's last, or the end
+   voxel below the run), inside blend_run's first block; for dir +1 the
+   voxel a - 1 waits for this run (it is the previous run's last, or at
+   the run's start the voxel below it when the blend range reaches it),
+   and this run's last waits for the next run or the end voxel. */
+static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b, int others,
+                     struct fcol *fc, size_t o, const uint8_t *q, size_t n, int first,
+                     int ext, int avx)
+{
+	unsigned g = fc->g;
+	int dir = fc->dir;
+	const uint8_t *nr = q;
+	size_t at = o, m = n;
+	int c0 = -1;
+
+	if (!q) { /* a failed brick: nearer densities 0 */
+		if (dir < 0)
+			blend1(D, b, others, o, 0, fc->cy, g, -1, first ? &fc->xv : NULL);
+		else if (!first)
+			blend1(D, b, others, o - 1, fc->cy, 0, g, 1, NULL);
+		fc->cy = 0;
+		return;
+	}
+	if (dir < 0) { /* all n, voxel 0's farther density carried */
+		c0 = fc->cy;
+	} else { /* the voxel below first, then n - 1 (the last waits) */
+		if (!first || ext)
+			blend1(D, b, others, o - 1, first ? 0 : fc->cy, q[0], g, 1, NULL);
+		m = n - 1;
+	}
+	if (m) {
+#ifdef HAVE_BLEND_AVX512
+		if (t->ssse3 && avx)
+			blend_run_avx512(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
+		else if (t->ssse3 && m >= 16)
+			blend_run_ssse3(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
+		else
+#endif
+			blend_run(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
+	}
+	(void)t;
+	(void)avx;
+	fc->cy = q[n - 1];
+}
 
 /*
  * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
@@ -539,10 +516,13 @@ static void blend_col(loom_texture *t, struct tslot *s, const struct xent *e,
  * one brick resolution (the slot's memo) and each column's run in it.
  * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
- * f > DZ_SUB/2), the one voxel past its end that the blend also needs is
- * read in the same brick pass, and blend_col mixes it in place; fraction
- * 0 is the whole-voxel path unchanged.  Voxels whose brick fails are
- * empty (or blended with empty); the first error is returned.
+ * f > DZ_SUB/2), all planes but density; its densities are blended in
+ * the same pass straight from the brick (frac_run; the voxel at a brick
+ * boundary from the density carried over from the previous brick), and
+ * the one voxel past its end that the blend also needs is read in the
+ * same brick pass; fraction 0 is the whole-voxel path unchanged.  Voxels
+ * whose brick fails are empty (or blended with empty); the first error
+ * is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -550,10 +530,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 {
 	int64_t b3 = t->b3, bz = t->bs[2];
 	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
-	int64_t ba[GMAX], bb[GMAX], xz[GMAX];  /* blend range, end voxel's source z */
-	int8_t dir[GMAX];                      /* 0: whole offset; -1, +1: farther voxel */
-	uint8_t gw[GMAX];                      /* farther voxel's weight */
-	rawvox xv[GMAX];                       /* the end voxel */
+	struct fcol fc[GMAX];
 	int64_t smin = INT64_MAX, smax = INT64_MIN;
 	int64_t va0 = za > 0 ? za : 0, vb0 = zb < b3 ? zb : b3;
 	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
@@ -562,32 +539,52 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	int rc = LOOM_OK, nfrac = 0;
 	int want_o = (k->raw ? (void *)k->rlo : (void *)k->o) != NULL;
 	int want_l = (k->raw ? k->rl || k->rk || k->rt : k->l || k->k || k->ty) != 0;
+	/* fractional columns: the planes but density through sink kn */
+	struct sink kn = *k;
+	uint8_t *D = k->raw ? k->rd : k->d;
+	struct bplanes bp;
+	int others, avx = 0;
 
+#ifdef HAVE_BLEND_AVX512
+	avx = t->ssse3 && cpu_avx512();
+#endif
+	kn.rd = kn.d = NULL;
+	bp.L = k->raw ? k->rl : k->l;
+	bp.K = k->raw ? k->rk : k->k;
+	bp.T = k->raw ? k->rt : k->ty;
+	bp.OL = k->raw ? k->rlo : NULL;
+	bp.OH = k->raw ? k->rhi : NULL;
+	bp.O = k->raw ? NULL : k->o;
+	bp.kl = k->kl;
+	bp.tl = k->tl;
+	others = bp.L || bp.K || bp.T || bp.OL || bp.O;
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
 		int64_t va = va0, vb = vb0;
 		size_t o = off + c * cstride;
-		dir[c] = 0;
-		xz[c] = -1;
+		struct fcol *F = &fc[c];
+		F->dir = 0;
 		if (f) {
 			int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
 			nfrac++;
-			gw[c] = (uint8_t)(far_up ? DZ_SUB - f : f);
+			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
 			dz += far_up;
-			dir[c] = (int8_t)(far_up ? 1 : -1);
+			F->dir = (int8_t)(far_up ? 1 : -1);
+			F->cy = 0;
+			F->xz = -1;
 			dzs[c] = dz;
 			/* output voxels with either source voxel in [0, b3) */
-			ba[c] = va0 > dz - far_up ? va0 : dz - far_up;
-			bb[c] = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
-			memset(&xv[c], 0, sizeof xv[c]);
-			if (ba[c] >= bb[c]) {
-				dir[c] = 0;
+			F->ba = va0 > dz - far_up ? va0 : dz - far_up;
+			F->bb = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
+			memset(&F->xv, 0, sizeof F->xv);
+			if (F->ba >= F->bb) {
+				F->dir = 0;
 			} else {
 				/* the end voxel's farther voxel, when in the block */
-				int64_t z = far_up ? bb[c] - dz : ba[c] - dz - 1;
+				int64_t z = far_up ? F->bb - dz : F->ba - dz - 1;
 				if (z >= 0 && z < b3) {
-					xz[c] = z;
+					F->xz = z;
 					if (z < smin)
 						smin = z;
 					if (z + 1 > smax)
@@ -616,7 +613,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			smax = sb[c];
 	}
 	if (smin >= smax)
-		goto blend;
+		goto ends;
 	base = e->ex->first_brick +
 	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	               e->ex->nb[2];
@@ -639,31 +636,62 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		p = ok ? s->memo : NULL;
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
+			struct fcol *F = &fc[c];
+			const uint8_t *q;
 			size_t o;
-			if (p && xz[c] >= z0 && xz[c] < z1) {
-				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(xz[c] - z0);
-				xv[c].d = v[0];
+			if (F->dir && p && F->xz >= z0 && F->xz < z1) {
+				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(F->xz - z0);
+				F->xv.d = v[0];
 				if (want_o) /* only the planes asked for (cache lines) */
-					xv[c].o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
+					F->xv.o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
 				if (want_l)
-					xv[c].l = v[3 * t->bv];
+					F->xv.l = v[3 * t->bv];
+				if (F->dir < 0) /* below the run: before its first voxel */
+					F->cy = v[0];
 			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
-			if (p)
-				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
-				         (size_t)(b - a));
-			else
+			q = p ? p + col + (size_t)c * bz + (size_t)(a - z0) : NULL;
+			if (!F->dir) {
+				if (q)
+					sink_run(t, k, o, q, (size_t)(b - a));
+				else
+					sink_empty(k, o, (size_t)(b - a));
+				continue;
+			}
+			if (!q)
 				sink_empty(k, o, (size_t)(b - a));
+			else if (others)
+				sink_run(t, &kn, o, q, (size_t)(b - a));
+			frac_run(t, D, &bp, others, F, o, q, (size_t)(b - a), a == sa[c],
+			         a + dzs[c] > F->ba, avx);
 		}
 	}
-blend:
+ends:
+	/* the voxel past the run on the farther side (dir -1: above it,
+	   its nearer voxel outside the block; dir +1: the run's last, its
+	   farther voxel the end voxel), or the single voxel of a column whose
+	   run is empty */
 	if (nfrac)
-		for (uint32_t c = 0; c < n; c++)
-			if (dir[c])
-				blend_col(t, s, e, k, off + c * cstride, za, ba[c], bb[c], dir[c], gw[c],
-				          &xv[c], sx + c, sy, dzs[c], &rc);
+		for (uint32_t c = 0; c < n; c++) {
+			struct fcol *F = &fc[c];
+			size_t o = off + c * cstride;
+			int empty = sa[c] >= sb[c];
+			if (!F->dir)
+				continue;
+			if (F->dir < 0) {
+				if (F->bb > (empty ? F->ba : sb[c] + dzs[c]))
+					blend1(D, &bp, others, o + (size_t)(F->bb - 1 - za), 0, F->cy, F->g,
+					       -1, empty ? &F->xv : NULL);
+			} else if (empty) {
+				blend1(D, &bp, others, o + (size_t)(F->ba - za), 0, F->xv.d, F->g, 1,
+				       &F->xv);
+			} else {
+				blend1(D, &bp, others, o + (size_t)(sb[c] - 1 + dzs[c] - za), F->cy,
+				       F->xv.d, F->g, 1, &F->xv);
+			}
+		}
 	return rc;
 }
 
@@ -1009,7 +1037,7 @@ static void zero_rect(const loom_texture_region *out, const struct region *g, in
    is gathered group by group into the thread's buffer and transposed. */
 static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct region *g,
                   const struct sink *k, int kt_after, int64_t x, int64_t xc, int64_t y,
-                  int64_t zc, size_t zn)
+                  int64_t zc, size_t zn, const int64_t *ext)
 {
 	const loom_texture_region *out = g->out;
 	const uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
@@ -1020,8 +1048,12 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	int64_t ea, eb;
 	int rc = LOOM_OK;
 
-	chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn, &ea,
-	             &eb);
+	if (ext) {
+		ea = ext[0], eb = ext[1];
+	} else {
+		chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn,
+		             &ea, &eb);
+	}
 	if (ea >= eb || eb <= zc || ea >= zc + (int64_t)zn) {
 		zero_rows(out, o, g->plane, 0, zn, cn);
 		return LOOM_OK;
@@ -1064,10 +1096,15 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	return rc;
 }
 
+/* Chunk extents (chunk_extent) region_xfast keeps per crossing piece for
+   its slabs, at most (4 KiB of stack). */
+#define XEXT 256
+
 /* x-fastest: crossing by crossing; per crossing, slabs of RZ z values
    (outermost, so the rows written meanwhile stay few whatever the plane
-   size), rows, chunks of up to RCOLS columns (xchunk).  z planes outside
-   [0, b3) are zeroed whole. */
+   size), rows, chunks of up to RCOLS columns (xchunk; each chunk's
+   extent computed once per crossing piece, not per slab).  z planes
+   outside [0, b3) are zeroed whole. */
 static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g)
 {
 	const loom_texture_region *out = g->out;
@@ -1077,6 +1114,7 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 	int64_t za0 = g->lo[2] > 0 ? g->lo[2] : 0, zb0 = g->hi[2] < b3 ? g->hi[2] : b3;
 	int rc = LOOM_OK;
 	struct sink k = {0};
+	int64_t ext[2 * XEXT];
 
 	for (int64_t z = g->lo[2]; z < g->hi[2]; z++) {
 		size_t o = (size_t)(z - g->lo[2]) * g->plane;
@@ -1124,11 +1162,18 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 			   empty: zeroed plane by plane, row after row (sequential);
 			   the slabs cover the rest */
 			int64_t pa = INT64_MAX, pb = INT64_MIN, zs = za0, ze = zb0;
+			/* the chunks' extents, kept for the slabs when they fit */
+			int keep = (ye - yb) * ((xe - xb + RCOLS - 1) / RCOLS) <= XEXT;
+			size_t ne = 0;
 			for (int64_t y = yb; y < ye; y++)
 				for (int64_t x = xb; x < xe; x += RCOLS) {
 					int64_t xc = xe - x > RCOLS ? x + RCOLS : xe, a, b;
 					chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
 					             (uint32_t)(xc - x), &a, &b);
+					if (keep) {
+						ext[ne++] = a;
+						ext[ne++] = b;
+					}
 					if (a < b && a < pa)
 						pa = a;
 					if (a < b && b > pb)
@@ -1151,10 +1196,12 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 			zero_rect(out, g, xb, xe, yb, ye, ze, zb0);
 			for (int64_t zc = zs; zc < ze; zc += RZ) {
 				size_t zn = ze - zc < RZ ? (size_t)(ze - zc) : RZ;
+				ne = 0;
 				for (int64_t y = yb; y < ye; y++)
-					for (int64_t x = xb; x < xe; x += RCOLS) {
+					for (int64_t x = xb; x < xe; x += RCOLS, ne += 2) {
 						int64_t xc = xe - x > RCOLS ? x + RCOLS : xe;
-						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn);
+						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn,
+						                keep ? ext + ne : NULL);
 						if (e2 != LOOM_OK && rc == LOOM_OK)
 							rc = e2;
 					}
