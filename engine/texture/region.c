@@ -34,7 +34,7 @@
 #include <emmintrin.h>
 #endif
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
-#include <immintrin.h> /* SSSE3, AVX-512: under target attributes after CPU checks */
+#include <tmmintrin.h> /* SSSE3, used under a target attribute after a CPU check */
 #define HAVE_KT_SSSE3 1
 #endif
 
@@ -393,53 +393,6 @@ blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
 }
 #endif
 
-#ifdef HAVE_KT_SSSE3
-#define HAVE_BLEND_AVX512 1
-/* blend_run_ssse3 32 voxels at a time for any n >= 1 with AVX-512BW/VL
-   masks (checked at run time, under the same switch as SSSE3): the
-   partial block at the end loaded and stored under a mask, so the short
-   runs a brick boundary leaves need no scalar loop; voxel 0's farther
-   density for c0 >= 0 goes in lane 0 (near[-1] masked off, never read). */
-__attribute__((target("avx2,avx512bw,avx512vl"))) static void
-blend_run_avx512(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                 const struct bplanes *b, int others, size_t at0, int c0, const rawvox *x0)
-{
-	uint8_t *out = D ? D + at0 : NULL;
-	const uint8_t *far = near + dir;
-	const __m256i W = _mm256_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
-	const __m256i R = _mm256_set1_epi16(1 << 11), zero = _mm256_setzero_si256();
-
-	for (size_t i = 0; i < n; i += 32) {
-		__mmask32 m = n - i >= 32 ? ~(__mmask32)0 : ((__mmask32)1 << (n - i)) - 1;
-		__mmask32 mf = c0 >= 0 && i == 0 ? m & ~(__mmask32)1 : m;
-		__m256i nr = _mm256_maskz_loadu_epi8(m, near + i);
-		__m256i fr = _mm256_maskz_loadu_epi8(mf, far + i);
-		if (mf != m)
-			fr = _mm256_mask_set1_epi8(fr, 1, (char)c0);
-		__m256i lo = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpacklo_epi8(nr, fr), W),
-		                                 R);
-		__m256i hi = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpackhi_epi8(nr, fr), W),
-		                                 R);
-		__m256i v = _mm256_packus_epi16(lo, hi);
-		if (out)
-			_mm256_mask_storeu_epi8(out + i, m, v);
-		if (others)
-			for (__mmask32 r = _mm256_mask_cmpeq_epi8_mask(m, nr, zero) &
-			                   _mm256_cmpneq_epi8_mask(v, zero);
-			     r; r &= r - 1) {
-				size_t j = i + (size_t)__builtin_ctz(r);
-				rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
-			}
-	}
-}
-
-/* The CPU has AVX-512BW and VL (blend_run_avx512). */
-static inline int cpu_avx512(void)
-{
-	return __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl");
-}
-#endif
-
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
 
@@ -469,7 +422,7 @@ struct fcol {
    and this run's last waits for the next run or the end voxel. */
 static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b, int others,
                      struct fcol *fc, size_t o, const uint8_t *q, size_t n, int first,
-                     int ext, int avx)
+                     int ext)
 {
 	unsigned g = fc->g;
 	int dir = fc->dir;
@@ -493,17 +446,14 @@ static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b,
 		m = n - 1;
 	}
 	if (m) {
-#ifdef HAVE_BLEND_AVX512
-		if (t->ssse3 && avx)
-			blend_run_avx512(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
-		else if (t->ssse3 && m >= 16)
+#ifdef HAVE_KT_SSSE3
+		if (t->ssse3 && m >= 16)
 			blend_run_ssse3(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
 		else
 #endif
 			blend_run(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
 	}
 	(void)t;
-	(void)avx;
 	fc->cy = q[n - 1];
 }
 
@@ -543,11 +493,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	struct sink kn = *k;
 	uint8_t *D = k->raw ? k->rd : k->d;
 	struct bplanes bp;
-	int others, avx = 0;
+	int others;
 
-#ifdef HAVE_BLEND_AVX512
-	avx = t->ssse3 && cpu_avx512();
-#endif
 	kn.rd = kn.d = NULL;
 	bp.L = k->raw ? k->rl : k->l;
 	bp.K = k->raw ? k->rk : k->k;
@@ -665,7 +612,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			else if (others)
 				sink_run(t, &kn, o, q, (size_t)(b - a));
 			frac_run(t, D, &bp, others, F, o, q, (size_t)(b - a), a == sa[c],
-			         a + dzs[c] > F->ba, avx);
+			         a + dzs[c] > F->ba);
 		}
 	}
 ends:
