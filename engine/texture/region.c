@@ -10,7 +10,7 @@
  *   then each column's z-run in that brick is copied; z above, below or
  *   beyond the source block is filled with zeros.  A column whose offset
  *   has a fraction is blended in the same pass straight from the brick
- *   (frac_run: SSE2, SSSE3 PMADDUBSW, or AVX-512 masks), the density
+ *   (frac_run: SSE2 or SSSE3 PMADDUBSW, scalar tails), the density
  *   outside a run carried from brick to brick.  label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
