@@ -17,7 +17,8 @@
 # threads.  Each renderer runs at S1 and S2 samples per pixel; the time per
 # pixel-sample is (t(S2) - t(S1)) / ((S2 - S1) * pixels), so neither's
 # fixed costs (Cycles' scene sync and VDB load, loom's majorant grid)
-# count.  Prints a table and one JSON line; writes the S2 images and
+# count.  loom runs with both samplers (sobol, the default, and random);
+# lookups per path are loom's at S2.  Prints a table and one JSON line; writes the S2 images and
 # side-by-side.png (loom left, Cycles right) into $BUILD/bench/cycles.
 set -u
 BUILD=${BUILD:-build}
@@ -81,9 +82,12 @@ load0=$(cut -d' ' -f1-3 /proc/loadavg)
 "$LOOM" export "$W/h8.loomf" --region "$BOX" --format vdb --channels density,albedo \
 	--tile 256,256 --threads 2 --budget 400 --quiet --json -o "$W/vdb" >"$W/export.json" || exit 1
 for S in $S1 $S2; do
-	"$LOOM" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
-		--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --quiet --json \
-		-o "$W/loom-$S.png" >"$W/loom-$S.json" || exit 1
+	for SMP in sobol random; do
+		"$LOOM" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
+			--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --quiet --json \
+			--sampler $SMP -o "$W/loom-$SMP-$S.png" >"$W/loom-$SMP-$S.json" || exit 1
+	done
+	cp "$W/loom-sobol-$S.png" "$W/loom-$S.png"
 	# shellcheck disable=SC2086
 	$BL -P tools/blender/render_tile.py -- "$W"/vdb/tile-*.vdb -o "$W/cycles-$S.png" \
 		--camera persp --eye "$EYE" --target "$TARGET" --fov $FOV --size $WIDTH,$HEIGHT \
@@ -97,24 +101,35 @@ python3 - "$W" "$S1" "$S2" "$WIDTH" "$HEIGHT" "$BOX" "$load0" "$load1" <<'EOF'
 import json, sys
 d, s1, s2, w, h, box, l0, l1 = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), \
     int(sys.argv[5]), sys.argv[6], sys.argv[7], sys.argv[8]
-t = {}
-for who in ("loom", "cycles"):
-    a = json.load(open("%s/%s-%d.json" % (d, who, s1)))["seconds"]
-    b = json.load(open("%s/%s-%d.json" % (d, who, s2)))["seconds"]
+t, lk = {}, {}
+for who in ("loom-sobol", "loom-random", "cycles"):
+    ja = json.load(open("%s/%s-%d.json" % (d, who, s1)))
+    jb = json.load(open("%s/%s-%d.json" % (d, who, s2)))
+    a, b = ja["seconds"], jb["seconds"]
     t[who] = (a, b, (b - a) / ((s2 - s1) * w * h) * 1e6)
+    if who != "cycles":
+        lk[who] = jb["lookups"] / jb["paths"]
+t["loom"] = t["loom-sobol"]
 ex = json.load(open(d + "/export.json"))
 ratio = t["loom"][2] / t["cycles"][2]
 print("cycles: %dx%d, %d and %d spp, 2 threads; exported %s (%d tiles, %.1f MiB) in %.2f s" %
       (w, h, s1, s2, box, ex["tiles"], ex["bytes_written"] / 1048576, ex["seconds"]))
-for who in ("loom", "cycles"):
-    print("  %-7s %6.2f s at %d spp, %6.2f s at %d spp: %7.2f us per pixel-sample" %
-          (who, t[who][0], s1, t[who][1], s2, t[who][2]))
-print("  loom / Cycles per pixel-sample: %.2f (load average %s before, %s after)" % (ratio, l0, l1))
+for who in ("loom-sobol", "loom-random", "cycles"):
+    print("  %-11s %6.2f s at %d spp, %6.2f s at %d spp: %7.2f us per pixel-sample%s" %
+          (who, t[who][0], s1, t[who][1], s2, t[who][2],
+           ", %.1f lookups per path" % lk[who] if who in lk else ""))
+print("  loom (sobol) / Cycles per pixel-sample: %.2f; random sampler: %.2f (load average %s before, %s after)" %
+      (ratio, t["loom-random"][2] / t["cycles"][2], l0, l1))
 print(json.dumps({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "threads": 2,
                   "export_box": box, "export_seconds": ex["seconds"], "export_tiles": ex["tiles"],
                   "export_bytes": ex["bytes_written"],
                   "loom_us_per_pixel_sample": round(t["loom"][2], 3),
                   "cycles_us_per_pixel_sample": round(t["cycles"][2], 3),
-                  "loom_over_cycles": round(ratio, 3), "load_before": l0, "load_after": l1},
+                  "loom_over_cycles": round(ratio, 3),
+                  "loom_random_us_per_pixel_sample": round(t["loom-random"][2], 3),
+                  "loom_random_over_cycles": round(t["loom-random"][2] / t["cycles"][2], 3),
+                  "loom_lookups_per_path": round(lk["loom-sobol"], 2),
+                  "loom_random_lookups_per_path": round(lk["loom-random"], 2),
+                  "load_before": l0, "load_after": l1},
                  separators=(",", ":")))
 EOF

@@ -33,12 +33,15 @@
  *
  * Parallelism and determinism.  The image is cut into tiles handed out by
  * an atomic counter to `threads` pthreads.  Sample j of pixel i draws from
- * its own splitmix64 stream seeded by hash(seed, i, j) and pixels are
- * averaged in sample order, so the bytes do not depend on the thread count
- * or the tile order.  Worker threads set flush-to-zero and denormals-are-
+ * its own splitmix64 stream seeded by hash(seed, i, j) and, for its first
+ * decisions, its Owen-scrambled Sobol point (sampler.h); pixels are
+ * averaged in sample order and adaptive sampling stops a pixel on its own
+ * samples only, so the bytes do not depend on the thread count, the tile
+ * order or progressive passes.  Worker threads set flush-to-zero and denormals-are-
  * zero (Embree's advice; also keeps delta tracking fast in thin media).
  */
 #include "render_internal.h"
+#include "sampler.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -83,10 +86,21 @@ typedef struct rctx {
 	/* work */
 	uint32_t tile, tiles_x, tiles_y;
 	uint64_t n_tiles, tiles_done;
-	atomic_uint_fast64_t next_tile;
 	atomic_int error;
 	pthread_mutex_t lock;
 	float *rgb;
+	/* sampling (render_pixel): passes of samples [pass_end[p-1],
+	   pass_end[p]) over the whole image, a barrier between them; acc
+	   holds each pixel's sums across passes (more than one pass only) */
+	int sobol;               /* Owen-scrambled Sobol dimensions */
+	uint32_t n_passes;
+	uint32_t pass_end[34];
+	atomic_uint_fast64_t next_in_pass[34];
+	struct pixacc *acc;
+	uint64_t work_done;      /* tiles x pass samples, for progress */
+	uint32_t n_workers, running, bar_count;
+	uint64_t bar_gen;
+	pthread_cond_t bar_cv, done_cv;
 } rctx;
 
 typedef struct tstate {
@@ -95,8 +109,49 @@ typedef struct tstate {
 	uint64_t rng;
 	uint32_t hint;            /* shell prism of the last lookup */
 	uint64_t tentative;       /* per path, for the guard */
+	loom__ld ld;              /* the sample's low-discrepancy point */
+	uint32_t ld_flight;       /* dimension of the next track's first
+	                             free flight (NO_DIM: the stream) */
 	loom_render_stats st;
 } tstate;
+
+/* Dimensions of the low-discrepancy point (sampler.h): the pixel, the
+   lens, then for each of the first LD_BOUNCES segments of a path the
+   first free flight, the first light's disc or sphere and the environment
+   map's next-event directions and their shadow rays' first free flights.  Every other decision draws from the
+   sample's splitmix64 stream. */
+#define NO_DIM 0xffffffffu
+#define D_PIXEL 0u
+#define D_LENS 2u
+#define LD_BOUNCES 2u
+#define D_BOUNCE(b) (4u + 8u * (b))
+#define D_FLIGHT 0u
+#define D_LIGHT 1u   /* and 2 */
+#define D_LIGHT_T 3u /* its shadow ray's first free flight */
+#define D_ENV 4u     /* and 5 */
+#define D_ENV_T 6u
+
+/* Coordinate dim of the sample's point, or the next number of its stream
+   (the random sampler, or dim NO_DIM). */
+static inline double draw(tstate *t, uint32_t dim)
+{
+	if (dim != NO_DIM && t->c->sobol)
+		return loom__ld_get(&t->ld, dim);
+	return loom__rand01(&t->rng);
+}
+
+static inline uint32_t dim_at(uint32_t depth, uint32_t off)
+{
+	return depth < LD_BOUNCES ? D_BOUNCE(depth) + off : NO_DIM;
+}
+
+/* The first free flight's uniform number of the current track. */
+static inline double first_u(tstate *t)
+{
+	uint32_t d = t->ld_flight;
+	t->ld_flight = NO_DIM;
+	return draw(t, d);
+}
 
 typedef struct medium {
 	double mu;                /* extinction along the queried direction */
@@ -322,7 +377,7 @@ static int track_grid(tstate *t, const double o[3], const double d[3], double a,
                       double b, double pos[3], medium *m)
 {
 	loom__dda g;
-	double tt = a, tau = free_depth(&t->rng);
+	double tt = a, tau = -log(1.0 - first_u(t));
 
 	loom__dda_init(&g, o, d, t->c->src->cell, a, b);
 	for (;;) {
@@ -360,7 +415,7 @@ static int transmit_grid(tstate *t, const double o[3], const double d[3],
                          double a, double b, double *tr)
 {
 	loom__dda g;
-	double tt = a, tau = free_depth(&t->rng), p[3];
+	double tt = a, tau = -log(1.0 - first_u(t)), p[3];
 	medium m;
 
 	loom__dda_init(&g, o, d, t->c->src->cell, a, b);
@@ -419,6 +474,7 @@ static int track(tstate *t, const double o[3], const double d[3], double tmax,
 		return 0;
 	while (next_segment(t, o, d, tmax, &cur, &a, &b)) {
 		double tt = a;
+		int first = 1;
 		if (c->grid) {
 			int r = track_grid(t, o, d, a, b, pos, m);
 			if (r)
@@ -427,7 +483,8 @@ static int track(tstate *t, const double o[3], const double d[3], double tmax,
 		}
 		for (;;) {
 			int rc;
-			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
+			tt -= log(1.0 - (first ? first_u(t) : loom__rand01(&t->rng))) / c->mu_bar;
+			first = 0;
 			if (tt >= b)
 				break;
 			if (++t->tentative > MAX_TENTATIVE)
@@ -471,9 +528,11 @@ static int transmittance(tstate *t, const double o[3], const double d[3],
 			}
 			continue;
 		}
+		int first = 1;
 		for (;;) {
 			int rc;
-			tt -= log(1.0 - loom__rand01(&t->rng)) / c->mu_bar;
+			tt -= log(1.0 - (first ? first_u(t) : loom__rand01(&t->rng))) / c->mu_bar;
+			first = 0;
 			if (tt >= b)
 				break;
 			if (++t->tentative > MAX_TENTATIVE) {
@@ -504,9 +563,9 @@ static int transmittance(tstate *t, const double o[3], const double d[3],
    two more numbers from rng (a pinhole none, so aperture 0 gives the
    pinhole's bytes): a point uniform on the lens disc, aimed at where the
    pinhole ray meets the plane in focus. */
-static int camera_ray(const rctx *c, double sx, double sy, uint64_t *rng,
-                      double o[3], double d[3])
+static int camera_ray(tstate *t, double sx, double sy, double o[3], double d[3])
 {
+	const rctx *c = t->c;
 	const loom_camera *cam = &c->o->camera;
 	if (cam->kind == LOOM_CAMERA_ORTHO) {
 		double ox = (sx - 0.5) * cam->ortho_size[0];
@@ -523,8 +582,8 @@ static int camera_ray(const rctx *c, double sx, double sy, uint64_t *rng,
 		}
 		if (c->lens_r > 0) {
 			/* d . fwd = 1 here: the focus point is eye + focus d */
-			double r = c->lens_r * sqrt(loom__rand01(rng));
-			double ph = 2.0 * M_PI * loom__rand01(rng);
+			double r = c->lens_r * sqrt(draw(t, D_LENS));
+			double ph = 2.0 * M_PI * draw(t, D_LENS + 1);
 			double lx = r * cos(ph), ly = r * sin(ph);
 			for (int j = 0; j < 3; j++) {
 				double fp = c->eye[j] + c->focus * d[j];
@@ -538,13 +597,15 @@ static int camera_ray(const rctx *c, double sx, double sy, uint64_t *rng,
 }
 
 /* A direction uniform in solid angle over the cone of half angle
-   acos(cos_max) around unit axis (frame u, v). */
-static void cone_direction(const double axis[3], const double u[3],
-                           const double v[3], double cos_max, uint64_t *rng,
+   acos(cos_max) around unit axis (frame u, v), from dimensions dim and
+   dim + 1 of the sample. */
+static void cone_direction(tstate *t, const double axis[3], const double u[3],
+                           const double v[3], double cos_max, uint32_t dim,
                            double wl[3])
 {
-	double ct = 1.0 - loom__rand01(rng) * (1.0 - cos_max);
-	double st = sqrt(fmax(0.0, 1.0 - ct * ct)), ph = 2.0 * M_PI * loom__rand01(rng);
+	double ct = 1.0 - draw(t, dim) * (1.0 - cos_max);
+	double st = sqrt(fmax(0.0, 1.0 - ct * ct));
+	double ph = 2.0 * M_PI * draw(t, dim == NO_DIM ? NO_DIM : dim + 1);
 	for (int j = 0; j < 3; j++)
 		wl[j] = ct * axis[j] + st * (cos(ph) * u[j] + sin(ph) * v[j]);
 	loom__normalize3(wl);
@@ -588,14 +649,14 @@ static void scat_sample(const medium *m, const double wi[3], uint64_t *rng,
  */
 static int light_nee(tstate *t, const plight *p, const medium *m,
                      const double pos[3], const double wi[3],
-                     const double beta[3], double L[3])
+                     const double beta[3], uint32_t dim, double L[3])
 {
 	const loom_light *l = p->l;
 	double wl[3], dist = INFINITY, scale = 1.0, T, f;
 	int rc;
 
 	if (l->kind == LOOM_LIGHT_DISTANT && p->cos_disc < 1.0) {
-		cone_direction(p->dir, p->u, p->v, p->cos_disc, &t->rng, wl);
+		cone_direction(t, p->dir, p->u, p->v, p->cos_disc, dim, wl);
 	} else if (l->kind == LOOM_LIGHT_DISTANT) {
 		memcpy(wl, p->dir, sizeof wl);
 	} else if (l->kind == LOOM_LIGHT_POINT) {
@@ -612,7 +673,7 @@ static int light_nee(tstate *t, const plight *p, const medium *m,
 			return 0;
 		cmax = sqrt(fmax(0.0, 1.0 - (r / dc) * (r / dc)));
 		frame_of(a, u, v);
-		cone_direction(a, u, v, cmax, &t->rng, wl);
+		cone_direction(t, a, u, v, cmax, dim, wl);
 		ct = loom__dot3(wl, a);
 		disc = r * r - dc * dc * fmax(0.0, 1.0 - ct * ct);
 		dist = dc * ct - sqrt(fmax(0.0, disc));
@@ -622,6 +683,7 @@ static int light_nee(tstate *t, const plight *p, const medium *m,
 	f = scat_eval(m, wi, wl);
 	if (scale > 0 && f > 0) {
 		t->st.rays++;
+		t->ld_flight = dim == NO_DIM ? NO_DIM : dim - D_LIGHT + D_LIGHT_T;
 		if ((rc = transmittance(t, pos, wl, dist, &T)))
 			return rc;
 		for (int j = 0; j < 3; j++)
@@ -698,7 +760,7 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 		h->hit = 0;
 	t->tentative = 0;
 	t->hint = LOOM_MESH_NONE;
-	camera_ray(c, sx, sy, &t->rng, org, dir);
+	camera_ray(t, sx, sy, org, dir);
 	t->st.paths++;
 	for (;;) {
 		int r;
@@ -707,6 +769,7 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 		                              : INFINITY;
 
 		t->st.rays++;
+		t->ld_flight = dim_at(depth, D_FLIGHT);
 		r = track(t, org, dir, tg, pos, &m);
 		if (r < 0)
 			return -r;
@@ -743,7 +806,8 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 			return 0;
 		/* Next-event estimation of every light. */
 		for (uint32_t k = 0; k < c->n_pl; k++) {
-			int rc = light_nee(t, &c->pl[k], &m, pos, wi, beta, L);
+			int rc = light_nee(t, &c->pl[k], &m, pos, wi, beta,
+			                   k == 0 ? dim_at(depth - 1, D_LIGHT) : NO_DIM, L);
 			if (rc)
 				return -rc;
 		}
@@ -752,12 +816,14 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 		if (o->envmap) {
 			double wl[3], T, f, pe, le[3], wgt;
 			int rc;
-			double u1 = loom__rand01(&t->rng), u2 = loom__rand01(&t->rng);
+			double u1 = draw(t, dim_at(depth - 1, D_ENV));
+			double u2 = draw(t, dim_at(depth - 1, D_ENV + 1));
 			pe = loom_envmap_sample(o->envmap, u1, u2, wl);
 			if (pe > 0) {
 				f = scat_eval(&m, wi, wl);
 				if (f > 0) {
 					t->st.rays++;
+					t->ld_flight = dim_at(depth - 1, D_ENV_T);
 					if ((rc = transmittance(t, pos, wl, INFINITY, &T)))
 						return -rc;
 					loom_envmap_eval(o->envmap, wl, le);
@@ -798,7 +864,84 @@ static uint64_t hash64(uint64_t x)
 	return x;
 }
 
-static int render_tile(tstate *t, uint64_t tile)
+/* One pixel's sums over the samples taken so far. */
+typedef struct pixacc {
+	double sum[3];            /* radiance (non-finite samples count 0) */
+	double sy2;               /* sum of squared luminances */
+	uint32_t n;               /* samples taken */
+	uint32_t done;            /* adaptive: the pixel has converged */
+	loom__aov_acc aov;        /* AOV sums (used when o->aov is set) */
+} pixacc;
+
+static const double LUM[3] = {0.2126, 0.7152, 0.0722}; /* Rec. 709 */
+
+/* Adaptive sampling's test, from the pixel's own samples only: the
+   standard error of its mean luminance at most `noise` times that mean
+   (radiance is >= 0, so a zero mean has zero variance and stops). */
+static int converged(const pixacc *a, double noise)
+{
+	double n = (double)a->n;
+	double sy = LUM[0] * a->sum[0] + LUM[1] * a->sum[1] + LUM[2] * a->sum[2];
+	double mean = sy / n, var = (a->sy2 - sy * mean) / (n - 1.0);
+	return sqrt(fmax(var, 0.0) / n) <= noise * mean;
+}
+
+/*
+ * Samples a->n, a->n + 1, ... of pixel (x, y) until k1 (or, adaptive,
+ * until the test passes at a multiple of 8 samples from 16 on).  Sample k
+ * seeds its splitmix64 stream with hash(seed, pixel, k) and its Sobol
+ * point with (hash(seed, pixel), k); sums run in sample order.  So a
+ * pixel's value depends on nothing but its own samples: not the thread,
+ * the tile order or the passes.  Returns 0 or a lookup error code.
+ */
+static int render_pixel(tstate *t, uint32_t x, uint32_t y, uint32_t k1, pixacc *a)
+{
+	rctx *c = t->c;
+	const loom_render_options *o = c->o;
+	uint64_t pix = (uint64_t)y * o->width + x;
+	uint64_t pseed = hash64(o->seed ^ hash64(pix * 0xc2b2ae3d27d4eb4full + 0x27bb2ee687b0b0fdull));
+
+	while (a->n < k1 && !a->done) {
+		double L[3], jx, jy, lum = 0;
+		loom__aov_hit ah;
+		uint32_t k = a->n;
+		int rc;
+		t->rng = hash64(o->seed ^ hash64(pix * 0x9e3779b97f4a7c15ull + k + 1));
+		loom__ld_start(&t->ld, pseed, k);
+		jx = draw(t, D_PIXEL);
+		jy = draw(t, D_PIXEL + 1);
+		rc = trace_path(t, (x + jx) / o->width, (y + jy) / o->height, L,
+		                o->aov ? &ah : NULL);
+		if (rc)
+			return rc;
+		if (o->aov)
+			loom__aov_add(&a->aov, L, &ah);
+		for (int j = 0; j < 3; j++) {
+			double v = isfinite(L[j]) ? L[j] : 0.0;
+			a->sum[j] += v;
+			lum += LUM[j] * v;
+		}
+		a->sy2 += lum * lum;
+		a->n++;
+		if (o->noise > 0 && a->n >= 16 && a->n % 8 == 0 && converged(a, o->noise))
+			a->done = 1;
+	}
+	return 0;
+}
+
+/* The pixel's image value and sample count from its sums. */
+static void finish_pixel(const rctx *c, uint64_t pix, const pixacc *a)
+{
+	for (int j = 0; j < 3; j++)
+		c->rgb[3 * pix + j] = a->n ? (float)(a->sum[j] / a->n) : 0.0f;
+	if (c->o->samples)
+		c->o->samples[pix] = a->n;
+	if (c->o->aov)
+		loom__aov_store(&a->aov, c->o->aov, pix);
+}
+
+/* Pass p of one tile. */
+static int render_tile(tstate *t, uint64_t tile, uint32_t p)
 {
 	rctx *c = t->c;
 	const loom_render_options *o = c->o;
@@ -812,41 +955,52 @@ static int render_tile(tstate *t, uint64_t tile)
 			return 0;
 		for (uint32_t x = x0; x < x1; x++) {
 			uint64_t pix = (uint64_t)y * o->width + x;
-			double acc[3] = {0, 0, 0};
-			loom__aov_acc aa;
-			loom__aov_hit ah;
-			loom__aov_begin(&aa);
-			for (uint32_t k = 0; k < o->spp; k++) {
-				double L[3], jx, jy;
-				int rc;
-				t->rng = hash64(o->seed ^ hash64(pix * 0x9e3779b97f4a7c15ull + k + 1));
-				jx = loom__rand01(&t->rng);
-				jy = loom__rand01(&t->rng);
-				rc = trace_path(t, (x + jx) / o->width, (y + jy) / o->height, L,
-				                o->aov ? &ah : NULL);
-				if (rc) {
-					int expected = 0;
-					atomic_compare_exchange_strong(&c->error, &expected, rc);
-					return rc;
-				}
-				for (int j = 0; j < 3; j++)
-					acc[j] += isfinite(L[j]) ? L[j] : 0.0;
-				if (o->aov)
-					loom__aov_add(&aa, L, &ah);
+			pixacc a;
+			int rc;
+			if (c->acc)
+				a = c->acc[pix]; /* only this thread writes it now */
+			else
+				memset(&a, 0, sizeof a);
+			rc = render_pixel(t, x, y, c->pass_end[p], &a);
+			if (rc) {
+				int expected = 0;
+				atomic_compare_exchange_strong(&c->error, &expected, rc);
+				return rc;
 			}
-			if (o->aov)
-				loom__aov_store(&aa, o->aov, pix);
-			for (int j = 0; j < 3; j++)
-				c->rgb[3 * pix + j] = (float)(acc[j] / o->spp);
+			if (c->acc) {
+				/* the progressive snapshot reads under the lock */
+				pthread_mutex_lock(&c->lock);
+				c->acc[pix] = a;
+				pthread_mutex_unlock(&c->lock);
+			} else {
+				finish_pixel(c, pix, &a);
+			}
 		}
 	}
 	return 0;
+}
+
+/* Wait until every worker has finished the pass. */
+static void pass_barrier(rctx *c)
+{
+	pthread_mutex_lock(&c->lock);
+	uint64_t gen = c->bar_gen;
+	if (++c->bar_count >= c->n_workers) {
+		c->bar_count = 0;
+		c->bar_gen++;
+		pthread_cond_broadcast(&c->bar_cv);
+	} else {
+		while (gen == c->bar_gen)
+			pthread_cond_wait(&c->bar_cv, &c->lock);
+	}
+	pthread_mutex_unlock(&c->lock);
 }
 
 static void *worker(void *arg)
 {
 	tstate *t = arg;
 	rctx *c = t->c;
+	int ok = 1;
 
 #if defined(__x86_64__) || defined(__i386__)
 	_mm_setcsr(_mm_getcsr() | 0x8040); /* FTZ | DAZ */
@@ -857,25 +1011,48 @@ static void *worker(void *arg)
 		if (!t->lctx) {
 			int expected = 0;
 			atomic_compare_exchange_strong(&c->error, &expected, LOOM_ENOMEM);
-			return NULL;
+			ok = 0;
 		}
 	}
-	for (;;) {
-		uint64_t tile = atomic_fetch_add(&c->next_tile, 1);
-		if (tile >= c->n_tiles || atomic_load(&c->error))
-			break;
-		if (render_tile(t, tile))
-			break;
-		if (c->o->progress) {
-			pthread_mutex_lock(&c->lock);
-			c->tiles_done++;
-			c->o->progress(c->o->progress_user, c->tiles_done, c->n_tiles);
-			pthread_mutex_unlock(&c->lock);
+	for (uint32_t p = 0; p < c->n_passes; p++) {
+		uint32_t len = c->pass_end[p] - (p ? c->pass_end[p - 1] : 0);
+		while (ok) {
+			uint64_t tile = atomic_fetch_add(&c->next_in_pass[p], 1);
+			if (tile >= c->n_tiles || atomic_load(&c->error))
+				break;
+			if (render_tile(t, tile, p)) {
+				ok = 0;
+				break;
+			}
+			if (c->o->progress) {
+				/* in tiles of the whole render: each tile's share of
+				   the samples */
+				pthread_mutex_lock(&c->lock);
+				c->work_done += len;
+				c->o->progress(c->o->progress_user, c->work_done / c->o->spp,
+				               c->n_tiles);
+				pthread_mutex_unlock(&c->lock);
+			}
 		}
+		if (c->n_passes > 1)
+			pass_barrier(c); /* every worker passes every barrier */
 	}
-	if (c->src->thread_init && c->src->thread_done)
+	if (c->src->thread_init && c->src->thread_done && t->lctx)
 		c->src->thread_done(c->src->ctx, t->lctx);
+	pthread_mutex_lock(&c->lock);
+	c->running--;
+	pthread_cond_broadcast(&c->done_cv);
+	pthread_mutex_unlock(&c->lock);
 	return NULL;
+}
+
+/* The image so far into c->rgb (and the sample counts); call with
+   c->lock held while workers run. */
+static void snapshot(rctx *c)
+{
+	uint64_t n = (uint64_t)c->o->width * c->o->height;
+	for (uint64_t i = 0; i < n; i++)
+		finish_pixel(c, i, &c->acc[i]);
 }
 
 /* ---- setup ------------------------------------------------------------- */
@@ -978,6 +1155,18 @@ static int check_options(const loom_volume_source *src, const loom_render_option
 			                  "render: env and light colours must be finite and >= 0");
 	if (!(o->world_per_voxel >= 0) || !isfinite(o->world_per_voxel))
 		return loom__fail(diag, LOOM_EINVAL, "render: world_per_voxel must be >= 0");
+	if (o->sampler != LOOM_SAMPLER_SOBOL && o->sampler != LOOM_SAMPLER_RANDOM)
+		return loom__fail(diag, LOOM_EINVAL, "render: unknown sampler %u", o->sampler);
+	if (!(o->noise >= 0) || !isfinite(o->noise))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: noise must be finite and >= 0 (0 = off), got %g",
+		                  o->noise);
+	if (!(o->progressive_seconds >= 0) || !isfinite(o->progressive_seconds) ||
+	    (o->progressive_seconds > 0 && !o->progressive))
+		return loom__fail(diag, LOOM_EINVAL,
+		                  "render: progressive_seconds must be finite and >= 0, "
+		                  "and > 0 only with a progressive callback, got %g",
+		                  o->progressive_seconds);
 	return LOOM_OK;
 }
 
@@ -1094,8 +1283,24 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	c.tiles_x = (o->width + c.tile - 1) / c.tile;
 	c.tiles_y = (o->height + c.tile - 1) / c.tile;
 	c.n_tiles = (uint64_t)c.tiles_x * c.tiles_y;
-	atomic_init(&c.next_tile, 0);
 	atomic_init(&c.error, 0);
+	c.sobol = o->sampler == LOOM_SAMPLER_SOBOL;
+	/* progressive: passes ending at 1, 2, 4, ... samples, so the image
+	   sharpens everywhere at once; otherwise one pass of spp */
+	c.n_passes = 0;
+	if (o->progressive_seconds > 0)
+		for (uint32_t e = 1; e < o->spp; e *= 2)
+			c.pass_end[c.n_passes++] = e;
+	c.pass_end[c.n_passes++] = o->spp;
+	for (uint32_t p = 0; p < c.n_passes; p++)
+		atomic_init(&c.next_in_pass[p], 0);
+	if (c.n_passes > 1) {
+		c.acc = calloc((size_t)o->width * o->height, sizeof *c.acc);
+		if (!c.acc)
+			return loom__fail(diag, LOOM_ENOMEM, "render: out of memory for "
+			                  "the progressive sums (%u x %u pixels)",
+			                  o->width, o->height);
+	}
 
 	nthreads = o->threads;
 	if (nthreads == 0) {
@@ -1113,19 +1318,69 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	if (!ts || !th) {
 		free(ts);
 		free(th);
+		free(c.acc);
 		return loom__fail(diag, LOOM_ENOMEM, "render: out of memory");
 	}
 	pthread_mutex_init(&c.lock, NULL);
+	pthread_cond_init(&c.bar_cv, NULL);
+	{
+		pthread_condattr_t ca;
+		pthread_condattr_init(&ca);
+		pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+		pthread_cond_init(&c.done_cv, &ca);
+		pthread_condattr_destroy(&ca);
+	}
 	(void)loom_microflake_area_max(); /* build the tables before threads */
+	(void)loom__sobol32(0, 0);        /* and the Sobol directions */
+	c.n_workers = c.running = nthreads;
 	for (uint32_t i = 0; i < nthreads; i++) {
 		ts[i].c = &c;
 		if (pthread_create(&th[i], NULL, worker, &ts[i]) != 0)
 			break;
 		started++;
 	}
+	if (started < nthreads) {
+		/* fewer workers: the barrier and the wait count those started */
+		pthread_mutex_lock(&c.lock);
+		c.n_workers = c.running = started;
+		if (started && c.bar_count >= started) {
+			c.bar_count = 0;
+			c.bar_gen++;
+			pthread_cond_broadcast(&c.bar_cv);
+		}
+		pthread_mutex_unlock(&c.lock);
+	}
+	if (o->progressive_seconds > 0 && started && c.acc) {
+		/* every progressive_seconds, the image so far to the callback
+		   (from this thread, while the workers go on) */
+		double next = now_s() + o->progressive_seconds;
+		pthread_mutex_lock(&c.lock);
+		while (c.running > 0) {
+			struct timespec dl;
+			dl.tv_sec = (time_t)floor(next);
+			dl.tv_nsec = (long)((next - floor(next)) * 1e9);
+			pthread_cond_timedwait(&c.done_cv, &c.lock, &dl);
+			if (c.running == 0 || atomic_load(&c.error))
+				break;
+			if (now_s() >= next) {
+				snapshot(&c);
+				pthread_mutex_unlock(&c.lock);
+				o->progressive(o->progressive_user, rgb);
+				pthread_mutex_lock(&c.lock);
+				next = now_s() + o->progressive_seconds;
+			}
+		}
+		pthread_mutex_unlock(&c.lock);
+	}
 	for (uint32_t i = 0; i < started; i++)
 		pthread_join(th[i], NULL);
 	pthread_mutex_destroy(&c.lock);
+	pthread_cond_destroy(&c.bar_cv);
+	pthread_cond_destroy(&c.done_cv);
+	if (c.acc) {
+		snapshot(&c);
+		free(c.acc);
+	}
 	if (started == 0) {
 		free(ts);
 		free(th);

@@ -35,6 +35,7 @@ static const char usage[] =
 	"            [--light X,Y,Z,RADIUS,INTENSITY]...\n"
 	"            [--cloth-size W[,H]] [--ground [--ground-z MM]\n"
 	"            [--ground-albedo A[,G,B]]] [--tone linear|filmic]\n"
+	"            [--sampler sobol|random] [--noise REL] [--progressive S]\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
@@ -58,6 +59,47 @@ static const opt_choice tone_names[] = {
 
 static const opt_choice majorant_names[] = {
 	{"grid", 0}, {"global", 1}, {NULL, 0}};
+
+static const opt_choice sampler_names[] = {
+	{"sobol", LOOM_SAMPLER_SOBOL}, {"random", LOOM_SAMPLER_RANDOM}, {NULL, 0}};
+
+/* --progressive: the image so far to the output name (the writers go
+   through a temporary and a rename, so a reader never sees half a file). */
+typedef struct pwrite {
+	const char *out;
+	uint32_t width, height;
+	double exposure, unit;
+	int tone, is_exr;
+	const loom_render_aov *aov; /* filled by the snapshot as the beauty */
+	unsigned writes;
+	int failed;
+} pwrite;
+
+static int write_png_tone(const char *path, const float *rgb, uint32_t w,
+                          uint32_t h, double exposure, int tone, loom_diag *diag);
+static int write_exr_aov(const char *path, const float *rgb,
+                         const loom_render_aov *a, uint32_t w, uint32_t h,
+                         double unit, loom_diag *diag);
+
+static void progressive_cb(void *user, const float *rgb)
+{
+	pwrite *pw = user;
+	loom_diag d = {0};
+
+	if (pw->failed)
+		return;
+	/* the writers of the final image, so each copy looks like it */
+	if ((pw->is_exr ? write_exr_aov(pw->out, rgb, pw->aov, pw->width, pw->height,
+	                                pw->unit, &d)
+	                : write_png_tone(pw->out, rgb, pw->width, pw->height,
+	                                 pw->exposure, pw->tone, &d)) != LOOM_OK) {
+		fprintf(stderr, "loom render: warning: --progressive: %s; no more "
+		        "intermediate images\n", d.message);
+		pw->failed = 1;
+		return;
+	}
+	pw->writes++;
+}
 
 #define MAX_CLI_LIGHTS 16 /* --sun and --light, each */
 
@@ -361,6 +403,9 @@ int cmd_render(int argc, char **argv)
 	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
 	loom_render_stats st;
 	loom_volume_source src;
+	int sampler = LOOM_SAMPLER_SOBOL;
+	double noise = 0, prog_s = 0;
+	pwrite pw = {NULL, 0, 0, 0, 0, 0, 0, NULL, 0, 0};
 	loom_fabric_db_identity id;
 	uint64_t rep[3];
 	loom_db *db = NULL;
@@ -484,6 +529,17 @@ int cmd_render(int argc, char **argv)
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
 		         "comparison)"),
+		OPT_ENUM(0, "sampler", &sampler, "S", sampler_names, "sobol (default: "
+		         "Owen-scrambled Sobol points per pixel, less noise at the same "
+		         "spp) or random (independent numbers per sample, the sampler "
+		         "before)"),
+		OPT_DOUBLE(0, "noise", &noise, "REL", "()", 0, 1, NULL, "adaptive "
+		           "sampling: a pixel stops once the standard error of its "
+		           "luminance is at most REL times its value, %r (e.g. 0.02; "
+		           "tested from 16 samples on, every 8; --spp is the maximum)"),
+		OPT_DOUBLE(0, "progressive", &prog_s, "SECONDS", "()", 0, 1e9, NULL,
+		           "write the image so far to -o about every SECONDS while "
+		           "rendering (the final image is the same)"),
 		OPT_OUTPUT(&out, "OUT", ".png (8-bit sRGB) or .exr (linear float RGB "
 		           "plus the AOV layers albedo, normal, Z and noise; docs/"
 		           "rendering.md)"),
@@ -874,6 +930,21 @@ int cmd_render(int argc, char **argv)
 	}
 	ro.progress = progress_cb;
 	ro.progress_user = &pr;
+	ro.sampler = (uint32_t)sampler;
+	ro.noise = noise;
+	if (prog_s > 0) {
+		pw.out = out;
+		pw.width = width;
+		pw.height = height;
+		pw.exposure = exposure;
+		pw.unit = unit;
+		pw.tone = tone;
+		pw.is_exr = is_exr;
+		pw.aov = &aov;
+		ro.progressive_seconds = prog_s;
+		ro.progressive = progressive_cb;
+		ro.progressive_user = &pw;
+	}
 	rc = loom_render(&src, &ro, rgb, &st, &diag);
 	cli_progress_end(&pr.p);
 	pthread_mutex_destroy(&pr.lock);
@@ -894,6 +965,10 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "width", width);
 		jw_uint(&w, "height", height);
 		jw_uint(&w, "spp", spp);
+		jw_str(&w, "sampler", sampler == LOOM_SAMPLER_SOBOL ? "sobol" : "random");
+		jw_num(&w, "noise", noise);
+		jw_num(&w, "mean_spp", (double)st.paths / ((double)width * height));
+		jw_uint(&w, "progressive_writes", pw.writes);
 		jw_uint(&w, "seed", seed);
 		jw_str(&w, "scene", mesh_path ? "mesh" : "flat");
 		jw_num(&w, "voxel_mm", src.voxel_mm);

@@ -518,7 +518,34 @@ typedef struct loom_render_options {
 	                           sampling; env is then unused */
 	loom_ground ground;     /* optional floor (ground.enabled = 0: none) */
 	const loom_render_aov *aov; /* NULL: the beauty image only */
+	/* Sampling (docs/rendering.md, "Sampling"); zero = the defaults */
+	uint32_t sampler;       /* LOOM_SAMPLER_SOBOL (0: Owen-scrambled Sobol
+	                           per pixel) or LOOM_SAMPLER_RANDOM (an
+	                           independent stream per sample, the sampler
+	                           before; its bytes are unchanged) */
+	double noise;           /* > 0: adaptive sampling: a pixel stops once
+	                           the standard error of its mean luminance is
+	                           at most noise x that mean (tested after 16,
+	                           24, 32, ... samples; spp is the maximum);
+	                           0 = every pixel takes spp */
+	uint32_t *samples;      /* optional out: width * height samples taken
+	                           per pixel */
+	double progressive_seconds; /* > 0: call progressive() with the image
+	                           so far about this often (samples run in
+	                           passes ending at 1, 2, 4, ... spp; the final
+	                           bytes do not change) */
+	void (*progressive)(void *user, const float *rgb);
+	                        /* called from the thread that called
+	                           loom_render, while workers go on; rgb is the
+	                           caller's buffer holding each pixel's mean so
+	                           far (0 before its first sample) */
+	void *progressive_user;
 } loom_render_options;
+
+enum loom_sampler {
+	LOOM_SAMPLER_SOBOL = 0,
+	LOOM_SAMPLER_RANDOM = 1
+};
 
 #define LOOM_RENDER_MAX_LIGHTS 64u /* extra lights (opt.lights) */
 
@@ -534,7 +561,8 @@ typedef struct loom_render_options {
 	 {LOOM_LIGHT_DISTANT, {0.3, 0.2, 1.0}, {0, 0, 0}, {3.0f, 3.0f, 3.0f}, 0.0,\
 	  0.0},                                                                    \
 	 {0.1f, 0.1f, 0.1f}, NULL, 0.0, NULL, NULL, 0u, NULL, 0u, NULL,           \
-	 {0, 0.0, {0.5f, 0.5f, 0.5f}}, NULL}
+	 {0, 0.0, {0.5f, 0.5f, 0.5f}}, NULL,                                     \
+	 0u, 0.0, NULL, 0.0, NULL, NULL}
 
 typedef struct loom_render_stats {
 	uint64_t paths;          /* camera samples (width * height * spp) */
