@@ -10,7 +10,9 @@
 # compared over that corner of the synthesized whole design.  Prints a
 # markdown table.
 #   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR] [WINDOW]
-#   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite)
+#   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite;
+#   FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
+#   generation: give the fibre the database DB was made with)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
@@ -40,9 +42,9 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		region="--region 0,0:$((WIN * B1)),$((WIN * B2))"
 	fi
 	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win --quiet -o "$W/$d-gt1.ldb"
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt1.ldb"
 	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win --quiet -o "$W/$d-gt2.ldb"
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt2.ldb"
 	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
 	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")
