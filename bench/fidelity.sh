@@ -11,7 +11,8 @@
 # markdown table.
 #   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR] [WINDOW]
 #   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite;
-#   FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
+#   FIDELITY_SIZE=N weaves the generated designs at N x N crossings, default
+#   32; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
 #   generation: give the fibre the database DB was made with)
 set -eu
 LOOM=${1:-build/loom}
@@ -19,12 +20,13 @@ DB=${2:-build/share/loom/default.ldb}
 W=${3:-build/fidelity}
 WIN=${4:-96}
 TOP=$(cd "$(dirname "$0")/.." && pwd)
+S=${FIDELITY_SIZE:-32}
 mkdir -p "$W"
-"$LOOM" pattern make herringbone --size 32x32 -q -o "$W/herringbone.pbm"
-"$LOOM" pattern make wavy-twill --size 32x32 -q -o "$W/wavy-twill.pbm"
-"$LOOM" pattern make broken-twill --size 32x32 -q -o "$W/broken-twill.pbm"
-"$LOOM" pattern make basket --size 32x32 -q -o "$W/basket.pbm"
-"$LOOM" pattern make satin:1/7 --size 32x32 -q -o "$W/satin-1-7.pbm"
+"$LOOM" pattern make herringbone --size ${S}x$S -q -o "$W/herringbone.pbm"
+"$LOOM" pattern make wavy-twill --size ${S}x$S -q -o "$W/wavy-twill.pbm"
+"$LOOM" pattern make broken-twill --size ${S}x$S -q -o "$W/broken-twill.pbm"
+"$LOOM" pattern make basket --size ${S}x$S -q -o "$W/basket.pbm"
+"$LOOM" pattern make satin:1/7 --size ${S}x$S -q -o "$W/satin-1-7.pbm"
 cp "$TOP/data/herringbone-8.wif" "$TOP/data/overshot-sampler.wif" "$W/"
 get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
 # block size of DB (b1 b2)
