@@ -475,8 +475,9 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
  * `basis` if not NULL), solve the 2r basis problems and evaluate
  *   s_i = sum_k C_T(k,i) s^T_k + C_L(k,i) s^L_k - C_T(k,S(i)) ~s^T_k
  *         - C_L(k,E(i)) ~s^L_k
- * (~ = mirrored copy).  Memory 8 r rows cols bytes for C_T and C_L: the
- * paper's ~150 MB at 900 x 1500.
+ * (~ = mirrored copy), with the screened equation of loom_edgefix_exact;
+ * the profiles are used as given (p->set is ignored).  Memory 8 r rows cols
+ * bytes for C_T and C_L: the paper's ~150 MB at 900 x 1500.
  */
 typedef struct loom_edgefix_paper loom_edgefix_paper;
 
