@@ -149,7 +149,7 @@ static void row(const char *dbname, const char *dbpath, loom_db *db,
 			uint32_t K = loom_synth_set_blocks(s), b1 = info.block[0], b2 = info.block[1];
 			uint32_t rec = LOOM_EDGE_RECORD(b1, b2), t = 0;
 			float *h = malloc(sizeof(float) * rec * K);
-			loom_edge_profiles p = {b1, b2, K, h};
+			loom_edge_profiles p = {b1, b2, K, h, NULL};
 			for (uint32_t u = 0; h && u < info.n_exemplars; u++) {
 				loom_db_exemplar_info e;
 				loom_db_exemplar(db, u, &e);

@@ -237,6 +237,7 @@ static float *profiles(uint32_t K, uint32_t b1, uint32_t b2, loom_edge_profiles 
 	p->b2 = b2;
 	p->n_blocks = K;
 	p->heights = h;
+	p->set = NULL;
 	return h;
 }
 

@@ -10,19 +10,23 @@
 # compared over that corner of the synthesized whole design.  Prints a
 # markdown table.
 #   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR] [WINDOW]
-#   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite)
+#   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite;
+#   FIDELITY_SIZE=N weaves the generated designs at N x N crossings, default
+#   32; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
+#   generation: give the fibre the database DB was made with)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
 W=${3:-build/fidelity}
 WIN=${4:-96}
 TOP=$(cd "$(dirname "$0")/.." && pwd)
+S=${FIDELITY_SIZE:-32}
 mkdir -p "$W"
-"$LOOM" pattern make herringbone --size 32x32 -q -o "$W/herringbone.pbm"
-"$LOOM" pattern make wavy-twill --size 32x32 -q -o "$W/wavy-twill.pbm"
-"$LOOM" pattern make broken-twill --size 32x32 -q -o "$W/broken-twill.pbm"
-"$LOOM" pattern make basket --size 32x32 -q -o "$W/basket.pbm"
-"$LOOM" pattern make satin:1/7 --size 32x32 -q -o "$W/satin-1-7.pbm"
+"$LOOM" pattern make herringbone --size ${S}x$S -q -o "$W/herringbone.pbm"
+"$LOOM" pattern make wavy-twill --size ${S}x$S -q -o "$W/wavy-twill.pbm"
+"$LOOM" pattern make broken-twill --size ${S}x$S -q -o "$W/broken-twill.pbm"
+"$LOOM" pattern make basket --size ${S}x$S -q -o "$W/basket.pbm"
+"$LOOM" pattern make satin:1/7 --size ${S}x$S -q -o "$W/satin-1-7.pbm"
 cp "$TOP/data/herringbone-8.wif" "$TOP/data/overshot-sampler.wif" "$W/"
 get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
 # block size of DB (b1 b2)
@@ -40,9 +44,9 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		region="--region 0,0:$((WIN * B1)),$((WIN * B2))"
 	fi
 	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win --quiet -o "$W/$d-gt1.ldb"
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt1.ldb"
 	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win --quiet -o "$W/$d-gt2.ldb"
+	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt2.ldb"
 	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
 	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")

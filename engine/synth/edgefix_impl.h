@@ -36,9 +36,17 @@ struct loom_edgefix_paper {
 	float *fL;        /* b1*b2*rL */
 };
 
+/* The screening of the edge fix's equation, (4 + kappa) u = the sum of the
+   four neighbours: kappa = 1 / l^2 with l = min(b1, b2) / BAND voxels, the
+   distance over which a seam's correction decays by a factor of about e
+   (edgefix.c, "Calibration"). */
+#define LOOM__EDGEFIX_BAND 8.0
+double loom__edgefix_kappa(uint32_t b1, uint32_t b2);
+
 /* Sine modes and decay profiles of one block size. */
 typedef struct lap {
 	uint32_t b1, b2, nx, ny;
+	double kappa; /* loom__edgefix_kappa(b1, b2) */
 	double *sx;   /* nx*nx: sx[(x-1)*nx + m-1] = sin(m pi x / (b1-1)) */
 	double *sy;   /* ny*ny */
 	double *phi;  /* nx*b2: phi[(m-1)*b2 + y] (N-edge problem) */
@@ -62,6 +70,12 @@ int loom__top_eigen(const double *G, uint32_t n, uint32_t r, double *B);
 
 /* edgefix.c: check a profile table (LOOM_OK, or an error in diag). */
 int loom__edgefix_check(const loom_edge_profiles *p, loom_diag *diag);
+/* edgefix.c: the edge data the fix works on: *q = *p when p has no set;
+   else q's heights (in *buf, malloc'd, the caller frees) are the mid-seam
+   profiles (see loom_edge_profiles.set).  LOOM_OK, LOOM_EINVAL (the set
+   has another K), LOOM_ENOMEM. */
+int loom__edgefix_targets(const loom_edge_profiles *p, loom_edge_profiles *q,
+                          float **buf);
 /* edgefix.c: the basis fields of the N/S (Bh, rank rh) and W/E (Bv, rank
    rv) bases into field_h, field_v; nonzero when out of memory. */
 int loom__edgefix_fields(const lap *L, const double *Bh, uint32_t rh,

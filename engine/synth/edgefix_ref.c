@@ -16,17 +16,26 @@ LOOM_API int loom_edgefix_exact(const loom_edge_profiles *p,
 	uint32_t b1, b2, nv;
 	double *vn, *vs, *vw, *ve, *o1, *o2, *g;
 	size_t cells;
+	loom_edge_profiles q;
+	float *tbuf = NULL;
 	lap L;
 	int rc = LOOM_ENOMEM;
 
 	if (!nb || !dz || loom__edgefix_check(p, NULL) != LOOM_OK || !nb_ok(nb, p->n_blocks))
 		return LOOM_EINVAL;
+	rc = loom__edgefix_targets(p, &q, &tbuf);
+	if (rc)
+		return rc;
+	rc = LOOM_ENOMEM;
+	p = &q;
 	b1 = p->b1;
 	b2 = p->b2;
 	nv = b2 - 2;
 	cells = (size_t)b1 * b2;
-	if (loom__lap_init(&L, b1, b2))
+	if (loom__lap_init(&L, b1, b2)) {
+		free(tbuf);
 		return LOOM_ENOMEM;
+	}
 	vn = malloc(sizeof(double) * (2 * (size_t)b1 + 2 * nv + 2 * cells + 2 * (b1 + b2)));
 	if (!vn)
 		goto done;
@@ -51,6 +60,7 @@ LOOM_API int loom_edgefix_exact(const loom_edge_profiles *p,
 	rc = LOOM_OK;
 done:
 	free(vn);
+	free(tbuf);
 	loom__lap_free(&L);
 	return rc;
 }

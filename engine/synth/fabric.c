@@ -154,6 +154,7 @@ static int attach_db(loom_fabric *f, const loom_db *db, const char *name,
 	f->prof.b2 = f->b2;
 	f->prof.n_blocks = K;
 	f->prof.heights = f->heights;
+	f->prof.set = f->set; /* the fix keeps the exemplars' own seam jumps */
 	f->internal_step = step / K;
 	f->db = db;
 	return LOOM_OK;

@@ -1,6 +1,6 @@
 /*
  * engine/synth/laplace.c - the numerical kernels of the edge fix
- * (edgefix.c has the essay): the discrete 5-point Laplace problem on a
+ * (edgefix.c has the essay): the discrete screened 5-point Laplace problem on a
  * b1 x b2 block solved exactly in sine modes, one edge's data at a time,
  * and a symmetric eigensolver (cyclic Jacobi, subspace iteration with a
  * Rayleigh-Ritz step) for the low-rank profile bases.
@@ -24,8 +24,14 @@ static double decay(double mu, double len, double d)
 	return exp(-mu * d) * expm1(-2.0 * mu * (len - d)) / expm1(-2.0 * mu * len);
 }
 
-static void modes(uint32_t n, uint32_t span, uint32_t along, double *s,
-                  double *prof)
+double loom__edgefix_kappa(uint32_t b1, uint32_t b2)
+{
+	double l = (double)(b1 < b2 ? b1 : b2) / LOOM__EDGEFIX_BAND;
+	return 1.0 / (l * l);
+}
+
+static void modes(uint32_t n, uint32_t span, uint32_t along, double kappa,
+                  double *s, double *prof)
 {
 	double L = (double)(n + 1); /* = span - 1 */
 	(void)span;
@@ -33,7 +39,7 @@ static void modes(uint32_t n, uint32_t span, uint32_t along, double *s,
 		for (uint32_t m = 1; m <= n; m++)
 			s[(size_t)(x - 1) * n + m - 1] = sin(M_PI * (double)m * (double)x / L);
 	for (uint32_t m = 1; m <= n; m++) {
-		double c = 2.0 - cos(M_PI * (double)m / L);
+		double c = 2.0 + 0.5 * kappa - cos(M_PI * (double)m / L);
 		double mu = log(c + sqrt(c * c - 1.0));
 		for (uint32_t y = 0; y < along; y++)
 			prof[(size_t)(m - 1) * along + y] = decay(mu, (double)(along - 1), (double)y);
@@ -55,8 +61,9 @@ int loom__lap_init(lap *L, uint32_t b1, uint32_t b2)
 		loom__lap_free(L);
 		return LOOM_ENOMEM;
 	}
-	modes(L->nx, b1, b2, L->sx, L->phi);
-	modes(L->ny, b2, b1, L->sy, L->psi);
+	L->kappa = loom__edgefix_kappa(b1, b2);
+	modes(L->nx, b1, b2, L->kappa, L->sx, L->phi);
+	modes(L->ny, b2, b1, L->kappa, L->sy, L->psi);
 	return LOOM_OK;
 }
 

@@ -8,9 +8,12 @@
  *   2. put:    each brick's stored bytes as they arrive (nothing buffered);
  *              its 24-byte index entry is kept in memory, and the column
  *              tops of the brick are merged into the exemplar's height map;
- *   3. when an exemplar's last brick is in, its per-block tables are
- *      computed from the height map (docs/formats.md, "Block tables") and
- *      the map is freed;
+ *   3. the height map is a ring of b2 + brick_y voxel rows: bricks arrive
+ *      brick row by brick row (z fastest, then x, then y), and when a brick
+ *      row is complete every block row it completes gets its per-block
+ *      tables (docs/formats.md, "Block tables"), after which its rows are
+ *      reused; so the map's memory is bounded by the exemplar's width, not
+ *      its area;
  *   4. finish: metadata (exemplar table, weaves, yarn tables, symmetries,
  *      block tables, index), then the trailer with the metadata CRC and the
  *      content hash; fsync; rename.
@@ -56,14 +59,17 @@ struct loom__dbw {
 	/* current exemplar */
 	uint32_t cur_put;           /* bricks of it put so far */
 	uint32_t cur_total;
-	int16_t *top;               /* size_x*size_y, -1 = no surface */
-	uint8_t *top_label;
+	int16_t *top;               /* ring: ring_rows*size_x, -1 = no surface */
+	uint8_t *top_label;         /* voxel row y is ring row y % ring_rows */
+	uint32_t ring_rows;         /* b2 + brick[1] */
+	uint32_t next_row;          /* first block row without its tables */
 	uint8_t solid[256];
 	/* writer-thread encoding */
 	struct libdeflate_compressor *comp;
 	uint8_t *cbuf;
 	int16_t *btop;
 	uint8_t *blabel;
+	float *prof;                /* 2 (b1 + b2): one block's edge profiles */
 	int failed;
 };
 
@@ -172,7 +178,8 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	w->cbuf = malloc(w->brick_bytes);
 	w->btop = malloc((size_t)p->brick[0] * p->brick[1] * sizeof *w->btop);
 	w->blabel = malloc((size_t)p->brick[0] * p->brick[1]);
-	if (!w->ex || !w->comp || !w->cbuf || !w->btop || !w->blabel) {
+	w->prof = malloc(sizeof(float) * 2 * ((size_t)p->block[0] + p->block[1]));
+	if (!w->ex || !w->comp || !w->cbuf || !w->btop || !w->blabel || !w->prof) {
 		loom__dbw_abort(w);
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	}
@@ -239,89 +246,102 @@ static void fill_profile(float *v, uint32_t n, float fallback)
 }
 
 /* Height of column (x, y) of the current exemplar, NaN for a gap. */
+static size_t ring_at(const loom__dbw *w, const dbw_exemplar *e, uint32_t x, uint32_t y)
+{
+	return (size_t)(y % w->ring_rows) * e->size[0] + x;
+}
+
 static float col_h(const loom__dbw *w, const dbw_exemplar *e, uint32_t x, uint32_t y)
 {
-	int16_t t = w->top[(size_t)y * e->size[0] + x];
+	int16_t t = w->top[ring_at(w, e, x, y)];
 	return t < 0 ? (float)NAN : (float)t + 1.0f;
+}
+
+/* The block tables of block row r of the current exemplar, from the height
+   map (its rows r*b2 .. r*b2+b2-1 must be in the ring). */
+static void block_row(loom__dbw *w, uint32_t r)
+{
+	dbw_exemplar *e = &w->ex[w->n_begun - 1];
+	uint32_t b1 = w->p.block[0], b2 = w->p.block[1];
+	size_t esz = loom__db_block_entry_bytes(b1, b2);
+	float *prof = w->prof;
+
+	for (uint32_t c = 0; c < e->cols; c++) {
+		uint8_t *b = e->blocks + ((size_t)r * e->cols + c) * esz;
+		uint32_t x0 = c * b1, y0 = r * b2;
+		double sum = 0, sdx = 0, sdy = 0;
+		uint64_t nv = 0, ndx = 0, ndy = 0;
+		uint32_t gaps = 0;
+		float mean;
+		float *pn = prof, *ps = prof + b1, *pw = prof + 2 * b1, *pe = pw + b2;
+		uint8_t clab;
+
+		for (uint32_t y = y0; y < y0 + b2; y++)
+			for (uint32_t x = x0; x < x0 + b1; x++) {
+				float h = col_h(w, e, x, y);
+				if (h != h) {
+					gaps++;
+					continue;
+				}
+				sum += h;
+				nv++;
+				if (x + 1 < x0 + b1) {
+					float h2 = col_h(w, e, x + 1, y);
+					if (h2 == h2) {
+						sdx += h2 > h ? h2 - h : h - h2;
+						ndx++;
+					}
+				}
+				if (y + 1 < y0 + b2) {
+					float h2 = col_h(w, e, x, y + 1);
+					if (h2 == h2) {
+						sdy += h2 > h ? h2 - h : h - h2;
+						ndy++;
+					}
+				}
+			}
+		mean = nv ? (float)(sum / (double)nv) : 0.0f;
+		for (uint32_t i = 0; i < b1; i++) {
+			pn[i] = col_h(w, e, x0 + i, y0);
+			ps[i] = col_h(w, e, x0 + i, y0 + b2 - 1);
+		}
+		for (uint32_t i = 0; i < b2; i++) {
+			pw[i] = col_h(w, e, x0, y0 + i);
+			pe[i] = col_h(w, e, x0 + b1 - 1, y0 + i);
+		}
+		fill_profile(pn, b1, mean);
+		fill_profile(ps, b1, mean);
+		fill_profile(pw, b2, mean);
+		fill_profile(pe, b2, mean);
+		clab = w->top_label[ring_at(w, e, x0 + b1 / 2, y0 + b2 / 2)];
+		b[0] = loom__weave_code(e->weave, e->rows, e->cols, r, c);
+		b[1] = clab <= e->n_yarns ? e->yarns[clab].kind : 0;
+		loom__put16(b + 2, (uint16_t)(gaps > 65535 ? 65535 : gaps));
+		loom__putf32(b + 4, ndx ? (float)(sdx / (double)ndx) : 0.0f);
+		loom__putf32(b + 8, ndy ? (float)(sdy / (double)ndy) : 0.0f);
+		loom__putf32(b + 12, mean);
+		for (size_t i = 0; i < 2 * ((size_t)b1 + b2); i++)
+			loom__putf32(b + 16 + 4 * i, prof[i]);
+	}
+}
+
+/* Block tables of every block row whose voxel rows are all below `done`. */
+static void block_rows_upto(loom__dbw *w, uint32_t done)
+{
+	dbw_exemplar *e = &w->ex[w->n_begun - 1];
+	while (w->next_row < e->rows && (w->next_row + 1) * w->p.block[1] <= done)
+		block_row(w, w->next_row++);
 }
 
 static int finish_exemplar(loom__dbw *w, loom_diag *diag)
 {
 	dbw_exemplar *e = &w->ex[w->n_begun - 1];
-	uint32_t b1 = w->p.block[0], b2 = w->p.block[1];
-	size_t esz = loom__db_block_entry_bytes(b1, b2);
-	float *prof = malloc(sizeof(float) * 2 * ((size_t)b1 + b2));
 
-	if (w->cur_put != w->cur_total) {
-		free(prof);
+	if (w->cur_put != w->cur_total)
 		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar %u '%s' has %u of %u "
 		                  "bricks", w->out.path, w->n_begun - 1, e->name,
 		                  w->cur_put, w->cur_total);
-	}
-	e->blocks = calloc((size_t)e->rows * e->cols, esz);
-	if (!e->blocks || !prof) {
-		free(prof);
-		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", w->out.path);
-	}
-	for (uint32_t r = 0; r < e->rows; r++)
-		for (uint32_t c = 0; c < e->cols; c++) {
-			uint8_t *b = e->blocks + ((size_t)r * e->cols + c) * esz;
-			uint32_t x0 = c * b1, y0 = r * b2;
-			double sum = 0, sdx = 0, sdy = 0;
-			uint64_t nv = 0, ndx = 0, ndy = 0;
-			uint32_t gaps = 0;
-			float mean;
-			float *pn = prof, *ps = prof + b1, *pw = prof + 2 * b1, *pe = pw + b2;
-			uint8_t clab;
-
-			for (uint32_t y = y0; y < y0 + b2; y++)
-				for (uint32_t x = x0; x < x0 + b1; x++) {
-					float h = col_h(w, e, x, y);
-					if (h != h) {
-						gaps++;
-						continue;
-					}
-					sum += h;
-					nv++;
-					if (x + 1 < x0 + b1) {
-						float h2 = col_h(w, e, x + 1, y);
-						if (h2 == h2) {
-							sdx += h2 > h ? h2 - h : h - h2;
-							ndx++;
-						}
-					}
-					if (y + 1 < y0 + b2) {
-						float h2 = col_h(w, e, x, y + 1);
-						if (h2 == h2) {
-							sdy += h2 > h ? h2 - h : h - h2;
-							ndy++;
-						}
-					}
-				}
-			mean = nv ? (float)(sum / (double)nv) : 0.0f;
-			for (uint32_t i = 0; i < b1; i++) {
-				pn[i] = col_h(w, e, x0 + i, y0);
-				ps[i] = col_h(w, e, x0 + i, y0 + b2 - 1);
-			}
-			for (uint32_t i = 0; i < b2; i++) {
-				pw[i] = col_h(w, e, x0, y0 + i);
-				pe[i] = col_h(w, e, x0 + b1 - 1, y0 + i);
-			}
-			fill_profile(pn, b1, mean);
-			fill_profile(ps, b1, mean);
-			fill_profile(pw, b2, mean);
-			fill_profile(pe, b2, mean);
-			clab = w->top_label[(size_t)(y0 + b2 / 2) * e->size[0] + x0 + b1 / 2];
-			b[0] = loom__weave_code(e->weave, e->rows, e->cols, r, c);
-			b[1] = clab <= e->n_yarns ? e->yarns[clab].kind : 0;
-			loom__put16(b + 2, (uint16_t)(gaps > 65535 ? 65535 : gaps));
-			loom__putf32(b + 4, ndx ? (float)(sdx / (double)ndx) : 0.0f);
-			loom__putf32(b + 8, ndy ? (float)(sdy / (double)ndy) : 0.0f);
-			loom__putf32(b + 12, mean);
-			for (size_t i = 0; i < 2 * ((size_t)b1 + b2); i++)
-				loom__putf32(b + 16 + 4 * i, prof[i]);
-		}
-	free(prof);
+	block_rows_upto(w, e->size[1]); /* done already: the last brick row did it */
 	free(w->top);
 	free(w->top_label);
 	w->top = NULL;
@@ -395,9 +415,16 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *d,
 	e->yarns = calloc(d->n_yarns + 1, sizeof *e->yarns);
 	e->sym = malloc(sizeof(uint16_t) * 2 * (size_t)d->rows * d->cols);
 	ncol = (size_t)e->size[0] * e->size[1];
+	w->ring_rows = w->p.block[1] + w->p.brick[1];
+	if (w->ring_rows > e->size[1])
+		w->ring_rows = e->size[1];
+	ncol = (size_t)e->size[0] * w->ring_rows;
+	w->next_row = 0;
 	w->top = malloc(ncol * sizeof *w->top);
 	w->top_label = calloc(ncol, 1);
-	if (!e->weave || !e->yarns || !e->sym || !w->top || !w->top_label) {
+	e->blocks = calloc((size_t)d->rows * d->cols,
+	                   loom__db_block_entry_bytes(w->p.block[0], w->p.block[1]));
+	if (!e->weave || !e->yarns || !e->sym || !w->top || !w->top_label || !e->blocks) {
 		w->failed = 1;
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", w->out.path);
 	}
@@ -512,6 +539,16 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 	bz = local % e->bricks[2];
 	bx = (local / e->bricks[2]) % e->bricks[0];
 	by = local / e->bricks[2] / e->bricks[0];
+	if (bx == 0 && bz == 0) { /* a new brick row: its ring rows start empty */
+		for (uint32_t ly = 0; ly < w->p.brick[1]; ly++) {
+			uint32_t y = by * w->p.brick[1] + ly;
+			if (y >= e->size[1])
+				break;
+			memset(w->top_label + ring_at(w, e, 0, y), 0, e->size[0]);
+			for (uint32_t x = 0; x < e->size[0]; x++)
+				w->top[ring_at(w, e, x, y)] = -1;
+		}
+	}
 	if (b->storage != LOOM__DB_STORE_EMPTY)
 		for (uint32_t ly = 0; ly < w->p.brick[1]; ly++) {
 			uint32_t y = by * w->p.brick[1] + ly;
@@ -528,7 +565,7 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 				z = (int32_t)(bz * w->p.brick[2]) + b->top[col];
 				if (z >= (int32_t)e->size[2])
 					continue;
-				m = (size_t)y * e->size[0] + x;
+				m = ring_at(w, e, x, y);
 				if (z > w->top[m]) {
 					w->top[m] = (int16_t)z;
 					w->top_label[m] = b->top_label[col];
@@ -537,6 +574,9 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 		}
 	w->n_bricks++;
 	w->cur_put++;
+	if (w->cur_put % (e->bricks[0] * e->bricks[2]) == 0) /* brick row done */
+		block_rows_upto(w, (by + 1) * w->p.brick[1] < e->size[1] ?
+		                   (by + 1) * w->p.brick[1] : e->size[1]);
 	return LOOM_OK;
 }
 
@@ -722,6 +762,7 @@ void loom__dbw_abort(loom__dbw *w)
 	free(w->cbuf);
 	free(w->btop);
 	free(w->blabel);
+	free(w->prof);
 	free(w);
 }
 

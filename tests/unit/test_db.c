@@ -531,6 +531,144 @@ static void test_handmade(void)
 	loom_db_close(db);
 }
 
+/* ---- the height map streamed by block rows ----------------------------- */
+
+/* Top height of column (x, y) of exemplar u of the streamed test (0: gap). */
+static uint32_t ring_h(uint32_t u, uint32_t x, uint32_t y)
+{
+	if ((x * 5 + y * 3 + u) % 13 == 0)
+		return 0;
+	return 1 + (x * 7 + y * 3 + u * 5 + (x * y) % 4) % 7;
+}
+
+/* Write two exemplars of R x C crossings with block b1 x b2 x 8 and brick
+   k1 x k2 x 4 (so block rows and brick rows do not line up), then check
+   every block's tables against a brute force over ring_h: the writer keeps
+   only b2 + k2 rows of the height map, so this reads the map after it has
+   wrapped around many times. */
+static void streamed_case(uint32_t b1, uint32_t b2, uint32_t k1, uint32_t k2)
+{
+	enum { R = 7, C = 3, Z = 8, KZ = 4 };
+	loom__dbw_params wp;
+	loom__dbw_exemplar e;
+	loom_db_yarn yarns[3];
+	uint8_t weave[R * C];
+	uint8_t *raw = malloc(4 * (size_t)k1 * k2 * KZ);
+	size_t nv = (size_t)k1 * k2 * KZ;
+	loom__dbw *w = NULL;
+	loom_db *db = NULL;
+	loom_diag d = {0};
+	uint64_t hash;
+	uint32_t sx = C * b1, sy = R * b2, bad = 0, blocks = 0;
+
+	memset(&wp, 0, sizeof wp);
+	wp.n_exemplars = 2;
+	wp.block[0] = b1;
+	wp.block[1] = b2;
+	wp.block[2] = Z;
+	wp.brick[0] = k1;
+	wp.brick[1] = k2;
+	wp.brick[2] = KZ;
+	wp.voxel_size_um = 10;
+	wp.top_threshold = 64;
+	wp.level = 1;
+	memset(yarns, 0, sizeof yarns);
+	yarns[1].kind = LOOM_YARN_WARP;
+	yarns[2].kind = LOOM_YARN_WEFT;
+	for (int k = 0; k < R * C; k++)
+		weave[k] = (uint8_t)((k * 7 / 3) % 2);
+	e.weave_name = "test";
+	e.rows = R;
+	e.cols = C;
+	e.weave = weave;
+	e.n_yarns = 2;
+	e.yarns = yarns;
+	CHECK_EQ_INT(loom__dbw_create(tpath("ring.ldb"), &wp, &w, &d), LOOM_OK);
+	for (uint32_t u = 0; u < 2 && w; u++) {
+		e.name = u ? "second" : "first";
+		CHECK_EQ_INT(loom__dbw_begin_exemplar(w, &e, &d), LOOM_OK);
+		for (uint32_t by = 0; by * k2 < sy; by++)
+			for (uint32_t bx = 0; bx * k1 < sx; bx++)
+				for (uint32_t bz = 0; bz * KZ < Z; bz++) {
+					memset(raw, 0, 4 * nv);
+					for (uint32_t ly = 0; ly < k2; ly++)
+						for (uint32_t lx = 0; lx < k1; lx++)
+							for (uint32_t lz = 0; lz < KZ; lz++) {
+								uint32_t x = bx * k1 + lx, y = by * k2 + ly, z = bz * KZ + lz;
+								size_t i = loom__brick_index(k1, KZ, lx, ly, lz);
+								if (x >= sx || y >= sy || z >= ring_h(u, x, y))
+									continue;
+								raw[i] = 200;
+								raw[nv + i] = 7;
+								raw[3 * nv + i] = (uint8_t)(1 + (x + y) % 2);
+							}
+					CHECK_EQ_INT(loom__dbw_add_brick(w, raw, &d), LOOM_OK);
+				}
+	}
+	CHECK_EQ_INT(loom__dbw_finish(w, &hash, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("ring.ldb"), &db, &d), LOOM_OK);
+	for (uint32_t u = 0; u < 2 && db; u++)
+		for (uint32_t r = 0; r < R; r++)
+			for (uint32_t c = 0; c < C; c++) {
+				loom_db_block_info b;
+				uint32_t x0 = c * b1, y0 = r * b2, gaps = 0, nn = 0, nx = 0, ny = 0, h;
+				double sum = 0, dx = 0, dy = 0;
+				int ok = 1;
+				CHECK_EQ_INT(loom_db_block(db, u, r, c, &b), LOOM_OK);
+				for (uint32_t y = y0; y < y0 + b2; y++)
+					for (uint32_t x = x0; x < x0 + b1; x++) {
+						if (!(h = ring_h(u, x, y))) {
+							gaps++;
+							continue;
+						}
+						sum += h;
+						nn++;
+						if (x + 1 < x0 + b1 && ring_h(u, x + 1, y)) {
+							dx += fabs((double)ring_h(u, x + 1, y) - h);
+							nx++;
+						}
+						if (y + 1 < y0 + b2 && ring_h(u, x, y + 1)) {
+							dy += fabs((double)ring_h(u, x, y + 1) - h);
+							ny++;
+						}
+					}
+				ok &= b.gap_columns == gaps;
+				ok &= fabs(b.mean_height - sum / nn) < 1e-4;
+				ok &= fabs(b.mean_dh_x - (nx ? dx / nx : 0)) < 1e-4;
+				ok &= fabs(b.mean_dh_y - (ny ? dy / ny : 0)) < 1e-4;
+				h = ring_h(u, x0 + b1 / 2, y0 + b2 / 2);
+				ok &= b.centre_kind == (h ? 1 + (x0 + b1 / 2 + y0 + b2 / 2) % 2 : 0);
+				for (uint32_t i = 0; i < b1; i++) { /* surface columns */
+					if ((h = ring_h(u, x0 + i, y0)) != 0)
+						ok &= b.north[i] == (float)h;
+					if ((h = ring_h(u, x0 + i, y0 + b2 - 1)) != 0)
+						ok &= b.south[i] == (float)h;
+				}
+				for (uint32_t i = 0; i < b2; i++) {
+					if ((h = ring_h(u, x0, y0 + i)) != 0)
+						ok &= b.west[i] == (float)h;
+					if ((h = ring_h(u, x0 + b1 - 1, y0 + i)) != 0)
+						ok &= b.east[i] == (float)h;
+				}
+				bad += !ok;
+				blocks++;
+			}
+	printf("  block %ux%u, brick %ux%u: %u of %u blocks differ\n", b1, b2, k1, k2,
+	       bad, blocks);
+	CHECK_EQ_INT(blocks, 2 * R * C);
+	CHECK_EQ_INT(bad, 0);
+	loom_db_close(db);
+	free(raw);
+}
+
+static void test_streamed_height_map(void)
+{
+	streamed_case(5, 7, 4, 3);  /* several brick rows per block row */
+	streamed_case(6, 3, 4, 8);  /* several block rows per brick row */
+	streamed_case(4, 5, 3, 5);  /* aligned */
+	streamed_case(3, 4, 16, 16); /* one brick row: the ring is the exemplar */
+}
+
 /* ---- malformed inputs ----------------------------------------------------- */
 
 static void test_bad_magic_version(void)
@@ -909,6 +1047,7 @@ int main(void)
 	RUN(test_threaded_reads);
 	RUN(test_reader_object);
 	RUN(test_handmade);
+	RUN(test_streamed_height_map);
 	RUN(test_bad_magic_version);
 	RUN(test_truncation);
 	RUN(test_truncated_after_open);

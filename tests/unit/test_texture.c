@@ -219,6 +219,7 @@ static int ref_init(ref *r, const loom_fabric *f, const loom_db *db)
 	prof.b2 = r->b2;
 	prof.n_blocks = K;
 	prof.heights = r->heights;
+	prof.set = r->set; /* as the fabric builds it */
 	if (loom_edgefix_build(&prof, fp.rank, &r->ef, NULL))
 		return -1;
 	r->dz = malloc(sizeof(float) * r->b1 * r->b2);

@@ -371,6 +371,12 @@ typedef struct loom_edge_profiles {
 	                           y (along the warps); each >= 3 */
 	uint32_t n_blocks;      /* K */
 	const float *heights;   /* n_blocks records */
+	/* Optional (NULL: none): the set the blocks come from (K = n_blocks).
+	   With it, the N (W) data of block t is the S (E) profile of the block
+	   above (left of) t in its own exemplar, where t has one, so the fix
+	   keeps the jump t had across that edge in the woven exemplar instead
+	   of closing the seam (engine/synth/edgefix.c, "Calibration"). */
+	const loom_synth_set *set;
 } loom_edge_profiles;
 
 #define LOOM_EDGE_RECORD(b1, b2) (2u * (b1) + 2u * (b2))
@@ -387,7 +393,8 @@ typedef struct loom_edgefix loom_edgefix; /* opaque, immutable */
 /*
  * Build the edge-fix tables of a set of source blocks: a rank-r basis of the
  * (mean-removed) N/S profiles and one of the W/E profiles (interior samples
- * y = 1..b2-2), the 2r basis solutions of the discrete Laplace equation
+ * y = 1..b2-2; the profiles as p->set makes them), the 2r basis solutions
+ * of the screened discrete Laplace equation of loom_edgefix_exact
  * (N-edge and W-edge data; S and E by mirroring) and, per source block, its
  * four coefficient vectors.  The rank of each basis is min(rank, samples,
  * 2K): rh = min(rank, b1, 2K) for N/S, rv = min(rank, b2-2, 2K) for W/E.
@@ -427,9 +434,11 @@ LOOM_API float loom_edgefix_at(const loom_edgefix *ef,
  *   S edge (y = b2-1, all x):       (N_profile(nb.s)[x] - S_profile(self)[x])/2
  *   W edge (x = 0, 0 < y < b2-1):   (E_profile(nb.w)[y] - W_profile(self)[y])/2
  *   E edge (x = b1-1, 0 < y < b2-1):(W_profile(nb.e)[y] - E_profile(self)[y])/2
- * (the corners belong to the N and S edges, as in the paper), interior from
- * the discrete Laplace equation 4u(x,y) = u(x-1,y)+u(x+1,y)+u(x,y-1)+
- * u(x,y+1) (which never reads a corner), solved by separation in sine
+ * (the corners belong to the N and S edges, as in the paper; the profiles
+ * as p->set makes them), interior from the screened discrete Laplace
+ * equation (4 + k) u(x,y) = u(x-1,y)+u(x+1,y)+u(x,y-1)+u(x,y+1) (which
+ * never reads a corner), k = (8 / min(b1, b2))^2, so a seam's correction
+ * decays over about min(b1, b2) / 8 voxels; solved by separation in sine
  * modes.  LOOM_OK, LOOM_EINVAL, LOOM_ENOMEM.
  */
 LOOM_API int loom_edgefix_exact(const loom_edge_profiles *p,
@@ -466,8 +475,9 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
  * `basis` if not NULL), solve the 2r basis problems and evaluate
  *   s_i = sum_k C_T(k,i) s^T_k + C_L(k,i) s^L_k - C_T(k,S(i)) ~s^T_k
  *         - C_L(k,E(i)) ~s^L_k
- * (~ = mirrored copy).  Memory 8 r rows cols bytes for C_T and C_L: the
- * paper's ~150 MB at 900 x 1500.
+ * (~ = mirrored copy), with the screened equation of loom_edgefix_exact;
+ * the profiles are used as given (p->set is ignored).  Memory 8 r rows cols
+ * bytes for C_T and C_L: the paper's ~150 MB at 900 x 1500.
  */
 typedef struct loom_edgefix_paper loom_edgefix_paper;
 
