@@ -13,19 +13,30 @@
 
 /* Frame states (under the stripe lock). */
 enum { F_FREE, F_LOADING, F_VALID, F_FAILED };
+#define NO_TAG UINT64_MAX /* a frame's tag when not VALID (brick id
+                             UINT64_MAX always takes the locked path) */
 
 #define NONE UINT32_MAX
 #define ALIGN 64
 #define MAX_STRIPES 1024u
 #define MIN_FRAMES_PER_STRIPE 8u  /* below this, fewer stripes */
 
-#define FRAME_IS_PINNED(fr) (atomic_load(&(fr)->pins) != 0)
+/* The pin word: a count, or CLOSED (a FREE frame, or one being claimed
+   under the lock in steps 6-7): lock-free hits (step 3a) cannot pin it. */
+#define CLOSED 0x80000000u
+#define MAX_WALK 8u /* frames a lock-free probe follows before giving up */
+#define PIN_COUNT(v) ((v) & ~CLOSED)
+#define FRAME_IS_PINNED(fr) (PIN_COUNT(atomic_load(&(fr)->pins)) != 0)
 #define TLC_IS_IDLE(e) ((e)->used && (e)->refs == 0) /* a private pin */
 
 struct frame {
-	uint64_t brick_id;     /* unless FREE */
-	_Atomic uint32_t pins; /* caller pins + private tlc pins + waiters */
-	uint32_t next;         /* hash chain (hashed) or free list (FREE) */
+	uint64_t brick_id;     /* unless FREE (under the stripe lock) */
+	_Atomic uint64_t tag;  /* brick_id while VALID, else NO_TAG: what the
+	                          lock-free probe matches (step 3a) */
+	_Atomic uint32_t pins; /* caller pins + private tlc pins + waiters +
+	                          probes in flight; CLOSED when FREE */
+	_Atomic uint32_t next; /* hash chain (hashed) or free list (FREE);
+	                          written under the lock, read by probes */
 	int load_rc;           /* FAILED: the loader's result code */
 	uint16_t stripe;       /* owning stripe, fixed at open */
 	uint8_t state;         /* F_*, under the stripe lock */
@@ -41,7 +52,8 @@ struct stripe {
 	uint32_t hand;                /* CLOCK position, 0 .. n-1 */
 	uint32_t free_head;           /* free list of FREE frames */
 	uint32_t n_buckets;           /* 2 n */
-	uint32_t *buckets;            /* chain heads (frame index or NONE) */
+	_Atomic uint32_t *buckets;    /* chain heads (frame index or NONE);
+	                                 written under the lock */
 	uint32_t index;               /* this stripe's number */
 	_Atomic uint64_t charged_end; /* slab bytes charged: from the page of
 	                                 frame `first` up to this page end */
@@ -60,7 +72,7 @@ struct tlc_entry {
 /* Per-slot counters: written only by the slot's current thread (relaxed
    load + store), read by loom__cache_get_stats. */
 struct counters {
-	_Atomic uint64_t lookups, hits, tlc_hits, misses, loads, load_errors,
+	_Atomic uint64_t lookups, hits, tlc_hits, lf_hits, misses, loads, load_errors,
 	    evictions, waits, tlc_drops, bytes_loaded, load_ns;
 };
 
@@ -138,7 +150,7 @@ static struct stripe *stripe_of(const loom__cache *c, uint64_t h)
 	return &c->stripes[h & (c->n_stripes - 1)];
 }
 
-static uint32_t *bucket_of(const struct stripe *sp, uint64_t h)
+static _Atomic uint32_t *bucket_of(const struct stripe *sp, uint64_t h)
 {
 	/* multiply-shift range reduction of the high 32 bits (the low bits
 	   chose the stripe) */
@@ -146,29 +158,57 @@ static uint32_t *bucket_of(const struct stripe *sp, uint64_t h)
 	return &sp->buckets[b];
 }
 
+/* Chain links: written under the stripe lock, read by lock-free probes
+   too (relaxed: a probe validates what it finds, step 3a). */
+static uint32_t link_get(const _Atomic uint32_t *l)
+{
+	return atomic_load_explicit(l, memory_order_relaxed);
+}
+
+static void link_set(_Atomic uint32_t *l, uint32_t f)
+{
+	atomic_store_explicit(l, f, memory_order_relaxed);
+}
+
 static uint32_t hash_find(const loom__cache *c, const struct stripe *sp,
                           uint64_t h, uint64_t id)
 {
-	uint32_t f = *bucket_of(sp, h);
+	uint32_t f = link_get(bucket_of(sp, h));
 	while (f != NONE && c->frames[f].brick_id != id)
-		f = c->frames[f].next;
+		f = link_get(&c->frames[f].next);
 	return f;
 }
 
 static void hash_insert(loom__cache *c, struct stripe *sp, uint64_t h, uint32_t f)
 {
-	uint32_t *head = bucket_of(sp, h);
-	c->frames[f].next = *head;
-	*head = f;
+	_Atomic uint32_t *head = bucket_of(sp, h);
+	link_set(&c->frames[f].next, link_get(head));
+	link_set(head, f);
 }
 
 static void hash_remove(loom__cache *c, struct stripe *sp, uint32_t f)
 {
-	uint32_t *link = bucket_of(sp, mix64(c->frames[f].brick_id));
-	while (*link != f)
-		link = &c->frames[*link].next;
-	*link = c->frames[f].next;
-	c->frames[f].next = NONE;
+	_Atomic uint32_t *link = bucket_of(sp, mix64(c->frames[f].brick_id));
+	while (link_get(link) != f)
+		link = &c->frames[link_get(link)].next;
+	link_set(link, link_get(&c->frames[f].next));
+	link_set(&c->frames[f].next, NONE);
+}
+
+/* Set the CLOCK reference bit (a store only when it is clear: hot frames'
+   lines are not written on every hit). */
+static void ref_set(struct frame *fr)
+{
+	if (!atomic_load_explicit(&fr->ref, memory_order_relaxed))
+		atomic_store_explicit(&fr->ref, 1, memory_order_relaxed);
+}
+
+/* A FREE frame onto its stripe's free list (lock held; pins CLOSED). */
+static void free_push(loom__cache *c, struct stripe *sp, uint32_t f)
+{
+	c->frames[f].state = F_FREE;
+	link_set(&c->frames[f].next, sp->free_head);
+	sp->free_head = f;
 }
 
 /* Drop a pin with the stripe lock held (joined waiters, step 6c). */
@@ -176,14 +216,15 @@ static void unpin_locked(loom__cache *c, struct stripe *sp, uint32_t f)
 {
 	struct frame *fr = &c->frames[f];
 
-	atomic_store_explicit(&fr->ref, 1, memory_order_relaxed);
+	uint32_t zero = 0;
+
+	ref_set(fr);
 	if (atomic_fetch_sub(&fr->pins, 1) != 1)
 		return;
-	if (fr->state == F_FAILED) {
-		fr->state = F_FREE;
-		fr->next = sp->free_head;
-		sp->free_head = f;
-	}
+	/* a probe may pin the FAILED frame meanwhile: it is closed only at
+	   zero, and the probe's own unpin (locked, step 3a) finishes the job */
+	if (fr->state == F_FAILED && atomic_compare_exchange_strong(&fr->pins, &zero, CLOSED))
+		free_push(c, sp, f);
 	if (atomic_load(&sp->n_waiting) != 0)
 		pthread_cond_broadcast(&sp->cond);
 }
@@ -194,7 +235,7 @@ static void unpin_unlocked(loom__cache *c, uint32_t f)
 	struct frame *fr = &c->frames[f];
 	struct stripe *sp = &c->stripes[fr->stripe];
 
-	atomic_store_explicit(&fr->ref, 1, memory_order_relaxed);
+	ref_set(fr);
 	if (atomic_fetch_sub(&fr->pins, 1) == 1 && atomic_load(&sp->n_waiting) != 0) {
 		pthread_mutex_lock(&sp->lock);
 		pthread_cond_broadcast(&sp->cond);
@@ -316,7 +357,7 @@ static uint32_t pin_limit(uint64_t F, uint32_t T, uint32_t K)
 static int lay_out(loom__cache *c, uint8_t *block)
 {
 	uint8_t *p = block + round_up(sizeof(loom__cache), ALIGN);
-	uint32_t *buckets;
+	_Atomic uint32_t *buckets;
 	uint32_t S = c->n_stripes, n = c->n_frames;
 
 	c->stripes = (struct stripe *)p;
@@ -325,8 +366,9 @@ static int lay_out(loom__cache *c, uint8_t *block)
 	p += (size_t)c->max_threads * slot_bytes();
 	c->frames = (struct frame *)p;
 	p += round_up((size_t)n * sizeof(struct frame), ALIGN);
-	buckets = (uint32_t *)p;
-	memset(buckets, 0xff, (size_t)n * 2 * sizeof(uint32_t));
+	buckets = (_Atomic uint32_t *)p;
+	for (size_t b = 0; b < (size_t)n * 2; b++)
+		atomic_init(&buckets[b], NONE);
 
 	for (uint32_t s = 0; s < S; s++) {
 		struct stripe *sp = &c->stripes[s];
@@ -347,9 +389,9 @@ static int lay_out(loom__cache *c, uint8_t *block)
 		for (uint32_t k = sp->n; k-- > 0;) {
 			struct frame *fr = &c->frames[sp->first + k];
 			fr->stripe = (uint16_t)s;
-			fr->state = F_FREE;
-			fr->next = sp->free_head;
-			sp->free_head = sp->first + k;
+			atomic_init(&fr->tag, NO_TAG);
+			atomic_init(&fr->pins, CLOSED);
+			free_push(c, sp, sp->first + k);
 		}
 	}
 	for (uint32_t t = 0; t < c->max_threads; t++)
@@ -547,6 +589,15 @@ static uint32_t clock_sweep(loom__cache_thread *th, struct stripe *sp)
 			atomic_store_explicit(&fr->ref, 0, memory_order_relaxed);
 			continue;
 		}
+		{
+			/* close the pin word: a probe that pinned it first keeps it
+			   (I2 with lock-free hits: pins grows without the lock only
+			   from a non-zero, non-CLOSED count it then validates) */
+			uint32_t zero = 0;
+			if (!atomic_compare_exchange_strong(&fr->pins, &zero, CLOSED))
+				continue;
+		}
+		atomic_store(&fr->tag, NO_TAG);
 		hash_remove(c, sp, f);
 		bump(&th->cnt.evictions, 1);
 		return f;
@@ -578,7 +629,7 @@ static uint32_t take_frame(loom__cache_thread *th, struct stripe *sp, int may_dr
 	uint32_t f = sp->free_head;
 
 	if (f != NONE) { /* Step 6a */
-		sp->free_head = th->cache->frames[f].next;
+		sp->free_head = link_get(&th->cache->frames[f].next);
 		return f;
 	}
 	f = clock_sweep(th, sp); /* Step 6b */
@@ -653,6 +704,8 @@ static void publish(loom__cache *c, struct stripe *sp, uint32_t f, int rc,
 	if (rc == LOOM_OK) {
 		fr->state = F_VALID;
 		atomic_store_explicit(&fr->ref, 1, memory_order_relaxed);
+		/* release: a probe that reads the tag sees the loaded bytes */
+		atomic_store_explicit(&fr->tag, fr->brick_id, memory_order_release);
 	} else {
 		hash_remove(c, sp, f);
 		fr->state = F_FAILED;
@@ -671,6 +724,42 @@ static void count_lookup(loom__cache_thread *th, int hit)
 	bump(hit ? &th->cnt.hits : &th->cnt.misses, 1);
 }
 
+/* Step 3a: a hit without the lock.  Follow the id's chain (at most
+   MAX_WALK links, read while others may change them), pin the frame whose
+   tag is the id unless its pin word is CLOSED, then read the tag again:
+   still the id means the frame is VALID with this brick and, pinned, stays
+   so.  Anything else (no match, CLOSED, a tag that changed) is left to
+   the locked path; a pin taken in vain is dropped under the lock (the
+   frame may have become FAILED and need freeing). */
+static uint32_t probe(loom__cache *c, struct stripe *sp, uint64_t h, uint64_t id)
+{
+	uint32_t f = link_get(bucket_of(sp, h));
+	struct frame *fr;
+	uint32_t v;
+
+	for (uint32_t k = 0;; k++) {
+		if (f == NONE || k == MAX_WALK || f >= c->n_frames)
+			return NONE;
+		fr = &c->frames[f];
+		if (atomic_load_explicit(&fr->tag, memory_order_relaxed) == id)
+			break;
+		f = link_get(&fr->next);
+	}
+	v = atomic_load_explicit(&fr->pins, memory_order_relaxed);
+	do {
+		if (v & CLOSED)
+			return NONE;
+	} while (!atomic_compare_exchange_weak(&fr->pins, &v, v + 1));
+	if (atomic_load_explicit(&fr->tag, memory_order_acquire) == id) {
+		ref_set(fr);
+		return f;
+	}
+	pthread_mutex_lock(&sp->lock);
+	unpin_locked(c, sp, f);
+	pthread_mutex_unlock(&sp->lock);
+	return NONE;
+}
+
 /* Steps 3-9: pin brick id in the shared table; *out = its frame. */
 static int shared_get(loom__cache_thread *th, uint64_t id, uint32_t *out,
                       loom_diag *diag)
@@ -681,6 +770,12 @@ static int shared_get(loom__cache_thread *th, uint64_t id, uint32_t *out,
 	int first_look = 1, hit = 0;
 	uint32_t f;
 
+	if (id != NO_TAG && (f = probe(c, sp, h, id)) != NONE) { /* Step 3a */
+		count_lookup(th, 1);
+		bump(&th->cnt.lf_hits, 1);
+		*out = f;
+		return LOOM_OK;
+	}
 	pthread_mutex_lock(&sp->lock);
 	for (;;) {
 		struct frame *fr;
@@ -690,7 +785,7 @@ static int shared_get(loom__cache_thread *th, uint64_t id, uint32_t *out,
 			fr = &c->frames[f];
 			atomic_fetch_add(&fr->pins, 1);
 			if (fr->state == F_VALID) { /* Step 4 */
-				atomic_store_explicit(&fr->ref, 1, memory_order_relaxed);
+				ref_set(fr);
 				hit = first_look;
 				pthread_mutex_unlock(&sp->lock);
 				count_lookup(th, hit);
@@ -739,7 +834,7 @@ static int shared_get(loom__cache_thread *th, uint64_t id, uint32_t *out,
 
 		fr->brick_id = id;
 		fr->state = F_LOADING;
-		atomic_store(&fr->pins, 1);
+		atomic_store(&fr->pins, 1); /* opens the CLOSED word */
 		hash_insert(c, sp, h, f);
 		pthread_mutex_unlock(&sp->lock);
 		count_lookup(th, 0);
@@ -898,6 +993,7 @@ void loom__cache_get_stats(const loom__cache *c, loom__cache_stats *st)
 		st->lookups += rd(&k->lookups);
 		st->hits += rd(&k->hits);
 		st->tlc_hits += rd(&k->tlc_hits);
+		st->lf_hits += rd(&k->lf_hits);
 		st->misses += rd(&k->misses);
 		st->loads += rd(&k->loads);
 		st->load_errors += rd(&k->load_errors);
@@ -932,7 +1028,7 @@ static int check_stripe(loom__cache *c, struct stripe *sp, loom_diag *diag)
 	for (uint32_t f = sp->free_head; f != NONE; f = c->frames[f].next) {
 		if (++n_free > sp->n || f - sp->first >= sp->n)
 			return loom__fail(diag, 0, "stripe %u: free list leaves the stripe", sp->index);
-		if (c->frames[f].state != F_FREE || FRAME_IS_PINNED(&c->frames[f]))
+		if (c->frames[f].state != F_FREE || atomic_load(&c->frames[f].pins) != CLOSED)
 			return loom__fail(diag, 0, "stripe %u: frame %u on free list is not FREE "
 			                  "and unpinned", sp->index, f);
 	}
@@ -943,6 +1039,10 @@ static int check_stripe(loom__cache *c, struct stripe *sp, loom_diag *diag)
 				return loom__fail(diag, 0, "stripe %u: chain leaves the stripe", sp->index);
 			if (fr->state != F_VALID && fr->state != F_LOADING)
 				return loom__fail(diag, 0, "frame %u hashed in state %u", f, fr->state);
+			if (atomic_load(&fr->tag) != (fr->state == F_VALID ? fr->brick_id : NO_TAG))
+				return loom__fail(diag, 0, "frame %u: tag does not match its state", f);
+			if (atomic_load(&fr->pins) & CLOSED)
+				return loom__fail(diag, 0, "frame %u hashed with a closed pin word", f);
 			if (bucket_of(sp, mix64(fr->brick_id)) != &sp->buckets[b] ||
 			    stripe_of(c, mix64(fr->brick_id)) != sp)
 				return loom__fail(diag, 0, "frame %u in the wrong bucket", f);
@@ -957,7 +1057,7 @@ static int check_stripe(loom__cache *c, struct stripe *sp, loom_diag *diag)
 		uint32_t pins = atomic_load(&fr->pins);
 		if (fr->stripe != sp->index)
 			return loom__fail(diag, 0, "frame %u: wrong stripe", sp->first + k);
-		if ((fr->state == F_LOADING || fr->state == F_FAILED) && pins == 0)
+		if ((fr->state == F_LOADING || fr->state == F_FAILED) && PIN_COUNT(pins) == 0)
 			return loom__fail(diag, 0, "frame %u: state %u without a pin",
 			                  sp->first + k, fr->state);
 		if (fr->state == F_FREE)

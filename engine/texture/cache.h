@@ -43,16 +43,28 @@
  *                    loader scratch
  *
  * FRAME STATES AND INVARIANTS (checked by loom__cache_check)
- *   FREE     on its stripe's free list, not hashed, pins == 0.
+ *   Each frame has a pin word (a count, or CLOSED) and a tag (its brick
+ *   id while VALID, else NO_TAG), both atomic: the lock-free probe of
+ *   step 3a reads them, and the chain links, without the lock.
+ *   FREE     on its stripe's free list, not hashed, pin word CLOSED.
  *   LOADING  hashed, pins >= 1 (the loading thread and the threads that
- *            joined it); only the loading thread writes its bytes.
- *   VALID    hashed; bytes immutable until evicted; evictable iff pins == 0.
+ *            joined it, and probes about to let go); only the loading
+ *            thread writes its bytes; tag NO_TAG.
+ *   VALID    hashed; bytes immutable until evicted; evictable iff pins == 0;
+ *            tag = its id (stored with release after the bytes).
  *   FAILED   not hashed, pins >= 1 (waiters that have not yet collected
- *            the error); becomes FREE when pins reaches 0.
+ *            the error); becomes FREE (CLOSED) when pins reaches 0.
  *   I1  A brick id is hashed at most once in the whole cache.
- *   I2  pins only grows under the frame's stripe lock (steps 4, 5, 7); it
- *       may shrink without the lock (release).  So a frame seen with
- *       pins == 0 under the lock cannot be pinned behind the sweep's back.
+ *   I2  Without the stripe lock, pins grows only in a probe's
+ *       compare-and-swap from a count that is not CLOSED, and the probe
+ *       keeps the pin only if the tag still equals its id afterwards;
+ *       under the lock, steps 4, 5, 7 add pins.  Eviction (step 6b) claims
+ *       a VALID frame only by swapping its pin word from 0 to CLOSED, then
+ *       sets the tag to NO_TAG, so a probe either pinned it first (the
+ *       swap fails, the frame stays) or finds it CLOSED or re-tagged and
+ *       lets go.  Step 7 opens the word again (pins = 1).  Pins may shrink
+ *       without the lock (release); a FAILED frame is closed (compare-and-
+ *       swap 0 -> CLOSED) under the lock by whoever drops its last pin.
  *   I3  A thread slot's tlc entries are touched only by the thread using
  *       the slot (no atomics on the tlc path).  A used entry holds one pin:
  *       IN_USE (refs > 0, the caller holds it) or IDLE (refs == 0, kept
@@ -87,6 +99,11 @@
  *   Step 2.  Deadlock rule: if the thread already holds pin_limit caller
  *            pins, fail with LOOM_EBUDGET.  An IDLE entry for the id turns
  *            IN_USE (a tlc hit).
+ *   Step 3a. Lock-free hit: follow the id's hash chain without the lock (at
+ *            most 8 links); a frame whose tag is the id is pinned by a
+ *            compare-and-swap unless CLOSED, and kept if its tag is still
+ *            the id (a hit, no lock taken); otherwise the pin is dropped
+ *            under the lock and the get goes on with step 3.
  *   Step 3.  Lock the id's stripe and look the id up in its hash chain.
  *   Step 4.  VALID: pin, set the reference bit, unlock.  A hit.
  *   Step 5.  LOADING: pin, sleep until the loading thread publishes it.
@@ -183,6 +200,8 @@ typedef struct loom__cache_stats {
 	uint64_t lookups;      /* gets past the argument and pin-limit checks */
 	uint64_t hits;         /* brick resident and valid at first look */
 	uint64_t tlc_hits;     /* of hits, served by the per-thread cache */
+	uint64_t lf_hits;      /* of hits, served by the lock-free probe
+	                          (step 3a) */
 	uint64_t misses;       /* not resident at first look (lookups - hits) */
 	uint64_t loads;        /* frames claimed for loading (step 7); equals
 	                          loader calls unless a thread scratch could

@@ -13,11 +13,14 @@
  *            and its neighbours' (loom__fabric_crossing: base assignment of
  *            (I mod M, J mod N) shifted by its group's symmetry), the
  *            yarn types of its warp and weft, the 4 (rh + rv) edge-fix
- *            coefficients of the block, and an empty column bitmap.
- *   Step 3.  Column offset dz(lx, ly): computed on first use in the entry
- *            (4 dot products of length r with the fabric's basis fields,
- *            the same arithmetic as loom_edgefix_block), kept in the
- *            entry in 1/16 voxel (loom__dz_fixed): q = 16 w + f.
+ *            coefficients of the block, and its shared offset map
+ *            (texture.c: found by (I, J), or claimed in its set).
+ *   Step 3.  Column offset dz(lx, ly): one load of its lane in the shared
+ *            map (checked against the map's generation); on first use by
+ *            any thread computed (4 dot products of length r with the
+ *            fabric's basis fields, the same arithmetic as
+ *            loom_edgefix_block) and stored there in 1/16 voxel
+ *            (loom__dz_fixed): q = 16 w + f.
  *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - w) of the block's
  *            exemplar (outside [0, b3): empty); when f > 0 also voxel
  *            z - w - 1, and steps 5-6 for both, blended (raw_blend).
@@ -162,13 +165,159 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	e->tok[3] = 0;
 	e->tlut_ok = 0;
 	xent_coef(t, &xg.nb, e->a);
-	memset(e->have, 0, ((size_t)t->b1 * t->b2 + 63) / 64 * 8);
+	loom__dzmap_attach(t, e);
 	e->valid = 1;
 	bump(&s->cnt.xings, 1);
 found:
 	e->stamp = ++s->clock;
 	s->cur = e;
 	return e;
+}
+
+/* ---------------------------------------------------- shared offset maps */
+
+/* The set of DZ_WAYS maps that may hold crossing (I, J). */
+static uint32_t map_set(const loom_texture *t, int64_t I, int64_t J)
+{
+	uint64_t h = ((uint64_t)I * 0xd6e8feb86659fd93ull) ^ ((uint64_t)J * 0x9e3779b97f4a7c15ull);
+	h ^= h >> 29;
+	return (uint32_t)(h & (t->n_maps / DZ_WAYS - 1)) * DZ_WAYS;
+}
+
+static _Atomic uint64_t *map_lanes(const loom_texture *t, uint32_t m)
+{
+	return t->mapw + (size_t)m * t->map_words;
+}
+
+/* Map m holds (I, J): its generation (even, not 0) read on both sides of
+   the key, unchanged (seqlock).  Returns the generation or 0. */
+static uint64_t map_holds(const loom_texture *t, uint32_t m, int64_t I, int64_t J)
+{
+	uint64_t g1 = atomic_load_explicit(&t->mapgen[m], memory_order_acquire), g2;
+	int64_t mi, mj;
+
+	if (g1 == 0 || (g1 & 1))
+		return 0;
+	mi = atomic_load_explicit(&t->maps[m].I, memory_order_acquire);
+	mj = atomic_load_explicit(&t->maps[m].J, memory_order_acquire);
+	g2 = atomic_load_explicit(&t->mapgen[m], memory_order_relaxed);
+	return g1 == g2 && mi == I && mj == J ? g1 : 0;
+}
+
+static int map_find(loom_texture *t, struct xent *e, uint32_t set)
+{
+	for (uint32_t k = 0; k < DZ_WAYS; k++) {
+		uint64_t g = map_holds(t, set + k, e->I, e->J);
+		if (g) {
+			e->map = set + k;
+			e->gen = g;
+			e->w = map_lanes(t, set + k);
+			if (!atomic_load_explicit(&t->maps[set + k].used, memory_order_relaxed))
+				atomic_store_explicit(&t->maps[set + k].used, 1, memory_order_relaxed);
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* Reclaim map m for e's crossing (map_lock held, m closed): generation to
+   odd, the key and every lane rewritten (release stores), generation to
+   the next even value (release), then open to writers again.  A reader
+   loads a lane or key with acquire and the generation after it: a value
+   from the reclaim (or from a writer's OR after it, in the same release
+   sequence) makes the odd generation visible, so the reader sees the
+   generation changed. */
+static void map_reclaim(loom_texture *t, uint32_t m, struct xent *e)
+{
+	_Atomic uint64_t *w = map_lanes(t, m);
+	uint64_t g = atomic_load_explicit(&t->mapgen[m], memory_order_relaxed);
+
+	atomic_store_explicit(&t->mapgen[m], g + 1, memory_order_relaxed);
+	atomic_store_explicit(&t->maps[m].I, e->I, memory_order_release);
+	atomic_store_explicit(&t->maps[m].J, e->J, memory_order_release);
+	for (size_t i = 0; i < t->map_words; i++)
+		atomic_store_explicit(&w[i], 0, memory_order_release);
+	atomic_store_explicit(&t->mapgen[m], g + 2, memory_order_release);
+	atomic_store_explicit(&t->maps[m].used, 1, memory_order_relaxed);
+	atomic_store(&t->maps[m].refs, 0); /* open */
+	e->map = m;
+	e->gen = g + 2;
+	e->w = w;
+}
+
+void loom__dzmap_attach(loom_texture *t, struct xent *e)
+{
+	uint32_t set = map_set(t, e->I, e->J);
+
+	e->map = NO_MAP;
+	if (map_find(t, e, set))
+		return;
+	pthread_mutex_lock(&t->map_lock);
+	if (!map_find(t, e, set)) {
+		/* CLOCK inside the set: never-used maps first, then one whose
+		   bit is clear (clearing bits on the way); a map with a writer
+		   in flight cannot be closed and is passed over */
+		for (uint32_t k = 0; k < 3 * DZ_WAYS; k++) {
+			uint32_t m = set + k % DZ_WAYS, zero = 0;
+			int fresh = atomic_load_explicit(&t->mapgen[m], memory_order_relaxed) == 0;
+			if (!fresh && k < DZ_WAYS)
+				continue;
+			if (!fresh && atomic_load_explicit(&t->maps[m].used, memory_order_relaxed)) {
+				atomic_store_explicit(&t->maps[m].used, 0, memory_order_relaxed);
+				continue;
+			}
+			if (atomic_compare_exchange_strong(&t->maps[m].refs, &zero, MAP_CLOSED)) {
+				map_reclaim(t, m, e);
+				break;
+			}
+		}
+	}
+	pthread_mutex_unlock(&t->map_lock);
+}
+
+/* Store offset q of column c in e's map: only while a writer (refs > 0,
+   not closed) and the generation is still e's, so a map reclaimed for
+   another crossing never takes this crossing's offset.  Every thread
+   computes the same q for a column, so OR-ing its lane in is idempotent. */
+static void map_put(loom_texture *t, const struct xent *e, size_t c, int q)
+{
+	struct dzmap *m = &t->maps[e->map];
+	uint32_t v = atomic_load_explicit(&m->refs, memory_order_relaxed);
+
+	do {
+		if (v & MAP_CLOSED)
+			return;
+	} while (!atomic_compare_exchange_weak(&m->refs, &v, v + 1));
+	if (atomic_load(&t->mapgen[e->map]) == e->gen)
+		atomic_fetch_or_explicit(&e->w[c >> 2],
+		                         (uint64_t)(unsigned)(q + DZ_BIAS) << (16 * (c & 3)),
+		                         memory_order_relaxed);
+	atomic_fetch_sub(&m->refs, 1);
+}
+
+int loom__dz_slow(const loom_texture *tc, struct tslot *s, struct xent *e, uint32_t lx,
+                  uint32_t ly)
+{
+	loom_texture *t = (loom_texture *)tc; /* the map lock */
+	size_t c = (size_t)ly * t->b1 + lx;
+	int q;
+
+	if (e->map == NO_MAP ||
+	    atomic_load_explicit(&t->mapgen[e->map], memory_order_relaxed) != e->gen) {
+		loom__dzmap_attach(t, e); /* reclaimed meanwhile: find or claim */
+		if (e->map != NO_MAP) {   /* another thread may have computed it */
+			uint64_t w = atomic_load_explicit(&e->w[c >> 2], memory_order_acquire);
+			unsigned v = (unsigned)(w >> (16 * (c & 3))) & 0xffffu;
+			if (v && atomic_load_explicit(&t->mapgen[e->map], memory_order_relaxed) ==
+			                 e->gen)
+				return (int)v - DZ_BIAS;
+		}
+	}
+	q = loom__dz_fixed(dz_eval(t, e->a, lx, ly));
+	bump(&s->cnt.dz, 1);
+	if (e->map != NO_MAP)
+		map_put(t, e, c, q);
+	return q;
 }
 
 /* ---------------------------------------------------------------- bricks */

@@ -26,14 +26,32 @@
  *     kind), a bit per brick (stored empty), and max_threads + 1 thread
  *     slots, each holding its cache thread handle, its current brick, its
  *     error message, the region gather buffer (6 planes of RCOLS x RZ
- *     bytes) and n_ent crossing entries (coefficients, label -> type table,
- *     column bitmap, dz of b1*b2 columns as int16; n_ent = 4 .. 256, the
- *     most whose total stays within budget / 32);
+ *     bytes) and n_ent crossing entries (coefficients, label -> type table;
+ *     n_ent = 4 .. 256, the most whose total stays within budget / 32),
+ *     and the shared offset maps (below; 4 .. the most within another
+ *     budget / 32);
  *   - the brick cache, opened with budget - (that block): frames,
  *     bookkeeping, and one database reader (decompressor + scratch) per
  *     thread slot.
  *   Nothing else is allocated after open.  bytes_in_use = fabric's +
  *   block + cache's (fixed_bytes = fabric's + block).
+ *
+ * SHARED OFFSET MAPS
+ *   The edge-fix offset of a column (4 dot products) is kept in a map per
+ *   crossing shared by every thread: 4 columns a 64-bit word, each lane
+ *   q + DZ_BIAS or 0 (not computed yet), so one load answers "computed?"
+ *   and "how much".  n_maps maps in sets of DZ_WAYS by a hash of (I, J),
+ *   CLOCK inside a set.  A thread's crossing entry records its map and the
+ *   map's generation; a lookup reads the lane, then the generation (an
+ *   8-byte word per map, hot in L1), and trusts the lane only if it is
+ *   unchanged (seqlock: a reclaim makes the generation odd before it
+ *   rewrites key and lanes, and even again after).  A thread that computes
+ *   an offset ORs it into the lane while it counts as the map's writer,
+ *   and only if the generation is still its own; reclaiming closes the
+ *   writer count first (compare-and-swap 0 -> closed, under map_lock), so
+ *   a map never takes another crossing's offset.  When every map of a set
+ *   has a writer in flight, the entry goes without (offsets computed on
+ *   the spot).  lookup.c has the code.
  *
  * DETERMINISM
  *   Every value is a pure function of the fabric, the database and the
@@ -190,9 +208,7 @@ static int load_exemplars(loom_texture *t, loom_diag *diag)
 /* Carve the slots out of t->mem and initialise them. */
 static void lay_out_slots(loom_texture *t)
 {
-	size_t cols = (size_t)t->b1 * t->b2;
 	size_t a_bytes = round_up(sizeof(float) * 2 * (t->rh + t->rv), ALIGN);
-	size_t h_bytes = round_up((cols + 63) / 64 * 8, ALIGN);
 
 	for (unsigned i = 0; i < t->n_slots; i++) {
 		struct tslot *s = slot_at(t, i);
@@ -206,27 +222,33 @@ static void lay_out_slots(loom_texture *t)
 		p += round_up(sizeof(struct xent) * t->n_ent, ALIGN);
 		for (uint32_t k = 0; k < t->n_ent; k++) {
 			s->ent[k].a = (float *)p;
+			s->ent[k].map = NO_MAP;
 			p += a_bytes;
-			s->ent[k].have = (uint64_t *)p;
-			p += h_bytes;
-			s->ent[k].dz = (int16_t *)p;
-			p += round_up(cols * sizeof(int16_t), ALIGN);
 		}
 	}
 	t->free_head = t->n_slots > 1 ? 0 : t->n_slots;
 	atomic_init(&t->n_free, t->n_slots - 1);
 }
 
-/* The fixed part of the budget with n_ent crossing entries per slot (the
-   header and the block allocated at open); *slot_bytes: one slot. */
+/* Bytes of n shared offset maps of map_words lanes each (headers,
+   generations, lanes). */
+static size_t maps_bytes(uint32_t n, size_t map_words)
+{
+	return round_up(sizeof(struct dzmap) * n, ALIGN) + round_up(sizeof(uint64_t) * n, ALIGN) +
+	       (size_t)n * map_words * sizeof(uint64_t);
+}
+
+/* The fixed part of the budget with n_ent crossing entries per slot and
+   n_maps shared offset maps (the header and the block allocated at open);
+   *slot_bytes: one slot. */
 static size_t fixed_bytes(unsigned T, uint32_t n_ent, size_t ent_bytes, size_t ex_bytes,
-                          size_t *slot_bytes)
+                          uint32_t n_maps, size_t map_words, size_t *slot_bytes)
 {
 	*slot_bytes = round_up(sizeof(struct tslot), ALIGN) + 6 * RCOLS * RZ +
 	              round_up(sizeof(struct xent) * n_ent, ALIGN) +
 	              n_ent * (ent_bytes - sizeof(struct xent));
 	return round_up(sizeof(struct loom_texture), ALIGN) + ex_bytes +
-	       (size_t)(T + 1) * *slot_bytes;
+	       maps_bytes(n_maps, map_words) + (size_t)(T + 1) * *slot_bytes;
 }
 
 LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
@@ -238,9 +260,9 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom__db_geom g;
 	loom__cache_opts co;
 	loom_texture *t;
-	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes, fab;
+	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes, fab, map_words;
 	uint64_t xings;
-	uint32_t n_ent;
+	uint32_t n_ent, n_maps;
 	unsigned T;
 	int rc;
 
@@ -280,15 +302,17 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	/* crossing entries per slot: XENT_WAYS, doubled (up to XENT_MAX) while
 	   all slots' entries stay within 1/32 of the budget */
 	ent_bytes = sizeof(struct xent) +
-	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN) +
-	            round_up((cols + 63) / 64 * 8, ALIGN) + round_up(cols * sizeof(int16_t), ALIGN);
+	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN);
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN);
+	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
+	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
 	n_ent = XENT_WAYS;
+	n_maps = DZ_WAYS;
 	/* the design, base assignment and tables the fabric holds count too */
 	fab = loom__fabric_bytes(fabric);
 	xings = (uint64_t)fabric->design->rows * fabric->design->cols;
-	fixed = fab + fixed_bytes(T, n_ent, ent_bytes, ex_bytes, &slot_bytes);
+	fixed = fab + fixed_bytes(T, n_ent, ent_bytes, ex_bytes, n_maps, map_words, &slot_bytes);
 
 	memset(&co, 0, sizeof co);
 	co.brick_bytes = g.brick_bytes;
@@ -305,16 +329,24 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	}
 	/* more entries only while the smallest cache still fits beside them
 	   (so the minimum budget reported above always opens) */
-	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32) {
+	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 ||
+	    maps_bytes(2 * n_maps, map_words) <= o.budget_bytes / 32) {
 		size_t cmin = cache_min_budget(&co), sb, f2;
 		while (n_ent < XENT_MAX &&
 		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 &&
-		       (f2 = fab + fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, &sb)) +
-		                       cmin <=
-		               o.budget_bytes) {
+		       (f2 = fab + fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, n_maps,
+		                               map_words, &sb)) + cmin <= o.budget_bytes) {
 			n_ent *= 2;
 			fixed = f2;
 			slot_bytes = sb;
+		}
+		/* shared offset maps: doubled while within another 1/32 */
+		while (n_maps < (1u << 24) &&
+		       maps_bytes(2 * n_maps, map_words) <= o.budget_bytes / 32 &&
+		       (f2 = fab + fixed_bytes(T, n_ent, ent_bytes, ex_bytes, 2 * n_maps,
+		                               map_words, &sb)) + cmin <= o.budget_bytes) {
+			n_maps *= 2;
+			fixed = f2;
 		}
 	}
 	mem_bytes = fixed - fab - round_up(sizeof *t, ALIGN);
@@ -361,7 +393,13 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	for (uint32_t id = 0; id < g.n_bricks; id++)
 		if (loom__db_brick_empty(db, id))
 			t->empty[id >> 6] |= (uint64_t)1 << (id & 63);
-	t->slots = t->mem + ex_bytes;
+	t->n_maps = n_maps;
+	t->map_words = map_words;
+	t->maps = (struct dzmap *)(t->mem + ex_bytes);
+	t->mapgen = (_Atomic uint64_t *)(t->mem + ex_bytes +
+	                                 round_up(sizeof(struct dzmap) * n_maps, ALIGN));
+	t->mapw = t->mapgen + round_up(sizeof(uint64_t) * n_maps, ALIGN) / sizeof(uint64_t);
+	t->slots = t->mem + ex_bytes + maps_bytes(n_maps, map_words);
 	t->n_slots = T + 1;
 	t->slot_bytes = slot_bytes;
 	t->n_ent = n_ent;
@@ -370,6 +408,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	pthread_mutex_init(&t->pool_lock, NULL);
 	pthread_mutex_init(&t->overflow_lock, NULL);
 	pthread_mutex_init(&t->msg_lock, NULL);
+	pthread_mutex_init(&t->map_lock, NULL);
 	lay_out_slots(t);
 	if ((rc = load_exemplars(t, diag)) != LOOM_OK)
 		goto fail;
@@ -396,6 +435,7 @@ fail:
 	pthread_mutex_destroy(&t->pool_lock);
 	pthread_mutex_destroy(&t->overflow_lock);
 	pthread_mutex_destroy(&t->msg_lock);
+	pthread_mutex_destroy(&t->map_lock);
 	free(t->mem);
 	free(t);
 	return rc;
@@ -410,6 +450,7 @@ LOOM_API void loom_texture_close(loom_texture *t)
 	pthread_mutex_destroy(&t->pool_lock);
 	pthread_mutex_destroy(&t->overflow_lock);
 	pthread_mutex_destroy(&t->msg_lock);
+	pthread_mutex_destroy(&t->map_lock);
 	free(t->mem);
 	free(t);
 }

@@ -40,6 +40,11 @@
 #define ALIGN 64
 #define RCOLS 64            /* columns gathered at once (x-fastest regions) */
 #define RZ 64               /* z values gathered at once */
+#define DZ_WAYS 4           /* shared offset maps per set */
+#define DZ_BIAS 32768       /* a map lane holds q + DZ_BIAS (never 0); 0: not
+                               computed yet */
+#define NO_MAP UINT32_MAX
+#define MAP_CLOSED 0x80000000u /* a map's writer count while it is reclaimed */
 
 #define LOOM__HIDDEN __attribute__((visibility("hidden")))
 
@@ -65,8 +70,18 @@ struct xent {
 	uint8_t tlut_ok;         /* tlut is built */
 	uint8_t tlut[256];       /* label -> yarn type (region reads) */
 	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
-	uint64_t *have;          /* bit per column: dz computed */
-	int16_t *dz;             /* b1*b2 offsets in 1/DZ_SUB voxel, where have */
+	uint32_t map;            /* the shared offset map of (I, J) (NO_MAP: none,
+	                            every offset computed on the spot) */
+	uint64_t gen;            /* the map's generation when attached */
+	_Atomic uint64_t *w;     /* the map's lanes (4 columns a word) */
+};
+
+/* Header of a shared offset map (texture.c: "shared offset maps"). */
+struct dzmap {
+	_Atomic int64_t I, J;    /* its crossing, under the generation */
+	_Atomic uint32_t refs;   /* writers in flight; MAP_CLOSED while it is
+	                            being reclaimed for another crossing */
+	_Atomic uint32_t used;   /* CLOCK bit (replacement inside a set) */
 };
 
 /* Per-slot counters: written by the slot's current thread only (relaxed
@@ -116,6 +131,14 @@ struct loom_texture {
 	size_t slot_bytes;
 	uint32_t n_ent;          /* crossing entries per slot (a power of two,
 	                            XENT_WAYS .. XENT_MAX, from the budget) */
+	uint32_t n_maps;         /* shared offset maps (DZ_WAYS x a power of
+	                            two, from the budget) */
+	size_t map_words;        /* 64-bit words of one map */
+	struct dzmap *maps;      /* n_maps headers (in mem) */
+	_Atomic uint64_t *mapgen; /* n_maps generations: even, 0 = never used;
+	                            odd while being reclaimed (in mem) */
+	_Atomic uint64_t *mapw;  /* n_maps x map_words lanes (in mem) */
+	pthread_mutex_t map_lock; /* reclaiming a map */
 	uint8_t *mem;            /* the block allocated at open */
 	size_t fixed_bytes;      /* what the budget counts for it */
 	size_t budget;
@@ -260,18 +283,32 @@ static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
 	return sn + ss + sw + se;
 }
 
-/* Step 3, cached in the entry: the offset of column (lx, ly) in 1/DZ_SUB
-   voxel (loom__dz_fixed). */
+/* Step 3 when the entry's shared map does not answer: attach it again if
+   it was reclaimed, evaluate the offset, store it in the map (lookup.c). */
+int loom__dz_slow(const loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx,
+                  uint32_t ly);
+/* Step 2's part: attach entry e (I, J set) to the shared map of its
+   crossing, claiming one if none holds it (lookup.c). */
+void loom__dzmap_attach(loom_texture *t, struct xent *e);
+
+/* Step 3, from the shared offset map of the entry's crossing: the offset
+   of column (lx, ly) in 1/DZ_SUB voxel (loom__dz_fixed).  One load of the
+   column's lane (computed and value in one), then the map's generation
+   (a small array, in L1): a map reclaimed since the entry attached it
+   changed its generation before any lane (seqlock order: lanes read with
+   acquire, written with release), so a lane read with the generation
+   unchanged is this crossing's. */
 static inline int xent_dz(const loom_texture *t, struct tslot *s, struct xent *e,
                           uint32_t lx, uint32_t ly)
 {
 	size_t c = (size_t)ly * t->b1 + lx;
-	if (!(e->have[c >> 6] >> (c & 63) & 1)) {
-		e->dz[c] = (int16_t)loom__dz_fixed(dz_eval(t, e->a, lx, ly));
-		e->have[c >> 6] |= (uint64_t)1 << (c & 63);
-		bump(&s->cnt.dz, 1);
+	if (e->map != NO_MAP) {
+		uint64_t w = atomic_load_explicit(&e->w[c >> 2], memory_order_acquire);
+		unsigned v = (unsigned)(w >> (16 * (c & 3))) & 0xffffu;
+		if (v && atomic_load_explicit(&t->mapgen[e->map], memory_order_relaxed) == e->gen)
+			return (int)v - DZ_BIAS;
 	}
-	return e->dz[c];
+	return loom__dz_slow(t, s, e, lx, ly);
 }
 
 /* Split a fixed-point offset q into whole voxels w = floor(q / DZ_SUB) and

@@ -1101,10 +1101,12 @@ static void hammer_f(unsigned threads, uint32_t frames, unsigned stripes, int tl
 		pthread_join(t[i], NULL);
 	loom__cache_get_stats(H.c, &st);
 	printf("  %u threads, %u frames (%u stripes, tlc %u, pin limit %u), %s: "
-	       "%llu lookups, hit rate %.3f, %llu loads, %llu waits, %llu tlc drops\n",
+	       "%llu lookups, hit rate %.3f (lock-free %llu), %llu loads, %llu waits, "
+	       "%llu tlc drops\n",
 	       threads, st.n_frames, st.n_stripes, st.tlc_entries, st.pin_limit,
 	       coherent ? "coherent" : "random", (unsigned long long)st.lookups,
 	       st.lookups ? (double)st.hits / (double)st.lookups : 0.0,
+	       (unsigned long long)st.lf_hits,
 	       (unsigned long long)st.loads, (unsigned long long)st.waits,
 	       (unsigned long long)st.tlc_drops);
 	CHECK_EQ_INT(atomic_load(&H.bad), 0);
@@ -1118,6 +1120,9 @@ static void hammer_f(unsigned threads, uint32_t frames, unsigned stripes, int tl
 	CHECK_EQ_INT(atomic_load(&L.bad_scratch), 0);
 	CHECK(atomic_load(&L.scratch_made) <= threads);
 	CHECK(st.lookups > 0);
+	CHECK(st.lf_hits + st.tlc_hits <= st.hits);
+	if (tlc < 0 && !fail_mod) /* every hit of a random stream past the tlc */
+		CHECK(st.lf_hits > 0);
 	check_stats(H.c, &L);
 	check_quiet(H.c);
 	loom__cache_close(H.c);
@@ -1156,6 +1161,19 @@ static void threads_failing(void)
 	hammer_f(4, 12, 2, 0, 1, 40, ops, seed + 1, 7);
 }
 
+/* Lock-free hits (step 3a) racing evictions: no per-thread cache, so
+   every hit is a probe; few frames against more ids, so frames are
+   recycled under the probes' feet; every byte a get returns is checked. */
+static void threads_lockfree(void)
+{
+	uint64_t seed = check_seed();
+	int ops = hammer_ops();
+	hammer(4, 8, 1, -1, 0, 12, ops, seed);      /* churn: 12 ids, 8 frames */
+	hammer(8, 16, 2, -1, 0, 18, ops, seed + 1); /* 2 stripes */
+	hammer(8, 64, 1, -1, 1, 80, ops, seed + 2); /* coherent, mostly hits */
+	hammer_f(4, 6, 1, -1, 0, 10, ops, seed + 3, 7); /* failing loads */
+}
+
 static void threads_coherent(void)
 {
 	uint64_t seed = check_seed();
@@ -1183,5 +1201,6 @@ int main(void)
 	RUN(threads_random);
 	RUN(threads_coherent);
 	RUN(threads_failing);
+	RUN(threads_lockfree);
 	CHECK_MAIN_END();
 }

@@ -413,6 +413,57 @@ static void close_before_thread_exit(void)
 	}
 }
 
+/* One voxel of every column of the window, checked against the
+   reference; the number wrong in *arg's first word. */
+struct sweep {
+	loom_texture *t;
+	unsigned bad;
+};
+
+static void *sweep_columns(void *arg)
+{
+	struct sweep *w = arg;
+	for (int64_t y = W0[1]; y < W1[1]; y++)
+		for (int64_t x = W0[0]; x < W1[0]; x++)
+			w->bad += check_voxel(w->t, x, y, (W0[2] + W1[2]) / 2 + (x + y) % 3,
+			                      LOOM_CHANNEL_ALL) != 0;
+	return NULL;
+}
+
+/* The column offsets are shared between threads: a second thread that
+   looks up the columns a first one did computes none of them (the maps
+   hold every crossing of the window at this budget), and both read the
+   reference's values. */
+static void offset_maps_shared(void)
+{
+	loom_texture *t;
+	loom_texture_stats s1, s2;
+	struct sweep w = {0};
+	pthread_t th;
+
+	if (!g_ok)
+		return;
+	t = open_tex(64u << 20, 2);
+	if (!t)
+		return;
+	w.t = t;
+	pthread_create(&th, NULL, sweep_columns, &w);
+	pthread_join(th, NULL);
+	loom_texture_get_stats(t, &s1);
+	pthread_create(&th, NULL, sweep_columns, &w);
+	pthread_join(th, NULL);
+	loom_texture_get_stats(t, &s2);
+	printf("  offsets computed: %llu by the first thread, %llu by the second "
+	       "(%llu columns)\n", (unsigned long long)s1.dz_columns,
+	       (unsigned long long)(s2.dz_columns - s1.dz_columns),
+	       (unsigned long long)(Wn[0] * Wn[1]));
+	CHECK_EQ_INT(w.bad, 0);
+	CHECK(s1.dz_columns > 0 && s1.dz_columns <= Wn[0] * Wn[1]);
+	CHECK_EQ_INT(s2.dz_columns, s1.dz_columns);
+	CHECK(s2.crossings > s1.crossings); /* the second set up its own entries */
+	loom_texture_close(t);
+}
+
 int main(void)
 {
 	CHECK_MAIN_BEGIN("test_texture_threads");
@@ -422,6 +473,7 @@ int main(void)
 	RUN(overflow_threads);
 	RUN(threads_come_and_go);
 	RUN(close_before_thread_exit);
+	RUN(offset_maps_shared);
 	free(R_d), free(R_k), free(R_t), free(R_l), free(R_o);
 	loom_fabric_free(g_fab);
 	loom_db_close(g_db);
