@@ -841,8 +841,10 @@ static void mechanics(const char *fibre)
 		vol_free(&v);
 		loom__exgen_free(g);
 	}
-	CHECK(top[1] > top[0] + 0.5);
-	CHECK(top[2] > top[1] + 0.5);
+	if (!fibre) { /* see test_mechanics */
+		CHECK(top[1] > top[0] + 0.5);
+		CHECK(top[2] > top[1] + 0.5);
+	}
 	CHECK(n_pressed > 0 && n_free > 0);
 	asp_pressed /= n_pressed;
 	asp_free /= n_free;
@@ -851,13 +853,15 @@ static void mechanics(const char *fibre)
 	CHECK(asp_pressed > 1.1 * asp_free);
 }
 
-/* (Smooth yarns only: the top of a 2-ply fibre-level yarn rises and falls
-   by a quarter of its half-height with the ply twist, which at one column
-   per crossing hides the float's 0.3-voxel rise; the crimp and sections
-   are the same model.) */
+/* The float heights are checked on smooth yarns only: the top of a 2-ply
+   fibre-level yarn rises and falls by a quarter of its half-height with
+   the ply twist, which at one column per crossing hides the float's
+   rise (cotton measured 53.9, 55.5, 55.1); the crimp is the same model.
+   The pressed / free aspect is checked on both. */
 static void test_mechanics(void)
 {
 	mechanics(NULL);
+	mechanics("cotton");
 }
 
 static void test_bad_params(void)
