@@ -477,16 +477,22 @@ static inline float overlap1(float d, float w, float vs)
 	return hi > lo ? (hi - lo) / vs : 0.0f;
 }
 
-/* Add one fibre, at (f1, f2) um in the cross-section frame of hit h with
-   direction dir, to the column's coverage (index 0 = z zbase). */
-static void splat_fibre(const loom__exgen *g, const hit *h, float f1, float f2,
-                        const float dir[3], int zs, int ze, int zbase, float *cov,
-                        float *best, uint16_t *bor, uint8_t *blab)
+/* One fibre of a yarn at one along-yarn coordinate: its position (um) in
+   the cross-section frame and its direction; code: its orientation code,
+   0 until first needed. */
+typedef struct fibre_pt {
+	float f1, f2, dir[3];
+	uint16_t code;
+} fibre_pt;
+
+/* Add fibre f to the column of hit h (coverage; index 0 = z zbase). */
+static void splat_fibre(const loom__exgen *g, const hit *h, fibre_pt *f, int zs,
+                        int ze, int zbase, float *cov, float *best, uint16_t *bor,
+                        uint8_t *blab)
 {
 	const kind_params *kp = h->kp;
-	float dzs, p1s, half2 = 0.5f * (kp->w2 + g->vs);
+	float dzs, p1s, half2 = 0.5f * (kp->w2 + g->vs), f1 = f->f1, f2 = f->f2;
 	int zlo, zhi;
-	uint16_t code = 0;
 
 	if (!(h->be2 > 0.05f))
 		return;
@@ -509,10 +515,10 @@ static void splat_fibre(const loom__exgen *g, const hit *h, float f1, float f2,
 			continue;
 		cov[i] += c;
 		if (c > best[i]) {
-			if (!code)
-				code = loom__orient_encode(dir[0], dir[1], dir[2]);
+			if (!f->code)
+				f->code = loom__orient_encode(f->dir[0], f->dir[1], f->dir[2]);
 			best[i] = c;
-			bor[i] = code;
+			bor[i] = f->code;
 			blab[i] = h->y->label;
 		}
 	}
@@ -526,40 +532,58 @@ static void fibre_dir(const hit *h, float dX, float dY, float dir[3])
 		dir[k] = h->T[k] + h->a * dX * h->e1[k] + h->c * dY * h->e2[k];
 }
 
-/* All fibres of the yarn of hit h at along-yarn coordinate s. */
-static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
-                         int ze, int zbase, float *cov, float *best, uint16_t *bor,
-                         uint8_t *blab)
+/* Monofilament column of hit h: the fibre is the yarn. */
+static void mono_column(const loom__exgen *g, const hit *h, int zs, int ze, int zbase,
+                        float *cov, float *best, uint16_t *bor, uint8_t *blab)
+{
+	for (int z = zs; z < ze; z++) {
+		float dz = ((float)z + 0.5f) * g->vs - h->zc;
+		float u = (h->al1 + h->be1 * dz) / h->a, v = (h->al2 + h->be2 * dz) / h->c;
+		float rho = sqrtf(u * u + v * v), gu = u / h->a, gv = v / h->c;
+		float grad = sqrtf(gu * gu + gv * gv) / (rho > 1e-4f ? rho : 1e-4f);
+		float c = (1.0f - rho) / (grad > 1e-9f ? grad : 1e-9f) / g->vs + 0.5f;
+		int i = z - zbase;
+		c = fminf(fmaxf(c, 0.0f), 1.0f);
+		if (!(c > 0.0f))
+			continue;
+		cov[i] += c;
+		if (c > best[i]) {
+			best[i] = c;
+			bor[i] = loom__orient_encode(h->T[0], h->T[1], h->T[2]);
+			blab[i] = h->y->label;
+		}
+	}
+}
+
+/* Most fibres (plies, hairs and loops) one yarn of kind kp can have at
+   one along-yarn coordinate (the size of a fibre_line). */
+static uint32_t line_capacity(const loom__exgen *g, const kind_params *kp,
+                              const yarn *ys, uint32_t n)
+{
+	uint32_t m = 0;
+
+	for (uint32_t i = 0; i < n; i++)
+		m = ys[i].n_fib > m ? ys[i].n_fib : m;
+	(void)g;
+	if (kp->cell > 0.0f)
+		m += (uint32_t)ceilf(kp->hair_max / kp->cell) + 2u;
+	return m;
+}
+
+/* Every fibre (plies, hairs and loops) of the yarn of hit h at along-yarn
+   coordinate s, into f; returns how many.  They depend on the yarn and s
+   only, so one line serves every column of a row across the yarn. */
+static uint32_t fibre_line(const hit *h, float s, fibre_pt *f)
 {
 	const kind_params *kp = h->kp;
 	const yarn *y = h->y;
-	uint32_t np = kp->plies;
+	uint32_t np = kp->plies, n = 0;
 	float cf = cosf(kp->om_f * s), sf = sinf(kp->om_f * s);
 	float cm = cosf(kp->mig_k * s), sm = sinf(kp->mig_k * s);
 	float rmid = 0.5f * (kp->fp->rmin + kp->fp->rmax);
 	float ramp = 0.5f * (kp->fp->rmax - kp->fp->rmin);
-	float cx[8], cy[8], dcx[8], dcy[8], cp[8], sp[8], dir[3];
+	float cx[8], cy[8], dcx[8], dcy[8], cp[8], sp[8];
 
-	if (kp->fp->d == 0.0f) { /* monofilament: the fibre is the yarn */
-		for (int z = zs; z < ze; z++) {
-			float dz = ((float)z + 0.5f) * g->vs - h->zc;
-			float u = (h->al1 + h->be1 * dz) / h->a, v = (h->al2 + h->be2 * dz) / h->c;
-			float rho = sqrtf(u * u + v * v), gu = u / h->a, gv = v / h->c;
-			float grad = sqrtf(gu * gu + gv * gv) / (rho > 1e-4f ? rho : 1e-4f);
-			float c = (1.0f - rho) / (grad > 1e-9f ? grad : 1e-9f) / g->vs + 0.5f;
-			int i = z - zbase;
-			c = fminf(fmaxf(c, 0.0f), 1.0f);
-			if (!(c > 0.0f))
-				continue;
-			cov[i] += c;
-			if (c > best[i]) {
-				best[i] = c;
-				bor[i] = loom__orient_encode(h->T[0], h->T[1], h->T[2]);
-				blab[i] = y->label;
-			}
-		}
-		return;
-	}
 	/* ply j: centre (cx, cy) turning at om_p, its frame (cp, sp) the
 	   direction from the yarn centre; a fibre at (R, alpha) in the ply
 	   frame (alpha = its own angle less the frame's) sits at R (rp cos
@@ -575,20 +599,22 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 		dcy[j] = kp->om_p * cx[j];
 	}
 	for (uint32_t i = 0; i < y->n_fib; i++) {
-		const float *f = y->fib + 6 * i;
-		uint32_t j = (uint32_t)f[5];
-		float cph = f[1] * cf - f[2] * sf, sph = f[2] * cf + f[1] * sf;
+		const float *fb = y->fib + 6 * i;
+		uint32_t j = (uint32_t)fb[5];
+		float cph = fb[1] * cf - fb[2] * sf, sph = fb[2] * cf + fb[1] * sf;
 		float ca = cph * cp[j] + sph * sp[j], sa = sph * cp[j] - cph * sp[j];
-		float cmi = f[3] * cm - f[4] * sm, smi = f[4] * cm + f[3] * sm;
-		float R = f[0] * (rmid + ramp * cmi), dR = -f[0] * ramp * smi * kp->mig_k;
+		float cmi = fb[3] * cm - fb[4] * sm, smi = fb[4] * cm + fb[3] * sm;
+		float R = fb[0] * (rmid + ramp * cmi), dR = -fb[0] * ramp * smi * kp->mig_k;
 		float da = kp->om_f - kp->om_p;
 		float A = kp->rp * R * ca, B = kp->rt * R * sa;
 		float dA = kp->rp * (dR * ca - R * da * sa), dB = kp->rt * (dR * sa + R * da * ca);
 		float X = cx[j] + A * cp[j] - B * sp[j], Y = cy[j] + A * sp[j] + B * cp[j];
 		float dX = dcx[j] + dA * cp[j] - dB * sp[j] - kp->om_p * (A * sp[j] + B * cp[j]);
 		float dY = dcy[j] + dA * sp[j] + dB * cp[j] + kp->om_p * (A * cp[j] - B * sp[j]);
-		fibre_dir(h, dX, dY, dir);
-		splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor, blab);
+		fibre_dir(h, dX, dY, f[n].dir);
+		f[n].f1 = X * h->a;
+		f[n].f2 = Y * h->c;
+		f[n++].code = 0;
 	}
 	/* hair and loop fibres: one per cell of kp->cell um along the yarn,
 	   leaving the surface at a random angle; a hair rises steadily to its
@@ -624,22 +650,65 @@ static void fibre_column(const loom__exgen *g, const hit *h, float s, int zs,
 			Y = R * sinf(th);
 			dX = dR * cosf(th);
 			dY = dR * sinf(th);
-			fibre_dir(h, dX, dY, dir);
-			splat_fibre(g, h, X * h->a, Y * h->c, dir, zs, ze, zbase, cov, best, bor,
-			            blab);
+			fibre_dir(h, dX, dY, f[n].dir);
+			f[n].f1 = X * h->a;
+			f[n].f2 = Y * h->c;
+			f[n++].code = 0;
 		}
 	}
+	return n;
+}
+
+/*
+ * Fibre lines of a box, cached: a warp's fibres at row y serve every
+ * column of that row, a weft's at column x every row of the box.  Slots
+ * are direct-mapped: warps by (index mod 4) for the current row, wefts by
+ * (column in the tile, index mod 4); the three yarns of a kind that reach
+ * a column have distinct indices mod 4, so a line is computed once per
+ * row (warps) or per column of the tile (wefts).  The values are what the
+ * column would compute itself, so the bytes do not depend on the cache.
+ */
+#define LINE_TILE 16 /* box columns per tile along x */
+typedef struct line_slot {
+	const yarn *y;  /* NULL: empty */
+	int64_t at;     /* voxel index along the yarn */
+	uint32_t n;
+	fibre_pt *f;
+} line_slot;
+typedef struct line_cache {
+	line_slot warp[4], weft[4 * LINE_TILE];
+	fibre_pt *mem;
+} line_cache;
+
+static int line_cache_init(const loom__exgen *g, line_cache *lc)
+{
+	uint32_t cw = line_capacity(g, &g->kp[KIND_WARP], g->warps, g->cols + 2);
+	uint32_t cf = line_capacity(g, &g->kp[KIND_WEFT], g->wefts, g->rows + 2);
+	fibre_pt *m;
+
+	memset(lc, 0, sizeof *lc);
+	lc->mem = m = malloc(((size_t)4 * cw + (size_t)4 * LINE_TILE * cf + 1) * sizeof *m);
+	if (!m)
+		return LOOM_ENOMEM;
+	for (int k = 0; k < 4; k++, m += cw)
+		lc->warp[k].f = m;
+	for (int k = 0; k < 4 * LINE_TILE; k++, m += cf)
+		lc->weft[k].f = m;
+	return LOOM_OK;
 }
 
 /* Fibre-level column: coverage summed over the yarns and fibres; the
    orientation and label of the fibre covering most of the voxel.  Scratch
-   arrays of ze - zs entries. */
-static void gen_column_fibres(const loom__exgen *g, int64_t x, int64_t y, int64_t zs,
-                              int64_t ze, int64_t zbase, uint8_t *dens,
-                              uint16_t *orient, uint8_t *label, float *cov, float *best)
+   arrays of ze - zs entries; xt: the column's place in its tile. */
+static void gen_column_fibres(const loom__exgen *g, line_cache *lc, int64_t x,
+                              int64_t y, uint32_t xt, int64_t zs, int64_t ze,
+                              int64_t zbase, uint8_t *dens, uint16_t *orient,
+                              uint8_t *label, float *cov, float *best)
 {
 	float px = ((float)x + 0.5f) * g->vs, py = ((float)y + 0.5f) * g->vs;
 	int64_t cw = (int64_t)floorf(px / g->Sx), rw = (int64_t)floorf(py / g->Sy);
+	uint16_t *bor = orient + (zs - zbase);
+	uint8_t *blab = label + (zs - zbase);
 	hit h;
 
 	for (int64_t z = zs; z < ze; z++) {
@@ -650,14 +719,28 @@ static void gen_column_fibres(const loom__exgen *g, int64_t x, int64_t y, int64_
 		int64_t mid = pass ? rw : cw, lim = pass ? g->rows : g->cols;
 		for (int64_t c = mid - 1; c <= mid + 1; c++) {
 			const yarn *yy;
+			line_slot *ls;
+			int64_t at;
 			if (c < -1 || c > lim)
 				continue;
 			yy = pass ? &g->wefts[c + 1] : &g->warps[c + 1];
 			if (!column_hit(g, yy, px, py, &h, g->kp[yy->kind].out))
 				continue;
-			fibre_column(g, &h, yy->kind == KIND_WARP ? py : px, (int)zs, (int)ze,
-			             (int)zs, cov, best, orient + (zs - zbase),
-			             label + (zs - zbase));
+			if (h.kp->fp->d == 0.0f) {
+				mono_column(g, &h, (int)zs, (int)ze, (int)zs, cov, best, bor, blab);
+				continue;
+			}
+			at = pass ? x : y;
+			ls = pass ? &lc->weft[xt * 4 + (uint32_t)((c + 1) & 3)]
+			          : &lc->warp[(c + 1) & 3];
+			if (ls->y != yy || ls->at != at) {
+				ls->y = yy;
+				ls->at = at;
+				ls->n = fibre_line(&h, pass ? px : py, ls->f);
+			}
+			for (uint32_t i = 0; i < ls->n; i++)
+				splat_fibre(g, &h, &ls->f[i], (int)zs, (int)ze, (int)zs, cov, best,
+				            bor, blab);
 		}
 	}
 	for (int64_t z = zs; z < ze; z++)
@@ -723,40 +806,51 @@ static void overlay_flyaways(const loom__exgen *g, int64_t x0, int64_t y0,
 	}
 }
 
-void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
-                     uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
-                     uint16_t *orientation, uint8_t *label)
+int loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
+                    uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
+                    uint16_t *orientation, uint8_t *label)
 {
 	size_t n = (size_t)nx * ny * nz;
 	int64_t zs = z0 < 0 ? 0 : z0, ze = z0 + nz;
 	float cov[ZCHUNK], best[ZCHUNK];
+	line_cache lc;
 
 	memset(density, 0, n);
 	memset(orientation, 0, n * sizeof *orientation);
 	memset(label, 0, n);
 	if (ze > (int64_t)g->size[2])
 		ze = g->size[2];
-	for (uint32_t j = 0; j < ny; j++) {
-		int64_t y = y0 + j;
-		if (y < 0 || y >= (int64_t)g->size[1])
-			continue;
-		for (uint32_t i = 0; i < nx; i++) {
-			int64_t x = x0 + i;
-			size_t col = ((size_t)j * nx + i) * nz;
-			if (x < 0 || x >= (int64_t)g->size[0] || zs >= ze)
+	if (g->fibres && line_cache_init(g, &lc) != LOOM_OK)
+		return LOOM_ENOMEM;
+	/* tiles of LINE_TILE columns along x, rows within a tile */
+	for (uint32_t i0 = 0; i0 < nx; i0 += LINE_TILE) {
+		uint32_t i1 = i0 + LINE_TILE < nx ? i0 + LINE_TILE : nx;
+		for (uint32_t j = 0; j < ny; j++) {
+			int64_t y = y0 + j;
+			if (y < 0 || y >= (int64_t)g->size[1])
 				continue;
-			if (!g->fibres) {
-				gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
-				           label + col);
-				continue;
+			for (uint32_t i = i0; i < i1; i++) {
+				int64_t x = x0 + i;
+				size_t col = ((size_t)j * nx + i) * nz;
+				if (x < 0 || x >= (int64_t)g->size[0] || zs >= ze)
+					continue;
+				if (!g->fibres) {
+					gen_column(g, x, y, zs, ze, z0, density + col, orientation + col,
+					           label + col);
+					continue;
+				}
+				for (int64_t za = zs; za < ze; za += ZCHUNK)
+					gen_column_fibres(g, &lc, x, y, i - i0, za,
+					                  za + ZCHUNK < ze ? za + ZCHUNK : ze, z0,
+					                  density + col, orientation + col, label + col,
+					                  cov, best);
 			}
-			for (int64_t za = zs; za < ze; za += ZCHUNK)
-				gen_column_fibres(g, x, y, za, za + ZCHUNK < ze ? za + ZCHUNK : ze,
-				                  z0, density + col, orientation + col, label + col,
-				                  cov, best);
 		}
 	}
+	if (g->fibres)
+		free(lc.mem);
 	overlay_flyaways(g, x0, y0, z0, nx, ny, nz, density, orientation, label);
+	return LOOM_OK;
 }
 
 /* ---- construction -------------------------------------------------------- */

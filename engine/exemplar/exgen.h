@@ -54,11 +54,12 @@ void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d);
 /*
  * Evaluate the box [x0, x0+nx) x [y0, y0+ny) x [z0, z0+nz) (voxels; parts
  * outside the exemplar are empty).  Output index ((y-y0)*nx + (x-x0))*nz +
- * (z-z0): z fastest, as in a brick.  Thread-safe.
+ * (z-z0): z fastest, as in a brick.  Thread-safe.  LOOM_OK, or
+ * LOOM_ENOMEM (fibre-level yarns: a few hundred KB of fibre lines).
  */
-void loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
-                     uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
-                     uint16_t *orientation, uint8_t *label);
+int loom__exgen_box(const loom__exgen *g, int64_t x0, int64_t y0, int64_t z0,
+                    uint32_t nx, uint32_t ny, uint32_t nz, uint8_t *density,
+                    uint16_t *orientation, uint8_t *label);
 
 /* Fibre-level yarns of a kind (1 warp, 2 weft) as the model uses them;
    all zero for smooth yarns. */

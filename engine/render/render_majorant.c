@@ -94,7 +94,7 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 	m->b1 = info.block[0];
 	m->b2 = info.block[1];
 	m->b3 = info.block[2];
-	m->zcell = 2;
+	m->zcell = 1; /* fibre data is dense in every layer of the cloth: thin cells */
 	while ((m->b3 + m->zcell - 1) / m->zcell > MAX_ZCELLS)
 		m->zcell *= 2;
 	m->nzc = (m->b3 + m->zcell - 1) / m->zcell;

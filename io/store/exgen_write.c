@@ -120,8 +120,14 @@ static void *worker(void *arg)
 		local = t - P->task_start[k];
 		bx = (uint32_t)(local % P->nb[k][0]);
 		by = (uint32_t)(local / P->nb[k][0]);
-		loom__exgen_box(P->models[k], (int64_t)bx * bs[0], (int64_t)by * bs[1], 0,
-		                bs[0], bs[1], P->nb[k][2] * bs[2], d, o, l);
+		if (loom__exgen_box(P->models[k], (int64_t)bx * bs[0], (int64_t)by * bs[1],
+		                    0, bs[0], bs[1], P->nb[k][2] * bs[2], d, o, l) != LOOM_OK) {
+			pthread_mutex_lock(&P->mu);
+			P->abort = P->worker_error = 1;
+			pthread_cond_broadcast(&P->cv);
+			pthread_mutex_unlock(&P->mu);
+			goto out;
+		}
 		for (uint32_t bz = 0; bz < P->nb[k][2]; bz++) {
 			loom__dbw_brick *b = &s->b[bz];
 			uint8_t *cb = s->cbuf + (size_t)bz * P->brick_bytes;

@@ -199,3 +199,21 @@ expect_exit sett_block_both 2 "$LOOM" exemplar generate --sett 20x20 --block 8x8
 expect_exit sett_bad_units 1 "$LOOM" exemplar generate --sett-from "$W/bad-spacing-units.wif" -o "$T/x.ldb"
 expect_err_contains sett_bad_units_msg "bad-spacing-units.wif:40: [WARP]: Units=Furlongs is not a WIF unit"
 if [ -e "$T/x.ldb" ]; then fail sett_no_partial_output "x.ldb exists"; else pass sett_no_partial_output; fi
+# a negative WIF spacing names the file:line and the range; an odd sett
+# (0.019 mm, 526 ends per cm) is a warning, never an error or a crash
+sed 's/^Spacing=0.0185$/Spacing=-0.0185/' "$W/sett-square.wif" >"$T/neg.wif"
+expect_exit sett_negative 1 "$LOOM" exemplar generate --sett-from "$T/neg.wif" -o "$T/x.ldb"
+neg_line=$(grep -n '^Spacing=-' "$T/neg.wif" | head -1 | cut -d: -f1)
+expect_err_contains sett_negative_msg "neg.wif:$neg_line: [WARP]: expected Spacing=NUMBER (positive, at most 1e+06), such as 0.05, got '-0.0185'"
+sed -e 's/^Spacing=0.0185$/Spacing=0.0019/' -e '/^\[WARP SPACING\]/,/^$/d' \
+	"$W/sett-square.wif" >"$T/odd.wif"
+expect_ok sett_odd "$LOOM" exemplar generate --sett-from "$T/odd.wif" --voxel-size 2 \
+	--weaves plain --fibre none -o "$T/odd.ldb"
+expect_err_contains sett_odd_warning "is not a usual sett"
+b=$(block_of "$T/odd.ldb")
+case "$b" in "9 9 "*) pass sett_odd_block ;; *) fail sett_odd_block "$b" ;; esac
+# no fibre named (an empty --fibre or an empty side): the accepted names
+expect_exit fibre_empty 2 "$LOOM" exemplar generate --fibre "" -o "$T/x.ldb"
+expect_err_contains fibre_empty_msg "--fibre"
+expect_exit fibre_empty_side 2 "$LOOM" exemplar generate --fibre cotton, -o "$T/x.ldb"
+expect_err_contains fibre_empty_side_msg "cotton, rayon, silk"

@@ -88,9 +88,11 @@ cols, rows = int(m.group(1)), int(m.group(2))
 data = b[m.end():]
 W = lambda i, j: (data[i * ((cols + 7) // 8) + j // 8] >> (7 - j % 8)) & 1
 bx, by = w // cols, h // rows          # voxels (= pixels) per crossing
-def bright(i, j):
+def bright(i, j):  # mean over the crossing's central half (fibre-level
+    # yarns: one pixel may fall on a ply seam, a gap or a hair)
     s = [pngread.luma(px[i * by + by // 2 + d], ch, j * bx + bx // 2 + e)
-         for d in (-1, 0, 1) for e in (-1, 0, 1)]
+         for d in range(-(by // 4), by // 4 + 1)
+         for e in range(-(bx // 4), bx // 4 + 1)]
     return sum(s) / len(s)
 assert bright(0, 0) > bright(4, 0) + 30 and bright(0, 0) > bright(0, 1) + 30, \
     (bright(0, 0), bright(4, 0), bright(0, 1))

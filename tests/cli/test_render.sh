@@ -64,7 +64,13 @@ expect_ok json "$LOOM" render "$F" $R --json -o "$T/e.exr"
 json_check json_fields "j['width'] == 64 and j['height'] == 48 and j['paths'] == 64*48*2 and j['scene'] == 'flat' and j['lookups'] > 0"
 json_check json_grid "j['majorant'] == 'grid' and j['cells'] > 0 and j['majorant_bytes'] > 0"
 # the majorant grid (default) against one global bound: same picture (EXR
-# means within Monte Carlo error), fewer lookups
+# means within Monte Carlo error), fewer lookups.  Measured 2026-12-02 on
+# this scene: cotton fibre-level exemplars (the default) 5.28 M lookups
+# against 9.93 M (0.53), smooth yarns (--fibre none) 0.30; fibres cover a
+# crossing's whole footprint at near full density in every layer of the
+# cloth, so a per-crossing cell saves the air and the layer profile only:
+# the bound is 0.6, which a grid no tighter than the old 2-voxel cells
+# (0.63) fails.
 expect_ok global "$LOOM" render "$F" --width 32 --height 24 --spp 64 --majorant global --json -o "$T/g.exr"
 cp "$T/out" "$T/g.json"
 expect_ok grid "$LOOM" render "$F" --width 32 --height 24 --spp 64 --seed 9 --json -o "$T/h.exr"
@@ -72,7 +78,7 @@ if python3 - "$T/g.json" "$T/out" <<'PY' 2>"$T/pyerr"; then pass grid_fewer_look
 import json, sys
 g, h = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
 assert g['majorant'] == 'global' and g['cells'] == 0, g
-assert h['lookups'] * 2 < g['lookups'], (h['lookups'], g['lookups'])
+assert h['lookups'] < 0.6 * g['lookups'], (h['lookups'], g['lookups'])
 PY
 expect_exit majorant_with_mesh 2 "$LOOM" render "$F" --mesh m.obj --majorant global -o x.png
 expect_exit sun_one_number 2 "$LOOM" render "$F" --sun 30 -o x.png

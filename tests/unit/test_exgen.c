@@ -589,13 +589,15 @@ static int bottom_z(const vol *v, const loom_db_yarn *yarns, uint32_t x, uint32_
    middle of the cloth at crossing centres, averaged separately over
    warp-over and weft-over crossings, agrees between all eight default
    weaves within one voxel.  The depth is 160 voxels so that an offset of
-   a few percent of b3 per exemplar would show. */
-static void test_midplane(void)
+   a few percent of b3 per exemplar would show.  For smooth yarns and for
+   cotton fibre-level yarns (the command's default). */
+static void midplane(const char *fibre)
 {
 	loom_exgen_params p = params("small");
 	double lo[2] = {1e9, 1e9}, hi[2] = {-1e9, -1e9};
 
 	p.block[2] = 160;
+	p.fibre[0] = p.fibre[1] = fibre;
 	for (uint32_t k = 0; k < p.n_weaves; k++) {
 		loom__exgen *g = NULL;
 		loom__exgen_desc gd;
@@ -620,8 +622,8 @@ static void test_midplane(void)
 			}
 		for (int o = 0; o < 2; o++) {
 			double m = sum[o] / (double)n[o];
-			printf("  %-12s %s over: mid-plane z %.2f\n", gd.name,
-			       o ? "warp" : "weft", m);
+			printf("  %s %-12s %s over: mid-plane z %.2f\n", fibre ? fibre : "smooth",
+			       gd.name, o ? "warp" : "weft", m);
 			lo[o] = m < lo[o] ? m : lo[o];
 			hi[o] = m > hi[o] ? m : hi[o];
 		}
@@ -629,8 +631,16 @@ static void test_midplane(void)
 		vol_free(&v);
 		loom__exgen_free(g);
 	}
+	printf("  %s: spread %.2f (weft over), %.2f (warp over) voxels\n",
+	       fibre ? fibre : "smooth", hi[0] - lo[0], hi[1] - lo[1]);
 	CHECK(hi[0] - lo[0] <= 1.0);
 	CHECK(hi[1] - lo[1] <= 1.0);
+}
+
+static void test_midplane(void)
+{
+	midplane(NULL);
+	midplane("cotton");
 }
 
 /* Mean over covered columns of the number of voxels of one kind of yarn
@@ -767,8 +777,9 @@ static void warp_extent(const vol *v, const loom__exgen_desc *gd, uint32_t c,
    4/1 satin's floats; expected about 8.0, 8.9 and 9.7 voxels above the
    mid-plane from the crimp and half-heights), and a warp
    is flatter (larger width / height) where a weft presses it at an
-   interlacing than in the middle of a 4-pick float. */
-static void test_mechanics(void)
+   interlacing than in the middle of a 4-pick float.  For smooth yarns and
+   for cotton fibre-level yarns (the command's default). */
+static void mechanics(const char *fibre)
 {
 	static const char *const weaves[3] = {"plain", "twill:2/2", "satin:4/1"};
 	loom_exgen_params p = params("small");
@@ -776,6 +787,7 @@ static void test_mechanics(void)
 	double asp_pressed = 0, asp_free = 0;
 	int n_pressed = 0, n_free = 0;
 
+	p.fibre[0] = p.fibre[1] = fibre;
 	p.block[0] = p.block[1] = 32;
 	p.block[2] = 96;
 	p.voxel_size_um = 10;
@@ -824,19 +836,32 @@ static void test_mechanics(void)
 					n_pressed++;
 				}
 		top[k] = sum / (double)n;
-		printf("  %-10s mean top of warp floats: z %.2f (%ld crossings)\n", weaves[k],
-		       top[k], n);
+		printf("  %s %-10s mean top of warp floats: z %.2f (%ld crossings)\n",
+		       fibre ? fibre : "smooth", weaves[k], top[k], n);
 		vol_free(&v);
 		loom__exgen_free(g);
 	}
-	CHECK(top[1] > top[0] + 0.5);
-	CHECK(top[2] > top[1] + 0.5);
+	if (!fibre) { /* see test_mechanics */
+		CHECK(top[1] > top[0] + 0.5);
+		CHECK(top[2] > top[1] + 0.5);
+	}
 	CHECK(n_pressed > 0 && n_free > 0);
 	asp_pressed /= n_pressed;
 	asp_free /= n_free;
-	printf("  warp aspect (width/height): pressed %.2f, middle of a float %.2f\n",
-	       asp_pressed, asp_free);
+	printf("  %s warp aspect (width/height): pressed %.2f, middle of a float %.2f\n",
+	       fibre ? fibre : "smooth", asp_pressed, asp_free);
 	CHECK(asp_pressed > 1.1 * asp_free);
+}
+
+/* The float heights are checked on smooth yarns only: the top of a 2-ply
+   fibre-level yarn rises and falls by a quarter of its half-height with
+   the ply twist, which at one column per crossing hides the float's
+   rise (cotton measured 53.9, 55.5, 55.1); the crimp is the same model.
+   The pressed / free aspect is checked on both. */
+static void test_mechanics(void)
+{
+	mechanics(NULL);
+	mechanics("cotton");
 }
 
 static void test_bad_params(void)

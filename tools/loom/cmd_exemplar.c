@@ -190,7 +190,7 @@ static int sub_generate(int argc, char **argv)
 	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
 	uint64_t seed = 0;
 	double vs = 0, sett[2] = {0, 0}, ydiam[2] = {0, 0};
-	const char *sett_from = NULL, *fibre = "none";
+	const char *sett_from = NULL, *fibre = "cotton";
 	char fbuf[64], *fcomma;
 	loom_exgen_params p;
 	loom_diag diag;
@@ -222,8 +222,8 @@ static int sub_generate(int argc, char **argv)
 		             "number: both); default: in proportion to the spacing"),
 		OPT_STRING(0, "fibre", &fibre, "F[,F]", "fibre-level yarns (plies of "
 		           "twisted fibres), warp and weft (one name: both): cotton, rayon, "
-		           "silk, polyester, wool, linen, monofilament, or none (default: "
-		           "smooth yarns with fibre-like noise)"),
+		           "silk, polyester, wool, linen, monofilament (default: cotton), "
+		           "or none (smooth yarns with fibre-like noise)"),
 		OPT_STRING(0, "sett-from", &sett_from, "DRAFT", "take the sett and yarn "
 		           "diameters the draft states (WIF [WARP]/[WEFT] Spacing, "
 		           "Thickness, Units and the SPACING/THICKNESS tables); --sett and "

@@ -4,10 +4,11 @@
  *
  * A draft that states its sett (WIF Spacing) gets a database generated for
  * that sett and those yarn diameters: the small preset's weaves and seed,
+ * cotton fibre-level yarns (as loom exemplar generate's default),
  * the finer of the two spacings 16 voxels long (as in the default
  * database), b1 x b2 from the sett.  Databases are cached in
  *   $LOOM_CACHE_DIR, else $XDG_CACHE_HOME/loom, else $HOME/.cache/loom
- * as sett-KEY.ldb, KEY = FNV-1a of every generator parameter and
+ * as sett-KEY.ldb, KEY = FNV-1a of every generator parameter (fibres too) and
  * LOOM_EXGEN_REVISION, so a changed generator never reuses an old file.  The
  * cache is bounded: after a database is added, the least recently used
  * sett-*.ldb files go until the total is under $LOOM_CACHE_MAX_MB (default
@@ -26,6 +27,7 @@
 
 #define SETT_FINE_VOXELS 16.0 /* voxels along the finer spacing */
 #define CACHE_MAX_MB_DEFAULT 256.0
+#define SETT_FIBRE "cotton"   /* the yarns, as loom exemplar generate's default */
 
 static uint64_t fnv(uint64_t h, const void *p, size_t n)
 {
@@ -165,6 +167,7 @@ const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
 		         "LOOM_CACHE_DIR, XDG_CACHE_HOME or HOME, or give --db DB");
 	cli_diag_init(&diag, &quiet);
 	loom_exgen_preset("small", &p);
+	p.fibre[0] = p.fibre[1] = SETT_FIBRE;
 	p.voxel_size_um = (float)(fine / SETT_FINE_VOXELS);
 	p.yarn_diameter_um[0] = d->yarn_um[0] > 0 ? d->yarn_um[0] : d->yarn_um[1];
 	p.yarn_diameter_um[1] = d->yarn_um[1] > 0 ? d->yarn_um[1] : d->yarn_um[0];
@@ -190,6 +193,8 @@ const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
 	h = fnv(h, &p.level, sizeof p.level);
 	for (uint32_t k = 0; k < p.n_weaves; k++)
 		h = fnv(h, p.weaves[k], strlen(p.weaves[k]) + 1);
+	for (int k = 0; k < 2; k++)
+		h = fnv(h, p.fibre[k], strlen(p.fibre[k]) + 1);
 	snprintf(name, sizeof name, "sett-%016llx.ldb", (unsigned long long)h);
 	if ((size_t)snprintf(path, sizeof path, "%s/%s", dir, name) >= sizeof path)
 		cli_fail(prog, "cache directory path too long: %s", dir);

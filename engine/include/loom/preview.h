@@ -188,8 +188,8 @@ LOOM_API int loom_texture_volume_source(loom_texture *t, const loom_fabric *f,
  * Majorant grid of a fabric (docs/rendering.md, "Majorant grid"): per
  * source block of the database and per z layer the largest density, built
  * by reading every block once (n_blocks * b3 bytes; never proportional to
- * the bolt).  Cells are one crossing (b1 x b2 voxels) by Z voxels (2, more
- * when b3 > 128).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
+ * the bolt).  Cells are one crossing (b1 x b2 voxels) by Z voxels (1, more
+ * when b3 > 64).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
  * detached fabric); read errors of loom_db_read_box; LOOM_ENOMEM.
  */
 typedef struct loom_majorant loom_majorant;
