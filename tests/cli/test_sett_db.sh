@@ -63,3 +63,28 @@ expect_err_contains bad_max_msg "LOOM_CACHE_MAX_MB=lots: expected a positive num
 expect_ok synth_xdg env -u LOOM_CACHE_DIR XDG_CACHE_HOME="$T/xdg" "$LOOM" synth \
 	"$W/sett-square.wif" -o "$T/j.loomf" --quiet
 if ls "$T/xdg/loom"/sett-*.ldb >/dev/null 2>&1; then pass xdg_cache; else fail xdg_cache "nothing in $T/xdg/loom"; fi
+# --fibre: the generated database's yarns (part of the key); for a draft
+# that states no sett, the small preset's geometry with those yarns, the
+# same bytes as `loom exemplar generate --preset small --fibre ...`
+hash_of() { # DB -> content hash
+	"$LOOM" exemplar info "$1" --json | python3 -c \
+		'import json,sys; print(json.load(sys.stdin)["content_hash"])'
+}
+expect_ok fibre_no_sett "$LOOM" synth "$W/basic-twill.wif" --fibre silk,wool -o "$T/k.loomf"
+expect_err_contains fibre_no_sett_msg "--fibre silk,wool: generated $T/cache/sett-"
+expect_ok fibre_ref "$LOOM" exemplar generate --preset small --seed 1 --fibre silk,wool \
+	--quiet -o "$T/silkwool.ldb"
+a=$(hash_of "$(db_of "$T/k.loomf")"); b=$(hash_of "$T/silkwool.ldb")
+if [ "$a" = "$b" ]; then pass fibre_same_as_generate; else fail fibre_same_as_generate "$a vs $b"; fi
+c=$(hash_of "$LOOM_BUILD/share/loom/default.ldb")
+if [ "$a" != "$c" ]; then pass fibre_not_default; else fail fibre_not_default "$a"; fi
+# on a draft with a sett: the sett's block, another key than cotton's
+expect_ok fibre_sett "$LOOM" synth "$W/sett-square.wif" --fibre silk -o "$T/l.loomf" --quiet
+p=$(db_of "$T/l.loomf")
+case "$(block_of "$p")" in "16 16 "*) pass fibre_sett_block ;; *) fail fibre_sett_block "$(block_of "$p")" ;; esac
+if [ "$p" != "$(db_of "$T/a.loomf")" ]; then pass fibre_sett_own_key; else fail fibre_sett_own_key "$p"; fi
+expect_exit fibre_bad 2 "$LOOM" synth "$W/sett-square.wif" --fibre tweed -o "$T/m.loomf"
+expect_err_contains fibre_bad_msg "--fibre: generator: warp fibre 'tweed' (expected none, cotton"
+expect_exit fibre_with_db 2 "$LOOM" synth "$W/sett-square.wif" --fibre silk \
+	--db "$LOOM_BUILD/share/loom/default.ldb" -o "$T/m.loomf"
+expect_err_contains fibre_with_db_msg "--fibre chooses the yarns of a generated database; --db names one"

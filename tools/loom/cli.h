@@ -67,11 +67,13 @@ const char *cli_db_require(const char *opt, const char *prog);
 /* Databases for a draft's sett (tools/loom/settdb.c, docs/exemplars.md):
    the cache directory ($LOOM_CACHE_DIR, $XDG_CACHE_HOME/loom,
    $HOME/.cache/loom; NULL if none); the path of the database generated for
-   d's sett and yarns (d->sett[0] and [1] > 0), made and cached if needed
-   (fails, exit 1, on errors); a warning when db's crossing aspect does not
+   d's sett and yarns (d->sett[0] and [1] > 0; else the small preset's
+   geometry) with fibre presets `fibre` ("WARP[,WEFT]"; NULL: cotton), made
+   and cached if needed (fails, exit 1, on errors); a warning when db's crossing aspect does not
    match d's sett. */
 const char *cli_cache_dir(void);
-const char *cli_sett_db(const char *prog, const loom_design *d, int quiet);
+const char *cli_sett_db(const char *prog, const loom_design *d,
+                        const char *fibre, int quiet);
 void cli_sett_check(const loom_design *d, const loom_db *db, const char *db_path,
                     int quiet);
 

@@ -2,7 +2,7 @@
  * tools/loom/cmd_synth.c - `loom synth`: design + exemplar database ->
  * fabric file (paper 5.3-5.5; docs/fabric.md).
  *
- *   loom synth DESIGN [--db DB] [--algo dp|greedy|naive] [--seed N]
+ *   loom synth DESIGN [--db DB | --fibre F[,F]] [--algo dp|greedy|naive] [--seed N]
  *              [--rank R] [--edge-fix on|off] [--identity] [--group M] [--map MAPFILE] [--warp-map F]
  *              [--weft-map F] -o FABRIC [--json] [--assignment-map PNG]
  *              [--seam-map PNG] [--edge-tables auto|store|rebuild] [--quiet]
@@ -431,6 +431,7 @@ int cmd_synth(int argc, char **argv)
 	const char *prog = "loom synth";
 	const char *in = NULL, *out = NULL, *db_opt = NULL, *map = NULL;
 	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL;
+	const char *fibre = NULL;
 	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
 	int quiet = 0, json = 0, progress, edge = LOOM_FABRIC_EDGE_AUTO, edge_fix = 1;
 	int identity = 0;
@@ -446,6 +447,11 @@ int cmd_synth(int argc, char **argv)
 		       "that states its sett, a database generated for that sett and "
 		       "cached in $LOOM_CACHE_DIR or $XDG_CACHE_HOME/loom, then "
 		       "default.ldb in the data directory)"),
+		OPT_STRING(0, "fibre", &fibre, "F[,F]", "yarns of the generated database, warp "
+		           "and weft (one name: both): cotton (default), rayon, silk, "
+		           "polyester, wool, linen, monofilament or none (smooth); a "
+		           "database for the draft's sett (or the small preset's when it "
+		           "states none) with these yarns is made and cached"),
 		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
 		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
@@ -495,6 +501,20 @@ int cmd_synth(int argc, char **argv)
 	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
 	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
 		opts_usage(&c, "maps are written as .png (or .ppm) files");
+	if (fibre) {
+		/* the names, before any work (the generator's own check) */
+		loom_exgen_params fp;
+		char fb[64], *fc;
+		snprintf(fb, sizeof fb, "%s", fibre);
+		fc = strchr(fb, ',');
+		if (fc)
+			*fc++ = '\0';
+		loom_exgen_preset("small", &fp);
+		fp.fibre[0] = fb;
+		fp.fibre[1] = fc ? fc : fb;
+		if (loom_exgen_check_params(&fp, &diag) != LOOM_OK)
+			opts_usage(&c, "--fibre: %s", diag.message);
+	}
 	cli_check_output(prog, out);
 	if (amap)
 		cli_check_output(prog, amap);
@@ -512,8 +532,11 @@ int cmd_synth(int argc, char **argv)
 			d->sett[0] = d->sett[1];
 		if (!(d->sett[1] > 0))
 			d->sett[1] = d->sett[0];
-		if (!db_opt && !(env && *env) && d->sett[0] > 0)
-			r.db_path = cli_sett_db(prog, d, quiet);
+		if (fibre && (db_opt || (env && *env)))
+			opts_usage(&c, "--fibre chooses the yarns of a generated database; "
+			           "%s names one already made", db_opt ? "--db" : "LOOM_DB");
+		if (!db_opt && !(env && *env) && (d->sett[0] > 0 || fibre))
+			r.db_path = cli_sett_db(prog, d, fibre, quiet);
 		else
 			r.db_path = cli_db_require(db_opt, prog);
 	}

@@ -4,7 +4,9 @@
  *
  * A draft that states its sett (WIF Spacing) gets a database generated for
  * that sett and those yarn diameters: the small preset's weaves and seed,
- * cotton fibre-level yarns (as loom exemplar generate's default),
+ * cotton fibre-level yarns (as loom exemplar generate's default) or the
+ * yarns of loom synth --fibre (which also makes one for a draft that states
+ * no sett: the small preset's geometry with those yarns),
  * the finer of the two spacings 16 voxels long (as in the default
  * database), b1 x b2 from the sett.  Databases are cached in
  *   $LOOM_CACHE_DIR, else $XDG_CACHE_HOME/loom, else $HOME/.cache/loom
@@ -140,12 +142,15 @@ static void trim_cache(const char *dir, const char *keep, double max_bytes, int 
 	free(list);
 }
 
-const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
+const char *cli_sett_db(const char *prog, const loom_design *d,
+                        const char *fibre, int quiet)
 {
 	static char path[PATH_MAX];
 	char name[64];
 	const char *dir = cli_cache_dir(), *env = getenv("LOOM_CACHE_MAX_MB");
-	double fine = 1e4 / (d->sett[0] > d->sett[1] ? d->sett[0] : d->sett[1]);
+	int has_sett = d->sett[0] > 0 && d->sett[1] > 0;
+	double fine = has_sett ? 1e4 / (d->sett[0] > d->sett[1] ? d->sett[0] : d->sett[1]) : 0;
+	char fbuf[64], *fcomma;
 	double max_mb = CACHE_MAX_MB_DEFAULT, t0;
 	loom_exgen_params p;
 	loom_diag diag;
@@ -167,14 +172,29 @@ const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
 		         "LOOM_CACHE_DIR, XDG_CACHE_HOME or HOME, or give --db DB");
 	cli_diag_init(&diag, &quiet);
 	loom_exgen_preset("small", &p);
-	p.fibre[0] = p.fibre[1] = SETT_FIBRE;
-	p.voxel_size_um = (float)(fine / SETT_FINE_VOXELS);
-	p.yarn_diameter_um[0] = d->yarn_um[0] > 0 ? d->yarn_um[0] : d->yarn_um[1];
-	p.yarn_diameter_um[1] = d->yarn_um[1] > 0 ? d->yarn_um[1] : d->yarn_um[0];
-	if (loom_exgen_set_sett(&p, d->sett[0], d->sett[1], &diag) != LOOM_OK)
-		cli_fail(prog, "the draft's sett: %s", diag.message);
+	/* --fibre WARP[,WEFT] (one name: both), checked by the generator */
+	snprintf(fbuf, sizeof fbuf, "%s", fibre ? fibre : SETT_FIBRE);
+	fcomma = strchr(fbuf, ',');
+	if (fcomma)
+		*fcomma++ = '\0';
+	p.fibre[0] = fbuf;
+	p.fibre[1] = fcomma ? fcomma : fbuf;
+	if (!has_sett) {
+		/* no sett stated (--fibre only): the small preset's geometry */
+		if (loom_exgen_check_params(&p, &diag) != LOOM_OK)
+			cli_fail(prog, "--fibre %s: %s", fibre ? fibre : SETT_FIBRE,
+			         diag.message);
+	} else {
+		p.voxel_size_um = (float)(fine / SETT_FINE_VOXELS);
+		p.yarn_diameter_um[0] = d->yarn_um[0] > 0 ? d->yarn_um[0] : d->yarn_um[1];
+		p.yarn_diameter_um[1] = d->yarn_um[1] > 0 ? d->yarn_um[1] : d->yarn_um[0];
+		if (loom_exgen_set_sett(&p, d->sett[0], d->sett[1], &diag) != LOOM_OK)
+			cli_fail(prog, "the draft's sett: %s", diag.message);
+	}
 	/* a yarn the generator refuses (over 4 times its spacing): proportional */
-	if (loom_exgen_check_params(&p, &diag) != LOOM_OK) {
+	if (has_sett && loom_exgen_check_params(&p, &diag) != LOOM_OK) {
+		if (strstr(diag.message, "fibre"))
+			cli_fail(prog, "--fibre %s: %s", fibre, diag.message);
 		if (!quiet)
 			fprintf(stderr, "loom: warning: the draft's yarn diameters (%g, %g um) "
 			        "do not fit its sett (%s); using yarns in proportion to the "
@@ -201,9 +221,11 @@ const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
 	if (stat(path, &st) == 0 && loom_db_open(path, &db, NULL) == LOOM_OK) {
 		loom_db_close(db);
 		utime(path, NULL); /* recently used */
-		if (!quiet)
+		if (!quiet && has_sett)
 			fprintf(stderr, "loom: the draft's sett %.4g x %.4g per cm: database %s "
 			        "(cached)\n", (double)d->sett[0], (double)d->sett[1], path);
+		else if (!quiet)
+			fprintf(stderr, "loom: --fibre %s: database %s (cached)\n", fibre, path);
 		return path;
 	}
 	if (make_dirs(dir) != 0)
@@ -215,10 +237,15 @@ const char *cli_sett_db(const char *prog, const loom_design *d, int quiet)
 		cli_fail(prog, "generating the database for the draft's sett: %s",
 		         diag.message);
 	clock_gettime(CLOCK_MONOTONIC, &ts);
-	if (!quiet)
+	if (!quiet && has_sett)
 		fprintf(stderr, "loom: the draft's sett %.4g x %.4g per cm: generated %s "
 		        "(block %ux%ux%u of %.3g um, %.1f s)\n", (double)d->sett[0],
 		        (double)d->sett[1], path, p.block[0], p.block[1], p.block[2],
+		        (double)p.voxel_size_um,
+		        (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec - t0);
+	else if (!quiet)
+		fprintf(stderr, "loom: --fibre %s: generated %s (block %ux%ux%u of %.3g "
+		        "um, %.1f s)\n", fibre, path, p.block[0], p.block[1], p.block[2],
 		        (double)p.voxel_size_um,
 		        (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec - t0);
 	trim_cache(dir, name, max_mb * 1e6, quiet);
