@@ -2,7 +2,8 @@
 # paint files chained (regions kept), the file read back, loom render of a
 # paint file (same bytes twice; differs from the unpainted fabric), a
 # painted weave (file, render, errors), paint files in preview, export
-# and serve (the painted weave shown, unchanged away from it), and
+# and serve (painted weaves, colours and defects shown, unchanged away
+# from them, no warning), and
 # bad input: options, hostile paint files (not regular, over the size
 # limit, bad magic, bad lines), a missing fabric.
 SUITE=paint
@@ -104,8 +105,39 @@ if cmp -s "$T/v0.png" "$T/vw.png"; then fail preview_weave_differs "same bytes";
 expect_ok weave_far "$LOOM" paint "$F" --rect 40,40:42,42 --weave plain -q -o "$T/pfar.loomp"
 expect_ok preview_far "$LOOM" preview "$T/pfar.loomp" $P -o "$T/vfar.png"
 expect_same preview_far_unchanged "$T/v0.png" "$T/vfar.png"
+# colours and defects too: a stain (1,1:3,2.5 mm, soft edge 0.2 mm) changes
+# the 1:1 preview (0.072 mm a pixel) inside its rectangle and edge only,
+# with no warning; all five kinds of region change it and stay the same
+# bytes on 1 and 3 threads, exact or by blocks
 expect_ok preview_stain "$LOOM" preview "$T/p1.loomp" $P -o "$T/vs.png"
-expect_err_contains preview_stain_note "1 region of colour or defect (applied at lookup time) shown by loom render only"
+if grep -q warning "$T/err"; then fail preview_stain_no_warning "$(cat "$T/err")"; else pass preview_stain_no_warning; fi
+PY="python3 -B"
+if PYTHONPATH="$LOOM_TOP/tests/cli" $PY - "$T/v0.png" "$T/vs.png" <<'PYEOF' 2>"$T/pyerr"
+import sys, pngread
+w, h, ch, a = pngread.read(sys.argv[1])
+w2, h2, ch2, b = pngread.read(sys.argv[2])
+assert (w, h, ch) == (w2, h2, ch2) == (80, 60, 3), (w, h, ch)
+vx = 5.76 / 80
+lo, hi = (1 - 0.2) / vx - 1, (3 + 0.2) / vx + 1
+loy, hiy = (1 - 0.2) / vx - 1, (2.5 + 0.2) / vx + 1
+inside = outside = 0
+for y in range(h):
+    for x in range(w):
+        if a[y][x * 3:x * 3 + 3] != b[y][x * 3:x * 3 + 3]:
+            if lo <= x + 0.5 <= hi and loy <= y + 0.5 <= hiy:
+                inside += 1
+            else:
+                outside += 1
+assert outside == 0 and inside > 200, (inside, outside)
+PYEOF
+then pass preview_stain_only_inside; else fail preview_stain_only_inside "$(tail -2 "$T/pyerr")"; fi
+expect_ok preview_all "$LOOM" preview "$T/p5.loomp" $P --threads 1 -o "$T/v5.png"
+expect_ok preview_all3 "$LOOM" preview "$T/p5.loomp" $P --threads 3 -o "$T/v5b.png"
+expect_same preview_all_deterministic "$T/v5.png" "$T/v5b.png"
+if cmp -s "$T/vs.png" "$T/v5.png"; then fail preview_all_differs "same bytes"; else pass preview_all_differs; fi
+expect_ok preview_blocks0 "$LOOM" preview "$F" --region 0,0:400,300 --width 40 --filter blocks -q -o "$T/b0.png"
+expect_ok preview_blocks "$LOOM" preview "$T/p5.loomp" --region 0,0:400,300 --width 40 --filter blocks -q -o "$T/b5.png"
+if cmp -s "$T/b0.png" "$T/b5.png"; then fail preview_blocks_differs "same bytes"; else pass preview_blocks_differs; fi
 X="--region 0,0,0:40,30,12 --format vol --quiet"
 expect_ok export_plain "$LOOM" export "$F" $X -o "$T/e0"
 expect_ok export_weave "$LOOM" export "$T/pw.loomp" $X -o "$T/ew"
@@ -114,6 +146,17 @@ e0=$(find "$T/e0" -name '*.vol' | sort | head -1); ew=$(find "$T/ew" -name '*.vo
 efar=$(find "$T/efar" -name '*.vol' | sort | head -1)
 if [ -n "$e0" ] && [ -n "$ew" ] && ! cmp -s "$e0" "$ew"; then pass export_weave_differs; else fail export_weave_differs "$e0 $ew"; fi
 if [ -n "$efar" ] && cmp -s "$e0" "$efar"; then pass export_far_unchanged; else fail export_far_unchanged "$e0 $efar"; fi
+# a stain changes the albedo only, the defects the density too
+XA="--region 0,0,0:40,30,12 --format vol --channels density,albedo --quiet"
+expect_ok export_a0 "$LOOM" export "$F" $XA -o "$T/ea0"
+expect_ok export_stain "$LOOM" export "$T/p1.loomp" $XA -o "$T/ea1"
+expect_ok export_all "$LOOM" export "$T/p5.loomp" $XA -o "$T/ea5"
+ch() { find "$1" -name "*.$2.vol" | sort | head -1; }
+if [ -n "$(ch "$T/ea0" density)" ] && cmp -s "$(ch "$T/ea0" density)" "$(ch "$T/ea1" density)" &&
+   ! cmp -s "$(ch "$T/ea0" albedo)" "$(ch "$T/ea1" albedo)"; then pass export_stain_albedo_only
+else fail export_stain_albedo_only "density changed or albedo did not"; fi
+if [ -n "$(ch "$T/ea5" density)" ] && ! cmp -s "$(ch "$T/ea0" density)" "$(ch "$T/ea5" density)"
+then pass export_defects_density; else fail export_defects_density "density unchanged"; fi
 # serve: a deep tile over the painted weave differs from the fabric's, one
 # far from it is the same
 SERVER=""
@@ -144,6 +187,10 @@ serve_tiles sw "$T/pw.loomp"
 if [ -s "$T/s0-near.png" ] && [ -s "$T/sw-near.png" ] && ! cmp -s "$T/s0-near.png" "$T/sw-near.png"
 then pass serve_weave_differs; else fail serve_weave_differs "same or missing tiles"; fi
 expect_same serve_far_unchanged "$T/s0-far.png" "$T/sw-far.png"
+serve_tiles s5 "$T/p5.loomp"
+if [ -s "$T/s5-near.png" ] && ! cmp -s "$T/s0-near.png" "$T/s5-near.png"
+then pass serve_paint_differs; else fail serve_paint_differs "same or missing tiles"; fi
+if grep -q warning "$T/s5.err"; then fail serve_paint_no_warning "$(cat "$T/s5.err")"; else pass serve_paint_no_warning; fi
 
 mkdir -p "$T/dir.loomp"
 expect_exit paint_dir 1 "$LOOM" paint "$T/dir.loomp" --rect 0,0:1,1 --defect stain -o "$T/x.loomp"

@@ -125,8 +125,9 @@ void cli_paint_note(const char *prog, const char *path, const loom_paint *p)
 		other += loom_paint_get(p, i)->effect != LOOM_PAINT_WEAVE;
 	if (other)
 		fprintf(stderr, "%s: warning: %s: %u region%s of colour or defect "
-		        "(applied at lookup time) shown by loom render only; painted "
-		        "weaves are shown\n", prog, path, other, other == 1 ? "" : "s");
+		        "(applied at lookup time) not shown by this command (loom render, "
+		        "preview, export and serve show them); painted weaves are "
+		        "shown\n", prog, path, other, other == 1 ? "" : "s");
 }
 
 /* ---- loom paint ------------------------------------------------------------ */

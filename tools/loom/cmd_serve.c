@@ -77,13 +77,14 @@ static const char about[] =
 	"drawdown beside it, synchronised; yarn colours editable (no new\n"
 	"synthesis); a button for a render of the view.  A DRAFT (WIF or any\n"
 	"design) is synthesized first over the exemplar database.  FABRIC may\n"
-	"be a paint file (loom paint): its painted weaves are shown.  Stop with\n"
+	"be a paint file (loom paint): its painted regions are shown.  Stop with\n"
 	"Ctrl-C.\n";
 
 typedef struct server {
 	loom_fabric *f;
 	loom_db *db;
 	loom_texture *t;
+	loom_paint *paint;            /* a paint file's layer (bound to t), or NULL */
 	const loom_design *d;
 	loom_fabric_db_identity id;
 	serve_cache *cache;
@@ -281,6 +282,7 @@ static int make_tile(server *s, uint32_t L, uint64_t tx, uint64_t ty,
 	po.memory_bytes = TILE_MEMORY;
 	po.types = types;
 	po.n_types = n_types;
+	po.paint = s->paint;
 	po.background[0] = po.background[1] = po.background[2] = 0.02f;
 	memset(&pic, 0, sizeof pic);
 	pic.path = path;
@@ -506,6 +508,7 @@ static enum MHD_Result serve_color(server *s, struct MHD_Connection *conn)
 /* The render's volume source: the texture, coloured by the served table. */
 typedef struct render_src {
 	loom_texture *t;
+	const loom_paint *paint;      /* or NULL */
 	const loom_yarn_type *types;
 	uint32_t n_types;
 } render_src;
@@ -514,13 +517,18 @@ static int render_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 {
 	render_src *r = ctx;
 	loom_texel tx;
-	int rc = loom_texture_sample(r->t, p, LOOM_FILTER_NEAREST, &tx);
+	int rc = r->paint ? loom_paint_sample(r->paint, p, &tx)
+	                  : loom_texture_sample(r->t, p, LOOM_FILTER_NEAREST, &tx);
 
 	out->density = tx.density;
 	memcpy(out->orient, tx.orientation, sizeof out->orient);
 	if (tx.kind && tx.type < r->n_types) {
+		/* the served colour, then the paint's tint of it */
 		memcpy(out->albedo, r->types[tx.type].albedo, sizeof out->albedo);
 		out->alignment = r->types[tx.type].alignment;
+		if (r->paint)
+			loom_paint_albedo(r->paint, (int64_t)floor(p[0]), (int64_t)floor(p[1]),
+			                  tx.kind, out->albedo);
 	} else {
 		memcpy(out->albedo, tx.albedo, sizeof out->albedo);
 		out->alignment = tx.alignment;
@@ -584,6 +592,7 @@ static enum MHD_Result serve_render(server *s, struct MHD_Connection *conn)
 	if (pthread_mutex_trylock(&s->render_lock) != 0)
 		return error(conn, MHD_HTTP_TOO_MANY_REQUESTS, "a render is running; try again");
 	rs.t = s->t;
+	rs.paint = s->paint;
 	rs.types = snapshot(s, &rs.n_types, &hash);
 	if (!rs.types || view_prog_init(&vp, (uint32_t)w, (uint32_t)h) != LOOM_OK) {
 		free((void *)rs.types);
@@ -685,14 +694,13 @@ static void load(const char *prog, const char *in, const char *db_opt, server *s
 			   keyed by the paint's text too */
 			char *text = NULL;
 			size_t len = 0;
-			cli_paint_note(prog, in, paint);
 			if (loom_paint_format(paint, &text, &len) != LOOM_OK)
 				cli_fail(prog, "out of memory");
 			*paint_hash = 0xcbf29ce484222325ull;
 			for (size_t k = 0; k < len; k++)
 				*paint_hash = (*paint_hash ^ (unsigned char)text[k]) * 0x100000001b3ull;
 			free(text);
-			loom_paint_free(paint);
+			s->paint = paint; /* bound when the texture opens */
 		}
 	} else {
 		const char *db_path = cli_db_require(db_opt, prog);
@@ -796,6 +804,8 @@ int cmd_serve(int argc, char **argv)
 	to.max_threads = 64 + SERVE_TILE_WORKERS;
 	if (loom_texture_open(s.f, s.db, &to, &s.t, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
+	if (s.paint && loom_paint_bind(s.paint, s.t, s.f) != LOOM_OK)
+		cli_fail(prog, "out of memory binding the paint layer");
 	if (cache_opt) {
 		snprintf(cache_dir, sizeof cache_dir, "%s", cache_opt);
 	} else {
@@ -850,6 +860,7 @@ int cmd_serve(int argc, char **argv)
 		        (unsigned long long)atomic_load(&s.rejected));
 	serve_cache_close(s.cache);
 	loom_texture_close(s.t);
+	loom_paint_free(s.paint);
 	loom_fabric_free(s.f);
 	loom_db_close(s.db);
 	free(s.types);
