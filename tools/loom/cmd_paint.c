@@ -205,7 +205,7 @@ static const char *opt_rgb(const char *text, void *dest)
 }
 
 /* Write text to path atomically (temporary name, then rename). */
-static int write_atomic(const char *path, const char *text, size_t len, loom_diag *d)
+int cli_write_atomic(const char *path, const char *text, size_t len, loom_diag *d)
 {
 	char tmp[PATH_MAX];
 	FILE *fp;
@@ -440,7 +440,7 @@ int cmd_paint(int argc, char **argv)
 		cli_error(prog, "out of memory");
 		goto done;
 	}
-	if (write_atomic(out, text, len, &diag) != LOOM_OK) {
+	if (cli_write_atomic(out, text, len, &diag) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto done;
 	}

@@ -17,6 +17,9 @@ int cli_paint_read(const char *path, loom_paint **out, loom_diag *diag);
 /* The note of a command that shows only the painted weaves (scan): the
    other regions, if any, named on stderr. */
 void cli_paint_note(const char *prog, const char *path, const loom_paint *p);
+/* Write text to path atomically (a temporary name in the same directory,
+   then rename).  LOOM_OK, or LOOM_EIO / LOOM_EINVAL with the path in d. */
+int cli_write_atomic(const char *path, const char *text, size_t len, loom_diag *d);
 int cli_open_painted(const char *path, loom_db *db, loom_fabric **f,
                      loom_paint **paint, loom_diag *diag);
 
