@@ -238,7 +238,11 @@ if grep -q warning "$T/s5.err"; then fail serve_paint_no_warning "$(cat "$T/s5.e
 # the viewer's paint tool end to end in chromium: a stain dragged on the
 # cloth is saved by the server in FABRIC.loomp (the region the page sent),
 # and a tile of the whole cloth changes inside the region (and its soft
-# edge) only
+# edge) only (not under ThreadSanitizer: tiles are too slow for the page;
+# the requests below exercise the same endpoint)
+case "${LOOM_SAN:-}" in *thread*)
+	echo "NOTE paint/viewer: not run under ThreadSanitizer" ;;
+*) false ;; esac ||
 if command -v chromium >/dev/null 2>&1 && [ -d "$LOOM_BUILD/web/node_modules/playwright-core" ]; then
 	"$LOOM" serve "$F" --port 0 --budget 64 --size-mm 10 --cache "$T/cache-pt" >"$T/pt.out" 2>"$T/pt.err" &
 	SERVER=$!
@@ -253,7 +257,8 @@ if command -v chromium >/dev/null 2>&1 && [ -d "$LOOM_BUILD/web/node_modules/pla
 	top=$(sed -n 's/.*"max_level": *\([0-9]*\).*/\1/p' "$T/pt-info.json")
 	L=$((top - 1))
 	curl -s -o "$T/pt-before.png" "$URL/tile/$L/0/0.png"
-	if [ -n "$URL" ] && LOOM_BUILD="$LOOM_BUILD" LOOM_SAN="${LOOM_SAN:-}" timeout 300 \
+	if [ -n "$URL" ] && LOOM_BUILD="$LOOM_BUILD" LOOM_SAN="${LOOM_SAN:-}" \
+		timeout $([ -n "${LOOM_SAN:-}" ] && echo 1500 || echo 300) \
 		node "$LOOM_TOP/tests/web/paint.mjs" "$URL/" "$T" >"$T/pt.json" 2>"$T/pt-node.err"
 	then pass viewer_paint_run; else fail viewer_paint_run "$(cat "$T/pt.json" "$T/pt-node.err" | head -c 600)"; fi
 	curl -s -o "$T/pt-after.png" "$URL/tile/$L/0/0.png"
