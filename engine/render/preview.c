@@ -50,6 +50,7 @@
  * fixed order, whatever the thread count.
  */
 #include "core/internal.h"
+#include "loom/paint.h"
 #include "loom/preview.h"
 
 #include <math.h>
@@ -152,6 +153,7 @@ typedef struct pv_ctx {
 	float alb[256][3];           /* yarn albedo by type */
 	float spk[256];              /* 0.25 (1 - alignment) by type */
 	uint8_t valid[256];          /* type in the yarn table */
+	const loom_paint *paint;     /* the paint layer when it reaches the box */
 	size_t cap;                  /* memory cap */
 	size_t mem;                  /* working memory in use (peak) */
 	pthread_mutex_t lock;        /* progress, first error */
@@ -242,7 +244,7 @@ static void buf_free(pv_buf *b)
 }
 
 static int read_run(pv_ctx *c, pv_buf *b, int64_t y, int64_t xa, int64_t xb,
-                    float *h, uint32_t *info)
+                    float *h, uint32_t *info, float *alb)
 {
 	size_t nz = (size_t)(c->z1 - c->z0);
 	int64_t lo[3] = {xa, y, c->z0}, hi[3] = {xb, y + 1, c->z1};
@@ -255,7 +257,9 @@ static int read_run(pv_ctx *c, pv_buf *b, int64_t y, int64_t xa, int64_t xb,
 	reg.kind = b->kind;
 	reg.type = b->type;
 	reg.layout = LOOM_REGION_Z_FASTEST;
-	rc = loom_texture_read_region(c->t, lo, hi, &reg);
+	/* the paint hook: painted columns as loom_paint_sample shapes them */
+	rc = alb ? loom_paint_read_region(c->paint, lo, hi, &reg)
+	         : loom_texture_read_region(c->t, lo, hi, &reg);
 	atomic_fetch_add(&c->reads, 1);
 	atomic_fetch_add(&c->columns, (uint64_t)(xb - xa));
 	if (rc != LOOM_OK) {
@@ -274,6 +278,20 @@ static int read_run(pv_ctx *c, pv_buf *b, int64_t y, int64_t xa, int64_t xb,
 			h[x - xa] = (float)(c->z0 + (int64_t)k);
 			info[x - xa] = (uint32_t)b->ori[v] << 16 | (uint32_t)b->kind[v] << 8 |
 			               b->type[v];
+		}
+		if (alb) { /* ... and paint tints them (-1: the yarn table's) */
+			float *al = alb + 3 * (x - xa);
+			uint8_t kd = INFO_KIND(info[x - xa]), ty = INFO_TYPE(info[x - xa]);
+			al[0] = -1.0f;
+			if (h[x - xa] > 0 && kd) {
+				float base[3] = {0.5f, 0.5f, 0.5f};
+				if (c->valid[ty])
+					memcpy(base, c->alb[ty], sizeof base);
+				memcpy(al, base, sizeof base);
+				loom_paint_albedo(c->paint, x, y, kd, al);
+				if (!memcmp(al, base, sizeof base))
+					al[0] = -1.0f;
+			}
 		}
 	}
 	return LOOM_OK;
@@ -328,8 +346,9 @@ static void put_pixel(pv_ctx *c, uint32_t row, uint32_t i, const pv_acc *a)
 }
 
 /* Add column (h, info) with its shading to a pixel's sums (weight w). */
-static void add_column(const pv_ctx *c, pv_acc *a, float h, uint32_t info, float hl,
-                       float hr, float hu, float hd, double w)
+static void add_column(const pv_ctx *c, pv_acc *a, float h, uint32_t info,
+                       const float *pal, float hl, float hr, float hu, float hd,
+                       double w)
 {
 	uint8_t kind = INFO_KIND(info), type = INFO_TYPE(info);
 
@@ -346,6 +365,15 @@ static void add_column(const pv_ctx *c, pv_acc *a, float h, uint32_t info, float
 		a->nw += w;
 	else
 		a->nf += w;
+	if (pal && pal[0] >= 0) { /* a painted colour */
+		double G, S;
+		shade_terms(c, h, (uint16_t)(info >> 16), hl, hr, hu, hd, &G, &S);
+		for (int k = 0; k < 3; k++) {
+			a->rgb[k] += w * (pal[k] * G + (c->valid[type] ? c->spk[type] : 0) * S);
+			a->al[k] += w * pal[k];
+		}
+		return;
+	}
 	if (!c->valid[type]) {
 		for (int k = 0; k < 3; k++) {
 			a->rgb[k] += w * 0.5;
@@ -399,6 +427,7 @@ typedef struct ex_job {
 	size_t stride;         /* columns per ring row: nx + 2 */
 	float *rh;             /* ring heights [ring * stride] */
 	uint32_t *ri;          /* ring infos */
+	float *ra;             /* ring painted albedos (3 per column), or NULL */
 	ex_task *tasks;
 	size_t n_tasks;
 	atomic_size_t next;
@@ -438,7 +467,8 @@ static void *ex_fetch_worker(void *arg)
 			for (int64_t x = tk->x0; x < tk->x1; x += RUN_MAX) {
 				int64_t xe = x + RUN_MAX < tk->x1 ? x + RUN_MAX : tk->x1;
 				size_t off = slot + (size_t)(x - (c->X0 - 1));
-				if (read_run(c, &b, y, x, xe, j->rh + off, j->ri + off) != LOOM_OK)
+				if (read_run(c, &b, y, x, xe, j->rh + off, j->ri + off,
+				             j->ra ? j->ra + 3 * off : NULL) != LOOM_OK)
 					goto out;
 			}
 		}
@@ -467,7 +497,8 @@ static void *ex_shade_worker(void *arg)
 				size_t sd = (size_t)((uint64_t)(y + 1 - (c->Y0 - 1)) % j->ring) * j->stride;
 				for (int64_t x = c->xa[i]; x < c->xb[i]; x++) {
 					size_t q = (size_t)(x - (c->X0 - 1));
-					add_column(c, &a, j->rh[s + q], j->ri[s + q], j->rh[s + q - 1],
+					add_column(c, &a, j->rh[s + q], j->ri[s + q],
+					           j->ra ? j->ra + 3 * (s + q) : NULL, j->rh[s + q - 1],
 					           j->rh[s + q + 1], j->rh[su + q], j->rh[sd + q], 1.0);
 				}
 			}
@@ -520,7 +551,8 @@ static int run_exact(pv_ctx *c, loom_preview_band_fn fn, void *user)
 	memset(&j, 0, sizeof j);
 	j.c = c;
 	j.stride = (size_t)c->nx + 2;
-	rowbytes = j.stride * (sizeof(float) + sizeof(uint32_t));
+	rowbytes = j.stride * (sizeof(float) + sizeof(uint32_t) +
+	                       (c->paint ? 3 * sizeof(float) : 0));
 	for (uint32_t r = 0; r < c->H; r++)
 		if (c->yb[r] - c->ya[r] + 2 > need)
 			need = c->yb[r] - c->ya[r] + 2;
@@ -554,7 +586,9 @@ static int run_exact(pv_ctx *c, loom_preview_band_fn fn, void *user)
 	j.rh = malloc((size_t)j.ring * j.stride * sizeof *j.rh);
 	j.ri = malloc((size_t)j.ring * j.stride * sizeof *j.ri);
 	j.tasks = malloc(ntask_cap * sizeof *j.tasks);
-	if (!j.rh || !j.ri || !j.tasks) {
+	if (c->paint)
+		j.ra = malloc((size_t)j.ring * j.stride * 3 * sizeof *j.ra);
+	if (!j.rh || !j.ri || !j.tasks || (c->paint && !j.ra)) {
 		rc = LOOM_ENOMEM;
 		snprintf(c->msg, sizeof c->msg, "out of memory for the row buffers");
 		goto done;
@@ -599,6 +633,7 @@ static int run_exact(pv_ctx *c, loom_preview_band_fn fn, void *user)
 done:
 	free(j.rh);
 	free(j.ri);
+	free(j.ra);
 	free(j.tasks);
 	return rc;
 }
@@ -769,7 +804,8 @@ static void *bl_table_worker(void *arg)
 			for (uint32_t x = 0; x < sw; x += RUN_MAX) {
 				uint32_t xe = x + RUN_MAX < sw ? x + RUN_MAX : sw;
 				size_t off = (size_t)r * sw + x;
-				if (read_run(c, &b, y0 + r, x0 + x, x0 + xe, h + off, info + off))
+				if (read_run(c, &b, y0 + r, x0 + x, x0 + xe, h + off, info + off,
+				             NULL))
 					goto out;
 			}
 		memset(T->sat, 0, (size_t)(T->tx + 1) * (T->ty + 1) * NCH * sizeof(float));
@@ -868,6 +904,45 @@ static const bl_row *row_sources(bl_job *j, bl_row *cache, int *clock, int64_t I
 	return r;
 }
 
+/*
+ * A piece the paint reaches, column by column as EXACT does: columns
+ * [x0, x1) of rows [y0, y1) (at most a block wide) read painted, each
+ * shaded from its neighbours, added with weight w.  Rows pass through a
+ * ring of 3 rows of sw = b1 + 2 columns.
+ */
+typedef struct bl_exact {
+	pv_buf b;
+	float *h, *alb;
+	uint32_t *info;
+	size_t sw;
+} bl_exact;
+
+static int exact_piece(pv_ctx *c, bl_exact *e, int64_t x0, int64_t x1, int64_t y0,
+                       int64_t y1, double w, pv_acc *a)
+{
+	size_t n = (size_t)(x1 - x0) + 2;
+
+	for (int64_t y = y0 - 1; y <= y1; y++) {
+		size_t slot = (size_t)((y - (y0 - 1)) % 3) * e->sw;
+		for (size_t x = 0; x < n; x += RUN_MAX) {
+			size_t xe = x + RUN_MAX < n ? x + RUN_MAX : n;
+			if (read_run(c, &e->b, y, x0 - 1 + (int64_t)x, x0 - 1 + (int64_t)xe,
+			             e->h + slot + x, e->info + slot + x,
+			             e->alb + 3 * (slot + x)) != LOOM_OK)
+				return -1;
+		}
+		if (y - 1 >= y0) { /* row y - 1 and both its neighbours are in */
+			int64_t r = y - 1 - (y0 - 1);
+			size_t sm = (size_t)(r % 3) * e->sw, su = (size_t)((r + 2) % 3) * e->sw;
+			for (size_t q = 1; q + 1 < n; q++)
+				add_column(c, a, e->h[sm + q], e->info[sm + q], e->alb + 3 * (sm + q),
+				           e->h[sm + q - 1], e->h[sm + q + 1], e->h[su + q],
+				           e->h[slot + q], w);
+		}
+	}
+	return 0;
+}
+
 /* Step 3 worker: pixels of output rows [j0, j1). */
 static void *bl_pixel_worker(void *arg)
 {
@@ -875,8 +950,18 @@ static void *bl_pixel_worker(void *arg)
 	pv_ctx *c = j->c;
 	bl_row cache[ROW_CACHE];
 	int clock = 0, ok = 1;
+	bl_exact px;
 
 	memset(cache, 0, sizeof cache);
+	memset(&px, 0, sizeof px);
+	if (c->paint) {
+		px.sw = (size_t)c->b1 + 2;
+		px.h = malloc(3 * px.sw * sizeof *px.h);
+		px.info = malloc(3 * px.sw * sizeof *px.info);
+		px.alb = malloc(3 * 3 * px.sw * sizeof *px.alb);
+		if (!buf_init(&px.b, (size_t)(c->z1 - c->z0)) || !px.h || !px.info || !px.alb)
+			ok = 0;
+	}
 	for (int k = 0; k < ROW_CACHE; k++) {
 		cache[k].key = malloc(j->nJ * sizeof *cache[k].key);
 		cache[k].wt = malloc(j->nJ);
@@ -909,6 +994,17 @@ static void *bl_pixel_worker(void *arg)
 					double w = ex->w * ey->w;
 					double area = (double)(ex->lb - ex->la) * (ey->lb - ey->la);
 					double s[NCH], ne;
+					if (c->paint) {
+						int64_t x0 = ex->cr * (int64_t)c->b1 + ex->la;
+						int64_t y0 = ey->cr * (int64_t)c->b2 + ey->la;
+						int64_t x1 = x0 + (ex->lb - ex->la), y1 = y0 + (ey->lb - ey->la);
+						int64_t plo[2] = {x0 - 1, y0 - 1}, phi[2] = {x1 + 1, y1 + 1};
+						if (loom_paint_touches(c->paint, plo, phi)) {
+							if (exact_piece(c, &px, x0, x1, y0, y1, w, &a))
+								goto out;
+							continue;
+						}
+					}
 					if (key >= c->n_blocks || j->slot[key] == UINT32_MAX) {
 						for (int ch = 0; ch < NCH; ch++)
 							s[ch] = 0;
@@ -961,6 +1057,13 @@ out:
 		free(cache[k].key);
 		free(cache[k].wt);
 		free(cache[k].ft);
+	}
+	if (c->paint) {
+		loom_texture_thread_done(c->t);
+		buf_free(&px.b);
+		free(px.h);
+		free(px.info);
+		free(px.alb);
 	}
 	return NULL;
 }
@@ -1032,6 +1135,9 @@ static int run_blocks(pv_ctx *c, loom_preview_band_fn fn, void *user,
 	}
 	mem += (size_t)c->nthreads * ((size_t)(c->b1 + 2) * (c->b2 + 2) * 8 +
 	                              RUN_MAX * (size_t)(c->z1 - c->z0) * 5);
+	if (c->paint) /* the painted pieces' buffers */
+		mem += (size_t)c->nthreads * (3 * ((size_t)c->b1 + 2) * 20 +
+		                              RUN_MAX * (size_t)(c->z1 - c->z0) * 5);
 	c->mem = mem;
 	if (mem > c->cap) {
 		char s1[40], s2[40];
@@ -1100,7 +1206,7 @@ static int run_empty(pv_ctx *c, loom_preview_band_fn fn, void *user)
 			for (uint32_t i = 0; i < c->W; i++) {
 				pv_acc a;
 				memset(&a, 0, sizeof a);
-				add_column(c, &a, 0, 0, 0, 0, 0, 0, 1.0);
+				add_column(c, &a, 0, 0, NULL, 0, 0, 0, 0, 1.0);
 				put_pixel(c, r, i, &a);
 			}
 		rc = emit_band(c, fn, user);
@@ -1227,6 +1333,12 @@ LOOM_API int loom_preview_stream(loom_texture *t, const loom_fabric *f,
 	}
 	footprints(c->X0, c->nx, c->W, c->xa, c->xb);
 	footprints(c->Y0, c->ny, c->H, c->ya, c->yb);
+	if (o.paint) { /* the paint, if it reaches the box's columns or their
+	                  neighbours */
+		int64_t plo[2] = {c->X0 - 1, c->Y0 - 1}, phi[2] = {c->X1 + 1, c->Y1 + 1};
+		if (loom_paint_touches(o.paint, plo, phi))
+			c->paint = o.paint;
+	}
 	if (filter == LOOM_PREVIEW_AUTO)
 		filter = (double)c->nx * (double)c->ny <=
 		         EXACT_MAX_COLS * (double)c->W * (double)c->H

@@ -42,6 +42,7 @@ struct loom_paint {
 	/* binding (loom_paint_volume_source) */
 	loom_texture *t;
 	int filter;
+	uint32_t b3;                /* the texture's z extent (bulk reads) */
 	vreg *v;
 };
 
@@ -672,6 +673,35 @@ static void empty(loom_texel *o)
 	memset(o, 0, sizeof *o);
 }
 
+/* The colour effects, in file order, on the albedo of a voxel of `kind`
+   (non-zero) in the column with centre (cx, cy). */
+static void colour(const loom_paint *p, double cx, double cy, int kind, float albedo[3])
+{
+	for (uint32_t i = 0; i < p->n; i++) {
+		const loom_paint_region *r = &p->r[i];
+		double d, w;
+		if (r->effect != LOOM_PAINT_YARN && r->effect != LOOM_PAINT_STAIN)
+			continue;
+		d = region_dist(p, i, cx, cy, p->v[i].band);
+		if (d == 0)
+			w = 1;
+		else if (d < p->v[i].band)
+			w = 1 - d / p->v[i].band;
+		else
+			continue;
+		if (r->effect == LOOM_PAINT_YARN) {
+			if (r->kind && kind != r->kind)
+				continue;
+			for (int k = 0; k < 3; k++)
+				albedo[k] = (float)((1 - w) * albedo[k] + w * r->rgb[k]);
+		} else {
+			double sw = w * r->strength;
+			for (int k = 0; k < 3; k++)
+				albedo[k] = (float)(albedo[k] * (1 - sw + sw * r->rgb[k]));
+		}
+	}
+}
+
 LOOM_API int loom_paint_sample(const loom_paint *p, const double q[3], loom_texel *out)
 {
 	loom_texel tx;
@@ -742,31 +772,8 @@ LOOM_API int loom_paint_sample(const loom_paint *p, const double q[3], loom_texe
 		}
 	}
 	/* colour effects, soft-edged */
-	for (uint32_t i = 0; i < p->n; i++) {
-		const loom_paint_region *r = &p->r[i];
-		double d, w;
-		if (r->effect != LOOM_PAINT_YARN && r->effect != LOOM_PAINT_STAIN)
-			continue;
-		if (!tx.kind)
-			continue;
-		d = region_dist(p, i, cx, cy, p->v[i].band);
-		if (d == 0)
-			w = 1;
-		else if (d < p->v[i].band)
-			w = 1 - d / p->v[i].band;
-		else
-			continue;
-		if (r->effect == LOOM_PAINT_YARN) {
-			if (r->kind && tx.kind != r->kind)
-				continue;
-			for (int k = 0; k < 3; k++)
-				tx.albedo[k] = (float)((1 - w) * tx.albedo[k] + w * r->rgb[k]);
-		} else {
-			double sw = w * r->strength;
-			for (int k = 0; k < 3; k++)
-				tx.albedo[k] = (float)(tx.albedo[k] * (1 - sw + sw * r->rgb[k]));
-		}
-	}
+	if (tx.kind)
+		colour(p, cx, cy, tx.kind, tx.albedo);
 	*out = tx;
 	return LOOM_OK;
 }
@@ -796,19 +803,15 @@ static void src_thread_done(void *ctx, void *thread_ctx)
 	loom_texture_thread_done(((loom_paint *)ctx)->t);
 }
 
-LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
-                                      const loom_fabric *f, int filter,
-                                      loom_volume_source *src)
+LOOM_API int loom_paint_bind(loom_paint *p, loom_texture *t, const loom_fabric *f)
 {
 	loom_fabric_db_identity id;
 	double vmm;
 	vreg *v;
 
-	if (!p || !t || !f || !src ||
-	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+	if (!p || !t || !f)
 		return LOOM_EINVAL;
-	if (loom_texture_volume_source(t, f, filter, src) != LOOM_OK ||
-	    loom_fabric_get_db_identity(f, &id) != LOOM_OK || !(id.voxel_size_um > 0))
+	if (loom_fabric_get_db_identity(f, &id) != LOOM_OK || !(id.voxel_size_um > 0))
 		return LOOM_EINVAL;
 	vmm = (double)id.voxel_size_um * 1e-3;
 	v = malloc((p->n ? p->n : 1) * sizeof *v);
@@ -819,12 +822,288 @@ LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
 	free(p->v);
 	p->v = v;
 	p->t = t;
+	p->b3 = id.block[2];
+	p->filter = LOOM_FILTER_NEAREST;
+	return LOOM_OK;
+}
+
+LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
+                                      const loom_fabric *f, int filter,
+                                      loom_volume_source *src)
+{
+	int rc;
+
+	if (!p || !t || !f || !src ||
+	    (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
+		return LOOM_EINVAL;
+	if (loom_texture_volume_source(t, f, filter, src) != LOOM_OK)
+		return LOOM_EINVAL;
+	if ((rc = loom_paint_bind(p, t, f)) != LOOM_OK)
+		return rc;
 	p->filter = filter;
 	src->lookup = src_lookup;
 	src->ctx = p;
 	src->thread_init = src_thread_init;
 	src->thread_done = src_thread_done;
 	return LOOM_OK;
+}
+
+/* ---- bulk reads ---------------------------------------------------------- */
+
+static int structural(int effect)
+{
+	return effect == LOOM_PAINT_SLUB || effect == LOOM_PAINT_BROKEN_END ||
+	       effect == LOOM_PAINT_MISSING_PICK || effect == LOOM_PAINT_PULL;
+}
+
+/* Region i's voxel bounds (widened by its blend band for colours) meet the
+   columns [x0, x1) x [y0, y1)? */
+static int meets(const loom_paint *p, uint32_t i, double x0, double y0, double x1,
+                 double y1)
+{
+	const vreg *v = &p->v[i];
+	double b = structural(p->r[i].effect) ? 0 : v->band;
+	/* a column belongs when its centre does: compare centres */
+	return x0 + 0.5 < v->x1 + b && x1 - 0.5 >= v->x0 - b &&
+	       y0 + 0.5 < v->y1 + b && y1 - 0.5 >= v->y0 - b;
+}
+
+LOOM_API unsigned loom_paint_touches(const loom_paint *p, const int64_t lo[2],
+                                     const int64_t hi[2])
+{
+	unsigned m = 0;
+
+	if (!p || !p->v || !lo || !hi)
+		return 0;
+	for (uint32_t i = 0; i < p->n; i++) {
+		int e = p->r[i].effect;
+		unsigned bit = structural(e) ? LOOM_PAINT_TOUCH_SHAPE
+		             : e == LOOM_PAINT_YARN || e == LOOM_PAINT_STAIN
+		             ? LOOM_PAINT_TOUCH_COLOUR : 0;
+		if (bit && !(m & bit) &&
+		    meets(p, i, (double)lo[0], (double)lo[1], (double)hi[0], (double)hi[1]))
+			m |= bit;
+	}
+	return m;
+}
+
+LOOM_API void loom_paint_albedo(const loom_paint *p, int64_t x, int64_t y, int kind,
+                                float albedo[3])
+{
+	if (p && p->v && albedo && kind)
+		colour(p, (double)x + 0.5, (double)y + 0.5, kind, albedo);
+}
+
+/* One raw voxel (the encodings of loom_texture_region). */
+typedef struct rawvox {
+	uint8_t d, k, ty, lb;
+	uint16_t o;
+} rawvox;
+
+/* A voxel column [0, b3) of the unpainted texture, read on demand. */
+typedef struct rawcol {
+	int64_t x, y;
+	int valid;
+	uint8_t *d, *k, *ty, *lb;
+	uint16_t *o;
+} rawcol;
+
+typedef struct bulk {
+	const loom_paint *p;
+	uint32_t b3;
+	rawcol col[1 + 2 * 16];  /* own column, then slub side columns */
+	int rc;                  /* the first read error */
+} bulk;
+
+static int col_read(bulk *B, rawcol *c, int64_t x, int64_t y)
+{
+	int64_t lo[3] = {x, y, 0}, hi[3] = {x + 1, y + 1, (int64_t)B->b3};
+	loom_texture_region r;
+	int rc;
+
+	if (c->valid && c->x == x && c->y == y)
+		return LOOM_OK;
+	memset(&r, 0, sizeof r);
+	r.density = c->d;
+	r.orientation = c->o;
+	r.kind = c->k;
+	r.type = c->ty;
+	r.label = c->lb;
+	r.layout = LOOM_REGION_Z_FASTEST;
+	rc = loom_texture_read_region(B->p->t, lo, hi, &r);
+	if (rc != LOOM_OK && B->rc == LOOM_OK)
+		B->rc = rc;
+	c->x = x;
+	c->y = y;
+	c->valid = 1;
+	return rc;
+}
+
+static rawvox col_at(const bulk *B, const rawcol *c, int64_t z)
+{
+	rawvox v = {0, 0, 0, 0, 0};
+	if (z >= 0 && z < (int64_t)B->b3) {
+		v.d = c->d[z];
+		v.k = c->k[z];
+		v.ty = c->ty[z];
+		v.lb = c->lb[z];
+		v.o = c->o[z];
+	}
+	return v;
+}
+
+/* Voxel (x, y, z) of column c (own, read) with the structural regions
+   `idx` (those containing the column) applied, as loom_paint_sample does
+   with the nearest filter. */
+static rawvox shape_voxel(bulk *B, const uint32_t *idx, uint32_t n, int64_t x,
+                          int64_t y, int64_t z)
+{
+	const loom_paint *p = B->p;
+	rawvox tx = col_at(B, &B->col[0], z), none = {0, 0, 0, 0, 0};
+
+	for (uint32_t q = 0; q < n; q++) {
+		const loom_paint_region *r = &p->r[idx[q]];
+		switch (r->effect) {
+		case LOOM_PAINT_BROKEN_END:
+			if (tx.k == LOOM_YARN_WARP)
+				tx = none;
+			break;
+		case LOOM_PAINT_MISSING_PICK:
+			if (tx.k == LOOM_YARN_WEFT)
+				tx = none;
+			break;
+		case LOOM_PAINT_PULL: {
+			rawvox nb = col_at(B, &B->col[0], z - (int64_t)r->amount);
+			if (nb.k == r->kind)
+				tx = nb;
+			else if (tx.k == r->kind)
+				tx = none;
+			break;
+		}
+		case LOOM_PAINT_SLUB:
+			if (tx.k == r->kind)
+				break;
+			for (uint32_t k = 1; k <= r->amount; k++) {
+				int found = 0;
+				for (int d = 0; d < 4 && !found; d++) {
+					rawvox nb;
+					if (d < 2) {
+						/* across the yarn: x for warps, y for wefts */
+						int64_t s = d ? -(int64_t)k : (int64_t)k;
+						rawcol *c = &B->col[1 + 2 * (k - 1) + (uint32_t)d];
+						if (r->kind == LOOM_YARN_WARP)
+							col_read(B, c, x + s, y);
+						else
+							col_read(B, c, x, y + s);
+						nb = col_at(B, c, z);
+					} else {
+						nb = col_at(B, &B->col[0], d == 3 ? z - (int64_t)k
+						                                  : z + (int64_t)k);
+					}
+					if (nb.k == r->kind) {
+						tx = nb;
+						found = 1;
+					}
+				}
+				if (found)
+					break;
+			}
+			break;
+		default:
+			break;
+		}
+	}
+	return tx;
+}
+
+LOOM_API int loom_paint_read_region(const loom_paint *p, const int64_t lo[3],
+                                    const int64_t hi[3], const loom_texture_region *out)
+{
+	bulk *B = NULL;
+	uint32_t *idx = NULL, *here = NULL, n = 0;
+	int64_t nx, ny, nz;
+	int rc;
+	uint8_t *mem = NULL;
+
+	if (!p || !p->t || !p->v || !lo || !hi || !out)
+		return LOOM_EINVAL;
+	rc = loom_texture_read_region(p->t, lo, hi, out);
+	if (rc == LOOM_EINVAL || rc == LOOM_ERANGE)
+		return rc;
+	nx = hi[0] - lo[0];
+	ny = hi[1] - lo[1];
+	nz = hi[2] - lo[2];
+	if (nx == 0 || ny == 0 || nz == 0)
+		return rc;
+	/* the structural regions over the box's columns, in file order */
+	for (uint32_t i = 0; i < p->n; i++)
+		if (structural(p->r[i].effect) &&
+		    meets(p, i, (double)lo[0], (double)lo[1], (double)hi[0], (double)hi[1]))
+			n++;
+	if (n == 0)
+		return rc;
+	idx = malloc(2 * (size_t)n * sizeof *idx);
+	B = calloc(1, sizeof *B);
+	mem = malloc((size_t)p->b3 * 6 * (sizeof B->col / sizeof B->col[0]));
+	if (!idx || !B || !mem) {
+		free(idx);
+		free(B);
+		free(mem);
+		return LOOM_ENOMEM;
+	}
+	here = idx + n;
+	n = 0;
+	for (uint32_t i = 0; i < p->n; i++)
+		if (structural(p->r[i].effect) &&
+		    meets(p, i, (double)lo[0], (double)lo[1], (double)hi[0], (double)hi[1]))
+			idx[n++] = i;
+	B->p = p;
+	B->b3 = p->b3;
+	B->rc = rc;
+	for (size_t c = 0; c < sizeof B->col / sizeof B->col[0]; c++) {
+		uint8_t *m = mem + c * (size_t)p->b3 * 6;
+		B->col[c].o = (uint16_t *)(void *)m; /* 6 b3 bytes apart: aligned */
+		B->col[c].d = m + 2 * (size_t)p->b3;
+		B->col[c].k = m + 3 * (size_t)p->b3;
+		B->col[c].ty = m + 4 * (size_t)p->b3;
+		B->col[c].lb = m + 5 * (size_t)p->b3;
+	}
+	for (int64_t y = lo[1]; y < hi[1]; y++)
+		for (int64_t x = lo[0]; x < hi[0]; x++) {
+			double cx = (double)x + 0.5, cy = (double)y + 0.5;
+			uint32_t m = 0;
+			for (uint32_t q = 0; q < n; q++)
+				if (region_dist(p, idx[q], cx, cy, 0.0) == 0)
+					here[m++] = idx[q];
+			if (m == 0)
+				continue;
+			for (size_t c = 0; c < sizeof B->col / sizeof B->col[0]; c++)
+				B->col[c].valid = 0;
+			col_read(B, &B->col[0], x, y);
+			for (int64_t z = lo[2]; z < hi[2]; z++) {
+				rawvox v = shape_voxel(B, here, m, x, y, z);
+				size_t o = out->layout == LOOM_REGION_Z_FASTEST
+				         ? ((size_t)(y - lo[1]) * (size_t)nx + (size_t)(x - lo[0])) *
+				           (size_t)nz + (size_t)(z - lo[2])
+				         : ((size_t)(z - lo[2]) * (size_t)ny + (size_t)(y - lo[1])) *
+				           (size_t)nx + (size_t)(x - lo[0]);
+				if (out->density)
+					out->density[o] = v.d;
+				if (out->orientation)
+					out->orientation[o] = v.o;
+				if (out->kind)
+					out->kind[o] = v.k;
+				if (out->type)
+					out->type[o] = v.ty;
+				if (out->label)
+					out->label[o] = v.lb;
+			}
+		}
+	rc = B->rc;
+	free(mem);
+	free(idx);
+	free(B);
+	return rc;
 }
 
 /* ---- painted weaves ----------------------------------------------------- */

@@ -332,6 +332,192 @@ static void test_regions_brute_force(void)
 }
 
 
+/*
+ * The bulk reads against the point lookups: one paint with every effect
+ * (overlapping, in file order, a masked one, soft colour edges), read as
+ * boxes in both layouts - some reaching above and below the cloth, where
+ * a pull puts yarn - and compared with loom_paint_sample at every voxel
+ * centre, channel by channel; the albedo by loom_paint_albedo over the
+ * design's yarn colour.  Also: boxes away from the paint read as the
+ * texture does, and loom_paint_touches says which effects reach a box.
+ */
+static void test_bulk_equals_point(void)
+{
+	loom_paint *p = NULL;
+	loom_paint_region r;
+	double vx = g_vmm;
+	uint8_t m[6] = {1, 0, 1, 0, 1, 1};
+	const loom_design *des = g_fab ? loom_fabric_design(g_fab) : NULL;
+	uint64_t compared = 0, differ = 0, shaped = 0, coloured = 0;
+
+	if (!g_tex || !des) {
+		CHECK(0);
+		return;
+	}
+	CHECK_EQ_INT(loom_paint_new("f", &p, NULL), LOOM_OK);
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_SLUB;
+	r.kind = LOOM_YARN_WEFT;
+	r.amount = 3;
+	r.x0 = 0.4 * vx;
+	r.x1 = 2.6 * g_b[0] * vx;
+	r.y0 = 0.3 * g_b[1] * vx;
+	r.y1 = 1.2 * g_b[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	r.kind = LOOM_YARN_WARP;
+	r.amount = 2;
+	r.y0 = 1.1 * g_b[1] * vx;
+	r.y1 = 2.5 * g_b[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_PULL;
+	r.kind = LOOM_YARN_WARP;
+	r.amount = 4;
+	r.x0 = 1.5 * g_b[0] * vx;
+	r.x1 = 2.9 * g_b[0] * vx;
+	r.y0 = 0.2 * g_b[1] * vx;
+	r.y1 = 2.0 * g_b[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_BROKEN_END;
+	r.kind = 0;
+	r.amount = 0;
+	r.x0 = 0.2 * g_b[0] * vx;
+	r.x1 = 0.9 * g_b[0] * vx;
+	r.mask_w = 2;
+	r.mask_h = 3;
+	r.mask = m;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	r.mask_w = r.mask_h = 0;
+	r.mask = NULL;
+	r.effect = LOOM_PAINT_MISSING_PICK;
+	r.x0 = 2.0 * g_b[0] * vx;
+	r.x1 = 3.0 * g_b[0] * vx;
+	r.y0 = 1.6 * g_b[1] * vx;
+	r.y1 = 2.2 * g_b[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_STAIN;
+	r.x0 = 3.3 * vx;
+	r.y0 = 5.2 * vx;
+	r.x1 = 1.7 * g_b[0] * vx;
+	r.y1 = 1.9 * g_b[1] * vx;
+	r.rgb[0] = 0.4f;
+	r.rgb[1] = 0.2f;
+	r.strength = 0.7f;
+	r.blend_mm = 4 * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_YARN;
+	r.kind = LOOM_YARN_WARP;
+	r.rgb[0] = 0.9f;
+	r.rgb[1] = 0.6f;
+	r.rgb[2] = 0.1f;
+	r.blend_mm = 2.5 * vx;
+	r.x0 = 1.2 * g_b[0] * vx;
+	r.x1 = 2.4 * g_b[0] * vx;
+	r.y0 = 0.7 * g_b[1] * vx;
+	r.y1 = 2.8 * g_b[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(p, &r, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_bind(p, g_tex, g_fab), LOOM_OK);
+
+	for (int layout = 0; layout < 2; layout++) {
+		/* one box over all regions and beyond, reaching 5 voxels above
+		   and below the cloth; one inside a region */
+		int64_t boxes[2][6] = {
+			{-3, -2, -5, 3 * (int64_t)g_b[0] + 4, 3 * (int64_t)g_b[1] + 3,
+			 (int64_t)g_b[2] + 5},
+			{(int64_t)g_b[0] + 3, (int64_t)g_b[1] / 2, 1, (int64_t)g_b[0] + 11,
+			 (int64_t)g_b[1] / 2 + 5, (int64_t)g_b[2] - 1}};
+		for (int bx = 0; bx < 2; bx++) {
+			const int64_t *lo = boxes[bx], *hi = boxes[bx] + 3;
+			int64_t nx = hi[0] - lo[0], ny = hi[1] - lo[1], nz = hi[2] - lo[2];
+			size_t n = (size_t)(nx * ny * nz);
+			uint8_t *d = malloc(n), *k = malloc(n), *ty = malloc(n), *lb = malloc(n);
+			uint16_t *o = malloc(n * sizeof *o);
+			loom_texture_region reg;
+			if (!d || !k || !ty || !lb || !o) {
+				CHECK(0);
+				goto next;
+			}
+			memset(&reg, 0, sizeof reg);
+			reg.density = d;
+			reg.orientation = o;
+			reg.kind = k;
+			reg.type = ty;
+			reg.label = lb;
+			reg.layout = layout;
+			CHECK_EQ_INT(loom_paint_read_region(p, lo, hi, &reg), LOOM_OK);
+			for (int64_t z = lo[2]; z < hi[2]; z++)
+				for (int64_t y = lo[1]; y < hi[1]; y++)
+					for (int64_t x = lo[0]; x < hi[0]; x++) {
+						double q[3] = {x + 0.5, y + 0.5, z + 0.5};
+						loom_texel a, u;
+						float al[3] = {0, 0, 0}, dec[3] = {0, 0, 0};
+						size_t i = layout == LOOM_REGION_Z_FASTEST
+						         ? (size_t)(((y - lo[1]) * nx + (x - lo[0])) * nz + (z - lo[2]))
+						         : (size_t)(((z - lo[2]) * ny + (y - lo[1])) * nx + (x - lo[0]));
+						int bad = 0;
+						CHECK_EQ_INT(loom_paint_sample(p, q, &a), LOOM_OK);
+						loom_texture_sample(g_tex, q, LOOM_FILTER_NEAREST, &u);
+						if (d[i])
+							loom_orientation_decode(o[i], dec);
+						if (k[i] && ty[i] < des->n_types) {
+							memcpy(al, des->types[ty[i]].albedo, sizeof al);
+							loom_paint_albedo(p, x, y, k[i], al);
+						}
+						bad |= (float)d[i] / 255.0f != a.density;
+						bad |= k[i] != a.kind || ty[i] != a.type || lb[i] != a.label;
+						bad |= memcmp(dec, a.orientation, sizeof dec) != 0;
+						bad |= memcmp(al, a.albedo, sizeof al) != 0;
+						if (bad && differ++ < 5)
+							printf("  voxel %lld %lld %lld (layout %d): bulk d %u k %u "
+							       "t %u, point d %g k %u t %u\n", (long long)x,
+							       (long long)y, (long long)z, layout, d[i], k[i],
+							       ty[i], a.density, a.kind, a.type);
+						shaped += u.kind != a.kind;
+						coloured += u.kind == a.kind && a.kind &&
+						            memcmp(u.albedo, a.albedo, sizeof al);
+						compared++;
+					}
+		next:
+			free(d);
+			free(k);
+			free(ty);
+			free(lb);
+			free(o);
+		}
+	}
+	printf("  %llu voxels compared, %llu differ; %llu changed in kind, %llu in "
+	       "colour by the paint\n", (unsigned long long)compared,
+	       (unsigned long long)differ, (unsigned long long)shaped,
+	       (unsigned long long)coloured);
+	CHECK(differ == 0);
+	CHECK(shaped > 500);
+	CHECK(coloured > 500);
+	{
+		/* far away: nothing touches; read equals the texture's */
+		int64_t lo[3] = {10 * (int64_t)g_b[0], 0, 0}, hi[3] = {10 * (int64_t)g_b[0] + 6, 4,
+		                                                        (int64_t)g_b[2]};
+		int64_t near_lo[2] = {0, 0}, near_hi[2] = {2, 2};
+		size_t n = (size_t)(6 * 4 * g_b[2]);
+		uint8_t *a = calloc(n, 1), *b = calloc(n, 1);
+		loom_texture_region ra, rb;
+		CHECK_EQ_INT(loom_paint_touches(p, lo, hi), 0);
+		CHECK_EQ_INT(loom_paint_touches(p, near_lo, near_hi),
+		             LOOM_PAINT_TOUCH_COLOUR); /* the stain's blend band */
+		memset(&ra, 0, sizeof ra);
+		memset(&rb, 0, sizeof rb);
+		ra.kind = a;
+		rb.kind = b;
+		CHECK_EQ_INT(loom_paint_read_region(p, lo, hi, &ra), LOOM_OK);
+		CHECK_EQ_INT(loom_texture_read_region(g_tex, lo, hi, &rb), LOOM_OK);
+		CHECK(a && b && !memcmp(a, b, n));
+		free(a);
+		free(b);
+	}
+	CHECK_EQ_INT(loom_paint_read_region(NULL, NULL, NULL, NULL), LOOM_EINVAL);
+	loom_paint_free(p);
+}
+
 /* Top yarn kind of the column at (x, y) voxels: the first voxel with yarn
    from the top; 0 for an empty column. */
 static int top_kind(loom_texture *t, double x, double y)
@@ -534,6 +720,7 @@ int main(void)
 	RUN(test_text_round_trip);
 	RUN(test_text_errors);
 	RUN(test_regions_brute_force);
+	RUN(test_bulk_equals_point);
 	RUN(test_weave);
 	RUN(test_bad_args);
 	loom_texture_close(g_tex);

@@ -19,6 +19,9 @@ static loom_design *g_design;
 static loom_fabric *g_fab;
 static loom_texture *g_tex;
 static uint32_t B[3];
+static loom_paint *g_paint;   /* when set: previews painted, brute force by
+                                 loom_paint_sample */
+static int g_blocks_strict;   /* BLOCKS compared as EXACT (every piece painted) */
 
 static uint64_t mix(uint64_t x)
 {
@@ -87,7 +90,12 @@ static void top_of(int64_t x, int64_t y, int64_t z0, int64_t z1, int thr,
 	al[0] = al[1] = al[2] = 0;
 	for (int64_t z = z1 - 1; z >= z0; z--) {
 		loom_texel tx;
-		CHECK_EQ_INT(loom_texture_voxel(g_tex, x, y, z, &tx), LOOM_OK);
+		if (g_paint) {
+			double q[3] = {x + 0.5, y + 0.5, z + 0.5};
+			CHECK_EQ_INT(loom_paint_sample(g_paint, q, &tx), LOOM_OK);
+		} else {
+			CHECK_EQ_INT(loom_texture_voxel(g_tex, x, y, z, &tx), LOOM_OK);
+		}
 		if ((int)lrintf(tx.density * 255.0f) >= thr) {
 			*h = (float)(z + 1);
 			*kind = tx.kind;
@@ -188,6 +196,7 @@ static int compare_case(const int64_t lo[3], const int64_t hi[3], uint32_t W,
 	po.width = W;
 	po.threads = threads;
 	po.filter = filter;
+	po.paint = g_paint;
 	po.memory_bytes = (size_t)1 << 20; /* small: several bands */
 	po.background[0] = 0.25f;
 	po.background[1] = 0.5f;
@@ -242,7 +251,7 @@ static int compare_case(const int64_t lo[3], const int64_t hi[3], uint32_t W,
 			for (int k = 0; k < 3; k++) {
 				double d = fabs(rgb[3 * p + (size_t)k] - want[k] / (double)n);
 				sum_diff += d;
-				if (filter == LOOM_PREVIEW_EXACT &&
+				if ((filter == LOOM_PREVIEW_EXACT || g_blocks_strict) &&
 				    (d > 1e-4 || fabs(al[3 * p + (size_t)k] - wal[k] / (double)n) > 1e-5)) {
 					if (bad++ < 5)
 						printf("  pixel %u,%u channel %d: %g, brute force %g\n", i, j,
@@ -259,7 +268,7 @@ static int compare_case(const int64_t lo[3], const int64_t hi[3], uint32_t W,
 				}
 			}
 		}
-	if (filter == LOOM_PREVIEW_BLOCKS) {
+	if (filter == LOOM_PREVIEW_BLOCKS && !g_blocks_strict) {
 		double mean = sum_diff / (3.0 * w * h);
 		printf("  blocks %ux%u: mean |difference| from brute force %.4f\n", w, h, mean);
 		if (!(mean < 0.02))
@@ -328,6 +337,110 @@ static void brute_force(void)
 	hi[2] = 0;
 	compare_case(lo, hi, 40, 2, LOOM_PREVIEW_EXACT, NULL);
 	compare_case(lo, hi, 13, 2, LOOM_PREVIEW_BLOCKS, NULL);
+}
+
+/*
+ * A painted fabric (loom_preview_options.paint): EXACT against the brute
+ * force over loom_paint_sample (every effect, partly overlapping; 1:1,
+ * minified, 2 threads); BLOCKS with a paint over the whole box (each
+ * piece read column by column) to the same tolerance; and the painted
+ * preview differs from the unpainted one.
+ */
+static void painted(void)
+{
+	loom_fabric_db_identity id;
+	loom_paint_region r;
+	double vx;
+	int64_t lo[3] = {-3, -2, 0}, hi[3];
+	float *a = NULL, *b = NULL;
+	uint32_t nx, w, h;
+
+	if (!g_tex)
+		return;
+	loom_fabric_get_db_identity(g_fab, &id);
+	vx = id.voxel_size_um * 1e-3;
+	hi[0] = (int64_t)B[0] * 4 + 5;
+	hi[1] = (int64_t)B[1] * 3 + 2;
+	hi[2] = 0;
+	nx = (uint32_t)(hi[0] - lo[0]);
+	CHECK_EQ_INT(loom_paint_new("f", &g_paint, NULL), LOOM_OK);
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_SLUB;
+	r.kind = LOOM_YARN_WEFT;
+	r.amount = 2;
+	r.x0 = 0;
+	r.x1 = 3.0 * B[0] * vx;
+	r.y0 = 0.2 * B[1] * vx;
+	r.y1 = 0.9 * B[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_PULL;
+	r.kind = LOOM_YARN_WARP;
+	r.amount = 3;
+	r.x0 = 1.2 * B[0] * vx;
+	r.x1 = 2.1 * B[0] * vx;
+	r.y0 = 0.5 * B[1] * vx;
+	r.y1 = 2.5 * B[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_BROKEN_END;
+	r.kind = 0;
+	r.amount = 0;
+	r.x0 = 3.1 * B[0] * vx;
+	r.x1 = 3.6 * B[0] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_STAIN;
+	r.rgb[0] = 0.3f;
+	r.rgb[1] = 0.2f;
+	r.rgb[2] = 0.1f;
+	r.strength = 0.9f;
+	r.blend_mm = 3 * vx;
+	r.x0 = 0.5 * B[0] * vx;
+	r.x1 = 2.5 * B[0] * vx;
+	r.y0 = 1.5 * B[1] * vx;
+	r.y1 = 2.6 * B[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	r.effect = LOOM_PAINT_YARN;
+	r.kind = LOOM_YARN_WARP;
+	r.rgb[0] = 0.9f;
+	r.rgb[1] = 0.7f;
+	r.rgb[2] = 0.0f;
+	r.x0 = 2.2 * B[0] * vx;
+	r.x1 = 4.0 * B[0] * vx;
+	r.y0 = 0;
+	r.y1 = 1.4 * B[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_bind(g_paint, g_tex, g_fab), LOOM_OK);
+	compare_case(lo, hi, nx, 1, LOOM_PREVIEW_EXACT, &a);
+	compare_case(lo, hi, nx / 3 + 1, 2, LOOM_PREVIEW_EXACT, NULL);
+	compare_case(lo, hi, nx * 2, 2, LOOM_PREVIEW_EXACT, NULL);
+	{
+		loom_preview_options po = LOOM_PREVIEW_OPTIONS_INIT;
+		memcpy(po.lo, lo, sizeof lo);
+		memcpy(po.hi, hi, sizeof hi);
+		po.width = nx;
+		po.background[0] = 0.25f;
+		po.background[1] = 0.5f;
+		po.background[2] = 0.75f;
+		loom_preview_size(&po, &w, &h);
+		b = calloc((size_t)w * h * 3, sizeof *b);
+		CHECK_EQ_INT(loom_preview(g_tex, g_fab, &po, b, NULL, NULL, NULL), LOOM_OK);
+		CHECK(a && b && memcmp(a, b, (size_t)w * h * 3 * sizeof(float)) != 0);
+	}
+	/* a stain over everything: BLOCKS reads every piece column by column */
+	r.effect = LOOM_PAINT_STAIN;
+	r.x0 = -100.0 * B[0] * vx;
+	r.x1 = 100.0 * B[0] * vx;
+	r.y0 = -100.0 * B[1] * vx;
+	r.y1 = 100.0 * B[1] * vx;
+	CHECK_EQ_INT(loom_paint_add(g_paint, &r, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_bind(g_paint, g_tex, g_fab), LOOM_OK);
+	g_blocks_strict = 1;
+	compare_case(lo, hi, nx / 5, 2, LOOM_PREVIEW_BLOCKS, NULL);
+	compare_case(lo, hi, nx / 3 + 1, 1, LOOM_PREVIEW_BLOCKS, NULL);
+	g_blocks_strict = 0;
+	loom_paint_free(g_paint);
+	g_paint = NULL;
+	free(a);
+	free(b);
 }
 
 /* Pick 0 at the top, end 0 at the left: the top-left pixel of a 1:1
@@ -477,6 +590,7 @@ int main(void)
 	CHECK_MAIN_BEGIN("test_preview");
 	RUN(setup);
 	RUN(brute_force);
+	RUN(painted);
 	RUN(orientation);
 	RUN(bad_arguments);
 	RUN(volume_source);

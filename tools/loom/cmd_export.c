@@ -35,7 +35,7 @@ static const char about[] =
 	"skips the tiles already complete and verified, so a killed job resumes.\n"
 	"Runs of one shard at once are refused (a lock in DIR); --status reports the\n"
 	"complete, missing and damaged tiles and the shards to run again.  FABRIC\n"
-	"may be a paint file (loom paint): its painted weaves are exported.\n";
+	"may be a paint file (loom paint): its painted regions are exported.\n";
 
 static const opt_choice format_names[] = {
 	{"vol", F_VOL}, {"nrrd", F_NRRD}, {"exr", F_EXR}, {"vdb", F_VDB}, {"nvdb", F_NVDB},
@@ -86,10 +86,17 @@ static int export_tile(void *vctx, unsigned wi, uint64_t k, uint64_t index, char
 		r.kind = w->k;
 		r.type = w->ty;
 	}
-	if (loom_texture_read_region(c->j->t, lo, rhi, &r) != LOOM_OK) {
+	/* a paint file: its slubs, broken ends, missing picks and pulls in the
+	   voxels read, its colours in the albedo (export_albedo) */
+	if ((c->j->paint ? loom_paint_read_region(c->j->paint, lo, rhi, &r)
+	                 : loom_texture_read_region(c->j->t, lo, rhi, &r)) != LOOM_OK) {
 		snprintf(msg, msz, "tile %s: %s", stem, loom_texture_errmsg(c->j->t));
 		return -1;
 	}
+	memcpy(w->lo, lo, sizeof w->lo);
+	memcpy(w->n, n, sizeof w->n);
+	w->tint = c->j->paint && (c->chmask & 1u << CH_ALBEDO) &&
+	          (loom_paint_touches(c->j->paint, lo, rhi) & LOOM_PAINT_TOUCH_COLOUR);
 	if (c->lod)
 		export_lod_tile(c, w, n);
 	w->line_len = 0;
@@ -305,6 +312,7 @@ int cmd_export(int argc, char **argv)
 	if (!out)
 		opts_usage(&cmd, "missing -o DIR");
 
+	j.keep_paint = 1; /* a paint file's regions applied to every tile */
 	tiles_open_fabric(&j, prog, path, 64);
 	if (c.format == F_EXR && (j.tsize[0] > 65536 || j.tsize[1] > 65536)) {
 		tiles_close(&j);

@@ -125,8 +125,9 @@ void cli_paint_note(const char *prog, const char *path, const loom_paint *p)
 		other += loom_paint_get(p, i)->effect != LOOM_PAINT_WEAVE;
 	if (other)
 		fprintf(stderr, "%s: warning: %s: %u region%s of colour or defect "
-		        "(applied at lookup time) shown by loom render only; painted "
-		        "weaves are shown\n", prog, path, other, other == 1 ? "" : "s");
+		        "(applied at lookup time) not shown by this command (loom render, "
+		        "preview, export and serve show them); painted weaves are "
+		        "shown\n", prog, path, other, other == 1 ? "" : "s");
 }
 
 /* ---- loom paint ------------------------------------------------------------ */
@@ -204,7 +205,7 @@ static const char *opt_rgb(const char *text, void *dest)
 }
 
 /* Write text to path atomically (temporary name, then rename). */
-static int write_atomic(const char *path, const char *text, size_t len, loom_diag *d)
+int cli_write_atomic(const char *path, const char *text, size_t len, loom_diag *d)
 {
 	char tmp[PATH_MAX];
 	FILE *fp;
@@ -439,7 +440,7 @@ int cmd_paint(int argc, char **argv)
 		cli_error(prog, "out of memory");
 		goto done;
 	}
-	if (write_atomic(out, text, len, &diag) != LOOM_OK) {
+	if (cli_write_atomic(out, text, len, &diag) != LOOM_OK) {
 		cli_error(prog, "%s", diag.message);
 		goto done;
 	}

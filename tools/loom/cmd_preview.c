@@ -28,7 +28,7 @@ static const char about[] =
 	"light and coloured by its yarn (docs/preview.md).  Streamed through the\n"
 	"virtual texture in bounded memory and written band by band; a 4096-pixel\n"
 	"preview of a whole large fabric takes seconds.  FABRIC may be a paint\n"
-	"file (loom paint): its painted weaves are shown.\n";
+	"file (loom paint): its painted regions are shown.\n";
 
 static const opt_choice filter_names[] = {
 	{"auto", LOOM_PREVIEW_AUTO}, {"exact", LOOM_PREVIEW_EXACT},
@@ -175,11 +175,6 @@ int cmd_preview(int argc, char **argv)
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
-	if (paint) {
-		/* painted weaves are in the fabric now */
-		cli_paint_note(prog, path, paint);
-		loom_paint_free(paint);
-	}
 	loom_fabric_get_db_identity(f, &id);
 	if (!opt_given(&c, &box)) {
 		uint64_t size[3];
@@ -194,10 +189,18 @@ int cmd_preview(int argc, char **argv)
 	to.budget_bytes = budget - own;
 	to.max_threads = threads ? threads : 16;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
+		loom_paint_free(paint);
 		loom_fabric_free(f);
 		loom_db_close(db);
 		cli_fail(prog, "%s", diag.message);
 	}
+	/* painted weaves are in the fabric; the other regions apply as the
+	   preview reads */
+	if (paint && loom_paint_bind(paint, t, f) != LOOM_OK) {
+		cli_error(prog, "out of memory binding the paint layer");
+		goto fail;
+	}
+	po.paint = paint;
 	memcpy(po.lo, box.lo, sizeof box.lo);
 	memcpy(po.hi, box.hi, sizeof box.hi);
 	po.width = width;
@@ -281,11 +284,13 @@ int cmd_preview(int argc, char **argv)
 		        (unsigned long long)st.columns);
 	}
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return 0;
 fail:
 	loom_texture_close(t);
+	loom_paint_free(paint);
 	loom_fabric_free(f);
 	loom_db_close(db);
 	return EXIT_BAD_INPUT;

@@ -68,7 +68,7 @@
 static const char usage[] =
 	"loom serve FABRIC|DRAFT [--port P] [--bind ADDR] [--budget MB]\n"
 	"           [--cache DIR] [--cache-mb MB] [--size-mm MM] [--db DB]\n"
-	"           [--threads N] [--quiet]\n";
+	"           [--threads N] [--paint-file PAINT] [--quiet]\n";
 
 static const char about[] =
 	"Serve a deep-zoom viewer of the cloth on http://127.0.0.1:P/: the whole\n"
@@ -77,13 +77,23 @@ static const char about[] =
 	"drawdown beside it, synchronised; yarn colours editable (no new\n"
 	"synthesis); a button for a render of the view.  A DRAFT (WIF or any\n"
 	"design) is synthesized first over the exemplar database.  FABRIC may\n"
-	"be a paint file (loom paint): its painted weaves are shown.  Stop with\n"
+	"be a paint file (loom paint): its painted regions are shown.  Stop with\n"
 	"Ctrl-C.\n";
 
 typedef struct server {
 	loom_fabric *f;
 	loom_db *db;
 	loom_texture *t;
+	loom_paint *paint;            /* a paint file's layer (bound to t), or NULL */
+	int64_t (*patch)[4];          /* painted weaves' crossings in the window:
+	                                 I0, J0, rows, cols (the drawdown's
+	                                 patches over the repeat) */
+	uint32_t n_patches;
+	pthread_rwlock_t paint_lock;  /* readers: tiles, renders; writer: the
+	                                 paint tool swapping s->paint */
+	char paint_path[4096];        /* where the paint tool saves ("" = none) */
+	char fabric_abs[4096];        /* the fabric's absolute path */
+	uint64_t paint_hash;          /* FNV-1a of the paint's text (cache keys) */
 	const loom_design *d;
 	loom_fabric_db_identity id;
 	serve_cache *cache;
@@ -243,9 +253,10 @@ static loom_yarn_type *snapshot(server *s, uint32_t *n, uint64_t *hash)
 	t = malloc((size_t)*n * sizeof *t);
 	if (t)
 		memcpy(t, s->types, (size_t)*n * sizeof *t);
+	*hash = s->paint_hash;
 	pthread_mutex_unlock(&s->lock);
 	if (t)
-		*hash = table_hash(t, *n);
+		*hash ^= table_hash(t, *n);
 	return t;
 }
 
@@ -285,7 +296,10 @@ static int make_tile(server *s, uint32_t L, uint64_t tx, uint64_t ty,
 	memset(&pic, 0, sizeof pic);
 	pic.path = path;
 	if ((rc = pic_open(&pic, po.width, po.height, &diag)) == LOOM_OK) {
+		pthread_rwlock_rdlock(&s->paint_lock);
+		po.paint = s->paint;
 		rc = loom_preview_stream(s->t, s->f, &po, pic_band, &pic, NULL, &diag);
+		pthread_rwlock_unlock(&s->paint_lock);
 		if (rc == LOOM_OK)
 			rc = pic_finish(&pic);
 		else
@@ -410,6 +424,60 @@ static enum MHD_Result serve_drawdown(server *s, struct MHD_Connection *conn)
 	return send_file(conn, path, 1);
 }
 
+/* /painted/K.png: the drawdown of painted-weave patch K, its crossings as
+   the painted fabric weaves them, in the served colours (the page draws it
+   over the repeat's pattern). */
+static enum MHD_Result serve_patch(server *s, struct MHD_Connection *conn,
+                                   const char *url)
+{
+	char key[96], path[4200];
+	loom_design *d = NULL;
+	uint32_t nt;
+	uint64_t hash;
+	long long k = number(url, strlen(url) - 4);
+	loom_yarn_type *types;
+	loom_diag diag = {0};
+	int rc;
+
+	if (strlen(url) < 5 || strcmp(url + strlen(url) - 4, ".png") || k < 0 ||
+	    k >= (long long)s->n_patches)
+		return error(conn, MHD_HTTP_NOT_FOUND, "no such painted weave");
+	if (!(types = snapshot(s, &nt, &hash)))
+		return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "out of memory");
+	snprintf(key, sizeof key, "p%016llx-%lld.png", (unsigned long long)hash, k);
+	serve_cache_path(s->cache, key, path, sizeof path);
+	if (serve_cache_lookup(s->cache, key)) {
+		free(types);
+		return send_file(conn, path, 1);
+	}
+	{
+		const int64_t *p = s->patch[k];
+		rc = loom_design_new((uint32_t)p[2], (uint32_t)p[3], &d);
+		if (rc == LOOM_OK)
+			rc = loom_design_set_types(d, nt);
+		for (uint32_t r = 0; rc == LOOM_OK && r < (uint32_t)p[2]; r++)
+			for (uint32_t c = 0; c < (uint32_t)p[3]; c++) {
+				loom_fabric_source src;
+				size_t i = (size_t)r * (size_t)p[3] + c;
+				if ((rc = loom_fabric_source_at(s->f, p[0] + r, p[1] + c, &src)))
+					break;
+				d->weave[i] = src.warp_over;
+				d->warp_type[i] = src.warp_type;
+				d->weft_type[i] = src.weft_type;
+			}
+		if (rc == LOOM_OK) {
+			memcpy(d->types, types, (size_t)nt * sizeof *types);
+			rc = loom_color_drawdown_write(path, d, 1, &diag);
+		}
+	}
+	loom_design_free(d);
+	free(types);
+	if (rc != LOOM_OK)
+		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR, "drawdown failed");
+	serve_cache_add(s->cache, key);
+	return send_file(conn, path, 1);
+}
+
 static uint8_t to_srgb8(float lin)
 {
 	double c = lin <= 0 ? 0 : lin >= 1 ? 1 : lin;
@@ -420,7 +488,7 @@ static uint8_t to_srgb8(float lin)
 static enum MHD_Result serve_info(server *s, struct MHD_Connection *conn)
 {
 	char *buf;
-	size_t cap = 4096 + (size_t)s->n_types * 160, len = 0;
+	size_t cap = 4096 + (size_t)s->n_types * 160 + (size_t)s->n_patches * 96, len = 0;
 	enum MHD_Result rc;
 	uint64_t cb;
 	uint32_t cf;
@@ -458,6 +526,12 @@ static enum MHD_Result serve_info(server *s, struct MHD_Connection *conn)
 		                        to_srgb8(y->albedo[1]), to_srgb8(y->albedo[2]));
 	}
 	pthread_mutex_unlock(&s->lock);
+	len += (size_t)snprintf(buf + len, cap - len, "],\n \"painted_weaves\": [");
+	for (uint32_t k = 0; k < s->n_patches; k++)
+		len += (size_t)snprintf(buf + len, cap - len, "%s[%lld, %lld, %lld, %lld]",
+		                        k ? ", " : "", (long long)s->patch[k][0],
+		                        (long long)s->patch[k][1], (long long)s->patch[k][2],
+		                        (long long)s->patch[k][3]);
 	snprintf(buf + len, cap - len, "]}\n");
 	rc = reply(conn, MHD_HTTP_OK, "application/json", buf);
 	free(buf);
@@ -503,9 +577,155 @@ static enum MHD_Result serve_color(server *s, struct MHD_Connection *conn)
 	return reply(conn, MHD_HTTP_OK, "application/json", buf);
 }
 
+/* A finite number argument; *bad set when absent or not a number. */
+static double num_arg(struct MHD_Connection *conn, const char *name, double def,
+                      int *bad)
+{
+	const char *v = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, name);
+	char *end;
+	double x;
+
+	if (!v)
+		return def;
+	x = strtod(v, &end);
+	if (!*v || *end || !isfinite(x)) {
+		*bad = 1;
+		return def;
+	}
+	return x;
+}
+
+/* "what: why" for a JSON error: quotes and backslashes made plain. */
+static const char *paint_msg(char *out, size_t n, const char *what, const char *why)
+{
+	snprintf(out, n, "%s: %.300s", what, why);
+	for (char *c = out; *c; c++)
+		if (*c == '"' || *c == '\\' || (unsigned char)*c < 32)
+			*c = '\'';
+	return out;
+}
+
+/*
+ * POST /api/paint?x0=&y0=&x1=&y1=&effect=E[&kind=K][&rgb=RRGGBB]
+ * [&strength=S][&blend=MM][&amount=V]: the viewer's paint tool.  One
+ * region of colour or defect (cloth mm; the defaults of loom paint),
+ * checked by loom_paint_add as loom paint checks it, added to the paint
+ * layer, the paint file written (temporary name, then rename) and the
+ * layer swapped in while no tile or render reads it.
+ */
+static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
+{
+	const char *es = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "effect");
+	const char *ks = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "kind");
+	const char *rgb = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "rgb");
+	loom_paint_region r;
+	loom_paint *np = NULL, *old;
+	loom_diag diag = {0};
+	char *text = NULL, buf[96], msg[400];
+	size_t len = 0;
+	int bad = 0, rc;
+	uint64_t h = 0xcbf29ce484222325ull;
+	uint32_t ver;
+
+	if (!s->paint_path[0])
+		return error(conn, MHD_HTTP_CONFLICT, "painting needs a fabric file (serve a "
+		             ".loomf or a paint file)");
+	memset(&r, 0, sizeof r);
+	r.effect = es ? loom_paint_effect_parse(es) : 0;
+	if (!r.effect || r.effect == LOOM_PAINT_WEAVE)
+		return error(conn, MHD_HTTP_BAD_REQUEST, "effect must be yarn, stain, slub, "
+		             "broken-end, missing-pick or pull (weaves: loom paint --weave)");
+	r.x0 = num_arg(conn, "x0", NAN, &bad);
+	r.y0 = num_arg(conn, "y0", NAN, &bad);
+	r.x1 = num_arg(conn, "x1", NAN, &bad);
+	r.y1 = num_arg(conn, "y1", NAN, &bad);
+	r.kind = r.effect == LOOM_PAINT_SLUB || r.effect == LOOM_PAINT_PULL ? LOOM_YARN_WARP : 0;
+	if (ks && !strcmp(ks, "warp"))
+		r.kind = LOOM_YARN_WARP;
+	else if (ks && !strcmp(ks, "weft"))
+		r.kind = LOOM_YARN_WEFT;
+	else if (ks && !strcmp(ks, "any"))
+		r.kind = 0;
+	else if (ks)
+		bad = 1;
+	r.rgb[0] = 0.35f;
+	r.rgb[1] = 0.22f;
+	r.rgb[2] = 0.08f;
+	if (rgb) {
+		int v[6];
+		if (strlen(rgb) != 6)
+			bad = 1;
+		for (int q = 0; !bad && q < 6; q++)
+			if ((v[q] = hexval(rgb[q])) < 0)
+				bad = 1;
+		for (int c = 0; !bad && c < 3; c++)
+			r.rgb[c] = srgb_to_lin(v[2 * c] * 16 + v[2 * c + 1]);
+	}
+	r.strength = r.effect == LOOM_PAINT_STAIN ? (float)num_arg(conn, "strength", 0.7, &bad)
+	                                          : 0.0f;
+	r.blend_mm = r.effect == LOOM_PAINT_YARN || r.effect == LOOM_PAINT_STAIN
+	           ? num_arg(conn, "blend", 0.2, &bad) : 0;
+	{
+		double a = num_arg(conn, "amount", r.effect == LOOM_PAINT_SLUB ? 2 : 4, &bad);
+		if (a < 0 || a > 1e6 || a != floor(a))
+			bad = 1;
+		else if (r.effect == LOOM_PAINT_SLUB || r.effect == LOOM_PAINT_PULL)
+			r.amount = (uint32_t)a;
+	}
+	if (bad)
+		return error(conn, MHD_HTTP_BAD_REQUEST, "expected x0, y0, x1, y1 (mm), "
+		             "kind=any|warp|weft, rgb=RRGGBB, numbers for strength, blend, "
+		             "amount");
+	/* the new layer: the current one's regions and this one */
+	pthread_rwlock_rdlock(&s->paint_lock);
+	rc = s->paint ? loom_paint_format(s->paint, &text, &len) : LOOM_OK;
+	pthread_rwlock_unlock(&s->paint_lock);
+	if (rc == LOOM_OK)
+		rc = text ? loom_paint_parse(text, len, s->paint_path, &np, &diag)
+		          : loom_paint_new(s->fabric_abs, &np, &diag);
+	free(text);
+	text = NULL;
+	if (rc != LOOM_OK) {
+		loom_paint_free(np);
+		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR, "paint: out of memory");
+	}
+	if (loom_paint_add(np, &r, &diag) != LOOM_OK) {
+		loom_paint_free(np);
+		return error(conn, MHD_HTTP_BAD_REQUEST, paint_msg(msg, sizeof msg, "paint refused",
+		                                                   diag.message));
+	}
+	if (loom_paint_format(np, &text, &len) != LOOM_OK ||
+	    cli_write_atomic(s->paint_path, text, len, &diag) != LOOM_OK ||
+	    loom_paint_bind(np, s->t, s->f) != LOOM_OK) {
+		free(text);
+		loom_paint_free(np);
+		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR,
+		             paint_msg(msg, sizeof msg, "paint not saved", diag.message));
+	}
+	for (size_t k = 0; k < len; k++)
+		h = (h ^ (unsigned char)text[k]) * 0x100000001b3ull;
+	free(text);
+	pthread_rwlock_wrlock(&s->paint_lock);
+	old = s->paint;
+	s->paint = np;
+	pthread_rwlock_unlock(&s->paint_lock);
+	loom_paint_free(old);
+	pthread_mutex_lock(&s->lock);
+	s->paint_hash = h;
+	ver = ++s->version;
+	pthread_mutex_unlock(&s->lock);
+	if (!s->quiet)
+		fprintf(stderr, "loom serve: painted %s %g,%g:%g,%g mm; %u regions in %s\n",
+		        es, r.x0, r.y0, r.x1, r.y1, loom_paint_count(np), s->paint_path);
+	snprintf(buf, sizeof buf, "{\"version\": %u, \"regions\": %u}\n", ver,
+	         loom_paint_count(np));
+	return reply(conn, MHD_HTTP_OK, "application/json", buf);
+}
+
 /* The render's volume source: the texture, coloured by the served table. */
 typedef struct render_src {
 	loom_texture *t;
+	const loom_paint *paint;      /* or NULL */
 	const loom_yarn_type *types;
 	uint32_t n_types;
 } render_src;
@@ -514,13 +734,18 @@ static int render_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 {
 	render_src *r = ctx;
 	loom_texel tx;
-	int rc = loom_texture_sample(r->t, p, LOOM_FILTER_NEAREST, &tx);
+	int rc = r->paint ? loom_paint_sample(r->paint, p, &tx)
+	                  : loom_texture_sample(r->t, p, LOOM_FILTER_NEAREST, &tx);
 
 	out->density = tx.density;
 	memcpy(out->orient, tx.orientation, sizeof out->orient);
 	if (tx.kind && tx.type < r->n_types) {
+		/* the served colour, then the paint's tint of it */
 		memcpy(out->albedo, r->types[tx.type].albedo, sizeof out->albedo);
 		out->alignment = r->types[tx.type].alignment;
+		if (r->paint)
+			loom_paint_albedo(r->paint, (int64_t)floor(p[0]), (int64_t)floor(p[1]),
+			                  tx.kind, out->albedo);
 	} else {
 		memcpy(out->albedo, tx.albedo, sizeof out->albedo);
 		out->alignment = tx.alignment;
@@ -598,7 +823,10 @@ static enum MHD_Result serve_render(server *s, struct MHD_Connection *conn)
 	src.thread_done = render_thread_done;
 	view_render_setup(&src, lo, hi, (uint32_t)w, (uint32_t)h, &ro);
 	ro.seed = 1;
+	pthread_rwlock_rdlock(&s->paint_lock);
+	rs.paint = s->paint;
 	rc = view_prog_pass(&vp, &src, &ro, 2, &diag);
+	pthread_rwlock_unlock(&s->paint_lock);
 	snprintf(key, sizeof key, "r%016llx-%lld-%lld-%lld-%lld-%lld.png",
 	         (unsigned long long)hash, (long long)lo[0], (long long)lo[1],
 	         (long long)hi[0], (long long)hi[1], w);
@@ -644,6 +872,9 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
 	if (strcmp(url, "/api/color") == 0)
 		return post ? serve_color(s, conn)
 		            : error(conn, MHD_HTTP_METHOD_NOT_ALLOWED, "POST a colour change");
+	if (strcmp(url, "/api/paint") == 0)
+		return post ? serve_paint(s, conn)
+		            : error(conn, MHD_HTTP_METHOD_NOT_ALLOWED, "POST a painted region");
 	if (post && strcmp(url, "/api/render") != 0)
 		return error(conn, MHD_HTTP_METHOD_NOT_ALLOWED, "GET only");
 	if (strncmp(url, "/tile/", 6) == 0)
@@ -654,6 +885,8 @@ static enum MHD_Result handler(void *cls, struct MHD_Connection *conn, const cha
 		return serve_render(s, conn);
 	if (strcmp(url, "/drawdown.png") == 0)
 		return serve_drawdown(s, conn);
+	if (strncmp(url, "/painted/", 9) == 0)
+		return serve_patch(s, conn, url + 9);
 	if (page_path(s, url, path, sizeof path))
 		return send_file(conn, path, 0);
 	return error(conn, MHD_HTTP_NOT_FOUND, "no such page");
@@ -667,6 +900,36 @@ static void on_signal(int sig)
 {
 	(void)sig;
 	stop = 1;
+}
+
+/* The painted weaves' crossings inside the window (crossings whose centre
+   may lie in a weave region, as loom_paint_apply_weaves picks them). */
+static void painted_patches(const char *prog, server *s)
+{
+	uint32_t n = loom_paint_count(s->paint);
+	double vmm = s->id.voxel_size_um * 1e-3, b1 = s->id.block[0], b2 = s->id.block[1];
+	double cols = (double)s->win[0] / b1, rows = (double)s->win[1] / b2;
+
+	s->patch = malloc((n ? n : 1) * sizeof *s->patch);
+	if (!s->patch)
+		cli_fail(prog, "out of memory");
+	for (uint32_t i = 0; i < n; i++) {
+		const loom_paint_region *r = loom_paint_get(s->paint, i);
+		double J0, J1, I0, I1;
+		if (r->effect != LOOM_PAINT_WEAVE)
+			continue;
+		J0 = fmax(0, floor(r->x0 / vmm / b1 - 0.5));
+		J1 = fmin(cols - 1, ceil(r->x1 / vmm / b1 - 0.5));
+		I0 = fmax(0, floor(r->y0 / vmm / b2 - 0.5));
+		I1 = fmin(rows - 1, ceil(r->y1 / vmm / b2 - 0.5));
+		if (J1 < J0 || I1 < I0)
+			continue;
+		s->patch[s->n_patches][0] = (int64_t)I0;
+		s->patch[s->n_patches][1] = (int64_t)J0;
+		s->patch[s->n_patches][2] = (int64_t)(I1 - I0 + 1);
+		s->patch[s->n_patches][3] = (int64_t)(J1 - J0 + 1);
+		s->n_patches++;
+	}
 }
 
 /* Open FABRIC, or synthesize a DRAFT (any design loom reads). */
@@ -685,14 +948,22 @@ static void load(const char *prog, const char *in, const char *db_opt, server *s
 			   keyed by the paint's text too */
 			char *text = NULL;
 			size_t len = 0;
-			cli_paint_note(prog, in, paint);
 			if (loom_paint_format(paint, &text, &len) != LOOM_OK)
 				cli_fail(prog, "out of memory");
 			*paint_hash = 0xcbf29ce484222325ull;
 			for (size_t k = 0; k < len; k++)
 				*paint_hash = (*paint_hash ^ (unsigned char)text[k]) * 0x100000001b3ull;
 			free(text);
-			loom_paint_free(paint);
+			s->paint = paint; /* bound when the texture opens */
+			snprintf(s->paint_path, sizeof s->paint_path, "%s", in);
+			snprintf(s->fabric_abs, sizeof s->fabric_abs, "%s",
+			         loom_paint_fabric(paint));
+		} else if (!realpath(in, s->fabric_abs)) {
+			cli_fail(prog, "%s: %s", in, strerror(errno));
+		} else {
+			/* the paint tool's file: FABRIC.loomp beside the fabric */
+			size_t n = strlen(in) - strlen(".loomf");
+			snprintf(s->paint_path, sizeof s->paint_path, "%.*s.loomp", (int)n, in);
 		}
 	} else {
 		const char *db_path = cli_db_require(db_opt, prog);
@@ -711,6 +982,7 @@ int cmd_serve(int argc, char **argv)
 {
 	const char *prog = "loom serve";
 	const char *in = NULL, *db_opt = NULL, *cache_opt = NULL, *bind_opt = "127.0.0.1";
+	const char *paint_out = NULL;
 	uint32_t port = 8080, threads = 0;
 	double budget_mb = 128, cache_mb = 256, size_mm = 200;
 	int quiet = 0;
@@ -741,6 +1013,9 @@ int cmd_serve(int argc, char **argv)
 		OPT_DB(&db_opt, "exemplar database (default: the fabric's; for a DRAFT "
 		       "$LOOM_DB, then default.ldb)"),
 		OPT_THREADS(&threads, 256, "threads of one render (default: all CPUs)"),
+		OPT_STRING(0, "paint-file", &paint_out, "PAINT", "where the page's paint tool "
+		           "saves the regions drawn (default: the paint file served, or "
+		           "FABRIC.loomp beside a fabric)"),
 		OPT_QUIET(&quiet, "no log of requests"),
 		OPT_END()
 	};
@@ -773,6 +1048,12 @@ int cmd_serve(int argc, char **argv)
 	}
 	cli_diag_init(&diag, &quiet);
 	load(prog, in, db_opt, &s, &paint_hash, &diag);
+	s.paint_hash = paint_hash;
+	if (paint_out)
+		snprintf(s.paint_path, sizeof s.paint_path, "%s", paint_out);
+	if (paint_out && !s.fabric_abs[0])
+		opts_usage(&c, "--paint-file: serve a fabric (.loomf) or a paint file to paint "
+		           "on it");
 	s.d = loom_fabric_design(s.f);
 	loom_fabric_get_db_identity(s.f, &s.id);
 	loom_fabric_repeat_voxels(s.f, rep);
@@ -785,6 +1066,8 @@ int cmd_serve(int argc, char **argv)
 	}
 	while (((uint64_t)1 << s.top) < (s.img[0] > s.img[1] ? s.img[0] : s.img[1]))
 		s.top++;
+	if (s.paint)
+		painted_patches(prog, &s);
 	s.n_types = s.d->n_types;
 	s.types = malloc((size_t)s.n_types * sizeof *s.types);
 	if (!s.types)
@@ -796,6 +1079,8 @@ int cmd_serve(int argc, char **argv)
 	to.max_threads = 64 + SERVE_TILE_WORKERS;
 	if (loom_texture_open(s.f, s.db, &to, &s.t, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
+	if (s.paint && loom_paint_bind(s.paint, s.t, s.f) != LOOM_OK)
+		cli_fail(prog, "out of memory binding the paint layer");
 	if (cache_opt) {
 		snprintf(cache_dir, sizeof cache_dir, "%s", cache_opt);
 	} else {
@@ -817,6 +1102,7 @@ int cmd_serve(int argc, char **argv)
 		cli_fail(prog, "%s", err);
 	pthread_mutex_init(&s.lock, NULL);
 	pthread_mutex_init(&s.render_lock, NULL);
+	pthread_rwlock_init(&s.paint_lock, NULL);
 	pthread_mutex_init(&s.work_lock, NULL);
 	pthread_cond_init(&s.work_cond, NULL);
 	(void)threads;
@@ -850,6 +1136,8 @@ int cmd_serve(int argc, char **argv)
 		        (unsigned long long)atomic_load(&s.rejected));
 	serve_cache_close(s.cache);
 	loom_texture_close(s.t);
+	loom_paint_free(s.paint);
+	free(s.patch);
 	loom_fabric_free(s.f);
 	loom_db_close(s.db);
 	free(s.types);

@@ -44,7 +44,12 @@ struct ewstate {
 	uint8_t *io;           /* CRC read buffer */
 	char *line;            /* the tile's manifest line being built */
 	size_t line_cap, line_len;
+	/* the tile in the buffers: its first voxel and size read; tint: a
+	   paint colour reaches it (albedo through loom_paint_albedo) */
+	int64_t lo[3], n[3];
+	int tint;
 };
+
 
 struct export_ctx {
 	tiles_job *j;
@@ -74,6 +79,10 @@ struct export_ctx {
 };
 
 /* ---- export_lod.c ---------------------------------------------------------- */
+/* Albedo of voxel (kind kd, type ty) of column (x, y) of the tile in w's
+   buffers: the yarn table's, tinted by the paint's colours (export_lod.c). */
+void export_albedo(const struct export_ctx *c, const struct ewstate *w, int64_t x,
+                   int64_t y, uint8_t kd, uint8_t ty, float out[3]);
 
 /* Floats per coarse voxel in ewstate.lv: density, orientation (3), albedo
    (3), kind, type. */

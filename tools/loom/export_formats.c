@@ -43,7 +43,13 @@ static void fill_row(const struct export_ctx *c, const struct ewstate *w, int ch
 		break;
 	case CH_ALBEDO:
 		for (size_t i = 0; i < nx; i++) {
-			if (k[i])
+			if (k[i] && w->tint) {
+				/* the tile buffers are x fastest: off + i is (x, y, z) */
+				size_t v = off + i, nxy = (size_t)w->n[0];
+				int64_t x = w->lo[0] + (int64_t)(v % nxy);
+				int64_t y = w->lo[1] + (int64_t)(v / nxy % (size_t)w->n[1]);
+				export_albedo(c, w, x, y, k[i], ty[i], out + 3 * i);
+			} else if (k[i])
 				memcpy(out + 3 * i, c->albedo[ty[i]], 3 * sizeof(float));
 			else
 				out[3 * i] = out[3 * i + 1] = out[3 * i + 2] = 0.0f;

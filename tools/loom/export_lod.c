@@ -48,6 +48,14 @@ static void principal_eigvec(double a[3][3], double out[3])
 		out[i] /= len;
 }
 
+void export_albedo(const struct export_ctx *c, const struct ewstate *w, int64_t x,
+                   int64_t y, uint8_t kd, uint8_t ty, float out[3])
+{
+	memcpy(out, c->albedo[ty], 3 * sizeof(float));
+	if (w->tint)
+		loom_paint_albedo(c->j->paint, x, y, kd, out);
+}
+
 void export_lod_tile(const struct export_ctx *c, struct ewstate *w, const int64_t n[3])
 {
 	const size_t s = (size_t)1 << c->lod;
@@ -84,8 +92,11 @@ void export_lod_tile(const struct export_ctx *c, struct ewstate *w, const int64_
 								if (kd < 3)
 									kw[kd] += r;
 								wa += r;
+								float a3[3];
+								export_albedo(c, w, w->lo[0] + (int64_t)x,
+								              w->lo[1] + (int64_t)y, kd, ty, a3);
 								for (int q = 0; q < 3; q++)
-									alb[q] += r * c->albedo[ty][q];
+									alb[q] += r * a3[q];
 								if (w->tw[ty] == 0.0) {
 									seen[nseen++] = ty;
 								}

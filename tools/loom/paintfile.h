@@ -1,7 +1,7 @@
 /* tools/loom/paintfile.h - paint files for the commands (cmd_paint.c):
    read with the checks of every loom format, and a fabric-or-paint opener
-   for the commands that honour paint (render: every region; preview,
-   export, serve: the painted weaves). */
+   for the commands that honour paint (render, preview, export, serve:
+   every region; others, e.g. scan: the painted weaves). */
 #ifndef LOOM_PAINTFILE_H
 #define LOOM_PAINTFILE_H
 
@@ -14,9 +14,12 @@ int cli_is_paint(const char *path);
 int cli_paint_read(const char *path, loom_paint **out, loom_diag *diag);
 /* Open path as a fabric, or as a paint file and its fabric (*paint set,
    else NULL).  LOOM_OK or an error with diag. */
-/* The note of a command that shows only the painted weaves (preview,
-   export, serve): the other regions, if any, named on stderr. */
+/* The note of a command that shows only the painted weaves (scan): the
+   other regions, if any, named on stderr. */
 void cli_paint_note(const char *prog, const char *path, const loom_paint *p);
+/* Write text to path atomically (a temporary name in the same directory,
+   then rename).  LOOM_OK, or LOOM_EIO / LOOM_EINVAL with the path in d. */
+int cli_write_atomic(const char *path, const char *text, size_t len, loom_diag *d);
 int cli_open_painted(const char *path, loom_db *db, loom_fabric **f,
                      loom_paint **paint, loom_diag *diag);
 

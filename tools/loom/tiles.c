@@ -297,7 +297,9 @@ void tiles_open_fabric(tiles_job *j, const char *prog, const char *path,
 			loom_db_close(j->db);
 			cli_fail(prog, "%s", diag.message);
 		}
-		if (paint) {
+		if (paint && j->keep_paint) {
+			j->paint = paint; /* bound to the texture when it opens */
+		} else if (paint) {
 			/* painted weaves are in the fabric now */
 			cli_paint_note(prog, path, paint);
 			loom_paint_free(paint);
@@ -428,13 +430,20 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 		tiles_close(j);
 		exit(code);
 	}
+	if (j->paint && loom_paint_bind(j->paint, j->t, j->f) != LOOM_OK) {
+		fprintf(stderr, "%s: out of memory binding the paint layer\n", prog);
+		tiles_close(j);
+		exit(EXIT_BAD_INPUT);
+	}
 }
 
 void tiles_close(tiles_job *j)
 {
 	loom_texture_close(j->t);
+	loom_paint_free(j->paint);
 	loom_fabric_free(j->f);
 	loom_db_close(j->db);
+	j->paint = NULL;
 	j->t = NULL;
 	j->f = NULL;
 	j->db = NULL;

@@ -77,6 +77,10 @@ typedef struct tiles_job {
 	loom_db *db;
 	loom_fabric *f;
 	loom_texture *t;
+	loom_paint *paint;         /* a paint file's layer, bound to t, when the
+	                              caller set keep_paint (else NULL: its
+	                              colours and defects noted as not shown) */
+	int keep_paint;            /* set before tiles_open_fabric (export) */
 	uint64_t rep[3];           /* voxels of one repeat */
 	double voxel_mm;           /* edge of a voxel, mm */
 	size_t texture_budget;     /* bytes given to the texture */

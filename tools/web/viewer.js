@@ -2,10 +2,14 @@
  * tools/web/viewer.js - the page of `loom serve`: the cloth as a deep-zoom
  * picture (OpenSeadragon over the server's /tile/L/X/Y.png pyramid), the
  * colour drawdown beside it drawn on a canvas for exactly the region the
- * cloth shows (one repeat from /drawdown.png, tiled as a canvas pattern),
+ * cloth shows (one repeat from /drawdown.png, tiled as a canvas pattern,
+ * and the painted weaves' crossings from /painted/K.png over it),
  * yarn colours editable (POST /api/color; tiles are re-made in the new
  * colours without new synthesis), and a render of the view
- * (/api/render).  window.loomStats counts tiles for the browser test.
+ * (/api/render), and a paint tool: a rectangle dragged on the cloth (in
+ * cloth millimetres) becomes a painted region of colour or defect, saved
+ * by the server in the paint file (POST /api/paint) and shown at once.
+ * window.loomStats counts tiles and paints for the browser tests.
  */
 'use strict';
 window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
@@ -46,11 +50,20 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
   const canvas = document.getElementById('drawdown');
   const ctx = canvas.getContext('2d');
   let repeat = null;
-  const loadDrawdown = () => new Promise((ok) => {
+  let patches = [];  /* painted weaves: [I0, J0, rows, cols] and their picture */
+  const loadImage = (src) => new Promise((ok) => {
     const img = new Image();
-    img.onload = () => { repeat = img; ok(); };
-    img.src = `/drawdown.png?v=${version}`;
+    img.onload = () => ok(img);
+    img.onerror = () => ok(null);
+    img.src = src;
   });
+  const loadDrawdown = async () => {
+    repeat = await loadImage(`/drawdown.png?v=${version}`);
+    const pw = info.painted_weaves || [];
+    patches = await Promise.all(pw.map(async (p, k) => ({
+      at: p, img: await loadImage(`/painted/${k}.png?v=${version}`) })));
+    window.loomStats.patches = patches.filter((p) => p.img).length;
+  };
   const drawDrawdown = () => {
     const el = document.getElementById('cloth');
     canvas.width = canvas.clientWidth;
@@ -89,6 +102,10 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
     const x1 = Math.min(info.design[1] * info.repeats[0], v.x1 / info.block[0]);
     const y1 = Math.min(info.design[0] * info.repeats[1], v.y1 / info.block[1]);
     if (x1 > x0 && y1 > y0) ctx.fillRect(x0, y0, x1 - x0, y1 - y0);
+    /* painted weaves over the repeat, crossing for crossing */
+    ctx.imageSmoothingEnabled = sx < 1 || sy < 1;
+    for (const p of patches)
+      if (p.img) ctx.drawImage(p.img, p.at[1], p.at[0], p.at[3], p.at[2]);
     ctx.setTransform(1, 0, 0, 1, 0, 0);
     const mm = (v.x1 - v.x0) * info.voxel_um / 1000;
     document.getElementById('scale').textContent = `${mm.toFixed(mm < 10 ? 2 : 1)} mm across`;
@@ -145,6 +162,71 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
     label.appendChild(document.createTextNode(y.name));
     yarns.appendChild(label);
   });
+
+  /* the paint tool: drag a rectangle on the cloth */
+  const clothEl = document.getElementById('cloth');
+  const paintBox = document.getElementById('paint-box');
+  const paintBtn = document.getElementById('paint');
+  let painting = false, from = null;
+  const setPainting = (on) => {
+    painting = on;
+    cloth.setMouseNavEnabled(!on);
+    clothEl.classList.toggle('painting', on);
+    paintBtn.textContent = on ? 'Cancel painting' : 'Paint a rectangle';
+    status.textContent = on ? 'drag a rectangle on the cloth' : status.textContent;
+  };
+  paintBtn.onclick = () => setPainting(!painting);
+  const local = (e) => {
+    const r = clothEl.getBoundingClientRect();
+    return { x: e.clientX - r.left, y: e.clientY - r.top };
+  };
+  const toMM = (p) => {   /* viewport units are picture widths on both axes */
+    const v = cloth.viewport.pointFromPixel(new OpenSeadragon.Point(p.x, p.y), true);
+    const k = info.width / ppv * info.voxel_um / 1000;
+    return { x: v.x * k, y: v.y * k };
+  };
+  const showBox = (a, b) => {
+    paintBox.hidden = false;
+    paintBox.style.left = `${Math.min(a.x, b.x)}px`;
+    paintBox.style.top = `${Math.min(a.y, b.y)}px`;
+    paintBox.style.width = `${Math.abs(b.x - a.x)}px`;
+    paintBox.style.height = `${Math.abs(b.y - a.y)}px`;
+  };
+  clothEl.addEventListener('pointerdown', (e) => {
+    if (!painting) return;
+    e.preventDefault();
+    e.stopPropagation();
+    from = local(e);
+    showBox(from, from);
+  }, true);
+  window.addEventListener('pointermove', (e) => { if (from) showBox(from, local(e)); }, true);
+  window.addEventListener('pointerup', async (e) => {
+    if (!from) return;
+    const to = local(e), a = toMM(from), b = toMM(to);
+    from = null;
+    paintBox.hidden = true;
+    setPainting(false);
+    if (Math.abs(b.x - a.x) < 1e-3 || Math.abs(b.y - a.y) < 1e-3) return;
+    const q = new URLSearchParams({
+      x0: Math.min(a.x, b.x).toFixed(4), y0: Math.min(a.y, b.y).toFixed(4),
+      x1: Math.max(a.x, b.x).toFixed(4), y1: Math.max(a.y, b.y).toFixed(4),
+      effect: document.getElementById('paint-effect').value,
+      kind: document.getElementById('paint-kind').value,
+      rgb: document.getElementById('paint-rgb').value.slice(1) });
+    status.textContent = 'painting...';
+    const r = await fetch(`/api/paint?${q}`, { method: 'POST' });
+    if (!r.ok) { status.textContent = `paint refused: ${await r.text()}`; return; }
+    version = (await r.json()).version;
+    window.loomStats.version = version;
+    window.loomStats.painted = (window.loomStats.painted || 0) + 1;
+    window.loomStats.paintedMM = [q.get('x0'), q.get('y0'), q.get('x1'), q.get('y1')].map(Number);
+    const keep = cloth.viewport.getBounds(true);
+    cloth.addTiledImage({
+      tileSource: clothSource(), index: 0, replace: true,
+      success: () => { cloth.viewport.fitBounds(keep, true); drawDrawdown(); },
+    });
+    status.textContent = `painted ${q.get('effect')} (saved)`;
+  }, true);
 
   /* a render of the view */
   const panel = document.getElementById('render-panel');

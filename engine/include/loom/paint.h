@@ -112,6 +112,41 @@ LOOM_API int loom_paint_volume_source(loom_paint *p, loom_texture *t,
 LOOM_API int loom_paint_sample(const loom_paint *p, const double pos[3],
                                loom_texel *out);
 
+/*
+ * The bulk reads (docs/fabric.md "Painted regions in bulk reads"): what
+ * loom_preview, loom export and loom serve read a box at a time, with the
+ * paint applied voxel for voxel as loom_paint_sample applies it with the
+ * nearest filter.  Bind first (loom_paint_volume_source binds too; one
+ * binding at a time: the last one counts).  Memory per call O(regions +
+ * voxel columns of 33 columns' height), never O(box) beyond the output.
+ */
+/* Bind p to texture t of fabric f (the regions in voxels, the nearest
+   filter for loom_paint_sample).  LOOM_EINVAL, LOOM_ENOMEM. */
+LOOM_API int loom_paint_bind(loom_paint *p, loom_texture *t, const loom_fabric *f);
+
+#define LOOM_PAINT_TOUCH_SHAPE 1u  /* a slub, broken end, missing pick or pull */
+#define LOOM_PAINT_TOUCH_COLOUR 2u /* a yarn colour or stain (with its blend) */
+/* Which effects reach the voxel columns [lo[0], hi[0]) x [lo[1], hi[1])
+   of a bound paint (a column is reached when its centre lies in the
+   region, or for colours within its blend band; bounds test, so a
+   masked region may be reported where its mask is empty): OR of
+   LOOM_PAINT_TOUCH_*, 0 when none (or p NULL, unbound). */
+LOOM_API unsigned loom_paint_touches(const loom_paint *p, const int64_t lo[2],
+                                     const int64_t hi[2]);
+/* loom_texture_read_region of the bound texture with the structural
+   effects (slub, broken end, missing pick, pull) applied: every channel
+   equal to loom_paint_sample's texel at the voxel centre (nearest filter)
+   in its raw encoding.  Returns as loom_texture_read_region, LOOM_ENOMEM.
+   Thread-safe. */
+LOOM_API int loom_paint_read_region(const loom_paint *p, const int64_t lo[3],
+                                    const int64_t hi[3],
+                                    const loom_texture_region *out);
+/* The colour effects (yarn colour, stain) on `albedo`, the yarn-type
+   albedo of a voxel of `kind` (1 warp, 2 weft; 0: unchanged) in column
+   (x, y): as loom_paint_sample colours it.  Thread-safe. */
+LOOM_API void loom_paint_albedo(const loom_paint *p, int64_t x, int64_t y, int kind,
+                                float albedo[3]);
+
 #ifdef __cplusplus
 }
 #endif

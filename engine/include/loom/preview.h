@@ -62,12 +62,20 @@ typedef struct loom_preview_options {
 	                           the design's: a colour change needs no new
 	                           synthesis); NULL = the fabric's design */
 	uint32_t n_types;       /* entries of types */
+	const struct loom_paint *paint; /* optional paint layer (loom/paint.h),
+	                           bound to the texture (loom_paint_bind):
+	                           its slubs, broken ends, missing picks and
+	                           pulls shape the columns and its colours
+	                           and stains tint them, column for column as
+	                           loom_paint_sample; BLOCKS reads the pieces
+	                           of a pixel that the paint reaches column by
+	                           column.  NULL = none */
 } loom_preview_options;
 
 #define LOOM_PREVIEW_OPTIONS_INIT                                          \
 	{sizeof(loom_preview_options), {0, 0, 0}, {0, 0, 0}, 512, 0, 0, 0.2f, \
 	 {0.0, 0.0, 0.0}, {0.0f, 0.0f, 0.0f}, NULL, NULL, LOOM_PREVIEW_AUTO, 0, \
-	 NULL, 0}
+	 NULL, 0, NULL}
 
 /* Optional per-pixel outputs of loom_preview (width * height entries each,
    row 0 at the top = smallest y, pick 0; NULL = not wanted). */
