@@ -48,3 +48,16 @@ for fmt in vol nrrd exr; do
 	if [ "$n" -gt 0 ]; then pass "export_$fmt"; else fail "export_$fmt" "no files in $D/export-$fmt"; fi
 	if grep -qF "$D/export-$fmt/" "$T/demo.out"; then pass "listed_export_$fmt"; else fail "listed_export_$fmt" "not in the table"; fi
 done
+# a second run over the first with another cloth (another database, as
+# after a new default): the exports start over instead of refusing the
+# earlier run's manifests
+expect_ok make_db2 "$LOOM" exemplar generate --preset tiny --seed 4 --quiet -o "$T/tiny4.ldb"
+cp "$D/export-vol/manifest.json" "$T/manifest1.json"
+LOOM_DATA="$T/data" "$LOOM" demo -o "$D" --db "$T/tiny4.ldb" >"$T/out2" 2>"$T/err2"
+rc=$?
+if [ $rc -eq 0 ]; then pass demo_rerun; else fail demo_rerun "exit $rc: $(head -c 400 "$T/err2")"; fi
+if cmp -s "$D/export-vol/manifest.json" "$T/manifest1.json"; then
+	fail demo_rerun_new_export "export-vol/manifest.json unchanged"
+else
+	pass demo_rerun_new_export
+fi

@@ -646,6 +646,16 @@ static void stage_export(demo_ctx *ctx)
 		char *argv[12];
 		int argc = 0, rc;
 		snprintf(out, sizeof out, "%s/export-%s", ctx->dir, formats[k]);
+		{
+			/* the demo's own directory: a run over an earlier demo's (another
+			   fabric, e.g. after a new default database) starts the export
+			   over instead of resuming one that is not this export */
+			char man[PATH_MAX + 16];
+			snprintf(man, sizeof man, "%s/manifest.json", out);
+			if (unlink(man) != 0 && errno != ENOENT)
+				fprintf(stderr, "loom demo: warning: cannot remove %s: %s\n", man,
+				        strerror(errno));
+		}
 		argv[argc++] = "export";
 		argv[argc++] = ctx->fabric_path;
 		argv[argc++] = "--region";
