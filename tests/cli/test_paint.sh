@@ -310,9 +310,20 @@ b3=$(curl -s -o /dev/null -w '%{http_code}' -X POST "$URL/api/paint?x0=0&y0=0&x1
 b4=$(curl -s -o /dev/null -w '%{http_code}' "$URL/api/paint?x0=0&y0=0&x1=1&y1=1&effect=stain")
 b5=$(curl -s -o /dev/null -w '%{http_code}' -X POST "$URL/api/paint?x0=0&y0=0&x1=nan&y1=1&effect=stain")
 ok1=$(curl -s -o /dev/null -w '%{http_code}' -X POST "$URL/api/paint?x0=0.5&y0=0.5&x1=2&y1=1&effect=slub&kind=weft&amount=3")
+# eight stains posted at once: each one's region is kept (one POST at a
+# time from reading the layer to the swap; none starts from a stale layer)
+for k in 1 2 3 4 5 6 7 8; do
+	curl -s -o "$T/par$k" -X POST "$URL/api/paint?x0=$k&y0=3&x1=$k.5&y1=4&effect=stain" &
+done
+wait
 stop_server
+n_par=0
+for k in 1 2 3 4 5 6 7 8; do
+	grep -q "^region stain $k 3 $k.5 4" "$T/pb.loomp" && n_par=$((n_par + 1))
+done
+if [ "$n_par" = 8 ]; then pass serve_paint_concurrent; else fail serve_paint_concurrent "$n_par of 8 regions kept: $(grep -c '^region' "$T/pb.loomp") regions"; fi
 if [ "$b1 $b2 $b3 $b4 $b5 $ok1" = "400 400 400 405 400 200" ] && grep -q '^region slub 0.5 0.5 2 1 kind=weft' "$T/pb.loomp" &&
-   [ "$(grep -c '^region' "$T/pb.loomp")" = 1 ] && ! ls "$T"/pb.loomp.tmp.* >/dev/null 2>&1
+   [ "$(grep -c '^region' "$T/pb.loomp")" = 9 ] && ! ls "$T"/pb.loomp.tmp.* >/dev/null 2>&1
 then pass serve_paint_requests; else fail serve_paint_requests "HTTP $b1 $b2 $b3 $b4 $b5 $ok1: $(cat "$T/pb.loomp" 2>&1 | head -3)"; fi
 
 mkdir -p "$T/dir.loomp"

@@ -613,6 +613,8 @@ static const char *paint_msg(char *out, size_t n, const char *what, const char *
  * layer, the paint file written (temporary name, then rename) and the
  * layer swapped in while no tile or render reads it.
  */
+static pthread_mutex_t paint_mu = PTHREAD_MUTEX_INITIALIZER; /* serve_paint */
+
 static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 {
 	const char *es = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "effect");
@@ -676,7 +678,10 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 		return error(conn, MHD_HTTP_BAD_REQUEST, "expected x0, y0, x1, y1 (mm), "
 		             "kind=any|warp|weft, rgb=RRGGBB, numbers for strength, blend, "
 		             "amount");
-	/* the new layer: the current one's regions and this one */
+	/* the new layer: the current one's regions and this one; one POST at a
+	   time from here to the swap, so two at once cannot both start from the
+	   same layer and lose one of the regions */
+	pthread_mutex_lock(&paint_mu);
 	pthread_rwlock_rdlock(&s->paint_lock);
 	rc = s->paint ? loom_paint_format(s->paint, &text, &len) : LOOM_OK;
 	pthread_rwlock_unlock(&s->paint_lock);
@@ -687,10 +692,12 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 	text = NULL;
 	if (rc != LOOM_OK) {
 		loom_paint_free(np);
+		pthread_mutex_unlock(&paint_mu);
 		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR, "paint: out of memory");
 	}
 	if (loom_paint_add(np, &r, &diag) != LOOM_OK) {
 		loom_paint_free(np);
+		pthread_mutex_unlock(&paint_mu);
 		return error(conn, MHD_HTTP_BAD_REQUEST, paint_msg(msg, sizeof msg, "paint refused",
 		                                                   diag.message));
 	}
@@ -699,6 +706,7 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 	    loom_paint_bind(np, s->t, s->f) != LOOM_OK) {
 		free(text);
 		loom_paint_free(np);
+		pthread_mutex_unlock(&paint_mu);
 		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR,
 		             paint_msg(msg, sizeof msg, "paint not saved", diag.message));
 	}
@@ -709,6 +717,7 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 	old = s->paint;
 	s->paint = np;
 	pthread_rwlock_unlock(&s->paint_lock);
+	pthread_mutex_unlock(&paint_mu);
 	loom_paint_free(old);
 	pthread_mutex_lock(&s->lock);
 	s->paint_hash = h;
