@@ -312,10 +312,12 @@ b5=$(curl -s -o /dev/null -w '%{http_code}' -X POST "$URL/api/paint?x0=0&y0=0&x1
 ok1=$(curl -s -o /dev/null -w '%{http_code}' -X POST "$URL/api/paint?x0=0.5&y0=0.5&x1=2&y1=1&effect=slub&kind=weft&amount=3")
 # eight stains posted at once: each one's region is kept (one POST at a
 # time from reading the layer to the swap; none starts from a stale layer)
+pids=""
 for k in 1 2 3 4 5 6 7 8; do
 	curl -s -o "$T/par$k" -X POST "$URL/api/paint?x0=$k&y0=3&x1=$k.5&y1=4&effect=stain" &
+	pids="$pids $!"
 done
-wait
+wait $pids # (not the server)
 stop_server
 n_par=0
 for k in 1 2 3 4 5 6 7 8; do
