@@ -501,6 +501,9 @@ int cmd_synth(int argc, char **argv)
 	if ((amap && !cli_ends_with(amap, ".png") && !cli_ends_with(amap, ".ppm")) ||
 	    (smap && !cli_ends_with(smap, ".png") && !cli_ends_with(smap, ".ppm")))
 		opts_usage(&c, "maps are written as .png (or .ppm) files");
+	if (fibre && (db_opt || (getenv("LOOM_DB") && *getenv("LOOM_DB"))))
+		opts_usage(&c, "--fibre chooses the yarns of a generated database; "
+		           "%s names one already made", db_opt ? "--db" : "LOOM_DB");
 	if (fibre) {
 		/* the names, before any work (the generator's own check) */
 		loom_exgen_params fp;
@@ -532,9 +535,6 @@ int cmd_synth(int argc, char **argv)
 			d->sett[0] = d->sett[1];
 		if (!(d->sett[1] > 0))
 			d->sett[1] = d->sett[0];
-		if (fibre && (db_opt || (env && *env)))
-			opts_usage(&c, "--fibre chooses the yarns of a generated database; "
-			           "%s names one already made", db_opt ? "--db" : "LOOM_DB");
 		if (!db_opt && !(env && *env) && (d->sett[0] > 0 || fibre))
 			r.db_path = cli_sett_db(prog, d, fibre, quiet);
 		else
