@@ -290,6 +290,30 @@ static inline void blend1(uint8_t *D, const struct bplanes *b, int others, size_
 		rep_far(b, at, dir, x);
 }
 
+#ifdef __SSE2__
+/* The 16 blends v of voxels i .. i + 15 of a run (nearer densities nr)
+   to out (unless NULL), and, where the nearer voxel is empty and the blend
+   is not, the other planes from the farther voxel (blend_run's rule);
+   shared by the SSE2 and SSSE3 kernels (SSE2 only, so it inlines into
+   both). */
+static inline void blend_store16(uint8_t *out, __m128i v, __m128i nr, size_t i,
+                                 const struct bplanes *b, int others, size_t at0,
+                                 int dir, int c0, const rawvox *x0)
+{
+	const __m128i zero = _mm_setzero_si128();
+
+	if (out)
+		_mm_storeu_si128((__m128i *)(out + i), v);
+	if (others)
+		for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
+		                                                _mm_cmpeq_epi8(nr, zero)));
+		     m; m &= m - 1) {
+			size_t j = i + (size_t)__builtin_ctz((unsigned)m);
+			rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
+		}
+}
+#endif
+
 /* n >= 1 consecutive output voxels of a column (sink offset at0 for the
    first) straight from a brick's density run: their nearer densities are
    near[0 .. n), the farther ones near[i + dir], inside the brick, except
@@ -330,15 +354,7 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
 			                      _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
 			        H);
 			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
-			if (out)
-				_mm_storeu_si128((__m128i *)(out + i), v);
-			if (others)
-				for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
-				                                                _mm_cmpeq_epi8(nr, zero)));
-				     m; m &= m - 1) {
-					size_t j = i + (size_t)__builtin_ctz((unsigned)m);
-					rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
-				}
+			blend_store16(out, v, nr, i, b, others, at0, dir, c0, x0);
 			if (i + 16 == n)
 				return;
 			i = i + 32 <= n ? i + 16 : n - 16;
@@ -364,7 +380,6 @@ blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
 {
 	uint8_t *out = D ? D + at0 : NULL;
 	const uint8_t *far = near + dir;
-	const __m128i zero = _mm_setzero_si128();
 	const __m128i W = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
 	const __m128i R = _mm_set1_epi16(1 << 11);
 	size_t i = 0;
@@ -377,15 +392,7 @@ blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
 		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
 		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
 		__m128i v = _mm_packus_epi16(lo, hi);
-		if (out)
-			_mm_storeu_si128((__m128i *)(out + i), v);
-		if (others)
-			for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
-			                                                _mm_cmpeq_epi8(nr, zero)));
-			     m; m &= m - 1) {
-				size_t j = i + (size_t)__builtin_ctz((unsigned)m);
-				rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
-			}
+		blend_store16(out, v, nr, i, b, others, at0, dir, c0, x0);
 		if (i + 16 == n)
 			return;
 		i = i + 32 <= n ? i + 16 : n - 16;
