@@ -113,6 +113,8 @@ typedef struct tstate {
 	uint32_t ld_flight;       /* dimension of the next track's first
 	                             free flight (NO_DIM: the stream) */
 	loom_render_stats st;
+	double fp_o[3], fp0, fp_rate; /* ray footprint (voxels) at x: fp0 +
+	                             fp_rate |x - fp_o| (level of detail) */
 } tstate;
 
 /* Dimensions of the low-discrepancy point (sampler.h): the pixel, the
@@ -201,7 +203,14 @@ static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
 	}
 	memset(&ms, 0, sizeof ms);
 	t->st.lookups++;
-	rc = c->src->lookup(t->lctx, v, &ms);
+	if (c->src->lookup_lod && !c->shell) {
+		double dx = x[0] - t->fp_o[0], dy = x[1] - t->fp_o[1], dz = x[2] - t->fp_o[2];
+		rc = c->src->lookup_lod(t->lctx, v,
+		                        t->fp0 + t->fp_rate * sqrt(dx * dx + dy * dy + dz * dz),
+		                        &ms);
+	} else {
+		rc = c->src->lookup(t->lctx, v, &ms);
+	}
 	if (rc)
 		return rc;
 	dens = ms.density;
@@ -215,6 +224,8 @@ static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
 		m->albedo[j] = a > 0 ? (a < 1 ? a : 1) : 0;
 	}
 	m->s = ms.alignment > 0 ? ms.alignment : c->o->alignment;
+	if (ms.spread > 0) /* fibres averaged by a coarse level: a wider lobe */
+		m->s = sqrt(m->s * m->s + ms.spread);
 	if (have_jac) {
 		for (int j = 0; j < 3; j++)
 			w[j] = jac[3 * j] * ms.orient[0] + jac[3 * j + 1] * ms.orient[1] +
@@ -761,6 +772,14 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 	t->tentative = 0;
 	t->hint = LOOM_MESH_NONE;
 	camera_ray(t, sx, sy, org, dir);
+	memcpy(t->fp_o, org, sizeof t->fp_o);
+	if (o->camera.kind == LOOM_CAMERA_ORTHO) {
+		t->fp0 = o->camera.ortho_size[1] / o->height;
+		t->fp_rate = 0;
+	} else {
+		t->fp0 = 0;
+		t->fp_rate = 2 * c->tan_y / o->height;
+	}
 	t->st.paths++;
 	for (;;) {
 		int r;
@@ -798,6 +817,12 @@ static int trace_path(tstate *t, double sx, double sy, double L[3],
 			return r;
 		depth++;
 		t->st.scatterings++;
+		if (depth == 1) { /* later rays keep the first event's footprint */
+			double dx = pos[0] - t->fp_o[0], dy = pos[1] - t->fp_o[1],
+			       dz = pos[2] - t->fp_o[2];
+			t->fp0 += t->fp_rate * sqrt(dx * dx + dy * dy + dz * dz);
+			t->fp_rate = 0;
+		}
 		for (int j = 0; j < 3; j++) {
 			beta[j] *= m.albedo[j];
 			wi[j] = -dir[j];

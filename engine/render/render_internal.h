@@ -140,4 +140,8 @@ void loom__aov_add(loom__aov_acc *a, const double L[3], const loom__aov_hit *h);
 void loom__aov_store(const loom__aov_acc *a, const loom_render_aov *out, size_t pix);
 void loom__aov_normal(const double g[3], const double d[3], double n[3]);
 
+/* Level of detail for a ray footprint of fp voxels with `levels` coarse
+   levels: floor(log2 fp) clamped to [0, levels] (render_texture.c). */
+unsigned loom__lod_level(double fp, unsigned levels);
+
 #endif /* LOOM_RENDER_INTERNAL_H */

@@ -30,7 +30,7 @@
  * stays cached.  Every value depends only on the fabric, never on the
  * thread or the order, so images stay identical for any thread count.
  */
-#include "core/internal.h"
+#include "render_internal.h"
 #include "loom/preview.h"
 #include "synth/fabric_internal.h"
 
@@ -441,6 +441,39 @@ static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 	return LOOM_OK;
 }
 
+/* Level of detail through the grid: the coarse density is clamped to the
+   bound of its cell (the level-0 grid, unchanged), so the tracker's
+   majorant holds: a coarse voxel averages 2^k layers and would otherwise
+   spill density into the empty layers above and below the cloth, and at
+   a block edge it averages the exemplar's neighbouring block
+   (docs/rendering.md, "Level of detail"). */
+static int grid_lookup_lod(void *ctx, const double p[3], double fp,
+                           loom_medium_sample *out)
+{
+	mj_thread *th = ctx;
+	loom_majorant *m = th->m;
+	loom_texel tx;
+	float spread = 0, bound;
+	int64_t c[3];
+	int rc = loom_texture_sample_lod(m->t, p, m->filter,
+	                                 loom__lod_level(fp, loom_texture_lod_levels(m->t)),
+	                                 &tx, &spread);
+
+	if (rc != LOOM_OK)
+		return rc;
+	c[0] = loom_synth_floordiv((int64_t)floor(p[0]), m->b1);
+	c[1] = loom_synth_floordiv((int64_t)floor(p[1]), m->b2);
+	c[2] = (int64_t)floor(p[2]) / m->zcell;
+	if ((rc = mj_cell_max(th, c, &bound)))
+		return rc;
+	out->density = tx.density < bound ? tx.density : bound;
+	memcpy(out->orient, tx.orientation, sizeof out->orient);
+	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
+	out->alignment = tx.alignment;
+	out->spread = spread;
+	return LOOM_OK;
+}
+
 static void *grid_thread_init(void *ctx)
 {
 	return thread_new(ctx);
@@ -472,5 +505,7 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	src->thread_done = grid_thread_done;
 	loom_majorant_cell_size(m, src->cell);
 	src->cell_max = mj_cell_max;
+	if (loom_texture_lod_levels(t))
+		src->lookup_lod = grid_lookup_lod;
 	return LOOM_OK;
 }

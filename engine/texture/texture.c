@@ -192,6 +192,7 @@ static int load_exemplars(loom_texture *t, loom_diag *diag)
 			                  "unreadable", k);
 		t->ex[k].first_brick = e.first_brick;
 		memcpy(t->ex[k].nb, e.bricks, sizeof e.bricks);
+		memcpy(t->ex[k].size, e.size, sizeof e.size);
 		unsigned top = 0;
 		for (int l = 0; l < 256; l++) {
 			t->ex[k].kind[l] = y[l].kind <= LOOM_YARN_WEFT ? y[l].kind : 0;
@@ -278,6 +279,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 			                  "LOOM_TEXTURE_OPTIONS_INIT)", opts->size);
 		o.budget_bytes = opts->budget_bytes;
 		o.max_threads = opts->max_threads;
+		o.lod = opts->lod;
 	}
 	if (!o.budget_bytes)
 		o.budget_bytes = LOOM_TEXTURE_DEFAULT_BUDGET;
@@ -320,6 +322,14 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	co.scratch_new = tex_scratch_new;
 	co.scratch_free = tex_scratch_free;
 	co.scratch_bytes = loom__db_reader_bytes(db);
+	if (o.lod && loom__lod_levels_for(g.brick)) { /* lod.c */
+		co.load = loom__lod_load;
+		co.scratch_new = loom__lod_scratch_new;
+		co.scratch_free = loom__lod_scratch_free;
+		co.scratch_bytes = loom__lod_scratch_bytes(db);
+	} else {
+		o.lod = 0;
+	}
 	co.max_threads = T + 1;
 	co.pins_per_thread = 2;
 	if (o.budget_bytes <= fixed) {
@@ -412,6 +422,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	lay_out_slots(t);
 	if ((rc = load_exemplars(t, diag)) != LOOM_OK)
 		goto fail;
+	if (o.lod)
+		loom__lod_setup(t);
 
 	co.ctx = t;
 	if ((rc = loom__cache_open(&co, &t->cache, diag)) != LOOM_OK) {

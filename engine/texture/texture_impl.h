@@ -48,6 +48,9 @@
 
 #define LOOM__HIDDEN __attribute__((visibility("hidden")))
 
+#define LOD_MAX 3           /* coarse levels 1..LOD_MAX (2x, 4x, 8x; lod.c) */
+#define LOD_PLANES 5        /* density, orientation lo, hi, label, anisotropy */
+
 /* Per exemplar, read-only after open. */
 struct exm {
 	uint32_t first_brick;    /* global id of brick (0, 0, 0) */
@@ -56,6 +59,11 @@ struct exm {
 	uint8_t ngrp;            /* labels with a kind are below 16 * ngrp
 	                            (region reads: kind_type's PSHUFB tables);
 	                            0: above 8 groups, table lookups instead */
+	uint32_t size[3];        /* voxels (level 0) */
+	uint32_t lfirst[LOD_MAX + 1];   /* coarse level k: id of its brick
+	                                   (0, 0, 0), n_bricks + ... (lod.c) */
+	uint32_t lsize[LOD_MAX + 1][3]; /* its voxels: ceil(size / 2^k) */
+	uint32_t lnb[LOD_MAX + 1][3];   /* its bricks along x, y, z */
 };
 
 /* One crossing of a thread's small cache (steps 2-3). */
@@ -149,6 +157,9 @@ struct loom_texture {
 	pthread_mutex_t msg_lock;
 	char msg[LOOM_DIAG_MSG_MAX]; /* last error of any thread */
 	_Atomic uint64_t bytes_read;
+	unsigned lod;            /* coarse levels available (0: LOD off; lod.c) */
+	uint32_t cbs[3];         /* coarse brick shape: bx, by, bz / 2 */
+	size_t cbv;              /* voxels per coarse brick */
 	loom_texture *live_next; /* registry (slots.c, under its lock) */
 };
 
@@ -358,5 +369,21 @@ static inline uint32_t in_brick(const loom_texture *t, int a, uint32_t v)
 {
 	return t->pow2 ? v & t->mk[a] : v % t->bs[a];
 }
+
+/* ------------------------------------------------ lod.c (level of detail) */
+
+/* Set up the coarse levels of t (t->db, t->ex, t->n_bricks set): the
+   levels the brick shape allows, each exemplar's coarse brick tables.
+   Leaves t->lod 0 when none is possible.  Returns the levels. */
+unsigned loom__lod_setup(loom_texture *t);
+/* Coarse levels a database of brick shape b allows: the largest k <= LOD_MAX
+   with 2^k dividing bx, by and bz / 2 (bz even); 0 when none. */
+unsigned loom__lod_levels_for(const uint32_t b[3]);
+/* Cache loader, scratch and its budget charge with LOD on: level-0 ids
+   as the database reader, coarse ids built from their level-0 bricks. */
+int loom__lod_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *diag);
+void *loom__lod_scratch_new(void *ctx);
+void loom__lod_scratch_free(void *ctx, void *scratch);
+size_t loom__lod_scratch_bytes(const loom_db *db);
 
 #endif /* LOOM_TEXTURE_IMPL_H */

@@ -39,4 +39,11 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
    in flight on t.  NULL: no-op. */
 void loom__texture_simd(loom_texture *t, int on);
 
+/* Coarse voxel (X, Y, Z) of level k (1..loom_texture_lod_levels) of
+   exemplar u, read through the brick cache: its five bytes (density,
+   orientation code low and high, label, anisotropy; lod.c), zeros outside
+   the level's volume.  LOOM_EINVAL for a level that is not there. */
+int loom__lod_voxel(loom_texture *t, uint32_t u, unsigned k, int64_t X, int64_t Y,
+                    int64_t Z, uint8_t out[5]);
+
 #endif /* LOOM_TEXTURE_INTERNAL_H */

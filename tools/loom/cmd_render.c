@@ -25,7 +25,7 @@ static const char usage[] =
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
 	"            [--fov DEG] [--density-scale K | --density-per-voxel K]\n"
 	"            [--exposure STOPS]\n"
-	"            [--filter nearest|trilinear] [--thickness T]\n"
+	"            [--filter nearest|trilinear] [--lod off|auto] [--thickness T]\n"
 	"            [--uv-repeats R | --uv-mm U[,V]] [--warp-dir X,Y,Z]\n"
 	"            [--field-smooth N]\n"
 	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
@@ -53,6 +53,8 @@ static const char about[] =
 
 static const opt_choice filter_names[] = {
 	{"nearest", LOOM_FILTER_NEAREST}, {"trilinear", LOOM_FILTER_TRILINEAR}, {NULL, 0}};
+
+static const opt_choice lod_names[] = {{"off", 0}, {"auto", 1}, {NULL, 0}};
 
 static const opt_choice tone_names[] = {
 	{"linear", LOOM_TONE_LINEAR}, {"filmic", LOOM_TONE_FILMIC}, {NULL, 0}};
@@ -375,7 +377,7 @@ int cmd_render(int argc, char **argv)
 {
 	const char *prog = "loom render";
 	const char *path = NULL, *out = NULL, *db_opt = NULL, *mesh_path = NULL;
-	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc, global_mj = 0;
+	int quiet = 0, json = 0, filter = LOOM_FILTER_NEAREST, rc, global_mj = 0, lod = 1;
 	uint32_t width = 480, height = 320, spp = 16, threads = 0;
 	uint64_t seed = 1;
 	double budget_mb = 128, el = 40, az = 0, fov = 30, dscale = 80, exposure = 0;
@@ -525,6 +527,10 @@ int cmd_render(int argc, char **argv)
 		         "clip at 1) or filmic (an ACES-like curve with a soft "
 		         "shoulder: highlights roll off instead of clipping; docs/"
 		         "rendering.md)"),
+		OPT_ENUM(0, "lod", &lod, "L", lod_names, "flat patch: level of detail "
+		         "(default auto: where a pixel's footprint covers 2, 4 or 8 "
+		         "voxels, look up the 2x, 4x or 8x box-filtered exemplar; "
+		         "docs/rendering.md) or off (full resolution everywhere)"),
 		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
@@ -664,6 +670,7 @@ int cmd_render(int argc, char **argv)
 		}
 	}
 	to.budget_bytes = budget - mj_bytes - env_bytes;
+	to.lod = lod && !paint && !mesh_path; /* flat, unpainted patches only */
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
 		loom_majorant_free(mj);
 		loom_fabric_free(f);
@@ -976,6 +983,7 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "paths", st.paths);
 		jw_uint(&w, "rays", st.rays);
 		jw_uint(&w, "lookups", st.lookups);
+		jw_uint(&w, "lod_levels", loom_texture_lod_levels(t));
 		jw_uint(&w, "scatterings", st.scatterings);
 		jw_uint(&w, "shell_queries", st.shell_queries);
 		if (have_uv_stats) {

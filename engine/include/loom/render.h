@@ -96,6 +96,10 @@ typedef struct loom_medium_sample {
 	float albedo[3];  /* single-scattering albedo, linear RGB in [0, 1] */
 	float alignment;  /* microflake s of this voxel (the yarn type's
 	                     alignment); <= 0 = the render options' default */
+	float spread;     /* extra variance of the flake normals' m.w from
+	                     fibres averaged in a coarse voxel (level of detail,
+	                     loom_texture_sample_lod); the lobe used is
+	                     s' = sqrt(s^2 + spread).  0 = none */
 } loom_medium_sample;
 
 /*
@@ -108,6 +112,11 @@ typedef struct loom_medium_sample {
  */
 typedef int (*loom_lookup_fn)(void *ctx, const double p[3],
                               loom_medium_sample *out);
+/* Lookup with the ray's footprint: the width in voxels of the camera
+   pixel's cone where p is (after the first scattering, the width there).
+   Same rules as loom_lookup_fn. */
+typedef int (*loom_lookup_lod_fn)(void *ctx, const double p[3], double footprint,
+                                  loom_medium_sample *out);
 
 typedef struct loom_volume_source {
 	size_t size;          /* sizeof(loom_volume_source) */
@@ -138,11 +147,16 @@ typedef struct loom_volume_source {
 	                         lookup; returns 0 or a loom_result code.
 	                         Slab scenes only (a shell keeps the global
 	                         bound max_density) */
+	loom_lookup_lod_fn lookup_lod;
+	                      /* optional: used instead of lookup for slab
+	                         scenes (a shell keeps lookup), with the ray's
+	                         footprint, so the source can choose a level of
+	                         detail (docs/rendering.md, "Level of detail") */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
 	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
-	 {0, 0, 0}, NULL}
+	 {0, 0, 0}, NULL, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)

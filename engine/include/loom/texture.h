@@ -58,11 +58,15 @@ typedef struct loom_texture_options {
 	unsigned max_threads; /* threads with private state at once
 	                         (0 = LOOM_TEXTURE_DEFAULT_THREADS, at most
 	                         LOOM_TEXTURE_MAX_THREADS) */
+	int lod;              /* 1: coarse levels for loom_texture_sample_lod
+	                         (built on demand through the brick cache; each
+	                         thread's loader scratch grows by one brick);
+	                         0: none (docs/rendering.md, "Level of detail") */
 } loom_texture_options;
 
 #define LOOM_TEXTURE_OPTIONS_INIT                                           \
 	{sizeof(loom_texture_options), LOOM_TEXTURE_DEFAULT_BUDGET,             \
-	 LOOM_TEXTURE_DEFAULT_THREADS}
+	 LOOM_TEXTURE_DEFAULT_THREADS, 0}
 
 /* Filters of the real-valued lookups. */
 enum loom_texture_filter {
@@ -235,6 +239,29 @@ LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y,
  */
 LOOM_API int loom_texture_sample(loom_texture *t, const double p[3],
                                  int filter, loom_texel *out);
+
+/*
+ * Level of detail (docs/rendering.md, "Level of detail"): coarse levels
+ * available on t: 0 when it was opened without options.lod or its brick
+ * shape allows none, else 1..3 (level k is the 2^k box filter).
+ */
+LOOM_API unsigned loom_texture_lod_levels(const loom_texture *t);
+
+/*
+ * loom_texture_sample at coarse level `level` (0: loom_texture_sample
+ * itself; above loom_texture_lod_levels: the coarsest there is).  The
+ * crossing and edge-fix offset are level 0's at floor(p); the source
+ * position, divided by 2^level, is looked up in the exemplar's level
+ * (nearest: the coarse voxel containing it; trilinear: the 8 around it,
+ * clamped at the exemplar's x, y edges).  density: the box-filtered
+ * density; orientation: the principal axis of the fibres' averaged
+ * tensor; label and material: the coarse voxel's (majority kind).
+ * *spread (may be NULL) is the extra variance of the microflake's
+ * m.w that the fibres' spread adds: (1 - a) / 3 for anisotropy a in
+ * [0, 1] (0 at level 0).  Errors as loom_texture_sample.
+ */
+LOOM_API int loom_texture_sample_lod(loom_texture *t, const double p[3], int filter,
+                                     unsigned level, loom_texel *out, float *spread);
 
 /*
  * loom_texture_sample reading only the channels of mask `channels` (as
