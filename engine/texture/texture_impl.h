@@ -13,6 +13,8 @@
  *   region.c    region reads (grouped z-runs, the x-fastest transposes,
  *               the SIMD label mappings)
  *   cache.c     the brick cache (cache.h)
+ *   lod.c       level of detail: coarse levels built through the cache,
+ *               coarse lookups
  *
  * What is hot stays inline here (slot_enter, the column offset, brick
  * coordinates), so that the split costs no call on the lookup path.
