@@ -25,7 +25,7 @@ static const char usage[] =
 	"            [--region X0,Y0:X1,Y1] [--elevation DEG] [--azimuth DEG]\n"
 	"            [--fov DEG] [--density-scale K | --density-per-voxel K]\n"
 	"            [--exposure STOPS]\n"
-	"            [--filter nearest|trilinear] [--lod off|auto] [--thickness T]\n"
+	"            [--filter nearest|trilinear] [--thickness T]\n"
 	"            [--uv-repeats R | --uv-mm U[,V]] [--warp-dir X,Y,Z]\n"
 	"            [--field-smooth N]\n"
 	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
@@ -36,6 +36,7 @@ static const char usage[] =
 	"            [--cloth-size W[,H]] [--ground [--ground-z MM]\n"
 	"            [--ground-albedo A[,G,B]]] [--tone linear|filmic]\n"
 	"            [--sampler sobol|random] [--noise REL] [--progressive S]\n"
+	"            [--lod off|auto]\n"
 	"            [--json] [--quiet] -o OUT.png|OUT.exr\n";
 
 static const char about[] =
