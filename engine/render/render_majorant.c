@@ -441,6 +441,16 @@ static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 	return LOOM_OK;
 }
 
+static int grid_density(void *ctx, const double p[3], float *density)
+{
+	mj_thread *th = ctx;
+	loom_texel tx;
+	int rc = loom_texture_sample_ch(th->m->t, p, th->m->filter, LOOM_CHANNEL_DENSITY, &tx);
+
+	*density = rc == LOOM_OK ? tx.density : 0.0f;
+	return rc;
+}
+
 static void *grid_thread_init(void *ctx)
 {
 	return thread_new(ctx);
@@ -472,5 +482,6 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	src->thread_done = grid_thread_done;
 	loom_majorant_cell_size(m, src->cell);
 	src->cell_max = mj_cell_max;
+	src->density = grid_density;
 	return LOOM_OK;
 }

@@ -138,11 +138,19 @@ typedef struct loom_volume_source {
 	                         lookup; returns 0 or a loom_result code.
 	                         Slab scenes only (a shell keeps the global
 	                         bound max_density) */
+	int (*density)(void *thread_ctx, const double p[3], float *density);
+	                      /* optional, with cell_max: the density alone of
+	                         the lookup at p (exactly lookup's value), for
+	                         a cheap first test of a tentative collision;
+	                         the full lookup follows only when it may be
+	                         real.  Same ctx and rules as lookup.  A
+	                         wrapper that replaces lookup must replace or
+	                         clear this too */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
 	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
-	 {0, 0, 0}, NULL}
+	 {0, 0, 0}, NULL, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)
