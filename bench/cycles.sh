@@ -8,7 +8,7 @@
 # the window BENCH_CYCLES_REGION (default 0,0:256,160 voxels) by `loom
 # render`'s flat-patch camera (elevation 40, azimuth 0, fov 30, 240 x 150),
 # lit by loom's default sun (azimuth 150 from the camera, elevation 35,
-# irradiance 2.6, disc 0.53 degrees) and its grey world (0.18).  The
+# irradiance 2.6, disc 0.53 degrees) and the grey world (--sky grey, 0.18).  The
 # region the camera sees (the frustum's footprint on the slab, and a margin
 # for light scattered in from outside it) is exported as OpenVDB tiles and
 # rendered by tools/blender/render_tile.py with the same camera (computed
@@ -84,7 +84,7 @@ load0=$(cut -d' ' -f1-3 /proc/loadavg)
 for S in $S1 $S2; do
 	for SMP in sobol random; do
 		"$LOOM" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
-			--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --quiet --json \
+			--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --sky grey --quiet --json \
 			--sampler $SMP -o "$W/loom-$SMP-$S.png" >"$W/loom-$SMP-$S.json" || exit 1
 	done
 	cp "$W/loom-sobol-$S.png" "$W/loom-$S.png"

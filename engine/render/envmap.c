@@ -245,3 +245,66 @@ LOOM_API double loom_mis_power(double pdf_a, double pdf_b)
 		return 1.0;
 	return a / (a + b);
 }
+
+/* ---- the built-in studio sky -------------------------------------------- */
+
+/* Zenith, horizon and floor radiance, and the glow's colour and width
+   (1 - cos of the angle to the sun at which it falls to 1/e: about 15
+   degrees). */
+static const double SKY_ZEN[3] = {0.32, 0.34, 0.37};
+static const double SKY_HOR[3] = {0.13, 0.13, 0.14};
+static const double SKY_FLOOR[3] = {0.05, 0.05, 0.05};
+static const double SKY_GLOW[3] = {0.9, 0.82, 0.68};
+#define SKY_GLOW_W 0.034
+#define SKY_BLEND 0.04 /* z over which the horizon fades into the floor */
+
+LOOM_API void loom_sky_studio(const double sun[3], const double d[3], double rgb[3])
+{
+	double z = d[2] > 1 ? 1 : d[2] < -1 ? -1 : d[2];
+	double ns = sqrt(sun[0] * sun[0] + sun[1] * sun[1] + sun[2] * sun[2]);
+	double cg = ns > 0 ? (sun[0] * d[0] + sun[1] * d[1] + sun[2] * d[2]) / ns : -1;
+	double glow = exp(-(1.0 - cg) / SKY_GLOW_W);
+	double up = z > 0 ? sqrt(z) : 0.0;                /* 0 horizon .. 1 zenith */
+	double sky = z >= 0 ? 1.0 : exp(z / SKY_BLEND);  /* 1 above, fading below */
+
+	for (int j = 0; j < 3; j++) {
+		double dome = SKY_HOR[j] + (SKY_ZEN[j] - SKY_HOR[j]) * up;
+		rgb[j] = SKY_FLOOR[j] + sky * (dome + SKY_GLOW[j] * glow - SKY_FLOOR[j]);
+	}
+}
+
+LOOM_API int loom_sky_studio_map(const double sun[3], uint32_t width, uint32_t height,
+                                 float *rgb)
+{
+	enum { SUB = 4 };
+
+	if (!sun || !rgb || width < 1 || height < 1)
+		return LOOM_EINVAL;
+	if ((uint64_t)width * height > LOOM_ENVMAP_MAX_PIXELS)
+		return LOOM_ERANGE;
+	if (!isfinite(sun[0] + sun[1] + sun[2]) ||
+	    !(sun[0] * sun[0] + sun[1] * sun[1] + sun[2] * sun[2] > 0))
+		return LOOM_EINVAL;
+	for (uint32_t y = 0; y < height; y++) {
+		double c0 = cos(M_PI * y / height), c1 = cos(M_PI * (y + 1) / height);
+		for (uint32_t x = 0; x < width; x++) {
+			double acc[3] = {0, 0, 0};
+			/* SUB x SUB directions at the centres of equal-solid-angle
+			   cells (uniform in cos theta and phi) */
+			for (int a = 0; a < SUB; a++) {
+				double ct = c0 + (c1 - c0) * (a + 0.5) / SUB;
+				double st = sqrt(fmax(0.0, 1.0 - ct * ct));
+				for (int b = 0; b < SUB; b++) {
+					double ph = 2.0 * M_PI * (x + (b + 0.5) / SUB) / width;
+					double d[3] = {st * cos(ph), st * sin(ph), ct}, v[3];
+					loom_sky_studio(sun, d, v);
+					for (int j = 0; j < 3; j++)
+						acc[j] += v[j];
+				}
+			}
+			for (int j = 0; j < 3; j++)
+				rgb[3 * ((size_t)y * width + x) + j] = (float)(acc[j] / (SUB * SUB));
+		}
+	}
+	return LOOM_OK;
+}

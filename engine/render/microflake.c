@@ -180,6 +180,15 @@ LOOM_API double loom_microflake_area(double s, double cos_w)
 	           fs * ((1 - fa) * mf_table[i + 1][k] + fa * mf_table[i + 1][k + 1]));
 }
 
+void loom__mf_row_fill(loom__mf_row *r, double s)
+{
+	r->s = s;
+	for (int k = 0; k < LOOM__MF_ROW; k++) {
+		double y = (double)k / (LOOM__MF_ROW - 1), y2 = y * y;
+		r->a[k] = loom_microflake_area(s, 1.0 - y2 * y2);
+	}
+}
+
 LOOM_API double loom_microflake_area_max(void)
 {
 	ensure_tables();

@@ -76,6 +76,7 @@ typedef struct rctx {
 	double bnd[3];           /* slab extent (INFINITY = unbounded) */
 	int grid;                /* track through the source's majorant grid */
 	double mu_cell;          /* cell bound (density) -> majorant factor */
+	double amax;             /* largest projected area A */
 	/* camera */
 	double eye[3], fwd[3], right[3], up[3], tan_x, tan_y;
 	double lens_r, focus;    /* thin lens: radius (0 = pinhole), focus
@@ -93,6 +94,9 @@ typedef struct rctx {
 	   pass_end[p]) over the whole image, a barrier between them; acc
 	   holds each pixel's sums across passes (more than one pass only) */
 	int sobol;               /* Owen-scrambled Sobol dimensions */
+	int dens_first;          /* the source's density hook tests tentative
+	                            collisions first: not with a level of
+	                            detail, whose density is not level 0's */
 	uint32_t n_passes;
 	uint32_t pass_end[34];
 	atomic_uint_fast64_t next_in_pass[34];
@@ -102,6 +106,8 @@ typedef struct rctx {
 	uint64_t bar_gen;
 	pthread_cond_t bar_cv, done_cv;
 } rctx;
+
+#define AREA_ROWS 4 /* projected-area rows kept per thread (yarn types) */
 
 typedef struct tstate {
 	_Alignas(64) rctx *c;     /* own cache lines: no false sharing */
@@ -115,6 +121,8 @@ typedef struct tstate {
 	loom_render_stats st;
 	double fp_o[3], fp0, fp_rate; /* ray footprint (voxels) at x: fp0 +
 	                             fp_rate |x - fp_o| (level of detail) */
+	uint32_t row_last, row_next; /* area rows: last used, next to refill */
+	loom__mf_row rows[AREA_ROWS];/* A(s, .) of the last roughnesses met */
 } tstate;
 
 /* Dimensions of the low-discrepancy point (sampler.h): the pixel, the
@@ -174,6 +182,26 @@ static double clamp_in(double v, double n)
 	if (v >= n)
 		return nextafter(n, 0);
 	return v;
+}
+
+/* The thread's area row of roughness s (filled on a miss: a pure function
+   of s, so the image does not depend on which thread fills what). */
+static const loom__mf_row *area_row(tstate *t, double s)
+{
+	loom__mf_row *r;
+
+	if (t->rows[t->row_last].s == s)
+		return &t->rows[t->row_last];
+	for (uint32_t i = 0; i < AREA_ROWS; i++)
+		if (t->rows[i].s == s) {
+			t->row_last = i;
+			return &t->rows[i];
+		}
+	t->row_last = t->row_next;
+	t->row_next = (t->row_next + 1) % AREA_ROWS;
+	r = &t->rows[t->row_last];
+	loom__mf_row_fill(r, s);
+	return r;
 }
 
 /* Evaluate the medium at scene point x for direction d.  Returns 0, or the
@@ -237,11 +265,32 @@ static int medium_at(tstate *t, const double x[3], const double d[3], medium *m)
 	}
 	if (isfinite(w[0] + w[1] + w[2]) && loom__normalize3(w) > 1e-12) {
 		memcpy(m->w, w, sizeof w);
-		m->mu = dens * c->kscale * loom_microflake_area(m->s, loom__dot3(d, w));
+		m->mu = dens * c->kscale * loom__mf_row_area(area_row(t, m->s), loom__dot3(d, w));
 	} else {
 		memset(m->w, 0, sizeof m->w);
 		m->mu = dens * c->kscale;
 	}
+	return 0;
+}
+
+/* The source's density alone at slab point x (clamped to the bound as
+   medium_at does), for a first test of a tentative collision: its
+   extinction is at most dens * kscale * amax in any direction, evaluated in
+   medium_at's order so the bound holds after rounding too.  Not counted as
+   a lookup (the caller counts one per tentative collision). */
+static int density_at(tstate *t, const double x[3], double *dens)
+{
+	rctx *c = t->c;
+	double v[3];
+	float f = 0.0f;
+	int rc;
+
+	v[0] = isinf(c->bnd[0]) ? x[0] : clamp_in(x[0], c->bnd[0]);
+	v[1] = isinf(c->bnd[1]) ? x[1] : clamp_in(x[1], c->bnd[1]);
+	v[2] = clamp_in(x[2], c->bnd[2]);
+	if ((rc = c->src->density(t->lctx, v, &f)))
+		return rc;
+	*dens = f > 0 ? (f > c->dmax ? c->dmax : (double)f) : 0.0;
 	return 0;
 }
 
@@ -403,10 +452,29 @@ static int track_grid(tstate *t, const double o[3], const double d[3], double a,
 					return 0;
 				for (int j = 0; j < 3; j++)
 					pos[j] = o[j] + tt * d[j];
-				if ((rc = medium_at(t, pos, d, m)))
-					return -rc;
-				if (loom__rand01(&t->rng) * mu < m->mu)
-					return 1;
+				if (t->c->dens_first) {
+					/* density first: most tentative collisions are
+					   rejected by it (the same uniform number and
+					   decision as the full test, which needs the
+					   fibre direction, so the same image) */
+					double dn, xi;
+					if ((rc = density_at(t, pos, &dn)))
+						return -rc;
+					xi = loom__rand01(&t->rng);
+					if (xi * mu < dn * t->c->kscale * t->c->amax) {
+						if ((rc = medium_at(t, pos, d, m)))
+							return -rc;
+						if (xi * mu < m->mu)
+							return 1;
+					} else {
+						t->st.lookups++;
+					}
+				} else {
+					if ((rc = medium_at(t, pos, d, m)))
+						return -rc;
+					if (loom__rand01(&t->rng) * mu < m->mu)
+						return 1;
+				}
 				tau = free_depth(&t->rng);
 			}
 			tau -= mu * (te - tt);
@@ -444,8 +512,20 @@ static int transmit_grid(tstate *t, const double o[3], const double d[3],
 				}
 				for (int j = 0; j < 3; j++)
 					p[j] = o[j] + tt * d[j];
-				if ((rc = medium_at(t, p, d, &m)))
+				m.mu = 0.0;
+				if (t->c->dens_first) { /* empty: a factor of 1 */
+					double dn;
+					if ((rc = density_at(t, p, &dn)))
+						return -rc;
+					if (dn > 0) {
+						if ((rc = medium_at(t, p, d, &m)))
+							return -rc;
+					} else {
+						t->st.lookups++;
+					}
+				} else if ((rc = medium_at(t, p, d, &m))) {
 					return -rc;
+				}
 				/* fmax: a point rounded into the next cell must not
 				   make the estimate negative */
 				*tr *= fmax(0.0, 1.0 - m.mu / mu);
@@ -1030,6 +1110,8 @@ static void *worker(void *arg)
 #if defined(__x86_64__) || defined(__i386__)
 	_mm_setcsr(_mm_getcsr() | 0x8040); /* FTZ | DAZ */
 #endif
+	for (uint32_t i = 0; i < AREA_ROWS; i++)
+		t->rows[i].s = -1.0; /* no roughness is negative */
 	t->lctx = c->src->ctx;
 	if (c->src->thread_init) {
 		t->lctx = c->src->thread_init(c->src->ctx);
@@ -1286,7 +1368,9 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	c.kscale = o->density_scale / c.len_voxel;
 	c.mu_bar = c.dmax * c.kscale * loom_microflake_area_max();
 	c.mu_cell = c.kscale * loom_microflake_area_max();
+	c.amax = loom_microflake_area_max();
 	c.grid = !c.shell && src->cell_max && !(o->flags & LOOM_RENDER_GLOBAL_MAJORANT);
+	c.dens_first = src->density && !(src->lookup_lod && !c.shell);
 	if (c.grid && !(src->cell[0] > 0 && src->cell[1] > 0 && src->cell[2] > 0))
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "render: the source's majorant cell is %lld x %lld x %lld; "

@@ -81,6 +81,33 @@ static inline double loom__dda_exit(const loom__dda *g)
 }
 
 /*
+ * The tracer's projected area A(s, cos) for one roughness s (microflake.c):
+ * a row of A at nodes y_k = k / (LOOM__MF_ROW - 1) with |cos| = 1 - y^4
+ * (angle ~ sqrt(2) y^2 near the fibre, dense where A changes on the scale
+ * of s, like the master table's nodes), filled from the master table,
+ * read linearly in y: two square roots, no acos, exp or log per lookup.
+ * Relative error against quadrature below 1e-3 (tested).  A thread keeps a
+ * few rows keyed on s; the values are a pure function of s.
+ */
+#define LOOM__MF_ROW 513
+typedef struct loom__mf_row {
+	double s;                  /* the row's roughness (NaN: unused) */
+	double a[LOOM__MF_ROW];
+} loom__mf_row;
+
+void loom__mf_row_fill(loom__mf_row *r, double s);
+static inline double loom__mf_row_area(const loom__mf_row *r, double cos_w)
+{
+	double c = cos_w < 0 ? -cos_w : cos_w;
+	double y = sqrt(sqrt(c < 1.0 ? 1.0 - c : 0.0)) * (LOOM__MF_ROW - 1);
+	int k = (int)y;
+	if (k > LOOM__MF_ROW - 2)
+		k = LOOM__MF_ROW - 2;
+	y -= k;
+	return r->a[k] + y * (r->a[k + 1] - r->a[k]);
+}
+
+/*
  * Shell internals used by the tracer.
  *
  * loom__shell_map: world point -> voxel point, trying the prism *hint first

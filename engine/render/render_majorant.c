@@ -474,6 +474,16 @@ static int grid_lookup_lod(void *ctx, const double p[3], double fp,
 	return LOOM_OK;
 }
 
+static int grid_density(void *ctx, const double p[3], float *density)
+{
+	mj_thread *th = ctx;
+	loom_texel tx;
+	int rc = loom_texture_sample_ch(th->m->t, p, th->m->filter, LOOM_CHANNEL_DENSITY, &tx);
+
+	*density = rc == LOOM_OK ? tx.density : 0.0f;
+	return rc;
+}
+
 static void *grid_thread_init(void *ctx)
 {
 	return thread_new(ctx);
@@ -507,5 +517,6 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	src->cell_max = mj_cell_max;
 	if (loom_texture_lod_levels(t))
 		src->lookup_lod = grid_lookup_lod;
+	src->density = grid_density;
 	return LOOM_OK;
 }

@@ -166,6 +166,18 @@ expect_exit env_missing 1 "$LOOM" render "$F" $R --envmap "$T/nope.exr" -o "$T/x
 expect_err_contains env_missing_msg "nope.exr"
 expect_exit env_budget 1 "$LOOM" render "$F" $R --envmap "$T/sky.exr" --budget 0.01 -o "$T/x.png"
 expect_err_contains env_budget_msg "cannot hold the environment map"
+# the built-in studio sky (the default) and the grey one before it
+expect_ok sky_json "$LOOM" render "$F" $R --json -o "$T/sky1.png"
+json_check sky_json_studio "j['sky'] == 'studio' and j['envmap_bytes'] > 128 * 64 * 12"
+expect_ok sky_grey "$LOOM" render "$F" $R --sky grey --json -o "$T/skyg.png"
+json_check sky_grey_json "j['sky'] == 'grey' and j['envmap_bytes'] == 0"
+if cmp -s "$T/sky1.png" "$T/skyg.png"; then fail sky_matters "--sky grey gave the studio picture"; else pass sky_matters; fi
+expect_ok sky_threads "$LOOM" render "$F" $R --threads 1 --quiet -o "$T/sky2.png"
+expect_same sky_threads_same_bytes "$T/sky1.png" "$T/sky2.png"
+expect_exit sky_with_envmap 2 "$LOOM" render "$F" --envmap "$T/sky.exr" --sky grey -o x.png
+expect_err_contains sky_with_envmap_msg "--sky"
+expect_exit sky_bad 2 "$LOOM" render "$F" --sky blue -o x.png
+expect_err_contains sky_bad_msg "--sky"
 expect_exit env_rotate_alone 2 "$LOOM" render "$F" --env-rotate 10 -o x.png
 expect_exit env_intensity_neg 2 "$LOOM" render "$F" --envmap x.exr --env-intensity -1 -o x.png
 # --light (spherical lamps, mm) and repeatable --sun

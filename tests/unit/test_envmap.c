@@ -317,6 +317,119 @@ static void test_threads_and_errors(void)
 	free(b);
 }
 
+/* The built-in studio sky: its shape, the map loom render builds from it
+   against quadrature of the analytic sky, and importance sampling of the
+   map estimating the analytic sky's integral without bias. */
+static void test_studio_sky(void)
+{
+	const double el = 35.0 * M_PI / 180.0, az = 0.7;
+	double sun[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
+	double zen[3], hor[3], nad[3], toward[3], away[3];
+	const uint32_t W = LOOM_SKY_MAP_W, H = LOOM_SKY_MAP_H;
+	float *px = malloc((size_t)3 * W * H * sizeof *px);
+	loom_envmap *m = NULL;
+	double qa[3] = {0, 0, 0}, qe = 0, ma[3] = {0, 0, 0}, me = 0;
+	uint64_t rng = 12345;
+	enum { NQ = 1024, NS = 200000 };
+
+	CHECK(px != NULL);
+	if (!px)
+		return;
+	{
+		double dz[3] = {0, 0, 1}, dh[3] = {cos(az + M_PI), sin(az + M_PI), 0};
+		double dn[3] = {0, 0, -1};
+		double dt[3] = {cos(el) * cos(az), cos(el) * sin(az), sin(el)};
+		double da[3] = {cos(el) * cos(az + M_PI), cos(el) * sin(az + M_PI), sin(el)};
+		loom_sky_studio(sun, dz, zen);
+		loom_sky_studio(sun, dh, hor);
+		loom_sky_studio(sun, dn, nad);
+		loom_sky_studio(sun, dt, toward);
+		loom_sky_studio(sun, da, away);
+	}
+	for (int j = 0; j < 3; j++) {
+		CHECK(zen[j] > hor[j] * 2);           /* brighter zenith */
+		CHECK(fabs(nad[j] - 0.05) < 1e-9);   /* dark floor */
+		CHECK(hor[j] > nad[j]);
+		CHECK(toward[j] > away[j] + 0.5);     /* glow round the sun */
+	}
+	CHECK(toward[0] > toward[2]);                /* a warm glow */
+	/* the map against the analytic sky: integral of radiance over the
+	   sphere and irradiance on the cloth's plane (quadrature uniform in
+	   cos theta and phi, NQ x 2NQ midpoints) */
+	CHECK_EQ_INT(loom_sky_studio_map(sun, W, H, px), LOOM_OK);
+	for (int a = 0; a < NQ; a++) {
+		double ct = 1.0 - 2.0 * (a + 0.5) / NQ, st = sqrt(1.0 - ct * ct);
+		for (int b = 0; b < 2 * NQ; b++) {
+			double ph = M_PI * (b + 0.5) / NQ, d[3] = {st * cos(ph), st * sin(ph), ct};
+			double v[3];
+			loom_sky_studio(sun, d, v);
+			for (int j = 0; j < 3; j++)
+				qa[j] += v[j];
+			if (ct > 0)
+				qe += (0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]) * ct;
+		}
+	}
+	for (int j = 0; j < 3; j++)
+		qa[j] *= 4.0 * M_PI / (2.0 * NQ * NQ);
+	qe *= 4.0 * M_PI / (2.0 * NQ * NQ);
+	for (uint32_t y = 0; y < H; y++) {
+		double c0 = cos(M_PI * y / H), c1 = cos(M_PI * (y + 1) / H);
+		double sa = (c0 - c1) * 2.0 * M_PI / W;
+		for (uint32_t x = 0; x < W; x++) {
+			const float *c = px + 3 * ((size_t)y * W + x);
+			for (int j = 0; j < 3; j++)
+				ma[j] += c[j] * sa;
+			if (y < H / 2)
+				me += (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]) * sa *
+				      0.5 * (c0 + c1);
+		}
+	}
+	printf("  studio sky: integral map %.5f %.5f %.5f, analytic %.5f %.5f %.5f; "
+	       "irradiance map %.5f, analytic %.5f\n", ma[0], ma[1], ma[2], qa[0], qa[1],
+	       qa[2], me, qe);
+	for (int j = 0; j < 3; j++)
+		CHECK(fabs(ma[j] - qa[j]) < 2e-3 * qa[j]);
+	CHECK(fabs(me - qe) < 5e-3 * qe);
+	/* importance sampling the map: E[sky(d) / pdf(d)] = the analytic
+	   integral, within the map's piecewise-constant approximation */
+	CHECK_EQ_INT(loom_envmap_new(px, W, H, 0.0, 1.0, &m, NULL), LOOM_OK);
+	if (m) {
+		double s[3] = {0, 0, 0}, s2 = 0, lq, se, mean;
+		for (int k = 0; k < NS; k++) {
+			double d[3], v[3], pdf, u1 = loom_rng_uniform(&rng), u2 = loom_rng_uniform(&rng);
+			pdf = loom_envmap_sample(m, u1, u2, d);
+			CHECK(pdf > 0);
+			if (!(pdf > 0))
+				break;
+			CHECK(fabs(loom_envmap_pdf(m, d) - pdf) < 1e-6 * pdf);
+			loom_sky_studio(sun, d, v);
+			for (int j = 0; j < 3; j++)
+				s[j] += v[j] / pdf;
+			lq = (0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]) / pdf;
+			s2 += lq * lq;
+		}
+		lq = 0.2126 * qa[0] + 0.7152 * qa[1] + 0.0722 * qa[2];
+		mean = (0.2126 * s[0] + 0.7152 * s[1] + 0.0722 * s[2]) / NS;
+		se = sqrt(fmax(0.0, s2 / NS - mean * mean) / NS);
+		printf("  sampled luminance integral %.5f +- %.5f, analytic %.5f\n", mean, se, lq);
+		CHECK(fabs(mean - lq) < 4 * se + 2e-3 * lq);
+		for (int j = 0; j < 3; j++)
+			CHECK(fabs(s[j] / NS - qa[j]) < 0.01 * qa[j]);
+		loom_envmap_free(m);
+	}
+	/* bad arguments */
+	{
+		double zero[3] = {0, 0, 0}, nan3[3] = {NAN, 0, 1};
+		CHECK_EQ_INT(loom_sky_studio_map(NULL, W, H, px), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_sky_studio_map(sun, 0, H, px), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_sky_studio_map(sun, W, H, NULL), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_sky_studio_map(zero, W, H, px), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_sky_studio_map(nan3, W, H, px), LOOM_EINVAL);
+		CHECK_EQ_INT(loom_sky_studio_map(sun, 1u << 12, 1u << 11, px), LOOM_ERANGE);
+	}
+	free(px);
+}
+
 int main(void)
 {
 	CHECK_MAIN_BEGIN("test_envmap");
@@ -325,5 +438,6 @@ int main(void)
 	RUN(test_furnace);
 	RUN(test_bright_pixel_is_a_sun);
 	RUN(test_threads_and_errors);
+	RUN(test_studio_sky);
 	CHECK_MAIN_END();
 }

@@ -32,6 +32,7 @@ static const char usage[] =
 	"            [--look-from X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z]\n"
 	"            [--ortho WIDTH_MM] [--aperture MM [--focus MM]]\n"
 	"            [--envmap FILE.exr [--env-rotate DEG] [--env-intensity K]]\n"
+	"            [--sky studio|grey]\n"
 	"            [--light X,Y,Z,RADIUS,INTENSITY]...\n"
 	"            [--cloth-size W[,H]] [--ground [--ground-z MM]\n"
 	"            [--ground-albedo A[,G,B]]] [--tone linear|filmic]\n"
@@ -62,6 +63,9 @@ static const opt_choice tone_names[] = {
 
 static const opt_choice majorant_names[] = {
 	{"grid", 0}, {"global", 1}, {NULL, 0}};
+
+static const opt_choice sky_names[] = {
+	{"studio", 0}, {"grey", 1}, {NULL, 0}};
 
 static const opt_choice sampler_names[] = {
 	{"sobol", LOOM_SAMPLER_SOBOL}, {"random", LOOM_SAMPLER_RANDOM}, {NULL, 0}};
@@ -393,6 +397,7 @@ int cmd_render(int argc, char **argv)
 	double env_rot = 0, env_k = 1;
 	loom_envmap *envmap = NULL;
 	size_t env_bytes = 0;
+	int sky_grey = 0;
 	uint32_t field_smooth = 32;
 	int ground = 0, tone = LOOM_TONE_LINEAR, is_exr;
 	double ground_z = 0, ground_alb[3] = {0.6, 0.6, 0.6}, cloth_mm[2] = {0, 0};
@@ -505,6 +510,11 @@ int cmd_render(int argc, char **argv)
 		           "counter-clockwise towards +y)"),
 		OPT_DOUBLE(0, "env-intensity", &env_k, "K", "[]", 0, 1e9, NULL,
 		           "scale the map's radiance, %r (default 1)"),
+		OPT_ENUM(0, "sky", &sky_grey, "SKY", sky_names, "without --envmap: "
+		         "studio (default: a soft sky brighter at the zenith than at the "
+		         "horizon over a dark floor, with a glow round the first sun; "
+		         "importance-sampled like a map) or grey (a constant grey of "
+		         "radiance 0.18, the sky before)"),
 		OPT_CALLBACK(0, "light", &spheres, "X,Y,Z,R,I", opt_light, "a spherical "
 		             "lamp (repeatable, up to 16): centre and radius in mm of the "
 		             "cloth's frame (mesh units with --mesh) and intensity I, the "
@@ -584,6 +594,8 @@ int cmd_render(int argc, char **argv)
 		           "does not go with --ortho");
 	if (opt_given(&cmd, &focus) && !opt_given(&cmd, &aperture))
 		opts_usage(&cmd, "--focus goes with --aperture");
+	if (env_path && opt_given(&cmd, &sky_grey))
+		opts_usage(&cmd, "--sky is the sky without --envmap; the map replaces it");
 	if (!env_path && (opt_given(&cmd, &env_rot) || opt_given(&cmd, &env_k)))
 		opts_usage(&cmd, "--env-rotate and --env-intensity go with --envmap");
 	is_exr = cli_ends_with(out, ".exr");
@@ -642,6 +654,9 @@ int cmd_render(int argc, char **argv)
 		loom_exr_image_free(ei);
 		if (rc != LOOM_OK)
 			cli_fail(prog, "%s: %s", env_path, diag.message);
+	} else if (!sky_grey) {
+		/* the studio sky, built once the sun is known (below) */
+		env_bytes = loom_envmap_bytes(LOOM_SKY_MAP_W, LOOM_SKY_MAP_H);
 	}
 
 	if (db_opt && loom_db_open(db_opt, &db, &diag) != LOOM_OK)
@@ -870,7 +885,7 @@ int cmd_render(int argc, char **argv)
 	   never flat from behind the viewer; with --look-from, round from that
 	   camera's azimuth.  The first sun is ro.light, the others and the
 	   lamps ro.lights. */
-	if (suns.n == 0 && spheres.n == 0 && !envmap) {
+	if (suns.n == 0 && spheres.n == 0 && !env_path) {
 		suns.v[0][0] = az + 150.0;
 		suns.v[0][1] = 35.0;
 		suns.v[0][2] = 2.6;
@@ -903,6 +918,26 @@ int cmd_render(int argc, char **argv)
 		ro.n_lights = (uint32_t)(suns.n + spheres.n - 1);
 	}
 	ro.env[0] = ro.env[1] = ro.env[2] = 0.18f;
+	if (!env_path && !sky_grey) {
+		/* the studio sky, its glow round the first sun (or where the
+		   studio sun would stand when only lamps are given) */
+		double sd[3], sa = suns.n ? suns.v[0][0] : az + 150.0;
+		double se = suns.n ? suns.v[0][1] : 35.0;
+		float *px = malloc((size_t)3 * LOOM_SKY_MAP_W * LOOM_SKY_MAP_H * sizeof *px);
+		sd[0] = -sin(sa * M_PI / 180.0) * cos(se * M_PI / 180.0);
+		sd[1] = -cos(sa * M_PI / 180.0) * cos(se * M_PI / 180.0);
+		sd[2] = sin(se * M_PI / 180.0);
+		rc = px ? loom_sky_studio_map(sd, LOOM_SKY_MAP_W, LOOM_SKY_MAP_H, px)
+		        : LOOM_ENOMEM;
+		if (rc == LOOM_OK)
+			rc = loom_envmap_new(px, LOOM_SKY_MAP_W, LOOM_SKY_MAP_H, 0.0, 1.0,
+			                     &envmap, &diag);
+		free(px);
+		if (rc != LOOM_OK) {
+			cli_error(prog, "studio sky: %s", loom_strerror(rc));
+			goto fail;
+		}
+	}
 	ro.envmap = envmap;
 	if (ground) {
 		ro.ground.enabled = 1;
@@ -1023,6 +1058,7 @@ int cmd_render(int argc, char **argv)
 		jw_str(&w, "majorant", mj ? "grid" : "global");
 		jw_uint(&w, "majorant_bytes", mj_bytes);
 		jw_uint(&w, "envmap_bytes", env_bytes);
+		jw_str(&w, "sky", env_path ? "envmap" : sky_grey ? "grey" : "studio");
 		jw_str(&w, "tone", is_exr ? "none" : tone == LOOM_TONE_FILMIC ? "filmic"
 		                                                           : "linear");
 		if (ground)

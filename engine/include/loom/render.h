@@ -152,11 +152,19 @@ typedef struct loom_volume_source {
 	                         scenes (a shell keeps lookup), with the ray's
 	                         footprint, so the source can choose a level of
 	                         detail (docs/rendering.md, "Level of detail") */
+	int (*density)(void *thread_ctx, const double p[3], float *density);
+	                      /* optional, with cell_max: the density alone of
+	                         the lookup at p (exactly lookup's value), for
+	                         a cheap first test of a tentative collision;
+	                         the full lookup follows only when it may be
+	                         real.  Same ctx and rules as lookup.  A
+	                         wrapper that replaces lookup must replace or
+	                         clear this too.  Not used with lookup_lod */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
 	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
-	 {0, 0, 0}, NULL, NULL}
+	 {0, 0, 0}, NULL, NULL, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)
@@ -454,6 +462,32 @@ LOOM_API double loom_envmap_sample(const loom_envmap *m, double u1, double u2,
 
 /* The pdf per steradian with which loom_envmap_sample returns d. */
 LOOM_API double loom_envmap_pdf(const loom_envmap *m, const double d[3]);
+
+/*
+ * The built-in studio sky (docs/rendering.md, "The studio sky"): a soft
+ * overcast-like dome, brightest at the zenith (0.32, 0.34, 0.37) and
+ * falling to (0.13, 0.13, 0.14) at the horizon, a dark floor (0.05) below
+ * it with a short blend under the horizon, and a warm glow round the sun
+ * (unit direction `sun`, towards it; about 15 degrees wide, 0.9 at its
+ * centre, not below the horizon).  The sun's own disc is not in it (the
+ * renderer's sun light is).  Linear RGB radiance arriving from unit
+ * direction d (+z up).
+ */
+LOOM_API void loom_sky_studio(const double sun[3], const double d[3], double rgb[3]);
+
+/*
+ * The studio sky as a width x height latitude-longitude map in
+ * loom_envmap_new's layout (rotation 0), each pixel the mean of 4 x 4
+ * directions uniform in its solid angle (so the map's integral matches the
+ * sky's).  rgb holds 3 width height floats.  LOOM_EINVAL (NULL, a zero
+ * size, a sun that is not a finite non-zero vector), LOOM_ERANGE (more
+ * than LOOM_ENVMAP_MAX_PIXELS).
+ */
+#define LOOM_SKY_MAP_W 128u /* the size `loom render` uses (about 2.8
+                               degrees a pixel; 0.25 MiB with its CDFs) */
+#define LOOM_SKY_MAP_H 64u
+LOOM_API int loom_sky_studio_map(const double sun[3], uint32_t width, uint32_t height,
+                                 float *rgb);
 
 /* Power heuristic (exponent 2) weight of a sample drawn with pdf_a when
    the other strategy has pdf_b: a^2 / (a^2 + b^2); 0 when pdf_a is 0. */
