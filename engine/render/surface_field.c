@@ -17,6 +17,25 @@
  * (proj_f: onto f's plane), so low-confidence triangles take their
  * direction from their neighbours and the field turns smoothly.
  *
+ * Principal curvature (source LOOM_FIELD_CURVATURE_MAX or _MIN).  Each
+ * triangle's second fundamental form II (2 x 2, symmetric) is fitted by
+ * least squares to the change of the vertex normals along its three
+ * edges, II e = dn (Rusinkiewicz 2004, "Estimating curvatures and their
+ * derivatives on triangle meshes"; vertex normals: angle-weighted face
+ * normals).  Its eigenvectors are the principal directions; t_f is the
+ * one of larger |kappa| (MAX: the direction of strongest bending, round
+ * a cylinder or a torus's tube) or the other one (MIN: along a cylinder's
+ * axis, round a torus's hole), with confidence the anisotropy
+ * c_f = |k1 - k2| / (|k1| + |k2|).  A principal direction is a line, not
+ * a vector: the smoothing turns each neighbour's and the data term's sign
+ * to agree with w_f before adding (the 2-fold symmetry of a line field),
+ * and after smoothing the signs are made consistent breadth-first (a
+ * triangle's map and its neighbour's must not be half a turn apart).
+ * Near umbilics (c_f < 0.1: a sphere, a flat region) the triangle takes
+ * the user's direction instead, at confidence 0.1 times its projection's,
+ * so a sphere gets the direction field and umbilic points of a curved
+ * surface take their neighbours' direction.
+ *
  * Local maps.  Triangle f is laid flat rigidly in the frame
  *     e_v = w_f (warps run along voxel y),  e_u = e_v x n_f,
  * so each triangle keeps its exact shape: crossing-size distortion is 1
@@ -271,35 +290,170 @@ LOOM_API int loom_mesh_measure_uv(const loom_mesh *m, const double period[2],
 	return LOOM_OK;
 }
 
-/* The smooth warp field: w (3 per triangle, unit or 0 for degenerate). */
-static void warp_field(const loom_mesh *m, const uint32_t *nbr, const double *fn,
-                       const double d[3], uint32_t iters, double *w,
-                       double *tmp)
+/*
+ * The data term of the principal-curvature field (3 per triangle, length
+ * c_f, see the top of the file): the user's direction's projection times
+ * 0.1 near umbilics.  vn: 3 per position, scratch.  LOOM_ENOMEM never:
+ * the caller passes the scratch.
+ */
+#define FIELD_UMBILIC 0.1
+static void curvature_data(const loom_mesh *m, const double *fn, const double d[3],
+                           int source, double *vn, double *data)
 {
-	size_t nt = m->n_triangles;
+	size_t nt = m->n_triangles, np = m->n_positions;
 	double dl = sqrt(loom__dot3(d, d));
 
+	/* vertex normals: face normals weighted by the corner's angle (an
+	   area weight tilts the normals of an open rim, whose corners are
+	   split unevenly between the two sides) */
+	memset(vn, 0, 3 * np * sizeof *vn);
 	for (size_t t = 0; t < nt; t++) {
-		double *wt = w + 3 * t;
-		project(d, fn + 3 * t, wt);
-		/* store c_f t_f = the raw projection over |d| (length c_f) */
-		for (int j = 0; j < 3; j++)
-			wt[j] /= dl;
+		const double *n = fn + 3 * t;
+		if (!(loom__dot3(n, n) > 0.5))
+			continue;
+		for (int i = 0; i < 3; i++) {
+			double p0[3], p1[3], p2[3], e1[3], e2[3], l1, l2, ang;
+			corner(m, (uint32_t)t, i, p0);
+			corner(m, (uint32_t)t, (i + 1) % 3, p1);
+			corner(m, (uint32_t)t, (i + 2) % 3, p2);
+			for (int j = 0; j < 3; j++) {
+				e1[j] = p1[j] - p0[j];
+				e2[j] = p2[j] - p0[j];
+			}
+			l1 = sqrt(loom__dot3(e1, e1));
+			l2 = sqrt(loom__dot3(e2, e2));
+			if (!(l1 > 0 && l2 > 0))
+				continue;
+			ang = acos(fmax(-1.0, fmin(1.0, loom__dot3(e1, e2) / (l1 * l2))));
+			for (int j = 0; j < 3; j++)
+				vn[3 * (size_t)m->tri_v[3 * t + (size_t)i] + j] += ang * n[j];
+		}
 	}
-	memcpy(tmp, w, nt * 3 * sizeof *w); /* tmp: the data term */
+	for (size_t v = 0; v < np; v++)
+		loom__normalize3(vn + 3 * v);
+	for (size_t t = 0; t < nt; t++) {
+		const double *n = fn + 3 * t;
+		double eu[3], ev[3], A[3][3] = {{0}}, b[3] = {0}, x[3], k1, k2, th, c;
+		double *out = data + 3 * t;
+		memset(out, 0, 3 * sizeof *out);
+		if (!(loom__dot3(n, n) > 0.5))
+			continue; /* degenerate */
+		/* the triangle's frame: eu along its first edge */
+		{
+			double p0[3], p1[3];
+			corner(m, (uint32_t)t, 0, p0);
+			corner(m, (uint32_t)t, 1, p1);
+			for (int j = 0; j < 3; j++)
+				eu[j] = p1[j] - p0[j];
+			loom__normalize3(eu);
+			loom__cross3(n, eu, ev);
+		}
+		/* II = [x0 x1; x1 x2]: rows (eu.e, ev.e, 0) x = eu.dn and
+		   (0, eu.e, ev.e) x = ev.dn per edge; normal equations */
+		for (int i = 0; i < 3; i++) {
+			uint32_t a = m->tri_v[3 * t + (size_t)i];
+			uint32_t bb = m->tri_v[3 * t + (size_t)(i + 1) % 3];
+			double e[3], dn[3], r1[3], r2[3], y1, y2;
+			for (int j = 0; j < 3; j++) {
+				e[j] = m->positions[3 * (size_t)bb + j] - m->positions[3 * (size_t)a + j];
+				dn[j] = vn[3 * (size_t)bb + j] - vn[3 * (size_t)a + j];
+			}
+			r1[0] = loom__dot3(e, eu);
+			r1[1] = loom__dot3(e, ev);
+			r1[2] = 0;
+			r2[0] = 0;
+			r2[1] = r1[0];
+			r2[2] = r1[1];
+			y1 = loom__dot3(dn, eu);
+			y2 = loom__dot3(dn, ev);
+			for (int r = 0; r < 3; r++) {
+				for (int q = 0; q < 3; q++)
+					A[r][q] += r1[r] * r1[q] + r2[r] * r2[q];
+				b[r] += r1[r] * y1 + r2[r] * y2;
+			}
+		}
+		/* 3 x 3 solve (Cramer; the system is positive definite for a
+		   non-degenerate triangle) */
+		{
+			double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) -
+			             A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+			             A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+			if (!(fabs(det) > 1e-300))
+				continue;
+			for (int k = 0; k < 3; k++) {
+				double M[3][3];
+				memcpy(M, A, sizeof M);
+				for (int r = 0; r < 3; r++)
+					M[r][k] = b[r];
+				x[k] = (M[0][0] * (M[1][1] * M[2][2] - M[1][2] * M[2][1]) -
+				        M[0][1] * (M[1][0] * M[2][2] - M[1][2] * M[2][0]) +
+				        M[0][2] * (M[1][0] * M[2][1] - M[1][1] * M[2][0])) / det;
+			}
+		}
+		/* eigen: k1 >= k2 (signed), th the angle of k1's direction */
+		{
+			double hm = 0.5 * (x[0] + x[2]), hd = 0.5 * (x[0] - x[2]);
+			double r = sqrt(hd * hd + x[1] * x[1]);
+			k1 = hm + r;
+			k2 = hm - r;
+			th = 0.5 * atan2(2 * x[1], x[0] - x[2]);
+		}
+		c = fabs(k1) + fabs(k2) > 0 ? fabs(k1 - k2) / (fabs(k1) + fabs(k2)) : 0;
+		if (c >= FIELD_UMBILIC) {
+			/* the direction of larger |kappa| for MAX, the other for MIN */
+			int along_k1 = (fabs(k1) >= fabs(k2)) == (source == LOOM_FIELD_CURVATURE_MAX);
+			double a = along_k1 ? th : th + 0.5 * M_PI;
+			for (int j = 0; j < 3; j++)
+				out[j] = c * (cos(a) * eu[j] + sin(a) * ev[j]);
+		} else {
+			project(d, n, out);
+			for (int j = 0; j < 3; j++)
+				out[j] *= FIELD_UMBILIC / dl;
+		}
+	}
+}
+
+/* Flip q to agree with ref (a line field's 2-fold symmetry). */
+static void agree(double q[3], const double ref[3])
+{
+	if (loom__dot3(q, ref) < 0)
+		for (int j = 0; j < 3; j++)
+			q[j] = -q[j];
+}
+
+/*
+ * The smooth warp field: w (3 per triangle, unit or 0 for degenerate)
+ * from the data term (3 per triangle, length c_f) in tmp[0 .. 3 nt);
+ * line: the data is a line field (signs free; see the top of the file).
+ */
+static void warp_field(const loom_mesh *m, const uint32_t *nbr, const double *fn,
+                       uint32_t iters, int line, double *w, double *tmp)
+{
+	size_t nt = m->n_triangles;
+
+	memcpy(w, tmp, nt * 3 * sizeof *w);
 	/* Triangles whose projection vanishes need neighbours from the start:
 	   normalise the data term only for the initial guess. */
 	for (uint32_t it = 0; it < iters; it++) {
 		double *next = tmp + 3 * nt;
 		for (size_t t = 0; t < nt; t++) {
-			double acc[3], q[3];
+			double acc[3], q[3], ref[3];
+			memcpy(ref, w + 3 * t, sizeof ref);
 			for (int j = 0; j < 3; j++)
 				acc[j] = 2.0 * tmp[3 * t + j];
+			if (line && loom__dot3(ref, ref) > 0)
+				agree(acc, ref);
 			for (int e = 0; e < 3; e++) {
 				uint32_t g = nbr[3 * t + e];
 				if (g == FIELD_NONE)
 					continue;
 				project(w + 3 * (size_t)g, fn + 3 * t, q);
+				if (line) {
+					/* w_f not set yet: the first term is the reference */
+					if (!(loom__dot3(ref, ref) > 0))
+						memcpy(ref, loom__dot3(acc, acc) > 0 ? acc : q, sizeof ref);
+					agree(q, ref);
+				}
 				for (int j = 0; j < 3; j++)
 					acc[j] += q[j];
 			}
@@ -323,6 +477,39 @@ static void warp_field(const loom_mesh *m, const uint32_t *nbr, const double *fn
 			for (int j = 0; j < 3; j++)
 				x[j] = p1[j] - p0[j];
 			loom__normalize3(x);
+		}
+	}
+}
+
+/* A line field's signs made consistent breadth-first from the lowest
+   triangle of each component: a neighbour whose direction points against
+   the projection of the visiting triangle's is flipped.  queue: nt
+   entries; seen: nt bytes, zero. */
+static void orient_field(const loom_mesh *m, const uint32_t *nbr, const double *fn,
+                         double *w, uint32_t *queue, uint8_t *seen)
+{
+	size_t nt = m->n_triangles;
+
+	for (size_t seed = 0; seed < nt; seed++) {
+		size_t head = 0, tail = 0;
+		if (seen[seed])
+			continue;
+		seen[seed] = 1;
+		queue[tail++] = (uint32_t)seed;
+		while (head < tail) {
+			uint32_t t = queue[head++];
+			for (int e = 0; e < 3; e++) {
+				uint32_t g = nbr[3 * (size_t)t + e];
+				double q[3];
+				if (g == FIELD_NONE || seen[g])
+					continue;
+				seen[g] = 1;
+				project(w + 3 * (size_t)t, fn + 3 * (size_t)g, q);
+				if (loom__dot3(q, w + 3 * (size_t)g) < 0)
+					for (int j = 0; j < 3; j++)
+						w[3 * (size_t)g + j] = -w[3 * (size_t)g + j];
+				queue[tail++] = g;
+			}
 		}
 	}
 }
@@ -500,6 +687,10 @@ LOOM_API int loom_mesh_field_uv(const loom_mesh *m,
 	if (!(p->uv_per_world > 0) || !isfinite(p->uv_per_world))
 		return loom__fail(diag, LOOM_EINVAL, "field: uv_per_world (%g) must be "
 		                  "finite and > 0", p->uv_per_world);
+	if (p->source != LOOM_FIELD_DIRECTION && p->source != LOOM_FIELD_CURVATURE_MAX &&
+	    p->source != LOOM_FIELD_CURVATURE_MIN)
+		return loom__fail(diag, LOOM_EINVAL, "field: source %d is not a "
+		                  "LOOM_FIELD_* value", p->source);
 	if (p->smooth_iters > 100000)
 		return loom__fail(diag, LOOM_EINVAL, "field: smooth_iters %u > 100000",
 		                  p->smooth_iters);
@@ -563,7 +754,26 @@ LOOM_API int loom_mesh_field_uv(const loom_mesh *m,
 						if (nbr[3 * (size_t)g + f] == t)
 							nbr[3 * (size_t)g + f] = FIELD_NONE;
 			}
-	warp_field(m, nbr, fn, d, p->smooth_iters, w, tmp);
+	if (p->source == LOOM_FIELD_DIRECTION) {
+		/* c_f t_f: the raw projection over |d| (length c_f) */
+		double dl = sqrt(loom__dot3(d, d));
+		for (size_t t = 0; t < nt; t++) {
+			project(d, fn + 3 * t, tmp + 3 * t);
+			for (int j = 0; j < 3; j++)
+				tmp[3 * t + j] /= dl;
+		}
+	} else {
+		double *vn = malloc(3 * np * sizeof *vn + 1);
+		if (!vn)
+			goto oom;
+		curvature_data(m, fn, d, p->source, vn, tmp);
+		free(vn);
+	}
+	warp_field(m, nbr, fn, p->smooth_iters, p->source != LOOM_FIELD_DIRECTION, w, tmp);
+	if (p->source != LOOM_FIELD_DIRECTION) {
+		orient_field(m, nbr, fn, w, queue, placed);
+		memset(placed, 0, nt);
+	}
 
 	/* Breadth-first placement, one seed per connected component: the
 	   triangle of highest confidence is not needed; the lowest index is

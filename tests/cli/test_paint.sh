@@ -294,6 +294,88 @@ PYEOF
 else
 	echo "NOTE paint/viewer: chromium or playwright-core missing: the paint tool's browser test did not run"
 fi
+# start_server NAME ARGS...: loom serve ARGS in the background, $URL set
+# (empty if it did not start)
+start_server() {
+	n=$1
+	shift
+	"$LOOM" serve "$@" --port 0 --budget 64 --size-mm 10 --cache "$T/cache-$n" >"$T/$n.out" 2>"$T/$n.err" &
+	SERVER=$!
+	URL=""
+	for _ in $(seq 1 100); do
+		URL=$(sed -n 's|^loom serve: \(http://[^ ]*\)/ .*|\1|p' "$T/$n.out")
+		[ -n "$URL" ] && break
+		kill -0 "$SERVER" 2>/dev/null || break
+		sleep 0.2
+	done
+}
+# a weave painted with the viewer's paint tool in chromium: the paint
+# file is the one loom paint --weave writes for the rectangle the page
+# sent; the live server's tile over it and its drawdown patch are the
+# bytes a fresh server over the saved file serves (the swap re-weaves the
+# fabric as every reader of the file does); the tile changed
+case "${LOOM_SAN:-}" in *thread*)
+	echo "NOTE paint/viewer weave: not run under ThreadSanitizer" ;;
+*) false ;; esac ||
+if command -v chromium >/dev/null 2>&1 && [ -d "$LOOM_BUILD/web/node_modules/playwright-core" ]; then
+	start_server vw "$F" --paint-file "$T/vw.loomp"
+	top=$(curl -s "$URL/api/info" | sed -n 's/.*"max_level": *\([0-9]*\).*/\1/p')
+	L=$((top - 1))
+	curl -s -o "$T/vw-before.png" "$URL/tile/$L/0/0.png"
+	if [ -n "$URL" ] && LOOM_BUILD="$LOOM_BUILD" LOOM_SAN="${LOOM_SAN:-}" \
+		timeout $([ -n "${LOOM_SAN:-}" ] && echo 1500 || echo 300) \
+		node "$LOOM_TOP/tests/web/paint_weave.mjs" "$URL/" "$T" satin:1/4 >"$T/vw.json" 2>"$T/vw-node.err"
+	then pass viewer_weave_run; else fail viewer_weave_run "$(cat "$T/vw.json" "$T/vw-node.err" | head -c 600)"; fi
+	curl -s -o "$T/vw-after.png" "$URL/tile/$L/0/0.png"
+	curl -s -o "$T/vw-patch.png" "$URL/painted/0.png"
+	curl -s "$URL/api/info" | sed -n 's/.*"painted_weaves": *\(\[.*\]\)}.*/\1/p' >"$T/vw-pw"
+	stop_server
+	mm=$($PY -c 'import json,sys; m=json.load(open(sys.argv[1]))["mm"]; print("%.4f,%.4f:%.4f,%.4f" % tuple(m))' "$T/vw.json" 2>/dev/null)
+	"$LOOM" paint "$F" --rect "$mm" --weave satin:1/4 -q -o "$T/vw-ref.loomp"
+	expect_same viewer_weave_file "$T/vw.loomp" "$T/vw-ref.loomp"
+	start_server vf "$T/vw.loomp"
+	curl -s -o "$T/vf-tile.png" "$URL/tile/$L/0/0.png"
+	curl -s -o "$T/vf-patch.png" "$URL/painted/0.png"
+	stop_server
+	expect_same viewer_weave_tile_as_fresh "$T/vw-after.png" "$T/vf-tile.png"
+	expect_same viewer_weave_drawdown_as_fresh "$T/vw-patch.png" "$T/vf-patch.png"
+	if [ -s "$T/vw-after.png" ] && ! cmp -s "$T/vw-before.png" "$T/vw-after.png" && grep -q '\[\[' "$T/vw-pw"
+	then pass viewer_weave_shown; else fail viewer_weave_shown "tile unchanged or no patch: $(cat "$T/vw-pw")"; fi
+else
+	echo "NOTE paint/viewer weave: chromium or playwright-core missing: the weave paint tool's browser test did not run"
+fi
+# weaves through the API: bad input refused with a 400 naming it, the
+# file untouched; a draft and a name accepted
+start_server wb "$F" --paint-file "$T/wb.loomp"
+post() { curl -s -o "$T/wb-body" -w '%{http_code}' -X POST "$URL/api/paint?$1"; }
+bad_weave() { # NAME QUERY MESSAGE
+	c=$(post "$2")
+	if [ "$c" = 400 ] && grep -q "$3" "$T/wb-body"; then pass "serve_weave_$1"
+	else fail "serve_weave_$1" "HTTP $c: $(cat "$T/wb-body")"; fi
+}
+R0="x0=1&y0=1&x1=2&y1=2"
+bad_weave none "$R0&effect=weave" "exactly one of weave=NAME"
+bad_weave both "$R0&effect=weave&weave=plain&draft=10/01" "exactly one of weave=NAME"
+bad_weave unknown "$R0&effect=weave&weave=glitter" "weave: "
+bad_weave satin_move "$R0&effect=weave&weave=satin:1/5:move=1" "weave: "
+bad_weave draft_char "$R0&effect=weave&draft=102/010" "draft: character 3"
+bad_weave draft_ragged "$R0&effect=weave&draft=10/1" "draft: row 2 has 1 cells"
+bad_weave draft_empty "$R0&effect=weave&draft=10//01" "draft: row 2 has 0 cells"
+bad_weave band "$R0&effect=weave&weave=plain&band=9" "band: a whole number"
+bad_weave rgb "$R0&effect=weave&weave=plain&rgb=ff0000" "do not go with effect=weave"
+bad_weave on_stain "$R0&effect=stain&weave=plain" "go with effect=weave"
+bad_weave too_large "x0=0&y0=0&x1=100000&y1=100000&effect=weave&weave=plain" "weave region 1 covers"
+bad_weave rect "x0=2&y0=1&x1=1&y1=2&effect=weave&weave=plain" "paint refused"
+if [ ! -e "$T/wb.loomp" ]; then pass serve_weave_bad_no_file; else fail serve_weave_bad_no_file "$(cat "$T/wb.loomp")"; fi
+c1=$(post "x0=0.5&y0=0.5&x1=2&y1=2&effect=weave&draft=1100/0110/0011/1001&band=2")
+c2=$(post "x0=3&y0=0.5&x1=4.5&y1=2&effect=weave&weave=twill:1/3")
+pw=$(curl -s "$URL/api/info" | sed -n 's/.*"painted_weaves": *\(\[.*\]\)}.*/\1/p')
+stop_server
+if [ "$c1 $c2" = "200 200" ] && grep -qx 'weave 4 4' "$T/wb.loomp" && grep -qx '##..' "$T/wb.loomp" &&
+   grep -qx '.##.' "$T/wb.loomp" && grep -q 'band=2$' "$T/wb.loomp" &&
+   [ "$(grep -c '^region weave' "$T/wb.loomp")" = 2 ] && [ "$(echo "$pw" | grep -o '\[[0-9]' | wc -l)" = 2 ]
+then pass serve_weave_requests; else fail serve_weave_requests "HTTP $c1 $c2; $pw: $(cat "$T/wb.loomp" 2>&1 | head -8)"; fi
+expect_ok serve_weave_file_renders "$LOOM" render "$T/wb.loomp" $R -o "$T/wb.png"
 # bad paint requests: refused with 4xx, the file untouched
 "$LOOM" serve "$F" --port 0 --budget 64 --size-mm 10 --cache "$T/cache-pb" --paint-file "$T/pb.loomp" >"$T/pb.out" 2>"$T/pb.err" &
 SERVER=$!

@@ -74,4 +74,20 @@ expect_exit warp_nan 2 "$LOOM" render "$F" --mesh "$M/torus.obj" --warp-dir 1,na
 expect_exit warp_without_mesh 2 "$LOOM" render "$F" --warp-dir 0,0,1 -o "$T/x.png"
 expect_exit smooth_without_mesh 2 "$LOOM" render "$F" --field-smooth 3 -o "$T/x.png"
 expect_exit smooth_range 2 "$LOOM" render "$F" --mesh "$M/torus.obj" --field-smooth 100001 -o "$T/x.png"
+# the principal-curvature field (the unit test checks its directions):
+# rigid, reported in the JSON, a different picture from the direction
+# field's, deterministic over threads; bad values
+expect_ok torus_curv "$LOOM" render "$F" --mesh "$M/torus.obj" $R --warp-field curvature-max --json -o "$T/torusc.png"
+json_check torus_curv_field "j['uv']['source'] == 'field curvature-max' and j['uv']['stretch_max'] <= 1.001 and j['uv']['seam_mean_voxels'] < 4"
+cloth_check torus_curv_cloth "$T/torusc.png"
+expect_ok torus_curv_t1 "$LOOM" render "$F" --mesh "$M/torus.obj" $R --warp-field curvature-max --threads 1 --quiet -o "$T/torusc1.png"
+expect_same torus_curv_threads_same_bytes "$T/torusc.png" "$T/torusc1.png"
+if cmp -s "$T/torus.png" "$T/torusc.png"; then fail warp_field_matters "same bytes"; else pass warp_field_matters; fi
+expect_ok torus_curv_min "$LOOM" render "$F" --mesh "$M/torus.obj" $R --warp-field curvature-min --json -o "$T/torusm.png"
+json_check torus_curv_min_field "j['uv']['source'] == 'field curvature-min' and j['uv']['stretch_max'] <= 1.001"
+expect_ok sphere_uv_curv "$LOOM" render "$F" --mesh "$M/sphere_uv.obj" $R --warp-field curvature-max --json -o "$T/suvc.png"
+json_check sphere_uv_curv_field "j['uv']['source'] == 'field curvature-max'"
+expect_exit warp_field_bad 2 "$LOOM" render "$F" --mesh "$M/torus.obj" --warp-field curly -o "$T/x.png"
+expect_err_contains warp_field_bad_msg "--warp-field"
+expect_exit warp_field_without_mesh 2 "$LOOM" render "$F" --warp-field curvature-max -o "$T/x.png"
 rm -rf "$T"

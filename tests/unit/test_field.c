@@ -164,6 +164,242 @@ static double pos(const loom_mesh *m, uint32_t t, int i, int j)
 	return m->positions[3 * (size_t)m->tri_v[3 * (size_t)t + i] + j];
 }
 
+/* Open cylinder of radius 1 around z, z in [0, 3], nu x nv cells. */
+static loom_mesh *cylinder(int nu, int nv)
+{
+	gen g;
+	memset(&g, 0, sizeof g);
+	for (int j = 0; j <= nv; j++)
+		for (int i = 0; i < nu; i++) {
+			double a = 2 * M_PI * i / nu;
+			gen_v(&g, cos(a), sin(a), 3.0 * j / nv);
+		}
+	for (int j = 0; j < nv; j++)
+		for (int i = 0; i < nu; i++) {
+			uint32_t a = (uint32_t)(j * nu + i), b = (uint32_t)(j * nu + (i + 1) % nu);
+			uint32_t c = b + (uint32_t)nu, e = a + (uint32_t)nu;
+			gen_f(&g, a, b, c);
+			gen_f(&g, a, c, e);
+		}
+	return gen_mesh(&g);
+}
+
+/* World direction of +v on triangle t of a field-mapped mesh (unit) and
+   the triangle's unit normal; 0 if degenerate. */
+static int warp_world(const loom_mesh *o, uint32_t t, double wv[3], double n[3])
+{
+	double e1[3], e2[3], u1[2], u2[2], det, l;
+	for (int j = 0; j < 3; j++) {
+		e1[j] = pos(o, t, 1, j) - pos(o, t, 0, j);
+		e2[j] = pos(o, t, 2, j) - pos(o, t, 0, j);
+	}
+	for (int j = 0; j < 2; j++) {
+		u1[j] = o->texcoords[2 * o->tri_vt[3 * t + 1] + j] -
+		        o->texcoords[2 * o->tri_vt[3 * t] + j];
+		u2[j] = o->texcoords[2 * o->tri_vt[3 * t + 2] + j] -
+		        o->texcoords[2 * o->tri_vt[3 * t] + j];
+	}
+	det = u1[0] * u2[1] - u2[0] * u1[1];
+	if (!(fabs(det) > 0))
+		return 0;
+	for (int j = 0; j < 3; j++)
+		wv[j] = -u2[0] / det * e1[j] + u1[0] / det * e2[j];
+	l = sqrt(wv[0] * wv[0] + wv[1] * wv[1] + wv[2] * wv[2]);
+	for (int j = 0; j < 3; j++)
+		wv[j] /= l;
+	n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+	n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+	n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+	l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+	for (int j = 0; j < 3; j++)
+		n[j] /= l;
+	return 1;
+}
+
+static loom_mesh *curv_field(const loom_mesh *m, int source)
+{
+	loom_field_uv_params p = LOOM_FIELD_UV_PARAMS_INIT;
+	loom_mesh *o = NULL;
+	loom_diag d;
+	memset(&d, 0, sizeof d);
+	/* a user direction along neither principal direction: the curvature
+	   must do the aligning */
+	p.warp_dir[0] = 0.3;
+	p.warp_dir[1] = 0.5;
+	p.warp_dir[2] = 1.0;
+	p.uv_per_world = 1.0;
+	p.source = source;
+	if (loom_mesh_field_uv(m, &p, &o, &d) != LOOM_OK)
+		printf("  field: %s\n", d.message);
+	return o;
+}
+
+/* Largest angle (degrees) between the warp line on each triangle and the
+   line `ref` gives at its centroid (ref fills a unit tangent). */
+static double line_error(const loom_mesh *o, void (*ref)(const double c[3], double r[3]),
+                         int *count)
+{
+	double worst = 0;
+	*count = 0;
+	for (uint32_t t = 0; t < o->n_triangles; t++) {
+		double wv[3], n[3], c[3] = {0, 0, 0}, r[3], cs;
+		if (!warp_world(o, t, wv, n))
+			continue;
+		for (int i = 0; i < 3; i++)
+			for (int j = 0; j < 3; j++)
+				c[j] += pos(o, t, i, j) / 3;
+		ref(c, r);
+		cs = fabs(wv[0] * r[0] + wv[1] * r[1] + wv[2] * r[2]);
+		worst = fmax(worst, acos(fmin(1.0, cs)) * 180 / M_PI);
+		(*count)++;
+	}
+	return worst;
+}
+
+static void ref_axis(const double c[3], double r[3])
+{
+	(void)c;
+	r[0] = r[1] = 0;
+	r[2] = 1;
+}
+
+static void ref_round_z(const double c[3], double r[3])
+{
+	/* the circle round the z axis through c */
+	double l = sqrt(c[0] * c[0] + c[1] * c[1]);
+	r[0] = -c[1] / l;
+	r[1] = c[0] / l;
+	r[2] = 0;
+}
+
+static void ref_tube(const double c[3], double r[3])
+{
+	/* the torus tube's circle through c (R = 1): in the plane of z and
+	   the radial direction, perpendicular to c - the tube's centre */
+	double l = sqrt(c[0] * c[0] + c[1] * c[1]), q[3], rad[3] = {c[0] / l, c[1] / l, 0};
+	double z[3] = {0, 0, 1}, ql;
+	for (int j = 0; j < 3; j++)
+		q[j] = c[j] - rad[j];
+	ql = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+	/* tangent of the tube circle: rotate q/|q| by 90 degrees in the
+	   (rad, z) plane */
+	{
+		double a = (q[0] * rad[0] + q[1] * rad[1]) / ql, b = q[2] / ql;
+		for (int j = 0; j < 3; j++)
+			r[j] = -b * rad[j] + a * z[j];
+	}
+}
+
+/* Mean and largest turn (degrees) of the warp line between triangles
+   sharing an edge (the neighbour's direction projected onto the
+   triangle's plane): the field's smoothness. */
+static void smoothness(const loom_mesh *o, const loom_mesh *m, double *mean, double *max)
+{
+	double acc = 0;
+	size_t n = 0;
+	*max = 0;
+	for (uint32_t t = 0; t < m->n_triangles; t++)
+		for (uint32_t g = t + 1; g < m->n_triangles; g++) {
+			int shared = 0;
+			double wt[3], nt[3], wg[3], ng[3], d, q[3], ql, cs;
+			for (int i = 0; i < 3; i++)
+				for (int k = 0; k < 3; k++)
+					shared += m->tri_v[3 * t + i] == m->tri_v[3 * g + k];
+			if (shared != 2 || !warp_world(o, t, wt, nt) || !warp_world(o, g, wg, ng))
+				continue;
+			d = wg[0] * nt[0] + wg[1] * nt[1] + wg[2] * nt[2];
+			for (int j = 0; j < 3; j++)
+				q[j] = wg[j] - d * nt[j];
+			ql = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+			cs = fabs(q[0] * wt[0] + q[1] * wt[1] + q[2] * wt[2]) / ql;
+			cs = acos(fmin(1.0, cs)) * 180 / M_PI;
+			acc += cs;
+			*max = fmax(*max, cs);
+			n++;
+		}
+	*mean = n ? acc / (double)n : 0;
+}
+
+/*
+ * Principal-curvature fields: on a cylinder curvature-max runs round it
+ * and curvature-min along the axis, on a torus curvature-max follows the
+ * tube's circles and curvature-min the circles round the hole, each within
+ * 3 degrees on every triangle although the user direction (0.3, 0.5, 1)
+ * is along neither (the direction field with it is far off: the test can
+ * fail); the field turns smoothly between neighbours (at most 10
+ * degrees across an edge); on a sphere (all umbilic) curvature-max falls
+ * back to the user direction's field (within 5 degrees away from its
+ * poles: the discrete estimate is not exactly umbilic there).
+ */
+static void test_curvature(void)
+{
+	loom_mesh *cy = cylinder(48, 24), *to = torus(48, 24), *sp = latlong(48, 24, 0);
+	loom_mesh *a = cy ? curv_field(cy, LOOM_FIELD_CURVATURE_MAX) : NULL;
+	loom_mesh *b = cy ? curv_field(cy, LOOM_FIELD_CURVATURE_MIN) : NULL;
+	loom_mesh *c = to ? curv_field(to, LOOM_FIELD_CURVATURE_MAX) : NULL;
+	loom_mesh *d = to ? curv_field(to, LOOM_FIELD_CURVATURE_MIN) : NULL;
+	loom_mesh *e = to ? curv_field(to, LOOM_FIELD_DIRECTION) : NULL;
+	loom_mesh *f = sp ? curv_field(sp, LOOM_FIELD_CURVATURE_MAX) : NULL;
+	loom_mesh *fd = sp ? curv_field(sp, LOOM_FIELD_DIRECTION) : NULL;
+	int n1, n2, n3, n4, n5;
+	double e1, e2, e3, e4, e5, sm, sx, dm, dx;
+
+	CHECK(a && b && c && d && e && f && fd);
+	if (!(a && b && c && d && e && f && fd))
+		goto done;
+	e1 = line_error(a, ref_round_z, &n1);
+	e2 = line_error(b, ref_axis, &n2);
+	e3 = line_error(c, ref_tube, &n3);
+	e4 = line_error(d, ref_round_z, &n4);
+	e5 = line_error(e, ref_tube, &n5);
+	smoothness(c, to, &sm, &sx);
+	smoothness(e, to, &dm, &dx);
+	printf("  cylinder: curvature-max off the circumference <= %.2f deg, "
+	       "curvature-min off the axis <= %.2f deg (%d triangles)\n", e1, e2, n1);
+	printf("  torus: curvature-max off the tube's circles <= %.2f deg, "
+	       "curvature-min off the circles round the hole <= %.2f deg; the "
+	       "direction field off the tube's circles up to %.1f deg\n", e3, e4, e5);
+	printf("  torus smoothness: turn between neighbours mean %.2f max %.2f deg "
+	       "(direction field: mean %.2f max %.2f)\n", sm, sx, dm, dx);
+	CHECK(n1 == 2 * 48 * 24 && n2 == n1 && n3 == n1 && n4 == n1);
+	CHECK(e1 < 3.0);
+	CHECK(e2 < 3.0);
+	CHECK(e3 < 3.0);
+	CHECK(e4 < 3.0);
+	CHECK(e5 > 20.0);
+	CHECK(sx < 10.0);
+	/* the sphere: umbilic everywhere, the user direction's field (away
+	   from its poles, where the normal is within 45 degrees of it) */
+	{
+		double dd[3] = {0.3, 0.5, 1.0}, dl = sqrt(0.09 + 0.25 + 1.0), worst = 0;
+		int used = 0;
+		for (uint32_t t = 0; t < f->n_triangles; t++) {
+			double w1[3], w2[3], n[3], cs;
+			if (!warp_world(f, t, w1, n) || !warp_world(fd, t, w2, n) ||
+			    fabs(n[0] * dd[0] + n[1] * dd[1] + n[2] * dd[2]) / dl > 0.7)
+				continue;
+			cs = fabs(w1[0] * w2[0] + w1[1] * w2[1] + w1[2] * w2[2]);
+			worst = fmax(worst, acos(fmin(1.0, cs)) * 180 / M_PI);
+			used++;
+		}
+		printf("  sphere: curvature-max off the direction field <= %.2f deg "
+		       "(%d triangles away from its poles)\n", worst, used);
+		CHECK(used > 1000);
+		CHECK(worst < 5.0);
+	}
+done:
+	loom_mesh_free(a);
+	loom_mesh_free(b);
+	loom_mesh_free(c);
+	loom_mesh_free(d);
+	loom_mesh_free(e);
+	loom_mesh_free(f);
+	loom_mesh_free(fd);
+	loom_mesh_free(cy);
+	loom_mesh_free(to);
+	loom_mesh_free(sp);
+}
+
 /* Rigid per triangle (edge lengths kept) and the v axis along the
    projected warp where the projection is well defined. */
 static void test_rigid_and_aligned(void)
@@ -450,6 +686,10 @@ static void test_determinism_and_args(void)
 	p.period[0] = -1;
 	CHECK_EQ_INT(loom_mesh_field_uv(m, &p, &o, &d), LOOM_EINVAL);
 	p.period[0] = 0;
+	p.source = 7;
+	CHECK_EQ_INT(loom_mesh_field_uv(m, &p, &o, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "source 7");
+	p.source = LOOM_FIELD_DIRECTION;
 	p.size = 8;
 	CHECK_EQ_INT(loom_mesh_field_uv(m, &p, &o, &d), LOOM_EINVAL);
 	CHECK_EQ_INT(loom_mesh_field_uv(NULL, &p, &o, &d), LOOM_EINVAL);
@@ -468,5 +708,6 @@ int main(void)
 	RUN(test_seams);
 	RUN(test_measure);
 	RUN(test_determinism_and_args);
+	RUN(test_curvature);
 	CHECK_MAIN_END();
 }

@@ -27,7 +27,7 @@ static const char usage[] =
 	"            [--exposure STOPS]\n"
 	"            [--filter nearest|trilinear] [--thickness T]\n"
 	"            [--uv-repeats R | --uv-mm U[,V]] [--warp-dir X,Y,Z]\n"
-	"            [--field-smooth N]\n"
+	"            [--field-smooth N] [--warp-field SRC]\n"
 	"            [--sun AZ,EL[,INTENSITY[,ANGLE]]] [--majorant grid|global]\n"
 	"            [--look-from X,Y,Z] [--look-at X,Y,Z] [--up X,Y,Z]\n"
 	"            [--ortho WIDTH_MM] [--aperture MM [--focus MM]]\n"
@@ -46,8 +46,9 @@ static const char about[] =
 	"seen through a pinhole camera from above at an angle, framed on --region\n"
 	"(default one design repeat).  With --mesh: the cloth is mapped onto the\n"
 	"mesh's UV layout as a shell (shell mapping) and seen from above the mesh;\n"
-	"a mesh without UVs (or with --warp-dir) is clothed along a smooth\n"
-	"warp-direction field, one rigid field-aligned map per triangle continuing\n"
+	"a mesh without UVs (or with --warp-dir or --warp-field) is clothed along\n"
+	"a smooth warp-direction field (a direction projected, or the principal\n"
+	"curvature), one rigid field-aligned map per triangle continuing\n"
 	"its neighbours' (no stretch, seams only where the field turns).\n"
 	"FABRIC may be a paint file (loom paint): its regions are applied at\n"
 	"lookup time.  Same inputs and seed give the same bytes for any thread\n"
@@ -235,6 +236,10 @@ static const char *opt_point3(const char *text, void *dest)
 	return NULL;
 }
 
+static const opt_choice field_names[] = {
+	{"direction", LOOM_FIELD_DIRECTION}, {"curvature-max", LOOM_FIELD_CURVATURE_MAX},
+	{"curvature-min", LOOM_FIELD_CURVATURE_MIN}, {NULL, 0}};
+
 /* --warp-dir X,Y,Z into double[3], not all zero. */
 static const char *opt_dir3(const char *text, void *dest)
 {
@@ -399,6 +404,7 @@ int cmd_render(int argc, char **argv)
 	size_t env_bytes = 0;
 	int sky_grey = 0;
 	uint32_t field_smooth = 32;
+	int field_source = LOOM_FIELD_DIRECTION;
 	int ground = 0, tone = LOOM_TONE_LINEAR, is_exr;
 	double ground_z = 0, ground_alb[3] = {0.6, 0.6, 0.6}, cloth_mm[2] = {0, 0};
 	double floor_scene = 0; /* default floor height, scene units */
@@ -463,6 +469,11 @@ int cmd_render(int argc, char **argv)
 		             "(a smooth field; default 0,0,1); also ignores the mesh's UVs"),
 		OPT_U32(0, "field-smooth", &field_smooth, "N", 0, 100000, "mesh without "
 		        "UVs: rounds of warp-field smoothing, %r (default 32)"),
+		OPT_ENUM(0, "warp-field", &field_source, "SRC", field_names, "mesh without "
+		         "UVs: the warps follow --warp-dir projected (direction, the "
+		         "default), the direction of strongest curvature (curvature-max: "
+		         "round a cylinder) or of weakest (curvature-min: along it); "
+		         "--warp-dir where the surface is umbilic"),
 		OPT_DOUBLE(0, "thickness", &thickness, "T", "()", 0, INFINITY, NULL, "shell "
 		           "thickness in mesh units (default 1.5% of the mesh's bounding-box "
 		           "diagonal)"),
@@ -583,9 +594,10 @@ int cmd_render(int argc, char **argv)
 		           "against one global bound");
 	if (!mesh_path && (opt_given(&cmd, &thickness) || opt_given(&cmd, &uv_repeats) ||
 	                   opt_given(&cmd, uv_mm) ||
-	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth)))
-		opts_usage(&cmd, "--thickness, --uv-repeats, --uv-mm, --warp-dir and "
-		           "--field-smooth go with --mesh");
+	                   opt_given(&cmd, warp_dir) || opt_given(&cmd, &field_smooth) ||
+	                   opt_given(&cmd, &field_source)))
+		opts_usage(&cmd, "--thickness, --uv-repeats, --uv-mm, --warp-dir, "
+		           "--field-smooth and --warp-field go with --mesh");
 	if (opt_given(&cmd, &uv_repeats) && opt_given(&cmd, uv_mm))
 		opts_usage(&cmd, "--uv-repeats and --uv-mm both set the cloth's scale "
 		           "on the UVs; give one");
@@ -769,7 +781,8 @@ int cmd_render(int argc, char **argv)
 			/* the UVs' distortion and seams, modulo one design repeat;
 			   a seam: a mismatch over half a voxel */
 			double per[2] = {(double)rep[0] / vpu[0], (double)rep[1] / vpu[1]};
-			field = !mesh->tri_vt || opt_given(&cmd, warp_dir);
+			field = !mesh->tri_vt || opt_given(&cmd, warp_dir) ||
+			        opt_given(&cmd, &field_source);
 			if (field) {
 				loom_field_uv_params fp = LOOM_FIELD_UV_PARAMS_INIT;
 				loom_mesh *fm = NULL;
@@ -778,6 +791,7 @@ int cmd_render(int argc, char **argv)
 				fp.period[0] = per[0];
 				fp.period[1] = per[1];
 				fp.smooth_iters = field_smooth;
+				fp.source = field_source;
 				if (loom_mesh_field_uv(mesh, &fp, &fm, &diag) != LOOM_OK) {
 					cli_error(prog, "%s: %s", mesh_path, diag.message);
 					goto fail;
@@ -1025,7 +1039,10 @@ int cmd_render(int argc, char **argv)
 		jw_uint(&w, "shell_queries", st.shell_queries);
 		if (have_uv_stats) {
 			jw_obj(&w, "uv");
-			jw_str(&w, "source", field ? "field" : "mesh");
+			jw_str(&w, "source", !field ? "mesh" :
+			       field_source == LOOM_FIELD_CURVATURE_MAX ? "field curvature-max" :
+			       field_source == LOOM_FIELD_CURVATURE_MIN ? "field curvature-min" :
+			       "field");
 			jw_num(&w, "stretch_max", uvst.stretch_max);
 			jw_num(&w, "stretch_mean", uvst.stretch_mean);
 			jw_uint(&w, "interior_edges", uvst.interior_edges);

@@ -27,6 +27,9 @@
  *                                           of range, 429 when too many wait)
  *   /drawdown.png                           colour drawdown of the window
  *   POST /api/color?type=K&rgb=RRGGBB       change a yarn's colour
+ *   POST /api/paint?x0=&y0=&x1=&y1=&effect= paint a region (colour, defect
+ *                                           or weave; serve_paint)
+ *   /painted/K.png                          drawdown of painted weave K
  *   /api/render?x0=&y0=&x1=&y1=&w=&h=       a path-traced picture of a view
  *                                           (fractions of the picture); 429
  *                                           while another one runs
@@ -94,7 +97,10 @@ typedef struct server {
 	char paint_path[4096];        /* where the paint tool saves ("" = none) */
 	char fabric_abs[4096];        /* the fabric's absolute path */
 	uint64_t paint_hash;          /* FNV-1a of the paint's text (cache keys) */
-	const loom_design *d;
+	loom_design *d;               /* the fabric's design (a copy: painted
+	                                 weaves swap the fabric, not the design) */
+	loom_texture_options to;      /* the texture's options (the paint tool
+	                                 re-opens it over a re-woven fabric) */
 	loom_fabric_db_identity id;
 	serve_cache *cache;
 	char web[4096];
@@ -260,6 +266,14 @@ static loom_yarn_type *snapshot(server *s, uint32_t *n, uint64_t *hash)
 	return t;
 }
 
+/* The texture is gone only when a painted weave's swap failed twice. */
+static int no_texture(loom_diag *diag)
+{
+	snprintf(diag->message, sizeof diag->message, "the texture could not be "
+	         "re-opened after painting a weave");
+	return LOOM_EUNUSABLE;
+}
+
 static int make_tile(server *s, uint32_t L, uint64_t tx, uint64_t ty,
                      const loom_yarn_type *types, uint32_t n_types, const char *path,
                      char *err, size_t n)
@@ -298,7 +312,8 @@ static int make_tile(server *s, uint32_t L, uint64_t tx, uint64_t ty,
 	if ((rc = pic_open(&pic, po.width, po.height, &diag)) == LOOM_OK) {
 		pthread_rwlock_rdlock(&s->paint_lock);
 		po.paint = s->paint;
-		rc = loom_preview_stream(s->t, s->f, &po, pic_band, &pic, NULL, &diag);
+		rc = s->t ? loom_preview_stream(s->t, s->f, &po, pic_band, &pic, NULL, &diag)
+		          : no_texture(&diag);
 		pthread_rwlock_unlock(&s->paint_lock);
 		if (rc == LOOM_OK)
 			rc = pic_finish(&pic);
@@ -439,14 +454,21 @@ static enum MHD_Result serve_patch(server *s, struct MHD_Connection *conn,
 	loom_diag diag = {0};
 	int rc;
 
-	if (strlen(url) < 5 || strcmp(url + strlen(url) - 4, ".png") || k < 0 ||
-	    k >= (long long)s->n_patches)
+	if (strlen(url) < 5 || strcmp(url + strlen(url) - 4, ".png") || k < 0)
 		return error(conn, MHD_HTTP_NOT_FOUND, "no such painted weave");
 	if (!(types = snapshot(s, &nt, &hash)))
 		return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "out of memory");
+	/* the fabric and its patches may be swapped by the paint tool */
+	pthread_rwlock_rdlock(&s->paint_lock);
+	if (k >= (long long)s->n_patches) {
+		pthread_rwlock_unlock(&s->paint_lock);
+		free(types);
+		return error(conn, MHD_HTTP_NOT_FOUND, "no such painted weave");
+	}
 	snprintf(key, sizeof key, "p%016llx-%lld.png", (unsigned long long)hash, k);
 	serve_cache_path(s->cache, key, path, sizeof path);
 	if (serve_cache_lookup(s->cache, key)) {
+		pthread_rwlock_unlock(&s->paint_lock);
 		free(types);
 		return send_file(conn, path, 1);
 	}
@@ -470,6 +492,7 @@ static enum MHD_Result serve_patch(server *s, struct MHD_Connection *conn,
 			rc = loom_color_drawdown_write(path, d, 1, &diag);
 		}
 	}
+	pthread_rwlock_unlock(&s->paint_lock);
 	loom_design_free(d);
 	free(types);
 	if (rc != LOOM_OK)
@@ -488,14 +511,20 @@ static uint8_t to_srgb8(float lin)
 static enum MHD_Result serve_info(server *s, struct MHD_Connection *conn)
 {
 	char *buf;
-	size_t cap = 4096 + (size_t)s->n_types * 160 + (size_t)s->n_patches * 96, len = 0;
+	size_t cap, len = 0;
 	enum MHD_Result rc;
 	uint64_t cb;
 	uint32_t cf;
 
+	/* the patches may be swapped by the paint tool: held to the end
+	   (the order is paint_lock, then lock, as everywhere) */
+	pthread_rwlock_rdlock(&s->paint_lock);
+	cap = 4096 + (size_t)s->n_types * 160 + (size_t)s->n_patches * 96;
 	buf = malloc(cap);
-	if (!buf)
+	if (!buf) {
+		pthread_rwlock_unlock(&s->paint_lock);
 		return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "out of memory");
+	}
 	serve_cache_usage(s->cache, &cb, &cf);
 	pthread_mutex_lock(&s->lock);
 	len += (size_t)snprintf(buf + len, cap - len,
@@ -532,6 +561,7 @@ static enum MHD_Result serve_info(server *s, struct MHD_Connection *conn)
 		                        k ? ", " : "", (long long)s->patch[k][0],
 		                        (long long)s->patch[k][1], (long long)s->patch[k][2],
 		                        (long long)s->patch[k][3]);
+	pthread_rwlock_unlock(&s->paint_lock);
 	snprintf(buf + len, cap - len, "]}\n");
 	rc = reply(conn, MHD_HTTP_OK, "application/json", buf);
 	free(buf);
@@ -595,6 +625,39 @@ static double num_arg(struct MHD_Connection *conn, const char *name, double def,
 	return x;
 }
 
+/* The painted weaves' crossings inside the window (crossings whose centre
+   may lie in a weave region, as loom_paint_apply_weaves picks them): a
+   malloc'ed array of *n entries I0, J0, rows, cols, or NULL (no memory). */
+static int64_t (*painted_patches(const server *s, const loom_paint *p, uint32_t *n))[4]
+{
+	uint32_t m = loom_paint_count(p);
+	double vmm = s->id.voxel_size_um * 1e-3, b1 = s->id.block[0], b2 = s->id.block[1];
+	double cols = (double)s->win[0] / b1, rows = (double)s->win[1] / b2;
+	int64_t (*patch)[4] = malloc((m ? m : 1) * sizeof *patch);
+
+	*n = 0;
+	if (!patch)
+		return NULL;
+	for (uint32_t i = 0; i < m; i++) {
+		const loom_paint_region *r = loom_paint_get(p, i);
+		double J0, J1, I0, I1;
+		if (r->effect != LOOM_PAINT_WEAVE)
+			continue;
+		J0 = fmax(0, floor(r->x0 / vmm / b1 - 0.5));
+		J1 = fmin(cols - 1, ceil(r->x1 / vmm / b1 - 0.5));
+		I0 = fmax(0, floor(r->y0 / vmm / b2 - 0.5));
+		I1 = fmin(rows - 1, ceil(r->y1 / vmm / b2 - 0.5));
+		if (J1 < J0 || I1 < I0)
+			continue;
+		patch[*n][0] = (int64_t)I0;
+		patch[*n][1] = (int64_t)J0;
+		patch[*n][2] = (int64_t)(I1 - I0 + 1);
+		patch[*n][3] = (int64_t)(J1 - J0 + 1);
+		(*n)++;
+	}
+	return patch;
+}
+
 /* "what: why" for a JSON error: quotes and backslashes made plain. */
 static const char *paint_msg(char *out, size_t n, const char *what, const char *why)
 {
@@ -605,13 +668,100 @@ static const char *paint_msg(char *out, size_t n, const char *what, const char *
 	return out;
 }
 
+/* A weave for the paint tool: weave=NAME (loom_weave_parse: plain,
+   twill:2/2, satin:1/4, ...) or draft=ROWS (rows of 0 and 1 separated by
+   '/', pick 1 first, end 1 leftmost, 1 = warp over, at most
+   SERVE_MAX_DRAFT a side).  LOOM_OK, or LOOM_EINVAL with the reason in
+   msg (a 400 answer). */
+#define SERVE_MAX_DRAFT 64u
+static int paint_weave(const char *name, const char *draft, loom_design **out,
+                       char *msg, size_t n)
+{
+	loom_diag d = {0};
+	uint32_t rows = 0, cols = 0, c = 0;
+
+	*out = NULL;
+	if ((name != NULL) == (draft != NULL)) {
+		snprintf(msg, n, "effect=weave needs exactly one of weave=NAME (plain, "
+		         "twill:2/2, satin:1/4, ...) and draft=ROWS (e.g. 1100/0110/0011/1001)");
+		return LOOM_EINVAL;
+	}
+	if (name) {
+		loom_weave_params wp;
+		if (loom_weave_parse(name, &wp, &d) != LOOM_OK ||
+		    loom_design_make(&wp, 0, 0, out, &d) != LOOM_OK) {
+			paint_msg(msg, n, "weave", d.message);
+			return LOOM_EINVAL;
+		}
+		if ((*out)->rows > SERVE_MAX_DRAFT || (*out)->cols > SERVE_MAX_DRAFT) {
+			snprintf(msg, n, "weave: a %ux%u repeat; the paint tool takes at most "
+			         "%ux%u", (*out)->rows, (*out)->cols, SERVE_MAX_DRAFT, SERVE_MAX_DRAFT);
+			loom_design_free(*out);
+			*out = NULL;
+			return LOOM_EINVAL;
+		}
+		return LOOM_OK;
+	}
+	/* the draft's size: every row as long as the first */
+	for (const char *p = draft;; p++) {
+		if (*p == '0' || *p == '1') {
+			c++;
+		} else if (*p == '/' || !*p) {
+			if (c == 0 || (rows && c != cols)) {
+				snprintf(msg, n, "draft: row %u has %u cells (row 1: %u); rows of "
+				         "0 and 1 separated by '/', all of one length", rows + 1, c,
+				         rows ? cols : c);
+				return LOOM_EINVAL;
+			}
+			cols = c;
+			c = 0;
+			if (++rows > SERVE_MAX_DRAFT || cols > SERVE_MAX_DRAFT) {
+				snprintf(msg, n, "draft: at most %ux%u", SERVE_MAX_DRAFT, SERVE_MAX_DRAFT);
+				return LOOM_EINVAL;
+			}
+			if (!*p)
+				break;
+		} else {
+			snprintf(msg, n, "draft: character %d is '%c'; rows of 0 and 1 "
+			         "separated by '/'", (int)(p - draft) + 1,
+			         (unsigned char)*p >= 32 && *p != '"' && *p != '\\' ? *p : '?');
+			return LOOM_EINVAL;
+		}
+	}
+	if (loom_design_new(rows, cols, out) != LOOM_OK) {
+		snprintf(msg, n, "draft: out of memory");
+		return LOOM_ENOMEM;
+	}
+	for (size_t i = 0, k = 0; draft[k]; k++)
+		if (draft[k] != '/')
+			(*out)->weave[i++] = (uint8_t)(draft[k] == '1');
+	return LOOM_OK;
+}
+
+/*
+ * Re-open the texture over fabric f (the write lock held; the old
+ * texture is closed first, so the budget holds one texture at a time).
+ * On failure s->t is NULL.
+ */
+static int reopen_texture(server *s, const loom_fabric *f, loom_diag *diag)
+{
+	loom_texture_close(s->t);
+	s->t = NULL;
+	return loom_texture_open(f, s->db, &s->to, &s->t, diag);
+}
+
 /*
  * POST /api/paint?x0=&y0=&x1=&y1=&effect=E[&kind=K][&rgb=RRGGBB]
- * [&strength=S][&blend=MM][&amount=V]: the viewer's paint tool.  One
- * region of colour or defect (cloth mm; the defaults of loom paint),
- * checked by loom_paint_add as loom paint checks it, added to the paint
- * layer, the paint file written (temporary name, then rename) and the
- * layer swapped in while no tile or render reads it.
+ * [&strength=S][&blend=MM][&amount=V][&weave=NAME|&draft=ROWS][&band=N]:
+ * the viewer's paint tool.  One region (cloth mm; the defaults of loom
+ * paint), checked by loom_paint_add as loom paint checks it, added to the
+ * paint layer, the paint file written (temporary name, then rename) and
+ * the layer swapped in while no tile or render reads it.  A weave
+ * (effect=weave) re-weaves the fabric as loom paint --weave and every
+ * command reading the paint file do: the fabric re-opened and the
+ * layer's weaves applied to it (loom_paint_apply_weaves), then, under the
+ * write lock, the texture re-opened over it and the painted weaves'
+ * drawdown patches re-made.
  */
 static pthread_mutex_t paint_mu = PTHREAD_MUTEX_INITIALIZER; /* serve_paint */
 
@@ -620,8 +770,14 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 	const char *es = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "effect");
 	const char *ks = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "kind");
 	const char *rgb = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "rgb");
+	const char *wn = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "weave");
+	const char *ds = MHD_lookup_connection_value(conn, MHD_GET_ARGUMENT_KIND, "draft");
 	loom_paint_region r;
 	loom_paint *np = NULL, *old;
+	loom_fabric *g = NULL, *old_f = NULL;
+	loom_design *weave = NULL;
+	int64_t (*patch)[4] = NULL, (*old_patch)[4] = NULL;
+	uint32_t n_patch = 0, n_regions;
 	loom_diag diag = {0};
 	char *text = NULL, buf[96], msg[400];
 	size_t len = 0;
@@ -634,9 +790,16 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 		             ".loomf or a paint file)");
 	memset(&r, 0, sizeof r);
 	r.effect = es ? loom_paint_effect_parse(es) : 0;
-	if (!r.effect || r.effect == LOOM_PAINT_WEAVE)
+	if (!r.effect)
 		return error(conn, MHD_HTTP_BAD_REQUEST, "effect must be yarn, stain, slub, "
-		             "broken-end, missing-pick or pull (weaves: loom paint --weave)");
+		             "broken-end, missing-pick, pull or weave");
+	if (r.effect != LOOM_PAINT_WEAVE && (wn || ds || MHD_lookup_connection_value(
+	                                     conn, MHD_GET_ARGUMENT_KIND, "band")))
+		return error(conn, MHD_HTTP_BAD_REQUEST, "weave, draft and band go with "
+		             "effect=weave");
+	if (r.effect == LOOM_PAINT_WEAVE && (ks || rgb))
+		return error(conn, MHD_HTTP_BAD_REQUEST, "kind and rgb do not go with "
+		             "effect=weave");
 	r.x0 = num_arg(conn, "x0", NAN, &bad);
 	r.y0 = num_arg(conn, "y0", NAN, &bad);
 	r.x1 = num_arg(conn, "x1", NAN, &bad);
@@ -650,9 +813,11 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 		r.kind = 0;
 	else if (ks)
 		bad = 1;
-	r.rgb[0] = 0.35f;
-	r.rgb[1] = 0.22f;
-	r.rgb[2] = 0.08f;
+	if (r.effect != LOOM_PAINT_WEAVE) {
+		r.rgb[0] = 0.35f;
+		r.rgb[1] = 0.22f;
+		r.rgb[2] = 0.08f;
+	}
 	if (rgb) {
 		int v[6];
 		if (strlen(rgb) != 6)
@@ -678,6 +843,21 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 		return error(conn, MHD_HTTP_BAD_REQUEST, "expected x0, y0, x1, y1 (mm), "
 		             "kind=any|warp|weft, rgb=RRGGBB, numbers for strength, blend, "
 		             "amount");
+	if (r.effect == LOOM_PAINT_WEAVE) {
+		double band = num_arg(conn, "band", 1, &bad);
+		if (bad || band != floor(band) || band < 0 || band > LOOM_PAINT_MAX_BAND) {
+			snprintf(msg, sizeof msg, "band: a whole number of crossings, 0 to %u",
+			         LOOM_PAINT_MAX_BAND);
+			return error(conn, MHD_HTTP_BAD_REQUEST, msg);
+		}
+		r.band = (uint32_t)band;
+		if ((rc = paint_weave(wn, ds, &weave, msg, sizeof msg)) != LOOM_OK)
+			return error(conn, rc == LOOM_ENOMEM ? MHD_HTTP_SERVICE_UNAVAILABLE
+			                                     : MHD_HTTP_BAD_REQUEST, msg);
+		r.weave_w = weave->cols;
+		r.weave_h = weave->rows;
+		r.weave = weave->weave;
+	}
 	/* the new layer: the current one's regions and this one; one POST at a
 	   time from here to the swap, so two at once cannot both start from the
 	   same layer and lose one of the regions */
@@ -693,18 +873,42 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 	if (rc != LOOM_OK) {
 		loom_paint_free(np);
 		pthread_mutex_unlock(&paint_mu);
+		loom_design_free(weave);
 		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR, "paint: out of memory");
 	}
-	if (loom_paint_add(np, &r, &diag) != LOOM_OK) {
+	rc = loom_paint_add(np, &r, &diag);
+	loom_design_free(weave);
+	if (rc != LOOM_OK) {
 		loom_paint_free(np);
 		pthread_mutex_unlock(&paint_mu);
 		return error(conn, MHD_HTTP_BAD_REQUEST, paint_msg(msg, sizeof msg, "paint refused",
 		                                                   diag.message));
 	}
+	if (r.effect == LOOM_PAINT_WEAVE) {
+		/* the fabric re-woven as a reader of the paint file weaves it */
+		if ((rc = loom_fabric_open(s->fabric_abs, s->db, 0, &g, &diag)) != LOOM_OK) {
+			loom_paint_free(np);
+			pthread_mutex_unlock(&paint_mu);
+			return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR,
+			             paint_msg(msg, sizeof msg, "paint: the fabric", diag.message));
+		}
+		if ((rc = loom_paint_apply_weaves(np, &g, &diag)) != LOOM_OK ||
+		    !(patch = painted_patches(s, np, &n_patch))) {
+			loom_fabric_free(g);
+			loom_paint_free(np);
+			pthread_mutex_unlock(&paint_mu);
+			if (rc == LOOM_OK || rc == LOOM_ENOMEM)
+				return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "paint: out of memory");
+			return error(conn, MHD_HTTP_BAD_REQUEST, paint_msg(msg, sizeof msg,
+			             "paint refused", diag.message));
+		}
+	}
 	if (loom_paint_format(np, &text, &len) != LOOM_OK ||
 	    cli_write_atomic(s->paint_path, text, len, &diag) != LOOM_OK ||
-	    loom_paint_bind(np, s->t, s->f) != LOOM_OK) {
+	    (!g && loom_paint_bind(np, s->t, s->f) != LOOM_OK)) {
 		free(text);
+		free(patch);
+		loom_fabric_free(g);
 		loom_paint_free(np);
 		pthread_mutex_unlock(&paint_mu);
 		return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR,
@@ -714,20 +918,50 @@ static enum MHD_Result serve_paint(server *s, struct MHD_Connection *conn)
 		h = (h ^ (unsigned char)text[k]) * 0x100000001b3ull;
 	free(text);
 	pthread_rwlock_wrlock(&s->paint_lock);
+	if (g) {
+		/* the new fabric in: its texture, the layer bound to both; if that
+		   fails, the old fabric's texture back (the file holds the region:
+		   a restart shows it) */
+		if (reopen_texture(s, g, &diag) != LOOM_OK || loom_paint_bind(np, s->t, g) != LOOM_OK) {
+			loom_diag d2 = {0};
+			if (!diag.message[0])
+				snprintf(diag.message, sizeof diag.message, "out of memory");
+			if (reopen_texture(s, s->f, &d2) != LOOM_OK && !s->quiet)
+				fprintf(stderr, "loom serve: %s\n", d2.message);
+			pthread_rwlock_unlock(&s->paint_lock);
+			pthread_mutex_unlock(&paint_mu);
+			free(patch);
+			loom_fabric_free(g);
+			loom_paint_free(np);
+			return error(conn, MHD_HTTP_INTERNAL_SERVER_ERROR,
+			             paint_msg(msg, sizeof msg, "paint saved but not shown", diag.message));
+		}
+		old_f = s->f;
+		s->f = g;
+		old_patch = s->patch;
+		s->patch = patch;
+		s->n_patches = n_patch;
+	}
 	old = s->paint;
 	s->paint = np;
-	pthread_rwlock_unlock(&s->paint_lock);
-	pthread_mutex_unlock(&paint_mu);
-	loom_paint_free(old);
+	/* the new cache keys with the table lock, before the write lock goes:
+	   no tile of the new layer is cached under the old key */
 	pthread_mutex_lock(&s->lock);
 	s->paint_hash = h;
 	ver = ++s->version;
 	pthread_mutex_unlock(&s->lock);
+	n_regions = loom_paint_count(np);  /* np is the next POST's to free */
+	n_patch = s->n_patches;
+	pthread_rwlock_unlock(&s->paint_lock);
+	pthread_mutex_unlock(&paint_mu);
+	loom_paint_free(old);
+	loom_fabric_free(old_f);
+	free(old_patch);
 	if (!s->quiet)
 		fprintf(stderr, "loom serve: painted %s %g,%g:%g,%g mm; %u regions in %s\n",
-		        es, r.x0, r.y0, r.x1, r.y1, loom_paint_count(np), s->paint_path);
-	snprintf(buf, sizeof buf, "{\"version\": %u, \"regions\": %u}\n", ver,
-	         loom_paint_count(np));
+		        es, r.x0, r.y0, r.x1, r.y1, n_regions, s->paint_path);
+	snprintf(buf, sizeof buf, "{\"version\": %u, \"regions\": %u, \"painted_weaves\": %u}\n",
+	         ver, n_regions, n_patch);
 	return reply(conn, MHD_HTTP_OK, "application/json", buf);
 }
 
@@ -817,13 +1051,23 @@ static enum MHD_Result serve_render(server *s, struct MHD_Connection *conn)
 		return error(conn, MHD_HTTP_BAD_REQUEST, "the view is too small to render");
 	if (pthread_mutex_trylock(&s->render_lock) != 0)
 		return error(conn, MHD_HTTP_TOO_MANY_REQUESTS, "a render is running; try again");
-	rs.t = s->t;
 	rs.types = snapshot(s, &rs.n_types, &hash);
 	if (!rs.types || view_prog_init(&vp, (uint32_t)w, (uint32_t)h) != LOOM_OK) {
 		free((void *)rs.types);
 		pthread_mutex_unlock(&s->render_lock);
 		return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "out of memory");
 	}
+	/* the texture, fabric and paint stay as they are until the end of the
+	   pass (the paint tool swaps them under the write lock) */
+	pthread_rwlock_rdlock(&s->paint_lock);
+	if (!s->t) {
+		pthread_rwlock_unlock(&s->paint_lock);
+		view_prog_free(&vp);
+		free((void *)rs.types);
+		pthread_mutex_unlock(&s->render_lock);
+		return error(conn, MHD_HTTP_SERVICE_UNAVAILABLE, "no texture");
+	}
+	rs.t = s->t;
 	loom_texture_volume_source(s->t, s->f, LOOM_FILTER_NEAREST, &tsrc);
 	src = tsrc;
 	src.lookup = render_lookup;
@@ -832,7 +1076,6 @@ static enum MHD_Result serve_render(server *s, struct MHD_Connection *conn)
 	src.thread_done = render_thread_done;
 	view_render_setup(&src, lo, hi, (uint32_t)w, (uint32_t)h, &ro);
 	ro.seed = 1;
-	pthread_rwlock_rdlock(&s->paint_lock);
 	rs.paint = s->paint;
 	rc = view_prog_pass(&vp, &src, &ro, 2, &diag);
 	pthread_rwlock_unlock(&s->paint_lock);
@@ -909,36 +1152,6 @@ static void on_signal(int sig)
 {
 	(void)sig;
 	stop = 1;
-}
-
-/* The painted weaves' crossings inside the window (crossings whose centre
-   may lie in a weave region, as loom_paint_apply_weaves picks them). */
-static void painted_patches(const char *prog, server *s)
-{
-	uint32_t n = loom_paint_count(s->paint);
-	double vmm = s->id.voxel_size_um * 1e-3, b1 = s->id.block[0], b2 = s->id.block[1];
-	double cols = (double)s->win[0] / b1, rows = (double)s->win[1] / b2;
-
-	s->patch = malloc((n ? n : 1) * sizeof *s->patch);
-	if (!s->patch)
-		cli_fail(prog, "out of memory");
-	for (uint32_t i = 0; i < n; i++) {
-		const loom_paint_region *r = loom_paint_get(s->paint, i);
-		double J0, J1, I0, I1;
-		if (r->effect != LOOM_PAINT_WEAVE)
-			continue;
-		J0 = fmax(0, floor(r->x0 / vmm / b1 - 0.5));
-		J1 = fmin(cols - 1, ceil(r->x1 / vmm / b1 - 0.5));
-		I0 = fmax(0, floor(r->y0 / vmm / b2 - 0.5));
-		I1 = fmin(rows - 1, ceil(r->y1 / vmm / b2 - 0.5));
-		if (J1 < J0 || I1 < I0)
-			continue;
-		s->patch[s->n_patches][0] = (int64_t)I0;
-		s->patch[s->n_patches][1] = (int64_t)J0;
-		s->patch[s->n_patches][2] = (int64_t)(I1 - I0 + 1);
-		s->patch[s->n_patches][3] = (int64_t)(J1 - J0 + 1);
-		s->n_patches++;
-	}
 }
 
 /* Open FABRIC, or synthesize a DRAFT (any design loom reads). */
@@ -1063,7 +1276,8 @@ int cmd_serve(int argc, char **argv)
 	if (paint_out && !s.fabric_abs[0])
 		opts_usage(&c, "--paint-file: serve a fabric (.loomf) or a paint file to paint "
 		           "on it");
-	s.d = loom_fabric_design(s.f);
+	if (loom_design_clone(loom_fabric_design(s.f), &s.d) != LOOM_OK)
+		cli_fail(prog, "out of memory");
 	loom_fabric_get_db_identity(s.f, &s.id);
 	loom_fabric_repeat_voxels(s.f, rep);
 	for (int a = 0; a < 2; a++) {
@@ -1075,8 +1289,8 @@ int cmd_serve(int argc, char **argv)
 	}
 	while (((uint64_t)1 << s.top) < (s.img[0] > s.img[1] ? s.img[0] : s.img[1]))
 		s.top++;
-	if (s.paint)
-		painted_patches(prog, &s);
+	if (s.paint && !(s.patch = painted_patches(&s, s.paint, &s.n_patches)))
+		cli_fail(prog, "out of memory");
 	s.n_types = s.d->n_types;
 	s.types = malloc((size_t)s.n_types * sizeof *s.types);
 	if (!s.types)
@@ -1086,6 +1300,7 @@ int cmd_serve(int argc, char **argv)
 	reserve = SERVE_TILE_WORKERS * TILE_MEMORY + RENDER_MEMORY + ((size_t)8 << 20);
 	to.budget_bytes = (size_t)(budget_mb * 1048576.0) - reserve;
 	to.max_threads = 64 + SERVE_TILE_WORKERS;
+	s.to = to;
 	if (loom_texture_open(s.f, s.db, &to, &s.t, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
 	if (s.paint && loom_paint_bind(s.paint, s.t, s.f) != LOOM_OK)
@@ -1149,6 +1364,7 @@ int cmd_serve(int argc, char **argv)
 	free(s.patch);
 	loom_fabric_free(s.f);
 	loom_db_close(s.db);
+	loom_design_free(s.d);
 	free(s.types);
 	return 0;
 }

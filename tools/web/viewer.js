@@ -7,8 +7,9 @@
  * yarn colours editable (POST /api/color; tiles are re-made in the new
  * colours without new synthesis), and a render of the view
  * (/api/render), and a paint tool: a rectangle dragged on the cloth (in
- * cloth millimetres) becomes a painted region of colour or defect, saved
- * by the server in the paint file (POST /api/paint) and shown at once.
+ * cloth millimetres) becomes a painted region of colour, defect or weave
+ * (a weave name or a draft of 0/1 rows), saved by the server in the paint
+ * file (POST /api/paint) and shown at once, a weave in the drawdown too.
  * window.loomStats counts tiles and paints for the browser tests.
  */
 'use strict';
@@ -176,6 +177,17 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
     status.textContent = on ? 'drag a rectangle on the cloth' : status.textContent;
   };
   paintBtn.onclick = () => setPainting(!painting);
+  /* a weave has no yarn kind or colour: its name or draft instead */
+  const effectEl = document.getElementById('paint-effect');
+  const weaveEl = document.getElementById('paint-weave');
+  const showEffect = () => {
+    const w = effectEl.value === 'weave';
+    weaveEl.hidden = !w;
+    document.getElementById('paint-kind').hidden = w;
+    document.getElementById('paint-rgb').hidden = w;
+  };
+  effectEl.addEventListener('change', showEffect);
+  showEffect();
   const local = (e) => {
     const r = clothEl.getBoundingClientRect();
     return { x: e.clientX - r.left, y: e.clientY - r.top };
@@ -210,13 +222,30 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
     const q = new URLSearchParams({
       x0: Math.min(a.x, b.x).toFixed(4), y0: Math.min(a.y, b.y).toFixed(4),
       x1: Math.max(a.x, b.x).toFixed(4), y1: Math.max(a.y, b.y).toFixed(4),
-      effect: document.getElementById('paint-effect').value,
-      kind: document.getElementById('paint-kind').value,
-      rgb: document.getElementById('paint-rgb').value.slice(1) });
-    status.textContent = 'painting...';
+      effect: effectEl.value });
+    if (effectEl.value === 'weave') {
+      const w = weaveEl.value.trim();
+      q.set(/^[01]+(\/[01]+)*$/.test(w) ? 'draft' : 'weave', w);
+    } else {
+      q.set('kind', document.getElementById('paint-kind').value);
+      q.set('rgb', document.getElementById('paint-rgb').value.slice(1));
+    }
+    status.textContent = effectEl.value === 'weave' ? 'weaving...' : 'painting...';
     const r = await fetch(`/api/paint?${q}`, { method: 'POST' });
-    if (!r.ok) { status.textContent = `paint refused: ${await r.text()}`; return; }
+    if (!r.ok) {
+      let why = await r.text();
+      try { why = JSON.parse(why).message; } catch (e) { /* the text as it is */ }
+      status.textContent = `paint refused: ${why}`;
+      window.loomStats.refused = why;
+      return;
+    }
     version = (await r.json()).version;
+    if (effectEl.value === 'weave') {
+      /* the painted weaves' crossings: the drawdown draws them */
+      info.painted_weaves = (await (await fetch('/api/info')).json()).painted_weaves;
+      await loadDrawdown();
+      drawDrawdown();
+    }
     window.loomStats.version = version;
     window.loomStats.painted = (window.loomStats.painted || 0) + 1;
     window.loomStats.paintedMM = [q.get('x0'), q.get('y0'), q.get('x1'), q.get('y1')].map(Number);
@@ -225,7 +254,7 @@ window.loomStats = { tilesLoaded: 0, tilesFailed: 0, ready: false, version: 0 };
       tileSource: clothSource(), index: 0, replace: true,
       success: () => { cloth.viewport.fitBounds(keep, true); drawDrawdown(); },
     });
-    status.textContent = `painted ${q.get('effect')} (saved)`;
+    status.textContent = `painted ${q.get('weave') || q.get('draft') || q.get('effect')} (saved)`;
   }, true);
 
   /* a render of the view */

@@ -317,7 +317,8 @@ LOOM_API uint32_t loom_shell_triangle_count(const loom_shell *s);
  * ======================================================================
  *
  * A smooth warp-direction field over the surface (warp_dir projected onto
- * each triangle, smoothed over edge neighbours) and one rigid planar map
+ * each triangle, or a principal curvature direction with warp_dir where
+ * the surface is umbilic; smoothed over edge neighbours) and one rigid planar map
  * per triangle aligned with it (warps along v), translated breadth-first
  * to continue its placed neighbours (Magda and Kriegman 2003); with a
  * period the continuation is taken modulo whole periods.  The result is a
@@ -332,10 +333,22 @@ typedef struct loom_field_uv_params {
 	double period[2];       /* UV period of the cloth (one design repeat)
 	                           along u and v; 0 = none */
 	uint32_t smooth_iters;  /* field smoothing rounds (<= 100000) */
+	int source;             /* enum loom_field_source */
 } loom_field_uv_params;
 
+/* Where the warp field comes from (loom_field_uv_params.source). */
+enum loom_field_source {
+	LOOM_FIELD_DIRECTION = 0,     /* warp_dir projected onto the surface */
+	LOOM_FIELD_CURVATURE_MAX = 1, /* the principal direction of larger
+	                                 |curvature| (round a cylinder, round a
+	                                 torus's tube); warp_dir near umbilics */
+	LOOM_FIELD_CURVATURE_MIN = 2  /* the other principal direction (along a
+	                                 cylinder's axis, round a torus's hole) */
+};
+
 #define LOOM_FIELD_UV_PARAMS_INIT \
-	{sizeof(loom_field_uv_params), {0.0, 1.0, 0.0}, 1.0, {0.0, 0.0}, 32u}
+	{sizeof(loom_field_uv_params), {0.0, 1.0, 0.0}, 1.0, {0.0, 0.0}, 32u, \
+	 LOOM_FIELD_DIRECTION}
 
 /* Returns LOOM_OK with *out a new mesh (free with loom_mesh_free);
    LOOM_EINVAL (bad params, no triangles) with the reason in diag;
