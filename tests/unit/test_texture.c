@@ -621,6 +621,16 @@ static void orient_blend_no_cancel(void)
 	CHECK_EQ_INT(loom__dz_fixed(1e9f), 2047 * 16);
 	CHECK_EQ_INT(loom__dz_fixed(-1e9f), -2047 * 16);
 	CHECK_EQ_INT(loom__dz_fixed(NAN), 0);
+	/* the split of every offset in range (both signs) against floor */
+	{
+		int bad = 0;
+		for (int q = -2047 * 16; q <= 2047 * 16; q++) {
+			int f = -1, wv = loom__dz_split(q, &f);
+			if (wv != (int)floor(q / 16.0) || f != q - 16 * wv || f < 0 || f >= 16)
+				bad++;
+		}
+		CHECK_EQ_INT(bad, 0);
+	}
 }
 
 /* The fabric's own dz equals the reference built from the database
