@@ -38,7 +38,9 @@
  * child processes look up random voxels and ray walks of the region from
  * cold: OpenVDB with delayed loading (io::File::open(true); leaves are read
  * on first touch and never evicted) and loom at budgets of 16 and 64 MiB.
- * Their per-core rates, checksums (must agree) and peak RSS (VmHWM).
+ * Their per-core rates, checksums (must agree) and peak RSS (VmHWM),
+ * with each child's RSS before it opens anything (its base: libraries,
+ * OpenVDB initialised) and loom's against budget + 16 MiB.
  *
  *   build/bench/bench_vdb              the full run (~2 GB of RAM, minutes)
  *   build/bench/bench_vdb --check      a small run on the default database
@@ -122,19 +124,31 @@ std::string loadavg()
 	return s.substr(0, k);
 }
 
-long vm_hwm_kib()
+/* A "Vm...:" field of /proc/self/status in KiB (key with its colon), -1
+   when absent. */
+long vm_kib(const char *key)
 {
 	char line[256];
 	long v = -1;
+	size_t n = strlen(key);
 	FILE *f = fopen("/proc/self/status", "r");
 	if (!f)
 		return -1;
 	while (fgets(line, sizeof line, f))
-		if (strncmp(line, "VmHWM:", 6) == 0)
-			v = atol(line + 6);
+		if (strncmp(line, key, n) == 0)
+			v = atol(line + n);
 	fclose(f);
 	return v;
 }
+
+long vm_hwm_kib()
+{
+	return vm_kib("VmHWM:");
+}
+
+/* A child's resident set before it opens anything of loom's or OpenVDB's
+   (libraries, openvdb::initialize): the process itself. */
+long g_base_kib = -1;
 
 /* Orientation code -> unit direction, z >= 0: the arithmetic of libloom's
    decoder (docs/formats.md, "Voxel encodings"), inline for the peers. */
@@ -669,7 +683,7 @@ bool warm(const Setup &S, loom_texture *t, const Mat &M, const Work &W)
 /* ---------------------------------------------- below the working set */
 
 /* Child: from cold, random voxels then ray walks, density; prints
-   "RESULT rnd_rate ray_rate ck_rnd ck_ray hwm_kib". */
+   "RESULT rnd_rate ray_rate ck_rnd ck_ray hwm_kib base_kib". */
 int child(Setup &S, const char *what, const char *arg)
 {
 	Work W;
@@ -712,15 +726,16 @@ int child(Setup &S, const char *what, const char *arg)
 		}
 		file.close();
 	}
-	printf("RESULT %.0f %.0f %llu %llu %ld\n", rate[0], rate[1],
-	       (unsigned long long)s[0].ck_i, (unsigned long long)s[1].ck_i, vm_hwm_kib());
+	printf("RESULT %.0f %.0f %llu %llu %ld %ld\n", rate[0], rate[1],
+	       (unsigned long long)s[0].ck_i, (unsigned long long)s[1].ck_i, vm_hwm_kib(),
+	       g_base_kib);
 	return 0;
 }
 
 struct ChildOut {
 	double rnd = 0, ray = 0;
 	unsigned long long ck_rnd = 0, ck_ray = 0;
-	long hwm = 0;
+	long hwm = 0, base = 0;
 	bool ok = false;
 };
 
@@ -734,8 +749,8 @@ ChildOut run_child(const char *self, const Setup &S, const char *what, const cha
 	if (!p)
 		return o;
 	while (fgets(line, sizeof line, p))
-		if (sscanf(line, "RESULT %lf %lf %llu %llu %ld", &o.rnd, &o.ray, &o.ck_rnd, &o.ck_ray,
-		           &o.hwm) == 5)
+		if (sscanf(line, "RESULT %lf %lf %llu %llu %ld %ld", &o.rnd, &o.ray, &o.ck_rnd,
+		           &o.ck_ray, &o.hwm, &o.base) == 6)
 			o.ok = true;
 		else
 			fputs(line, stdout);
@@ -759,8 +774,11 @@ bool below(const char *self, const Setup &S, const Mat &M)
 	printf("\nbelow the working set: from cold, 1 thread, density; OpenVDB delayed loading "
 	       "of a %.1f MiB .vdb file\nagainst loom at a fixed budget (one process each, "
 	       "peak RSS = VmHWM); load average %s\n", (double)st.st_size / MIB, loadavg().c_str());
-	printf("%-22s %12s %12s %10s | %8s %8s | %s\n", "backend", "random M/s", "rays M/s",
-	       "peak RSS", "rnd l/v", "ray l/v", "checksums");
+	printf("base = the child's RSS before it opens anything (libraries, OpenVDB initialised);"
+	       "\nloom's target: peak RSS <= budget + 16 MiB (\"limit\"; \"within\" also shown "
+	       "for peak - base)\n");
+	printf("%-22s %12s %12s %10s %8s | %8s %8s | %s\n", "backend", "random M/s", "rays M/s",
+	       "peak RSS", "base", "rnd l/v", "ray l/v", "checksums");
 	int reps = S.check ? 1 : 3;
 	std::vector<double> vr, vy;
 	ChildOut v;
@@ -773,8 +791,8 @@ bool below(const char *self, const Setup &S, const Mat &M)
 		return false;
 	}
 	double vrm = median(vr), vym = median(vy);
-	printf("%-22s %12.3f %12.3f %7.0f MiB | %8s %8s |\n", "openvdb delayed", vrm / 1e6,
-	       vym / 1e6, v.hwm / 1024.0, "", "");
+	printf("%-22s %12.3f %12.3f %6.0f MiB %4.0f MiB | %8s %8s |\n", "openvdb delayed",
+	       vrm / 1e6, vym / 1e6, v.hwm / 1024.0, v.base / 1024.0, "", "");
 	const char *budgets[] = {"16", "64"};
 	for (const char *b : budgets) {
 		std::vector<double> lr, ly;
@@ -786,15 +804,21 @@ bool below(const char *self, const Setup &S, const Mat &M)
 		bool eq = l.ok && l.ck_rnd == v.ck_rnd && l.ck_ray == v.ck_ray;
 		ok = ok && eq;
 		double lrm = median(lr), lym = median(ly);
-		printf("loom, budget %3s MiB   %12.3f %12.3f %7.0f MiB | %8.3f %8.3f | %s\n", b,
-		       lrm / 1e6, lym / 1e6, l.hwm / 1024.0, lrm / vrm, lym / vym,
-		       eq ? "equal" : "DIFFER");
+		long limit = (atol(b) + 16) * 1024; /* budget + 16 MiB, KiB */
+		printf("loom, budget %3s MiB   %12.3f %12.3f %6.0f MiB %4.0f MiB | %8.3f %8.3f | %s\n",
+		       b, lrm / 1e6, lym / 1e6, l.hwm / 1024.0, l.base / 1024.0, lrm / vrm,
+		       lym / vym, eq ? "equal" : "DIFFER");
+		printf("  limit %ld MiB: peak %s, peak - base %.0f MiB %s\n", limit / 1024,
+		       l.hwm <= limit ? "within" : "ABOVE", (l.hwm - l.base) / 1024.0,
+		       l.hwm - l.base <= limit ? "within" : "ABOVE");
 		printf("{\"bench\":\"vdb_below\",\"budget_mib\":%s,\"loom_random_per_core\":%.0f,"
 		       "\"loom_rays_per_core\":%.0f,\"openvdb_random_per_core\":%.0f,"
 		       "\"openvdb_rays_per_core\":%.0f,\"loom_peak_rss_kib\":%ld,"
-		       "\"openvdb_peak_rss_kib\":%ld,\"vdb_file_bytes\":%lld,\"checksums_equal\":%s,"
-		       "\"load\":\"%s\"}\n", b, lrm, lym, vrm, vym, l.hwm, v.hwm,
-		       (long long)st.st_size, eq ? "true" : "false", loadavg().c_str());
+		       "\"loom_base_rss_kib\":%ld,\"loom_rss_limit_kib\":%ld,"
+		       "\"openvdb_peak_rss_kib\":%ld,\"openvdb_base_rss_kib\":%ld,"
+		       "\"vdb_file_bytes\":%lld,\"checksums_equal\":%s,"
+		       "\"load\":\"%s\"}\n", b, lrm, lym, vrm, vym, l.hwm, l.base, limit, v.hwm,
+		       v.base, (long long)st.st_size, eq ? "true" : "false", loadavg().c_str());
 	}
 	unlink(S.vdbp.c_str());
 	return ok;
@@ -825,6 +849,7 @@ int main(int argc, char **argv)
 	openvdb::initialize();
 	if (ai + 2 < argc + 0 && strcmp(argv[ai], "--child") == 0) {
 		/* a child: the parent made the database and saved the fabric */
+		g_base_kib = vm_kib("VmRSS:");
 		loom_diag diag;
 		memset(&diag, 0, sizeof diag);
 		const char *paper = getenv("LOOM_PAPER_DB");

@@ -60,6 +60,11 @@ int loom__dz_fixed(float dz)
 	return (int)lroundf(dz * (float)DZ_SUB);
 }
 
+int loom__dz_split(int q, int *f)
+{
+	return dz_split(q, f);
+}
+
 void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
                         float out[3])
 {

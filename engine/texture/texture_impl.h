@@ -37,7 +37,8 @@
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
 #define COORD_LIMIT ((int64_t)1 << 62) /* |x|, |y|, |z| below this */
-#define DZ_SUB 16           /* dz is kept in 1/DZ_SUB voxel (fixed point) */
+#define DZ_SUB 16           /* dz is kept in 1/DZ_SUB voxel (fixed point; a
+                               power of two, dz_split) */
 #define DZ_LIMIT 2047       /* |dz| clamp, voxels (int16 fixed point) */
 #define ALIGN 64
 #define RCOLS 64            /* columns gathered at once (x-fastest regions) */
@@ -78,12 +79,14 @@ struct xent {
 	uint8_t valid;
 	uint8_t tok[4];          /* yarn type by kind: 0, warp, weft, 0 */
 	uint8_t tlut_ok;         /* tlut is built */
-	uint8_t tlut[256];       /* label -> yarn type (region reads) */
-	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
 	uint32_t map;            /* the shared offset map of (I, J) (NO_MAP: none,
 	                            every offset computed on the spot) */
 	uint64_t gen;            /* the map's generation when attached */
 	_Atomic uint64_t *w;     /* the map's lanes (4 columns a word) */
+	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
+	/* what point lookups use is above (the first two cache lines); the
+	   region reads' table last */
+	uint8_t tlut[256];       /* label -> yarn type (region reads) */
 };
 
 /* Header of a shared offset map (texture.c: "shared offset maps"). */
@@ -328,9 +331,9 @@ static inline int xent_dz(const loom_texture *t, struct tslot *s, struct xent *e
    the fraction f = q - w * DZ_SUB in [0, DZ_SUB). */
 static inline int dz_split(int q, int *f)
 {
-	int r = q % DZ_SUB;
-	if (r < 0)
-		r += DZ_SUB;
+	/* DZ_SUB is a power of two: the remainder by masking (two's
+	   complement), then an exact division */
+	int r = (int)((unsigned)q & (DZ_SUB - 1));
 	*f = r;
 	return (q - r) / DZ_SUB;
 }

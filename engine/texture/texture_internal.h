@@ -25,6 +25,11 @@ void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
    not-a-number gives 0. */
 int loom__dz_fixed(float dz);
 
+/* Split a fixed-point offset q (1/16 voxel) into whole voxels w =
+   floor(q / 16), returned, and the fraction *f = q - 16 w in [0, 16): the
+   lookups' step 3 (dz_split), for the tests. */
+int loom__dz_split(int q, int *f);
+
 /* The edge-fix offset (unrounded) the engine computes for column (lx, ly)
    of crossing (I, J): the same arithmetic as loom_edgefix_block, which
    the tests check bit for bit.  0 for NULL or a column out of range. */

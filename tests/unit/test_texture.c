@@ -621,6 +621,16 @@ static void orient_blend_no_cancel(void)
 	CHECK_EQ_INT(loom__dz_fixed(1e9f), 2047 * 16);
 	CHECK_EQ_INT(loom__dz_fixed(-1e9f), -2047 * 16);
 	CHECK_EQ_INT(loom__dz_fixed(NAN), 0);
+	/* the split of every offset in range (both signs) against floor */
+	{
+		int bad = 0;
+		for (int q = -2047 * 16; q <= 2047 * 16; q++) {
+			int f = -1, wv = loom__dz_split(q, &f);
+			if (wv != (int)floor(q / 16.0) || f != q - 16 * wv || f < 0 || f >= 16)
+				bad++;
+		}
+		CHECK_EQ_INT(bad, 0);
+	}
 }
 
 /* The fabric's own dz equals the reference built from the database
@@ -1241,49 +1251,70 @@ static void filtered_lookups(void)
 }
 
 /* Batch = one sample per point; NULL channels untouched. */
+/* Batches equal point lookups, at a budget holding the working set and at
+   one far below it (evictions inside the batch, 2 thread slots), and a
+   bad position fails alone in a small and a large batch, the batch
+   returning the first bad index's error. */
 static void batch_lookups(void)
 {
 	enum { n = 3000 };
-	loom_texture *t = open_tex(g_fab, g_db, 8u << 20, 2);
+	size_t budgets[2];
 	double *x = malloc(8 * n), *y = malloc(8 * n), *z = malloc(8 * n);
 	float *dens = malloc(4 * n), *ori = malloc(12 * n), *alb = malloc(12 * n);
 	uint8_t *kind = malloc(n), *type = malloc(n);
 	uint64_t bad = 0;
 
-	if (!t)
-		goto done;
-	for (int i = 0; i < n; i++) {
-		x[i] = (double)rnd_range(-500, 500) + 0.37 * (i % 3);
-		y[i] = (double)rnd_range(-500, 500) + 0.11 * (i % 5);
-		z[i] = (double)rnd_range(-2, g_ref.b3 + 2) + 0.5;
-	}
-	for (int filter = 0; filter < 2; filter++) {
-		loom_texture_channels ch = {dens, ori, kind, type, alb};
-		memset(type, 0xEE, n);
-		if (filter)
-			ch.type = NULL;
-		CHECK_EQ_INT(loom_texture_sample_batch(t, n, x, y, z, filter, &ch), LOOM_OK);
+	budgets[0] = 8u << 20;
+	budgets[1] = min_budget(g_fab, g_db, 2) + 3000;
+	for (int b = 0; b < 2; b++) {
+		loom_texture *t = open_tex(g_fab, g_db, budgets[b], 2);
+		if (!t)
+			break;
 		for (int i = 0; i < n; i++) {
-			double p[3] = {x[i], y[i], z[i]};
-			loom_texel a;
-			loom_texture_sample(t, p, filter, &a);
-			if (dens[i] != a.density || memcmp(ori + 3 * i, a.orientation, 12) ||
-			    kind[i] != a.kind || memcmp(alb + 3 * i, a.albedo, 12))
-				bad++;
-			if (filter ? type[i] != 0xEE : type[i] != a.type)
-				bad++;
+			x[i] = (double)rnd_range(-500, 500) + 0.37 * (i % 3);
+			y[i] = (double)rnd_range(-500, 500) + 0.11 * (i % 5);
+			z[i] = (double)rnd_range(-2, g_ref.b3 + 2) + 0.5;
 		}
-	}
-	/* a bad position fails alone */
-	x[5] = NAN;
-	{
-		loom_texture_channels ch = {dens, NULL, kind, NULL, NULL};
-		CHECK_EQ_INT(loom_texture_sample_batch(t, 10, x, y, z, 0, &ch), LOOM_EINVAL);
-		CHECK(dens[5] == 0 && kind[5] == 0);
+		for (int filter = 0; filter < 2; filter++) {
+			loom_texture_channels ch = {dens, ori, kind, type, alb};
+			memset(type, 0xEE, n);
+			if (filter)
+				ch.type = NULL;
+			CHECK_EQ_INT(loom_texture_sample_batch(t, n, x, y, z, filter, &ch), LOOM_OK);
+			for (int i = 0; i < n; i++) {
+				double p[3] = {x[i], y[i], z[i]};
+				loom_texel a;
+				loom_texture_sample(t, p, filter, &a);
+				if (dens[i] != a.density || memcmp(ori + 3 * i, a.orientation, 12) ||
+				    kind[i] != a.kind || memcmp(alb + 3 * i, a.albedo, 12))
+					bad++;
+				if (filter ? type[i] != 0xEE : type[i] != a.type)
+					bad++;
+			}
+		}
+		/* a bad position fails alone, in a small and a large batch */
+		x[5] = NAN;
+		z[2500] = 1e300;
+		{
+			loom_texture_channels ch = {dens, NULL, kind, NULL, NULL};
+			CHECK_EQ_INT(loom_texture_sample_batch(t, 10, x, y, z, 0, &ch), LOOM_EINVAL);
+			CHECK(dens[5] == 0 && kind[5] == 0);
+			/* the first bad index's error: EINVAL (NaN at 5), not ERANGE */
+			CHECK_EQ_INT(loom_texture_sample_batch(t, n, x, y, z, 1, &ch), LOOM_EINVAL);
+			CHECK(dens[5] == 0 && kind[5] == 0 && dens[2500] == 0 && kind[2500] == 0);
+			for (int i = 0; i < n; i++) {
+				double p[3] = {x[i], y[i], z[i]};
+				loom_texel a;
+				if (i == 5 || i == 2500)
+					continue;
+				loom_texture_sample(t, p, 1, &a);
+				if (dens[i] != a.density || kind[i] != a.kind)
+					bad++;
+			}
+		}
+		loom_texture_close(t);
 	}
 	CHECK_EQ_INT(bad, 0);
-done:
-	loom_texture_close(t);
 	free(x), free(y), free(z), free(dens), free(ori), free(alb), free(kind), free(type);
 }
 
