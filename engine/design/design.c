@@ -143,6 +143,12 @@ LOOM_API int loom_design_validate(const loom_design *d, loom_diag *diag)
 	if (d->n_types == 0 || d->n_types > LOOM_MAX_YARN_TYPES || !d->types)
 		return loom__fail(diag, LOOM_EFORMAT, "yarn table has %u entries",
 		                  d->n_types);
+	for (uint32_t t = 0; t < d->n_types; t++)
+		if (d->types[t].fibre >= LOOM_FIBRE_COUNT_)
+			return loom__fail(diag, LOOM_EFORMAT, "yarn type %u ('%s') has "
+			                  "material code %u, expected 0..%d", t,
+			                  d->types[t].name, d->types[t].fibre,
+			                  LOOM_FIBRE_COUNT_ - 1);
 	n = (size_t)d->rows * d->cols;
 	for (size_t k = 0; k < n; k++) {
 		if (d->weave[k] > 1)
@@ -158,6 +164,35 @@ LOOM_API int loom_design_validate(const loom_design *d, loom_diag *diag)
 			                  d->n_types);
 	}
 	return LOOM_OK;
+}
+
+/* ---- materials --------------------------------------------------------- */
+
+static const char *const fibre_names[LOOM_FIBRE_COUNT_][2] = {
+	{"default", "--"}, {"none", "sm"}, {"cotton", "co"}, {"rayon", "cv"},
+	{"silk", "si"}, {"polyester", "pe"}, {"wool", "wo"}, {"linen", "li"},
+	{"monofilament", "mf"}};
+
+LOOM_API int loom_fibre_parse(const char *name, int *code)
+{
+	if (!name || !code)
+		return LOOM_EINVAL;
+	for (int k = LOOM_FIBRE_NONE; k < LOOM_FIBRE_COUNT_; k++)
+		if (!strcmp(name, fibre_names[k][0])) {
+			*code = k;
+			return LOOM_OK;
+		}
+	return LOOM_EINVAL;
+}
+
+LOOM_API const char *loom_fibre_name(int code)
+{
+	return code >= 0 && code < LOOM_FIBRE_COUNT_ ? fibre_names[code][0] : NULL;
+}
+
+LOOM_API const char *loom_fibre_short(int code)
+{
+	return code >= 0 && code < LOOM_FIBRE_COUNT_ ? fibre_names[code][1] : NULL;
 }
 
 /* ---- elementary weaves ------------------------------------------------- */

@@ -194,8 +194,14 @@ static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
 		if (!all_zero(x + 32 + wl, 32 - wl))
 			return XFAIL(LOOM_EFORMAT, "weave_name", "%s", "not NUL-padded");
 	}
-	if (loom__le32(x + 124) != 0 || !all_zero(x + 176, 16))
-		return XFAIL(LOOM_EFORMAT, "reserved", "%s", "not zero (offsets 124, 176)");
+	if (loom__le32(x + 124) != 0 || !all_zero(x + 178, 14))
+		return XFAIL(LOOM_EFORMAT, "reserved", "%s", "not zero (offsets 124, 178)");
+	if (x[176] >= LOOM_FIBRE_COUNT_ || x[177] >= LOOM_FIBRE_COUNT_ ||
+	    (x[176] == 0) != (x[177] == 0))
+		return XFAIL(LOOM_EFORMAT, "fibre", "%u %u, expected two material codes "
+		             "1..%d or 0 0", x[176], x[177], LOOM_FIBRE_COUNT_ - 1);
+	pub->fibre[0] = x[176];
+	pub->fibre[1] = x[177];
 	memcpy(pub->name, x, 32);
 	memcpy(pub->weave_name, x + 32, 32);
 	pub->rows = loom__le32(x + 64);

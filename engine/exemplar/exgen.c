@@ -224,6 +224,7 @@ struct loom__exgen {
 	uint64_t seed;
 	uint8_t *weave;
 	char name[32], weave_name[32];
+	uint8_t tag[2];      /* material pair tag (loom__exgen_tag) */
 	kind_params kp[3];   /* by kind */
 	float *mech;         /* the yarns' hgt/wfac/cfac tables */
 	float *fibs;         /* the yarns' fibre tables */
@@ -1289,6 +1290,38 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 			                  "none, cotton, rayon, silk, polyester, wool, linen or "
 			                  "monofilament)", k ? "weft" : "warp", f);
 	}
+	if (p->n_pairs > LOOM_EXGEN_MAX_PAIRS)
+		return loom__fail(diag, LOOM_EINVAL, "generator: %u material pairs (at "
+		                  "most %d)", p->n_pairs, LOOM_EXGEN_MAX_PAIRS);
+	if (p->n_pairs >= 2 && (uint64_t)p->n_pairs * p->n_weaves > LOOM__DB_MAX_EXEMPLARS)
+		return loom__fail(diag, LOOM_EINVAL, "generator: %u pairs x %u weaves "
+		                  "are more than %u exemplars", p->n_pairs, p->n_weaves,
+		                  LOOM__DB_MAX_EXEMPLARS);
+	for (uint32_t i = 0; p->n_pairs >= 2 && i < p->n_pairs; i++) {
+		int c[2];
+		for (int k = 0; k < 2; k++) {
+			const char *f = p->pairs[i][k] ? p->pairs[i][k] : p->pairs[i][1 - k];
+			if (!f || loom_fibre_parse(f, &c[k]) != LOOM_OK)
+				return loom__fail(diag, LOOM_EINVAL, "generator: pair %u: %s fibre "
+				                  "'%s' (expected none, cotton, rayon, silk, "
+				                  "polyester, wool, linen or monofilament)", i + 1,
+				                  k ? "weft" : "warp", f ? f : "(none given)");
+		}
+		if ((c[0] == LOOM_FIBRE_NONE) != (c[1] == LOOM_FIBRE_NONE))
+			return loom__fail(diag, LOOM_EINVAL, "generator: pair %u: fibres "
+			                  "'none' and '%s' cannot be mixed", i + 1,
+			                  loom_fibre_name(c[0] == LOOM_FIBRE_NONE ? c[1] : c[0]));
+		for (uint32_t j = 0; j < i; j++) {
+			int e[2];
+			for (int k = 0; k < 2; k++)
+				loom_fibre_parse(p->pairs[j][k] ? p->pairs[j][k] : p->pairs[j][1 - k],
+				                 &e[k]);
+			if (e[0] == c[0] && e[1] == c[1])
+				return loom__fail(diag, LOOM_EINVAL, "generator: pairs %u and %u "
+				                  "are both %s/%s", j + 1, i + 1,
+				                  loom_fibre_name(c[0]), loom_fibre_name(c[1]));
+		}
+	}
 	if ((fibre_find(p->fibre[0]) && p->fibre[1] && !fibre_find(p->fibre[1])) ||
 	    (fibre_find(p->fibre[1]) && p->fibre[0] && !fibre_find(p->fibre[0])))
 		return loom__fail(diag, LOOM_EINVAL, "generator: fibres 'none' and '%s' "
@@ -1639,6 +1672,20 @@ void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d)
 	memcpy(d->size, g->size, sizeof d->size);
 	d->n_yarns = g->n_labels;
 	d->yarns = g->table;
+	d->fibre[0] = g->tag[0];
+	d->fibre[1] = g->tag[1];
+}
+
+void loom__exgen_tag(loom__exgen *g, int warp, int weft)
+{
+	size_t n = strlen(g->name);
+
+	g->tag[0] = (uint8_t)warp;
+	g->tag[1] = (uint8_t)weft;
+	if (n > 24) /* "@WW-FF" fits in the 31 bytes */
+		n = 24;
+	snprintf(g->name + n, sizeof g->name - n, "@%s-%s", loom_fibre_short(warp),
+	         loom_fibre_short(weft));
 }
 
 void loom__exgen_fibres(const loom__exgen *g, int kind, loom__exgen_fibre *f)

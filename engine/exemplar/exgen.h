@@ -25,6 +25,7 @@ typedef struct loom__exgen_desc {
 	uint32_t size[3];          /* voxels */
 	uint32_t n_yarns;
 	const loom_db_yarn *yarns; /* n_yarns + 1 rows */
+	uint8_t fibre[2];          /* material pair tag (0 0: none) */
 } loom__exgen_desc;
 
 /* Check the parameters that do not depend on a weave. */
@@ -48,6 +49,11 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 int loom__exgen_new_design(const loom_exgen_params *p, const char *name,
                            uint32_t rows, uint32_t cols, const uint8_t *weave,
                            loom__exgen **out, loom_diag *diag);
+/* Tag the exemplar with material pair (warp, weft), enum loom_fibre codes,
+   and append "@WW-FF" (loom_fibre_short) to its name: the exemplars of a
+   database of several pairs (docs/exemplars.md).  The voxels do not
+   change. */
+void loom__exgen_tag(loom__exgen *g, int warp, int weft);
 void loom__exgen_free(loom__exgen *g);
 void loom__exgen_describe(const loom__exgen *g, loom__exgen_desc *d);
 

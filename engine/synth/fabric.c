@@ -258,6 +258,10 @@ static int check_options(const loom_fabric_options *o, loom_diag *diag)
 	if (o->window > LOOM_FABRIC_MAX_WINDOW)
 		return loom__fail(diag, LOOM_EINVAL, "synth: window %u, expected 0..%u",
 		                  o->window, LOOM_FABRIC_MAX_WINDOW);
+	if (o->fibre[0] >= LOOM_FIBRE_COUNT_ || o->fibre[1] >= LOOM_FIBRE_COUNT_)
+		return loom__fail(diag, LOOM_EINVAL, "synth: default materials %u, %u, "
+		                  "expected 0..%d", o->fibre[0], o->fibre[1],
+		                  LOOM_FIBRE_COUNT_ - 1);
 	if (o->edge_storage > LOOM_FABRIC_EDGE_REBUILD)
 		return loom__fail(diag, LOOM_EINVAL, "synth: edge_storage %u", o->edge_storage);
 	return LOOM_OK;
@@ -365,7 +369,13 @@ LOOM_API int loom_fabric_synthesize(const loom_design *d, const loom_db *db,
 	so.seed = o->seed;
 	so.group = o->group;
 	so.flags = o->flags;
-	rc = loom_synth_assign(f->set, f->design, &so, f->base, diag);
+	{
+		int done = 0;
+		if (o->algo != LOOM_SYNTH_IDENTITY)
+			rc = loom__fabric_assign_materials(f, db, &so, o->fibre, &done, diag);
+		if (!rc && !done)
+			rc = loom_synth_assign(f->set, f->design, &so, f->base, diag);
+	}
 	if (!rc)
 		rc = init_lookup(f);
 	if (rc)

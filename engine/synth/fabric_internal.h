@@ -231,6 +231,21 @@ loom_fabric *loom__fabric_alloc(void);
    check_hash is 0: fuzzing) and the geometry, rebuild the exemplar set,
    block table, profiles and lookup, and the edge-fix tables if the file did
    not store them.  `name` names the fabric in messages. */
+/* Material pair tags of the database's exemplars (engine/synth/material.c):
+   tag[u] = warp * LOOM_FIBRE_COUNT_ + weft (0: not recorded), *n_pairs =
+   distinct tags other than 0. */
+int loom__fabric_db_pairs(const loom_db *db, uint32_t n_ex, uint8_t *tag,
+                          uint32_t *n_pairs);
+/* With a database of two or more tagged pairs: f->base from one
+   assignment per pair the design uses (each crossing restricted to its
+   pair's exemplars), *done = 1; otherwise nothing, *done = 0.  f->design,
+   f->set, f->n_exemplars set.  LOOM_EMISMATCH for a pair the database
+   lacks. */
+int loom__fabric_assign_materials(loom_fabric *f, const loom_db *db,
+                                  const loom_synth_options *so,
+                                  const uint8_t def[2], int *done,
+                                  loom_diag *diag);
+
 int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
                       const char *name, loom_diag *diag);
 
@@ -244,6 +259,9 @@ int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
  * the new weave bits around them (loom_synth_candidates), among them the
  * most contiguous with the neighbours already fixed (the fabric's outside,
  * the patch's earlier rows and columns), ties by a hash of (seed, I, J, t).
+ * With a database of several material pairs the candidates are the blocks
+ * of the exemplars with the pair of the crossing's old source, most
+ * matching neighbour bits first (engine/synth/material.c).
  * On success *fp becomes a new fabric that owns the old one and shares its
  * tables; the edge fix then runs across the patch's border as anywhere.
  * Memory 3 bytes per crossing of the widened rectangle (at most

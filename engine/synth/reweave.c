@@ -25,6 +25,9 @@ typedef struct rw {
 	uint8_t *bit;                 /* R*C: the new warp-over bits */
 	uint8_t *in;                  /* R*C: 1 = assigned again */
 	uint16_t *src;                /* R*C: new sources (NONE until set) */
+	const uint8_t *tag;           /* per exemplar: material pair tag, when
+	                                 the database has two or more pairs;
+	                                 NULL otherwise (engine/synth/material.c) */
 } rw;
 
 /* Warp-over bit of (I, J) after painting. */
@@ -64,6 +67,42 @@ static int assign_one(rw *w, uint32_t r, uint32_t c, uint64_t key)
 	uint64_t best_h = 0;
 	int rc;
 
+	if (w->tag) {
+		/* keep the crossing's material pair: the blocks of the exemplars
+		   with the tag of its old source, most matching bits first */
+		loom_synth_block ob;
+		uint32_t K = loom_synth_set_blocks(w->f->set);
+		uint8_t pair;
+		int best_m = -1;
+		loom_synth_block_info(w->f->set, loom__fabric_src(w->f, I, J), &ob);
+		pair = w->tag[ob.exemplar];
+		for (uint32_t t = 0; t < K; t++) {
+			loom_synth_block b;
+			int m, score;
+			uint64_t h;
+			loom_synth_block_info(w->f->set, t, &b);
+			if (w->tag[b.exemplar] != pair || (b.code & 1u) != (code & 1u))
+				continue;
+			m = __builtin_popcount(~(b.code ^ code) & 0x1eu);
+			score = (nb[0] != LOOM_SYNTH_NONE && b.up == nb[0]) +
+			        (nb[1] != LOOM_SYNTH_NONE && b.down == nb[1]) +
+			        (nb[2] != LOOM_SYNTH_NONE && b.left == nb[2]) +
+			        (nb[3] != LOOM_SYNTH_NONE && b.right == nb[3]);
+			h = loom_synth_mix(key ^ loom_synth_mix((uint64_t)I * 0x9e3779b97f4a7c15ull ^
+			                                        (uint64_t)J) ^ t);
+			if (m > best_m || (m == best_m && score > best_score) ||
+			    (m == best_m && score == best_score && h < best_h)) {
+				best_m = m;
+				best_score = score;
+				best_h = h;
+				best = t;
+			}
+		}
+		if (best == LOOM_SYNTH_NONE)
+			return LOOM_EUNSUPPORTED;
+		w->src[(size_t)r * w->C + c] = (uint16_t)best;
+		return LOOM_OK;
+	}
 	if ((rc = loom_synth_candidates(w->f->set, code, 0, &list, &n, &matches)) != LOOM_OK)
 		return rc;
 	if (n == 0)
@@ -98,9 +137,10 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 	rw w;
 	loom_fabric *f, *g = NULL;
 	loom__fabric_patch *p = NULL;
-	uint8_t *tmp = NULL;
+	uint8_t *tmp = NULL, *tag = NULL;
 	size_t n;
 	uint64_t key;
+	uint32_t n_pairs = 0;
 	int rc = LOOM_ENOMEM;
 
 	if (!fp || !*fp || !want || !rows || !cols)
@@ -134,8 +174,15 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 	tmp = calloc(n, 1);
 	p = calloc(1, sizeof *p);
 	g = malloc(sizeof *g);
-	if (!w.bit || !w.in || !w.src || !tmp || !p || !g)
+	tag = malloc(f->n_exemplars ? f->n_exemplars : 1);
+	if (!w.bit || !w.in || !w.src || !tmp || !p || !g || !tag)
 		goto fail;
+	if ((rc = loom__fabric_db_pairs(f->db, f->n_exemplars, tag, &n_pairs)) != LOOM_OK) {
+		rc = loom__fail(diag, rc, "painted weave: database exemplars: %s",
+		                loom_strerror(rc));
+		goto fail_quiet;
+	}
+	w.tag = n_pairs >= 2 ? tag : NULL;
 	/* the bits after painting, and the painted crossings */
 	for (uint32_t r = 0; r < w.R; r++)
 		for (uint32_t c = 0; c < w.C; c++) {
@@ -195,6 +242,7 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 		if (!w.in[k])
 			w.src[k] = LOOM_SYNTH_NONE;
 	free(tmp);
+	free(tag);
 	free(w.in);
 	p->prev = f->patch;
 	p->I0 = w.I0;
@@ -215,6 +263,7 @@ fail_quiet:
 	free(w.in);
 	free(w.src);
 	free(tmp);
+	free(tag);
 	free(p);
 	free(g);
 	return rc;

@@ -10,7 +10,7 @@
  *
  * The mapping file (full grammar in docs/designs.md) is line based:
  *
- *     yarn NAME ALBEDO [alignment=A] [thickness=T]
+ *     yarn NAME ALBEDO [alignment=A] [thickness=T] [fibre=F]
  *     colour COLOUR WEAVE [warp=NAME] [weft=NAME]
  *
  * ALBEDO is #RRGGBB or r,g,b in [0,1]; COLOUR is #RRGGBB, a grey level
@@ -272,8 +272,18 @@ static int yarn_option(mapfile *m, tok t, loom_yarn_type *y)
 		y->thickness = (float)x;
 		return LOOM_OK;
 	}
-	return loom__fail(m->diag, LOOM_EFORMAT, "%s:%u: expected alignment=A or "
-	                  "thickness=T, got " TOKF, m->name, m->line, TOKA(t));
+	if (keyval(t, "fibre", &v)) {
+		char name[16];
+		int code;
+		if (!tok_copy(v, name, sizeof name) || loom_fibre_parse(name, &code) != LOOM_OK)
+			return loom__fail(m->diag, LOOM_EFORMAT, "%s:%u: fibre must be cotton, "
+			                  "rayon, silk, polyester, wool, linen, monofilament "
+			                  "or none, got " TOKF, m->name, m->line, TOKA(v));
+		y->fibre = (uint8_t)code;
+		return LOOM_OK;
+	}
+	return loom__fail(m->diag, LOOM_EFORMAT, "%s:%u: expected alignment=A, "
+	                  "thickness=T or fibre=F, got " TOKF, m->name, m->line, TOKA(t));
 }
 
 static int parse_yarn(mapfile *m, const tok *t, int nt)
@@ -283,7 +293,7 @@ static int parse_yarn(mapfile *m, const tok *t, int nt)
 
 	if (nt < 3)
 		return loom__fail(m->diag, LOOM_EFORMAT, "%s:%u: expected 'yarn NAME "
-		                  "ALBEDO [alignment=A] [thickness=T]'", m->name, m->line);
+		                  "ALBEDO [alignment=A] [thickness=T] [fibre=F]'", m->name, m->line);
 	if (!valid_name(t[1]))
 		return bad_name(m, "a yarn name", t[1]);
 	for (uint32_t k = 0; k < m->n_yarns; k++)

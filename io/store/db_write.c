@@ -42,6 +42,7 @@ typedef struct dbw_exemplar {
 	uint16_t *sym;            /* 2*n_sym */
 	uint8_t *blocks;          /* rows*cols encoded block entries */
 	uint64_t raw_bytes, stored_bytes;
+	uint8_t fibre[2];         /* material pair tag */
 } dbw_exemplar;
 
 struct loom__dbw {
@@ -368,6 +369,11 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *d,
 	    (d->weave_name && strlen(d->weave_name) >= 32))
 		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar name missing or "
 		                  "longer than 31 bytes", w->out.path);
+	if (d->fibre[0] >= LOOM_FIBRE_COUNT_ || d->fibre[1] >= LOOM_FIBRE_COUNT_ ||
+	    (d->fibre[0] == 0) != (d->fibre[1] == 0))
+		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar '%s': material tag %u "
+		                  "%u (expected two codes 1..%d or 0 0)", w->out.path,
+		                  d->name, d->fibre[0], d->fibre[1], LOOM_FIBRE_COUNT_ - 1);
 	if (d->rows < 1 || d->cols < 1 || d->rows > LOOM__DB_MAX_CROSSINGS ||
 	    d->cols > LOOM__DB_MAX_CROSSINGS || !d->weave)
 		return loom__fail(diag, LOOM_EINVAL, "%s: exemplar '%s': %ux%u crossings "
@@ -400,6 +406,8 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *d,
 	         d->weave_name ? d->weave_name : "");
 	e->rows = d->rows;
 	e->cols = d->cols;
+	e->fibre[0] = d->fibre[0];
+	e->fibre[1] = d->fibre[1];
 	e->size[0] = d->cols * w->p.block[0];
 	e->size[1] = d->rows * w->p.block[1];
 	e->size[2] = w->p.block[2];
@@ -655,6 +663,8 @@ static uint8_t *build_metadata(loom__dbw *w, size_t *len)
 		loom__put64(x + 152, wo[4 * k + 3]);
 		loom__put64(x + 160, e->raw_bytes);
 		loom__put64(x + 168, e->stored_bytes);
+		x[176] = e->fibre[0];
+		x[177] = e->fibre[1];
 		memcpy(m + wo[4 * k], e->weave, (size_t)e->rows * e->cols);
 		for (uint32_t l = 0; l <= e->n_yarns; l++) {
 			uint8_t *y = m + wo[4 * k + 1] + 4 * (size_t)l;
@@ -798,6 +808,8 @@ static int copy_exemplar(const uint8_t *m, size_t meta_len, uint32_t k, size_t e
 	e->n_sym = loom__le32(x + 120);
 	e->raw_bytes = loom__le64(x + 160);
 	e->stored_bytes = loom__le64(x + 168);
+	e->fibre[0] = x[176];
+	e->fibre[1] = x[177];
 	nw = (size_t)e->rows * e->cols;
 	nb = nw * esz;
 	if (ow + nw > meta_len || oy + 4 * ((size_t)e->n_yarns + 1) > meta_len ||

@@ -44,6 +44,7 @@ typedef struct loom__dbw_exemplar {
 	const uint8_t *weave;    /* rows*cols, 1 = warp over */
 	uint32_t n_yarns;        /* labels 1..n_yarns */
 	const loom_db_yarn *yarns; /* n_yarns + 1 rows, row 0 empty */
+	uint8_t fibre[2];        /* material pair tag (0 0: none) */
 } loom__dbw_exemplar;
 
 /* One encoded brick.  The caller provides top[] and top_label[] (bx*by

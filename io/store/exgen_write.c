@@ -185,6 +185,8 @@ static int drain(pipe *P, loom__dbw *w, loom_diag *diag)
 			e.weave = d.weave;
 			e.n_yarns = d.n_yarns;
 			e.yarns = d.yarns;
+			e.fibre[0] = d.fibre[0];
+			e.fibre[1] = d.fibre[1];
 			rc = loom__dbw_begin_exemplar(w, &e, diag);
 		}
 		for (uint32_t bz = 0; !rc && bz < P->nb[k][2]; bz++)
@@ -259,25 +261,42 @@ LOOM_API int loom_exgen_write_db(const char *path, const loom_exgen_params *p,
 {
 	pipe P;
 	int rc;
+	uint32_t n_sets;
 
 	if (!path)
 		return loom__fail(diag, LOOM_EINVAL, "generator: NULL path");
 	rc = loom__exgen_check(p, diag);
-	if (!rc)
-		rc = alloc_pipe(&P, p, p->n_weaves, diag);
 	if (rc)
 		return rc;
-	for (uint32_t k = 0; k < P.n_models; k++) {
-		uint32_t variant = 0;
+	/* one set of exemplars per material pair (docs/exemplars.md, "Materials
+	   per yarn type"); a single pair is fibre[] and untagged */
+	n_sets = p->n_pairs >= 2 ? p->n_pairs : 1;
+	rc = alloc_pipe(&P, p, n_sets * p->n_weaves, diag);
+	if (rc)
+		return rc;
+	for (uint32_t m = 0; m < P.n_models; m++) {
+		uint32_t k = m % p->n_weaves, set = m / p->n_weaves, variant = 0;
+		loom_exgen_params q = *p;
+		int code[2];
 		for (uint32_t j = 0; j < k; j++)
 			if (strcmp(p->weaves[j], p->weaves[k]) == 0)
 				variant++;
-		rc = loom__exgen_new(p, k, variant, &P.models[k], diag);
+		if (n_sets > 1) {
+			for (int a = 0; a < 2; a++) {
+				q.fibre[a] = p->pairs[set][a] ? p->pairs[set][a]
+				                              : p->pairs[set][1 - a];
+				loom_fibre_parse(q.fibre[a], &code[a]); /* checked above */
+			}
+			q.n_pairs = 0;
+		}
+		rc = loom__exgen_new(&q, k, variant, &P.models[m], diag);
 		if (rc) {
 			free_pipe(&P);
 			return rc;
 		}
-		plan_model(&P, p, k);
+		if (n_sets > 1)
+			loom__exgen_tag(P.models[m], code[0], code[1]);
+		plan_model(&P, p, m);
 	}
 	return run_pipe(path, p, &P, hash, diag);
 }

@@ -71,7 +71,7 @@ hash_of() { # DB -> content hash
 		'import json,sys; print(json.load(sys.stdin)["content_hash"])'
 }
 expect_ok fibre_no_sett "$LOOM" synth "$W/basic-twill.wif" --fibre silk,wool -o "$T/k.loomf"
-expect_err_contains fibre_no_sett_msg "--fibre silk,wool: generated $T/cache/sett-"
+expect_err_contains fibre_no_sett_msg "yarns silk/wool: generated $T/cache/sett-"
 expect_ok fibre_ref "$LOOM" exemplar generate --preset small --seed 1 --fibre silk,wool \
 	--quiet -o "$T/silkwool.ldb"
 a=$(hash_of "$(db_of "$T/k.loomf")"); b=$(hash_of "$T/silkwool.ldb")

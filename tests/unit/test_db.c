@@ -406,6 +406,7 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	int rc;
 
 	memset(&wp, 0, sizeof wp);
+	memset(&e, 0, sizeof e);
 	wp.n_exemplars = 1;
 	wp.block[0] = wp.block[1] = 4;
 	wp.block[2] = 8;
@@ -562,6 +563,7 @@ static void streamed_case(uint32_t b1, uint32_t b2, uint32_t k1, uint32_t k2)
 	uint32_t sx = C * b1, sy = R * b2, bad = 0, blocks = 0;
 
 	memset(&wp, 0, sizeof wp);
+	memset(&e, 0, sizeof e);
 	wp.n_exemplars = 2;
 	wp.block[0] = b1;
 	wp.block[1] = b2;

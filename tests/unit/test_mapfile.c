@@ -168,7 +168,7 @@ static void errors(void)
 {
 	static const struct bad cases[] = {
 		{"bogus x\n", LOOM_EFORMAT, "m.map:1: expected 'yarn' or 'colour', got 'bogus'"},
-		{"\n\nyarn\n", LOOM_EFORMAT, "m.map:3: expected 'yarn NAME ALBEDO [alignment=A] [thickness=T]'"},
+		{"\n\nyarn\n", LOOM_EFORMAT, "m.map:3: expected 'yarn NAME ALBEDO [alignment=A] [thickness=T] [fibre=F]'"},
 		{"yarn r@d #ff0000\n", LOOM_EFORMAT, "m.map:1: expected a yarn name (letters, digits, '_', '-', '.'; at most 31 characters), got 'r@d'"},
 		{"yarn abcdefghijabcdefghijabcdefghijab #ff0000\n", LOOM_EFORMAT, "expected a yarn name"},
 		{"yarn red #ff00\n", LOOM_EFORMAT, "m.map:1: expected an albedo #RRGGBB or r,g,b with each in 0..1, got '#ff00'"},
@@ -177,7 +177,7 @@ static void errors(void)
 		{"yarn red 0.5,0.5,0.5,0.5\n", LOOM_EFORMAT, "got '0.5,0.5,0.5,0.5'"},
 		{"yarn red #ff0000 alignment=0\n", LOOM_EFORMAT, "m.map:1: alignment must be a number in (0,1], got '0'"},
 		{"yarn red #ff0000 thickness=-1\n", LOOM_EFORMAT, "thickness must be a number >= 0, got '-1'"},
-		{"yarn red #ff0000 gloss=1\n", LOOM_EFORMAT, "m.map:1: expected alignment=A or thickness=T, got 'gloss=1'"},
+		{"yarn red #ff0000 gloss=1\n", LOOM_EFORMAT, "m.map:1: expected alignment=A, thickness=T or fibre=F, got 'gloss=1'"},
 		{"yarn a #000000\nyarn a #ffffff\n", LOOM_EFORMAT, "m.map:2: yarn 'a' is already defined on line 1"},
 		{"colour #ff0000\n", LOOM_EFORMAT, "m.map:1: expected 'colour COLOUR WEAVE [warp=YARN] [weft=YARN]'"},
 		{"colour red plain\n", LOOM_EFORMAT, "m.map:1: expected an image colour: #RRGGBB, a grey level 0..255 or index=K (K = 0..255), got 'red'"},

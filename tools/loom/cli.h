@@ -74,6 +74,12 @@ const char *cli_db_require(const char *opt, const char *prog);
 const char *cli_cache_dir(void);
 const char *cli_sett_db(const char *prog, const loom_design *d,
                         const char *fibre, int quiet);
+/* The distinct (warp, weft) material pairs of d's crossings, in order of
+   first use, types without a material taking def[] (0: cotton); the first
+   max go to pairs, the count is returned (docs/exemplars.md, "Materials
+   per yarn type"). */
+uint32_t cli_design_pairs(const loom_design *d, const uint8_t def[2],
+                          uint8_t pairs[][2], uint32_t max);
 void cli_sett_check(const loom_design *d, const loom_db *db, const char *db_path,
                     int quiet);
 

@@ -2,7 +2,8 @@
  * tools/loom/cmd_synth.c - `loom synth`: design + exemplar database ->
  * fabric file (paper 5.3-5.5; docs/fabric.md).
  *
- *   loom synth DESIGN [--db DB | --fibre F[,F]] [--algo dp|greedy|naive] [--seed N]
+ *   loom synth DESIGN [--db DB | --fibre F[,F]] [--yarn-fibre TYPE=F ...]
+ *              [--algo dp|greedy|naive] [--seed N]
  *              [--rank R] [--edge-fix on|off] [--identity] [--group M] [--map MAPFILE] [--warp-map F]
  *              [--weft-map F] -o FABRIC [--json] [--assignment-map PNG]
  *              [--seam-map PNG] [--edge-tables auto|store|rebuild] [--quiet]
@@ -424,6 +425,66 @@ static void print_summary(const run *r)
 		       r->smap, r->sdrawn[0], r->sdrawn[1], r->sdrawn[2], r->smax);
 }
 
+/* ---- --yarn-fibre TYPE=F ------------------------------------------------------------ */
+
+typedef struct yarn_fibres {
+	uint32_t n;
+	const char *spec[LOOM_MAX_YARN_TYPES]; /* "TYPE=F" as given */
+} yarn_fibres;
+
+static const char *opt_yarn_fibre(const char *text, void *dest)
+{
+	yarn_fibres *y = dest;
+	const char *eq = strrchr(text, '=');
+	int code;
+
+	if (!eq || eq == text || loom_fibre_parse(eq + 1, &code) != LOOM_OK)
+		return "TYPE=F: a yarn type (name or index) and a fibre: cotton, rayon, "
+		       "silk, polyester, wool, linen, monofilament or none";
+	if (y->n == LOOM_MAX_YARN_TYPES)
+		return "at most 256 of them";
+	y->spec[y->n++] = text;
+	return NULL;
+}
+
+/* Set the materials --yarn-fibre names.  A type d does not have is a usage
+   error: the message goes to err (n bytes) and 0 is returned, so that the
+   caller frees d before exiting (LeakSanitizer would turn exit 2 into 1). */
+static int apply_yarn_fibres(loom_design *d, const yarn_fibres *y, char *err,
+                             size_t n)
+{
+	for (uint32_t i = 0; i < y->n; i++) {
+		const char *eq = strrchr(y->spec[i], '=');
+		size_t len = (size_t)(eq - y->spec[i]);
+		uint32_t t = d->n_types;
+		int code = 0;
+		loom_fibre_parse(eq + 1, &code);
+		for (uint32_t k = 0; k < d->n_types; k++)
+			if (strlen(d->types[k].name) == len &&
+			    !memcmp(d->types[k].name, y->spec[i], len))
+				t = k;
+		if (t == d->n_types && len > 0 && len < 4 &&
+		    strspn(y->spec[i], "0123456789") == len) {
+			unsigned long v = strtoul(y->spec[i], NULL, 10);
+			if (v < d->n_types)
+				t = (uint32_t)v;
+		}
+		if (t == d->n_types) {
+			char names[512];
+			size_t w = 0;
+			names[0] = '\0';
+			for (uint32_t k = 0; k < d->n_types && w < sizeof names; k++)
+				w += (size_t)snprintf(names + w, sizeof names - w, "%s%u '%s'",
+				                      k ? ", " : "", k, d->types[k].name);
+			snprintf(err, n, "--yarn-fibre %s: the design has no yarn type '%.*s' "
+			         "(its types: %s)", y->spec[i], (int)len, y->spec[i], names);
+			return 0;
+		}
+		d->types[t].fibre = (uint8_t)code;
+	}
+	return 1;
+}
+
 /* ---- the command ----------------------------------------------------------------- */
 
 int cmd_synth(int argc, char **argv)
@@ -432,6 +493,7 @@ int cmd_synth(int argc, char **argv)
 	const char *in = NULL, *out = NULL, *db_opt = NULL, *map = NULL;
 	const char *warp = NULL, *weft = NULL, *amap = NULL, *smap = NULL;
 	const char *fibre = NULL;
+	yarn_fibres yf = {0, {NULL}};
 	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
 	int quiet = 0, json = 0, progress, edge = LOOM_FABRIC_EDGE_AUTO, edge_fix = 1;
 	int identity = 0;
@@ -452,6 +514,13 @@ int cmd_synth(int argc, char **argv)
 		           "polyester, wool, linen, monofilament or none (smooth); a "
 		           "database for the draft's sett (or the small preset's when it "
 		           "states none) with these yarns is made and cached"),
+		OPT_CALLBACK(0, "yarn-fibre", &yf, "TYPE=F", opt_yarn_fibre, "material of "
+		             "one yarn type of the design (its name in the yarn table, as "
+		             "loom pattern info lists it, or its index), repeatable; F as "
+		             "--fibre; types not named take --fibre's (cotton).  Without "
+		             "--db, a design of several (warp, weft) pairs gets a "
+		             "database with exemplars of each pair (at most 4), and each "
+		             "crossing copies blocks of its own pair (docs/exemplars.md)"),
 		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
 		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
@@ -517,6 +586,11 @@ int cmd_synth(int argc, char **argv)
 		fp.fibre[1] = fc ? fc : fb;
 		if (loom_exgen_check_params(&fp, &diag) != LOOM_OK)
 			opts_usage(&c, "--fibre: %s", diag.message);
+		for (int k = 0; k < 2; k++) {
+			int code = 0;
+			loom_fibre_parse(fp.fibre[k], &code);
+			o.fibre[k] = (uint8_t)code;
+		}
 	}
 	cli_check_output(prog, out);
 	if (amap)
@@ -527,15 +601,27 @@ int cmd_synth(int argc, char **argv)
 	cli_diag_init(&diag, &quiet);
 
 	d = synth_load_design(prog, in, map, warp, weft, &diag);
+	{
+		char err[1024];
+		if (!apply_yarn_fibres(d, &yf, err, sizeof err)) {
+			loom_design_free(d);
+			opts_usage(&c, "%s", err);
+		}
+	}
 	memset(&r, 0, sizeof r);
 	{
 		const char *env = getenv("LOOM_DB");
+		uint8_t pairs[2][2];
+		uint32_t np = cli_design_pairs(d, o.fibre, pairs, 2);
+		/* materials other than all cotton need a database woven with them */
+		int materials = np > 1 || pairs[0][0] != LOOM_FIBRE_COTTON ||
+		                pairs[0][1] != LOOM_FIBRE_COTTON;
 		/* a sett stated for one side only: square crossings */
 		if (!(d->sett[0] > 0))
 			d->sett[0] = d->sett[1];
 		if (!(d->sett[1] > 0))
 			d->sett[1] = d->sett[0];
-		if (!db_opt && !(env && *env) && (d->sett[0] > 0 || fibre))
+		if (!db_opt && !(env && *env) && (d->sett[0] > 0 || fibre || materials))
 			r.db_path = cli_sett_db(prog, d, fibre, quiet);
 		else
 			r.db_path = cli_db_require(db_opt, prog);
@@ -543,6 +629,26 @@ int cmd_synth(int argc, char **argv)
 	if (loom_db_open(r.db_path, &db, &diag) != LOOM_OK)
 		cli_fail(prog, "%s", diag.message);
 	cli_sett_check(d, db, r.db_path, quiet);
+	if (yf.n && !quiet && (db_opt || (getenv("LOOM_DB") && *getenv("LOOM_DB")))) {
+		loom_db_info info;
+		uint8_t *tag;
+		uint32_t np = 0;
+		loom_db_get_info(db, &info);
+		tag = malloc(info.n_exemplars ? info.n_exemplars : 1);
+		for (uint32_t u = 0; tag && u < info.n_exemplars; u++) {
+			loom_db_exemplar_info e;
+			loom_db_exemplar(db, u, &e);
+			tag[u] = (uint8_t)(e.fibre[0] * LOOM_FIBRE_COUNT_ + e.fibre[1]);
+			if (tag[u] && !memchr(tag, tag[u], u))
+				np++;
+		}
+		free(tag);
+		if (np < 2)
+			fprintf(stderr, "loom synth: warning: --yarn-fibre: %s has exemplars of "
+			        "one material pair, so every crossing copies from all of them "
+			        "(omit --db to weave a database of the design's pairs)\n",
+			        r.db_path);
+	}
 	if (progress)
 		fprintf(stderr, "%s: %ux%u crossings: assigning, edge-fix tables...", prog,
 		        d->rows, d->cols);

@@ -137,6 +137,10 @@ int exemplar_info(int argc, char **argv)
 			jw_num(&w, "ratio", e.stored_bytes ?
 			               (double)e.raw_bytes / (double)e.stored_bytes : 0.0);
 			jw_uint(&w, "yarn_labels", e.n_yarns);
+			if (e.fibre[0]) {
+				jw_str(&w, "fibre_warp", loom_fibre_name(e.fibre[0]));
+				jw_str(&w, "fibre_weft", loom_fibre_name(e.fibre[1]));
+			}
 			jw_arr(&w, "symmetries");
 			for (uint32_t i = 0; i < e.n_symmetries; i++) {
 				jw_arr(&w, NULL);
@@ -159,7 +163,7 @@ int exemplar_info(int argc, char **argv)
 		       info.brick[1], info.brick[2], (unsigned long long)info.n_bricks,
 		       (unsigned long long)info.n_empty_bricks,
 		       (unsigned long long)info.n_raw_bricks);
-		printf("\n  %-3s %-16s %-14s %-9s %12s %12s %12s %7s  %s\n", "#", "name",
+		printf("\n  %-3s %-18s %-14s %-9s %12s %12s %12s %7s  %s\n", "#", "name",
 		       "weave", "crossings", "voxels", "raw bytes", "compressed", "ratio",
 		       "weave rows (pick 0 first)");
 		for (uint32_t k = 0; k < info.n_exemplars; k++) {
@@ -167,7 +171,7 @@ int exemplar_info(int argc, char **argv)
 			char cr[24];
 			loom_db_exemplar(db, k, &e);
 			snprintf(cr, sizeof cr, "%ux%u", e.rows, e.cols);
-			printf("  %-3u %-16s %-14s %-9s %12llu %12llu %12llu %6.1fx  ", k, e.name,
+			printf("  %-3u %-18s %-14s %-9s %12llu %12llu %12llu %6.1fx  ", k, e.name,
 			       e.weave_name[0] ? e.weave_name : "-", cr,
 			       (unsigned long long)e.size[0] * e.size[1] * e.size[2],
 			       (unsigned long long)e.raw_bytes,

@@ -6,7 +6,9 @@
  * that sett and those yarn diameters: the small preset's weaves and seed,
  * cotton fibre-level yarns (as loom exemplar generate's default) or the
  * yarns of loom synth --fibre (which also makes one for a draft that states
- * no sett: the small preset's geometry with those yarns),
+ * no sett: the small preset's geometry with those yarns); a design whose
+ * yarn types have materials of several (warp, weft) pairs gets one set of
+ * exemplars per pair (loom_exgen_params.pairs, at most 4),
  * the finer of the two spacings 16 voxels long (as in the default
  * database), b1 x b2 from the sett.  Databases are cached in
  *   $LOOM_CACHE_DIR, else $XDG_CACHE_HOME/loom, else $HOME/.cache/loom
@@ -142,6 +144,35 @@ static void trim_cache(const char *dir, const char *keep, double max_bytes, int 
 	free(list);
 }
 
+uint32_t cli_design_pairs(const loom_design *d, const uint8_t def[2],
+                          uint8_t pairs[][2], uint32_t max)
+{
+	enum { NF = LOOM_FIBRE_COUNT_ };
+	uint8_t seen[NF * NF];
+	uint8_t mat[LOOM_MAX_YARN_TYPES][2];
+	size_t n = (size_t)d->rows * d->cols;
+	uint32_t np = 0;
+
+	memset(seen, 0, sizeof seen);
+	for (uint32_t t = 0; t < d->n_types && t < LOOM_MAX_YARN_TYPES; t++)
+		for (int k = 0; k < 2; k++) {
+			int m = d->types[t].fibre ? d->types[t].fibre : def[k];
+			mat[t][k] = (uint8_t)(m ? m : LOOM_FIBRE_COTTON);
+		}
+	for (size_t c = 0; c < n; c++) {
+		uint8_t w = mat[d->warp_type[c]][0], f = mat[d->weft_type[c]][1];
+		if (seen[w * NF + f])
+			continue;
+		seen[w * NF + f] = 1;
+		if (np < max) {
+			pairs[np][0] = w;
+			pairs[np][1] = f;
+		}
+		np++;
+	}
+	return np;
+}
+
 const char *cli_sett_db(const char *prog, const loom_design *d,
                         const char *fibre, int quiet)
 {
@@ -150,7 +181,7 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 	const char *dir = cli_cache_dir(), *env = getenv("LOOM_CACHE_MAX_MB");
 	int has_sett = d->sett[0] > 0 && d->sett[1] > 0;
 	double fine = has_sett ? 1e4 / (d->sett[0] > d->sett[1] ? d->sett[0] : d->sett[1]) : 0;
-	char fbuf[64], *fcomma;
+	char fbuf[64], *fcomma, what[160];
 	double max_mb = CACHE_MAX_MB_DEFAULT, t0;
 	loom_exgen_params p;
 	loom_diag diag;
@@ -179,6 +210,41 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 		*fcomma++ = '\0';
 	p.fibre[0] = fbuf;
 	p.fibre[1] = fcomma ? fcomma : fbuf;
+	{
+		/* the design's material pairs: one set of exemplars per pair */
+		uint8_t def[2] = {0, 0}, pairs[LOOM_EXGEN_MAX_PAIRS][2];
+		int code;
+		uint32_t np;
+		for (int k = 0; k < 2; k++)
+			if (loom_fibre_parse(p.fibre[k], &code) == LOOM_OK)
+				def[k] = (uint8_t)code;
+		np = cli_design_pairs(d, def, pairs, LOOM_EXGEN_MAX_PAIRS);
+		if (np > LOOM_EXGEN_MAX_PAIRS) {
+			char list[512];
+			uint8_t all[64][2];
+			size_t w = 0;
+			uint32_t m = cli_design_pairs(d, def, all, 64);
+			list[0] = '\0';
+			for (uint32_t i = 0; i < m && i < 64 && w < sizeof list; i++)
+				w += (size_t)snprintf(list + w, sizeof list - w, "%s%s/%s",
+				                      i ? ", " : "", loom_fibre_name(all[i][0]),
+				                      loom_fibre_name(all[i][1]));
+			cli_fail(prog, "the design uses %u (warp, weft) material pairs (%s); "
+			         "a generated database holds at most %d (LOOM_EXGEN_MAX_PAIRS): "
+			         "give fewer yarn types their own fibre", np, list,
+			         LOOM_EXGEN_MAX_PAIRS);
+		}
+		if (np == 1) {
+			p.fibre[0] = loom_fibre_name(pairs[0][0]);
+			p.fibre[1] = loom_fibre_name(pairs[0][1]);
+		} else {
+			p.n_pairs = np;
+			for (uint32_t i = 0; i < np; i++) {
+				p.pairs[i][0] = loom_fibre_name(pairs[i][0]);
+				p.pairs[i][1] = loom_fibre_name(pairs[i][1]);
+			}
+		}
+	}
 	if (!has_sett) {
 		/* no sett stated (--fibre only): the small preset's geometry */
 		if (loom_exgen_check_params(&p, &diag) != LOOM_OK)
@@ -213,8 +279,19 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 	h = fnv(h, &p.level, sizeof p.level);
 	for (uint32_t k = 0; k < p.n_weaves; k++)
 		h = fnv(h, p.weaves[k], strlen(p.weaves[k]) + 1);
-	for (int k = 0; k < 2; k++)
-		h = fnv(h, p.fibre[k], strlen(p.fibre[k]) + 1);
+	if (p.n_pairs < 2)
+		for (int k = 0; k < 2; k++)
+			h = fnv(h, p.fibre[k], strlen(p.fibre[k]) + 1);
+	else
+		for (uint32_t i = 0; i < p.n_pairs; i++) /* in the design's order */
+			for (int k = 0; k < 2; k++)
+				h = fnv(h, p.pairs[i][k], strlen(p.pairs[i][k]) + 1);
+	if (p.n_pairs < 2)
+		snprintf(what, sizeof what, "%s/%s", p.fibre[0], p.fibre[1]);
+	else
+		for (size_t w = 0, i = 0; i < p.n_pairs && w < sizeof what; i++)
+			w += (size_t)snprintf(what + w, sizeof what - w, "%s%s/%s",
+			                      i ? ", " : "", p.pairs[i][0], p.pairs[i][1]);
 	snprintf(name, sizeof name, "sett-%016llx.ldb", (unsigned long long)h);
 	if ((size_t)snprintf(path, sizeof path, "%s/%s", dir, name) >= sizeof path)
 		cli_fail(prog, "cache directory path too long: %s", dir);
@@ -225,7 +302,7 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 			fprintf(stderr, "loom: the draft's sett %.4g x %.4g per cm: database %s "
 			        "(cached)\n", (double)d->sett[0], (double)d->sett[1], path);
 		else if (!quiet)
-			fprintf(stderr, "loom: --fibre %s: database %s (cached)\n", fibre, path);
+			fprintf(stderr, "loom: yarns %s: database %s (cached)\n", what, path);
 		return path;
 	}
 	if (make_dirs(dir) != 0)
@@ -244,8 +321,8 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 		        (double)p.voxel_size_um,
 		        (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec - t0);
 	else if (!quiet)
-		fprintf(stderr, "loom: --fibre %s: generated %s (block %ux%ux%u of %.3g "
-		        "um, %.1f s)\n", fibre, path, p.block[0], p.block[1], p.block[2],
+		fprintf(stderr, "loom: yarns %s: generated %s (block %ux%ux%u of %.3g "
+		        "um, %.1f s)\n", what, path, p.block[0], p.block[1], p.block[2],
 		        (double)p.voxel_size_um,
 		        (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec - t0);
 	trim_cache(dir, name, max_mb * 1e6, quiet);

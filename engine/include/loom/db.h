@@ -88,6 +88,10 @@ typedef struct loom_db_exemplar_info {
 	uint32_t first_brick;     /* global id of brick (0,0,0) */
 	uint64_t raw_bytes;       /* size[0]*size[1]*size[2]*4 */
 	uint64_t stored_bytes;    /* bytes of its bricks in the file */
+	uint8_t fibre[2];         /* material pair (warp, weft; enum loom_fibre
+	                             of loom/design.h) the exemplar was woven
+	                             with, in a database of several pairs; 0 0 =
+	                             not recorded (one pair, scans) */
 } loom_db_exemplar_info;
 
 /*
@@ -218,6 +222,7 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 /* ---- Procedural exemplars (docs/exemplars.md) --------------------------- */
 
 #define LOOM_EXGEN_MAX_WEAVES 64
+#define LOOM_EXGEN_MAX_PAIRS 4  /* material pairs of one generated database */
 /* Revision of the generator's output: bumped whenever the same parameters
    give different bytes (caches of generated databases key on it). */
 #define LOOM_EXGEN_REVISION 5
@@ -246,6 +251,14 @@ typedef struct loom_exgen_params {
 	                             "wool", "linen", "monofilament" (plies of
 	                             twisted fibres, docs/exemplars.md), or NULL /
 	                             "none": smooth yarns with fibre-like noise */
+	uint32_t n_pairs;         /* 0 or 1: one pair, fibre[] (exemplars not
+	                             tagged); 2..LOOM_EXGEN_MAX_PAIRS: one set of
+	                             exemplars (every weave) per pair, tagged with
+	                             it, fibre[] not used (docs/exemplars.md,
+	                             "Materials per yarn type") */
+	const char *pairs[LOOM_EXGEN_MAX_PAIRS][2]; /* warp, weft fibre names
+	                             (as fibre[]; NULL = the other one), distinct
+	                             pairs */
 } loom_exgen_params;
 
 /*

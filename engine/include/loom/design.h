@@ -31,7 +31,35 @@ typedef struct loom_yarn_type {
 	float alignment;   /* fibre alignment / gloss: microflake roughness
 	                      sigma in (0,1]; smaller = glossier */
 	float thickness;   /* relative yarn thickness; 0 = unspecified */
+	uint8_t fibre;     /* material: enum loom_fibre; LOOM_FIBRE_DEFAULT =
+	                      the side's default (cotton unless chosen) */
 } loom_yarn_type;
+
+/* Materials of yarn types (docs/exemplars.md, "Materials per yarn type"):
+   the fibre presets of the exemplar generator, or smooth yarns. */
+enum loom_fibre {
+	LOOM_FIBRE_DEFAULT = 0,   /* unset: the default of the side */
+	LOOM_FIBRE_NONE,          /* smooth yarns with fibre-like noise */
+	LOOM_FIBRE_COTTON,
+	LOOM_FIBRE_RAYON,
+	LOOM_FIBRE_SILK,
+	LOOM_FIBRE_POLYESTER,
+	LOOM_FIBRE_WOOL,
+	LOOM_FIBRE_LINEN,
+	LOOM_FIBRE_MONOFILAMENT,
+	LOOM_FIBRE_COUNT_
+};
+
+/* "none", "cotton", "rayon", "silk", "polyester", "wool", "linen",
+   "monofilament" -> enum loom_fibre.  LOOM_OK or LOOM_EINVAL (NULL or
+   another name; *code untouched). */
+LOOM_API int loom_fibre_parse(const char *name, int *code);
+/* Name of a material code (as loom_fibre_parse takes; "default" for
+   LOOM_FIBRE_DEFAULT), or NULL for a code out of range. */
+LOOM_API const char *loom_fibre_name(int code);
+/* Two-letter short name ("co", "cv", "si", "pe", "wo", "li", "mf", "sm";
+   "--" for the default), NULL out of range (exemplar name suffixes). */
+LOOM_API const char *loom_fibre_short(int code);
 
 typedef struct loom_design {
 	uint32_t rows;        /* M: picks */

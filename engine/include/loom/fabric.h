@@ -64,11 +64,18 @@ typedef struct loom_fabric_options {
 	                          continuity) are measured over the crossings
 	                          [0, window) x [0, window) of the bolt (which
 	                          wraps the repeat); 0 = 64, at most 4096 */
+	uint8_t fibre[2];      /* materials (enum loom_fibre) of the warp and
+	                          weft yarn types whose own is unset; 0 =
+	                          cotton.  Used only with a database of several
+	                          tagged material pairs: each crossing then
+	                          copies only blocks of its pair's exemplars
+	                          (docs/exemplars.md, "Materials per yarn
+	                          type") */
 } loom_fabric_options;
 
 #define LOOM_FABRIC_OPTIONS_INIT                                            \
 	{sizeof(loom_fabric_options), LOOM_SYNTH_DP, 1, LOOM_SYNTH_DEFAULT_GROUP, \
-	 LOOM_EDGEFIX_DEFAULT_RANK, 0, LOOM_FABRIC_EDGE_AUTO, 0}
+	 LOOM_EDGEFIX_DEFAULT_RANK, 0, LOOM_FABRIC_EDGE_AUTO, 0, {0, 0}}
 
 /* The parameters a fabric was made with. */
 typedef struct loom_fabric_params {
