@@ -23,7 +23,9 @@
  *            (loom__dz_fixed): q = 16 w + f.
  *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - w) of the block's
  *            exemplar (outside [0, b3): empty); when f > 0 also voxel
- *            z - w - 1, and steps 5-6 for both, blended (raw_blend).
+ *            z - w - 1, and steps 5-6 for both, blended (raw_blend:
+ *            the nearer voxel's planes; its density blended, or empty
+ *            where the nearer voxel is empty).
  *   Step 5.  Brick id of that voxel.  The thread's current brick (memo)
  *            answers without a cache call when the id matches; otherwise
  *            the memo's pin is released and the brick is taken from the
@@ -417,7 +419,6 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	uint32_t lx, ly, sx, sy;
 	int64_t w;
 	int f, rc, rc2;
-	unsigned c2;
 	rawvox a, b;
 
 	*r = raw_empty;
@@ -432,10 +433,10 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	sy = e->sy0 + ly;
 	if (!f)
 		return src_raw(t, s, e, sx, sy, z - w, ch, r);
-	/* the representative (raw_blend) needs both densities */
-	c2 = ch & (CH_O | CH_M) ? ch | CH_D : ch;
-	rc = src_raw(t, s, e, sx, sy, z - w - 1, c2, &a);
-	rc2 = src_raw(t, s, e, sx, sy, z - w, c2, &b);
+	if (!(ch & (CH_D | CH_O))) /* the material is the nearer voxel's */
+		return src_raw(t, s, e, sx, sy, z - w - (2 * f > DZ_SUB), ch, r);
+	rc = src_raw(t, s, e, sx, sy, z - w - 1, ch, &a);
+	rc2 = src_raw(t, s, e, sx, sy, z - w, ch, &b);
 	if (rc != LOOM_OK || rc2 != LOOM_OK) /* a failed voxel stays empty */
 		return rc != LOOM_OK ? rc : rc2;
 	raw_blend(&a, &b, f, r);

@@ -231,86 +231,30 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
-/* The planes of a blended column besides density (NULL: not wanted) and
-   the label -> kind, type tables. */
-struct bplanes {
-	uint8_t *L, *K, *T, *OL, *OH;
-	uint16_t *O;
-	const uint8_t *kl, *tl;
-};
-
-/* The voxel at sink offset at takes the farther voxel as representative
-   (raw_blend): its planes from the sink voxel at + dir, or from x. */
-static inline void rep_far(const struct bplanes *b, size_t at, int dir, const rawvox *x)
-{
-	if (x) {
-		if (b->L)
-			b->L[at] = x->l;
-		if (b->K)
-			b->K[at] = b->kl[x->l];
-		if (b->T)
-			b->T[at] = b->tl[x->l];
-		if (b->O)
-			b->O[at] = x->o;
-		if (b->OL) {
-			b->OL[at] = (uint8_t)x->o;
-			b->OH[at] = (uint8_t)(x->o >> 8);
-		}
-		return;
-	}
-	size_t from = dir < 0 ? at - 1 : at + 1;
-	if (b->L)
-		b->L[at] = b->L[from];
-	if (b->K)
-		b->K[at] = b->K[from];
-	if (b->T)
-		b->T[at] = b->T[from];
-	if (b->O)
-		b->O[at] = b->O[from];
-	if (b->OL) {
-		b->OL[at] = b->OL[from];
-		b->OH[at] = b->OH[from];
-	}
-}
-
 /* The SIMD blends below compute raw_blend's density with a shift by 4. */
 _Static_assert(DZ_SUB == 16, "region blends assume 1/16-voxel offsets");
 
-/* One blended voxel at sink offset at (raw_blend): nearer density nr,
-   farther fr (weight g / DZ_SUB) into D (unless NULL); where the nearer
-   is empty and the blend is not, the other planes from the farther voxel
-   (the sink voxel at + dir, or x). */
-static inline void blend1(uint8_t *D, const struct bplanes *b, int others, size_t at,
-                          unsigned nr, unsigned fr, unsigned g, int dir, const rawvox *x)
+/* One blended voxel at D[at] (raw_blend): nearer density nr, farther fr
+   (weight g / DZ_SUB): nr, except at a surface (nr > 0, fr = 0), where
+   the blend.  (The other planes are the nearer voxel's, copied by the
+   whole-voxel path.) */
+static inline void blend1(uint8_t *D, size_t at, unsigned nr, unsigned fr, unsigned g)
 {
-	unsigned v = (g * fr + (DZ_SUB - g) * nr + DZ_SUB / 2) / DZ_SUB;
-	if (D)
-		D[at] = (uint8_t)v;
-	if (others && !nr && v)
-		rep_far(b, at, dir, x);
+	D[at] = (uint8_t)(nr && !fr ? ((DZ_SUB - g) * nr + DZ_SUB / 2) / DZ_SUB : nr);
 }
 
 #ifdef __SSE2__
-/* The 16 blends v of voxels i .. i + 15 of a run (nearer densities nr)
-   to out (unless NULL), and, where the nearer voxel is empty and the blend
-   is not, the other planes from the farther voxel (blend_run's rule);
-   shared by the SSE2 and SSSE3 kernels (SSE2 only, so it inlines into
-   both). */
-static inline void blend_store16(uint8_t *out, __m128i v, __m128i nr, size_t i,
-                                 const struct bplanes *b, int others, size_t at0,
-                                 int dir, int c0, const rawvox *x0)
+/* The 16 blends v of voxels i .. i + 15 of a run (nearer densities nr,
+   farther fr) to out as blend1 keeps them: the blend where the farther
+   voxel is empty and the nearer is not, else the nearer density; shared
+   by the SSE2 and SSSE3 kernels (SSE2 only, so it inlines into both). */
+static inline void blend_store16(uint8_t *out, __m128i v, __m128i nr, __m128i fr, size_t i)
 {
 	const __m128i zero = _mm_setzero_si128();
+	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(nr, zero), _mm_cmpeq_epi8(fr, zero));
 
-	if (out)
-		_mm_storeu_si128((__m128i *)(out + i), v);
-	if (others)
-		for (int m = _mm_movemask_epi8(_mm_andnot_si128(_mm_cmpeq_epi8(v, zero),
-		                                                _mm_cmpeq_epi8(nr, zero)));
-		     m; m &= m - 1) {
-			size_t j = i + (size_t)__builtin_ctz((unsigned)m);
-			rep_far(b, at0 + j, dir, j == 0 && c0 >= 0 ? x0 : NULL);
-		}
+	_mm_storeu_si128((__m128i *)(out + i),
+	                 _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, nr)));
 }
 #endif
 
@@ -318,20 +262,15 @@ static inline void blend_store16(uint8_t *out, __m128i v, __m128i nr, size_t i,
    first) straight from a brick's density run: their nearer densities are
    near[0 .. n), the farther ones near[i + dir], inside the brick, except
    that with c0 >= 0 (dir -1 only) voxel 0's farther density is c0 (from
-   the previous brick or the end voxel; near[-1] is not read) and its
-   planes x0 (NULL: the sink's).  Writes the blends (weight g / DZ_SUB for
-   the farther voxel) to D at at0 .. at0 + n - 1 (unless D is NULL), 16
-   voxels at a time (SSE2; the last 16 overlapping; the first block's
-   farther densities for c0 >= 0 are the nearer ones shifted by a byte);
-   where the nearer voxel is empty and the blend is not, the other planes
-   from the farther voxel, which the sink already holds at at + dir (its
-   run was copied first).  A farther voxel taken so has density, so it is
-   never itself rewritten: the order does not matter. */
+   the previous brick or the end voxel; near[-1] is not read).  Writes the
+   blends (weight g / DZ_SUB for the farther voxel; zero where the nearer
+   is empty) to D at at0 .. at0 + n - 1, 16 voxels at a time (SSE2; the
+   last 16 overlapping; the first block's farther densities for c0 >= 0
+   are the nearer ones shifted by a byte). */
 static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                      const struct bplanes *b, int others, size_t at0, int c0,
-                      const rawvox *x0)
+                      size_t at0, int c0)
 {
-	uint8_t *out = D ? D + at0 : NULL;
+	uint8_t *out = D + at0;
 	const uint8_t *far = near + dir;
 	const unsigned gn = DZ_SUB - g;
 	size_t i = 0;
@@ -354,7 +293,7 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
 			                      _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
 			        H);
 			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
-			blend_store16(out, v, nr, i, b, others, at0, dir, c0, x0);
+			blend_store16(out, v, nr, fr, i);
 			if (i + 16 == n)
 				return;
 			i = i + 32 <= n ? i + 16 : n - 16;
@@ -362,11 +301,11 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
 	}
 #endif
 	if (c0 >= 0) {
-		blend1(D, b, others, at0, near[0], (unsigned)c0, g, dir, x0);
+		blend1(D, at0, near[0], (unsigned)c0, g);
 		i = 1;
 	}
 	for (; i < n; i++)
-		blend1(D, b, others, at0 + i, near[i], far[i], g, dir, NULL);
+		blend1(D, at0 + i, near[i], far[i], g);
 }
 
 #ifdef HAVE_KT_SSSE3
@@ -376,9 +315,9 @@ static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsign
    gives (s + 8) >> 4 exactly (s <= 255 * 16).  n >= 16. */
 __attribute__((target("ssse3"))) static void
 blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                const struct bplanes *b, int others, size_t at0, int c0, const rawvox *x0)
+                size_t at0, int c0)
 {
-	uint8_t *out = D ? D + at0 : NULL;
+	uint8_t *out = D + at0;
 	const uint8_t *far = near + dir;
 	const __m128i W = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
 	const __m128i R = _mm_set1_epi16(1 << 11);
@@ -392,7 +331,7 @@ blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
 		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
 		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
 		__m128i v = _mm_packus_epi16(lo, hi);
-		blend_store16(out, v, nr, i, b, others, at0, dir, c0, x0);
+		blend_store16(out, v, nr, fr, i);
 		if (i + 16 == n)
 			return;
 		i = i + 32 <= n ? i + 16 : n - 16;
@@ -410,11 +349,9 @@ struct fcol {
 	uint8_t cy;    /* dir -1: density of the source voxel below the next
 	                  run voxel; dir +1: of the last run voxel (its blend
 	                  waits for the voxel above) */
-	int64_t ba, bb; /* output voxels blended (either source voxel in the
-	                   block) */
-	int64_t xz;    /* source z of the end voxel (-1: outside the block) */
-	rawvox xv;     /* the end voxel: below the run for dir -1, above it
-	                  for dir +1 */
+	uint8_t xd;    /* dir +1: density of the end voxel (above the run) */
+	int64_t xz;    /* source z of the end voxel, below the run for dir -1,
+	                  above it for dir +1 (-1: outside the block) */
 };
 
 /* The density of one brick run [a, b) of a fractional column (sink
@@ -424,12 +361,12 @@ struct fcol {
    (blend_run); the farther density that lies outside the run comes from
    fc->cy: for dir -1 that of voxel a (the previous run's last, or the end
    voxel below the run), inside blend_run's first block; for dir +1 the
-   voxel a - 1 waits for this run (it is the previous run's last, or at
-   the run's start the voxel below it when the blend range reaches it),
-   and this run's last waits for the next run or the end voxel. */
-static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b, int others,
-                     struct fcol *fc, size_t o, const uint8_t *q, size_t n, int first,
-                     int ext)
+   voxel a - 1 waits for this run (the previous run's last; at the
+   column's start there is none: the voxel below has no nearer voxel and
+   stays empty), and this run's last waits for the next run or the end
+   voxel. */
+static void frac_run(const loom_texture *t, uint8_t *D, struct fcol *fc, size_t o,
+                     const uint8_t *q, size_t n, int first)
 {
 	unsigned g = fc->g;
 	int dir = fc->dir;
@@ -437,28 +374,26 @@ static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b,
 	size_t at = o, m = n;
 	int c0 = -1;
 
-	if (!q) { /* a failed brick: nearer densities 0 */
-		if (dir < 0)
-			blend1(D, b, others, o, 0, fc->cy, g, -1, first ? &fc->xv : NULL);
-		else if (!first)
-			blend1(D, b, others, o - 1, fc->cy, 0, g, 1, NULL);
+	if (!q) { /* a failed brick: nearer densities 0, the sink's zeros */
+		if (dir > 0 && !first)
+			blend1(D, o - 1, fc->cy, 0, g);
 		fc->cy = 0;
 		return;
 	}
 	if (dir < 0) { /* all n, voxel 0's farther density carried */
 		c0 = fc->cy;
 	} else { /* the voxel below first, then n - 1 (the last waits) */
-		if (!first || ext)
-			blend1(D, b, others, o - 1, first ? 0 : fc->cy, q[0], g, 1, NULL);
+		if (!first)
+			blend1(D, o - 1, fc->cy, q[0], g);
 		m = n - 1;
 	}
 	if (m) {
 #ifdef HAVE_KT_SSSE3
 		if (t->ssse3 && m >= 16)
-			blend_run_ssse3(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
+			blend_run_ssse3(D, nr, m, dir, g, at, c0);
 		else
 #endif
-			blend_run(D, nr, m, dir, g, b, others, at, c0, first ? &fc->xv : NULL);
+			blend_run(D, nr, m, dir, g, at, c0);
 	}
 	(void)t;
 	fc->cy = q[n - 1];
@@ -473,13 +408,15 @@ static void frac_run(const loom_texture *t, uint8_t *D, const struct bplanes *b,
  * one brick resolution (the slot's memo) and each column's run in it.
  * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
- * f > DZ_SUB/2), all planes but density; its densities are blended in
- * the same pass straight from the brick (frac_run; the voxel at a brick
- * boundary from the density carried over from the previous brick), and
- * the one voxel past its end that the blend also needs is read in the
- * same brick pass; fraction 0 is the whole-voxel path unchanged.  Voxels
- * whose brick fails are empty (or blended with empty); the first error
- * is returned.
+ * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
+ * output voxel whose nearer voxel lies outside the block is empty.  With
+ * density wanted, its densities are then blended in the same pass
+ * straight from the brick (frac_run; the voxel at a brick boundary from
+ * the density carried over from the previous brick), and the one source
+ * voxel past the run on the farther side that the blend also needs is
+ * read in the same brick pass; fraction 0 is the whole-voxel path
+ * unchanged.  Voxels whose brick fails are empty (or blended with empty);
+ * the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -494,58 +431,22 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	uint64_t base;
 	size_t col;
 	int rc = LOOM_OK, nfrac = 0;
-	int want_o = (k->raw ? (void *)k->rlo : (void *)k->o) != NULL;
-	int want_l = (k->raw ? k->rl || k->rk || k->rt : k->l || k->k || k->ty) != 0;
 	/* fractional columns: the planes but density through sink kn */
 	struct sink kn = *k;
 	uint8_t *D = k->raw ? k->rd : k->d;
-	struct bplanes bp;
-	int others;
+	int others = (k->raw ? k->rl || k->rk || k->rt || k->rlo
+	                     : k->l || k->k || k->ty || k->o) != 0;
 
 	kn.rd = kn.d = NULL;
-	bp.L = k->raw ? k->rl : k->l;
-	bp.K = k->raw ? k->rk : k->k;
-	bp.T = k->raw ? k->rt : k->ty;
-	bp.OL = k->raw ? k->rlo : NULL;
-	bp.OH = k->raw ? k->rhi : NULL;
-	bp.O = k->raw ? NULL : k->o;
-	bp.kl = k->kl;
-	bp.tl = k->tl;
-	others = bp.L || bp.K || bp.T || bp.OL || bp.O;
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
 		int64_t va = va0, vb = vb0;
 		size_t o = off + c * cstride;
 		struct fcol *F = &fc[c];
+		int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
 		F->dir = 0;
-		if (f) {
-			int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
-			nfrac++;
-			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
-			dz += far_up;
-			F->dir = (int8_t)(far_up ? 1 : -1);
-			F->cy = 0;
-			F->xz = -1;
-			dzs[c] = dz;
-			/* output voxels with either source voxel in [0, b3) */
-			F->ba = va0 > dz - far_up ? va0 : dz - far_up;
-			F->bb = vb0 < b3 + dz + !far_up ? vb0 : b3 + dz + !far_up;
-			memset(&F->xv, 0, sizeof F->xv);
-			if (F->ba >= F->bb) {
-				F->dir = 0;
-			} else {
-				/* the end voxel's farther voxel, when in the block */
-				int64_t z = far_up ? F->bb - dz : F->ba - dz - 1;
-				if (z >= 0 && z < b3) {
-					F->xz = z;
-					if (z < smin)
-						smin = z;
-					if (z + 1 > smax)
-						smax = z + 1;
-				}
-			}
-		}
+		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
 			va = dz;
@@ -565,9 +466,25 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			smin = sa[c];
 		if (sb[c] > smax)
 			smax = sb[c];
+		if (f && D) {
+			nfrac++;
+			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
+			F->dir = (int8_t)(far_up ? 1 : -1);
+			F->cy = F->xd = 0;
+			/* the farther voxel of the run's end voxel, when in the block */
+			F->xz = far_up ? sb[c] : sa[c] - 1;
+			if (F->xz >= 0 && F->xz < b3) {
+				if (F->xz < smin)
+					smin = F->xz;
+				if (F->xz + 1 > smax)
+					smax = F->xz + 1;
+			} else {
+				F->xz = -1;
+			}
+		}
 	}
 	if (smin >= smax)
-		goto ends;
+		return rc;
 	base = e->ex->first_brick +
 	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	               e->ex->nb[2];
@@ -594,14 +511,11 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			const uint8_t *q;
 			size_t o;
 			if (F->dir && p && F->xz >= z0 && F->xz < z1) {
-				const uint8_t *v = p + col + (size_t)c * bz + (size_t)(F->xz - z0);
-				F->xv.d = v[0];
-				if (want_o) /* only the planes asked for (cache lines) */
-					F->xv.o = (uint16_t)(v[t->bv] | v[2 * t->bv] << 8);
-				if (want_l)
-					F->xv.l = v[3 * t->bv];
+				uint8_t d = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
 				if (F->dir < 0) /* below the run: before its first voxel */
-					F->cy = v[0];
+					F->cy = d;
+				else
+					F->xd = d;
 			}
 			if (a >= b)
 				continue;
@@ -618,34 +532,15 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				sink_empty(k, o, (size_t)(b - a));
 			else if (others)
 				sink_run(t, &kn, o, q, (size_t)(b - a));
-			frac_run(t, D, &bp, others, F, o, q, (size_t)(b - a), a == sa[c],
-			         a + dzs[c] > F->ba);
+			frac_run(t, D, F, o, q, (size_t)(b - a), a == sa[c]);
 		}
 	}
-ends:
-	/* the voxel past the run on the farther side (dir -1: above it,
-	   its nearer voxel outside the block; dir +1: the run's last, its
-	   farther voxel the end voxel), or the single voxel of a column whose
-	   run is empty */
+	/* dir +1: the run's last voxel, its farther voxel the end voxel */
 	if (nfrac)
-		for (uint32_t c = 0; c < n; c++) {
-			struct fcol *F = &fc[c];
-			size_t o = off + c * cstride;
-			int empty = sa[c] >= sb[c];
-			if (!F->dir)
-				continue;
-			if (F->dir < 0) {
-				if (F->bb > (empty ? F->ba : sb[c] + dzs[c]))
-					blend1(D, &bp, others, o + (size_t)(F->bb - 1 - za), 0, F->cy, F->g,
-					       -1, empty ? &F->xv : NULL);
-			} else if (empty) {
-				blend1(D, &bp, others, o + (size_t)(F->ba - za), 0, F->xv.d, F->g, 1,
-				       &F->xv);
-			} else {
-				blend1(D, &bp, others, o + (size_t)(sb[c] - 1 + dzs[c] - za), F->cy,
-				       F->xv.d, F->g, 1, &F->xv);
-			}
-		}
+		for (uint32_t c = 0; c < n; c++)
+			if (fc[c].dir > 0)
+				blend1(D, off + c * cstride + (size_t)(sb[c] - 1 + dzs[c] - za), fc[c].cy,
+				       fc[c].xd, fc[c].g);
 	return rc;
 }
 

@@ -346,23 +346,30 @@ typedef struct rawvox {
 
 /* The voxel at source height z - w - f/DZ_SUB (0 < f < DZ_SUB) from its
    two source voxels a = z - w - 1 (weight f/DZ_SUB) and b = z - w (weight
-   1 - f/DZ_SUB): the density byte blended linearly and rounded, in integer
-   arithmetic, (f a + (DZ_SUB - f) b + DZ_SUB/2) / DZ_SUB; everything else
-   (orientation, label, kind, type) is one source voxel's, the
-   representative: the nearer one (b when f <= DZ_SUB/2), or the farther
-   one where the nearer is empty (density 0) and the blend is not, so a
-   voxel with density always carries the orientation and yarn of a voxel
-   with density.  (A blend of the two directions would cost a decode, a
-   normalisation and an encode per voxel; docs/engine.md.)  Needs the
-   density plane of both wherever another plane is wanted. */
+   1 - f/DZ_SUB).  The nearer one (b when f <= DZ_SUB/2) decides: where it
+   is empty the voxel is empty; otherwise the voxel has the nearer one's
+   planes (orientation, label, kind, type), and its density too, except
+   at a surface, where the farther one is empty: there the density byte
+   is blended linearly with the empty voxel and rounded, in integer
+   arithmetic, ((DZ_SUB - g) n + DZ_SUB/2) / DZ_SUB, g the farther
+   voxel's weight (g <= DZ_SUB/2: at least half the nearer's density, and
+   at least 1).  So every density is the woven cloth's own at one of the
+   two heights, or a surface voxel at half its density or more, as the
+   generator makes them (it fills a voxel whose centre is inside a yarn,
+   at half density or more at its edge); never the faint voxel a blend
+   with the air beyond a surface makes, nor the average of two fibres
+   (docs/fidelity.md, "Densities at the floor").  The surface still moves
+   with f (a surface voxel's density falls as its farther weight grows; a
+   voxel appears, at half density or more, where it becomes the nearer).
+   Only the density plane needs both source voxels. */
 static inline void raw_blend(const rawvox *a, const rawvox *b, int f, rawvox *r)
 {
 	const rawvox *n = 2 * f > DZ_SUB ? a : b, *o = 2 * f > DZ_SUB ? b : a;
 	uint8_t d = (uint8_t)(((unsigned)a->d * (unsigned)f +
 	                       (unsigned)b->d * (unsigned)(DZ_SUB - f) + DZ_SUB / 2) /
 	                      DZ_SUB);
-	*r = !n->d && d ? *o : *n;
-	r->d = d;
+	*r = *n;
+	r->d = n->d && !o->d ? d : n->d;
 }
 
 /* Brick coordinates: split v along axis a into brick index and offset. */

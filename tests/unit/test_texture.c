@@ -329,14 +329,15 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 	if (f == 0)
 		return b;
 	a = ref_src(r, I, J, lx, ly, z - w - 1);
-	/* density: linear blend, rounded; the rest: the nearer voxel's
-	   (b on a tie), the other's where the nearer is empty and the blend
-	   is not */
+	/* the nearer voxel (b on a tie) decides: empty where it is empty;
+	   else its planes and density, but where the other is empty (a
+	   surface) the density is the linear blend, rounded */
 	{
 		rv near = f > 8 ? a : b, other = f > 8 ? b : a;
 		uint8_t d = (uint8_t)((a.d * f + b.d * (16 - f) + 8) / 16);
-		v = near.d == 0 && d != 0 ? other : near;
-		v.d = d;
+		v = near;
+		if (near.d && !other.d)
+			v.d = d;
 	}
 	return v;
 }
