@@ -241,6 +241,9 @@ int loom__fabric_db_pairs(const loom_db *db, uint32_t n_ex, uint8_t *tag,
    pair's exemplars), *done = 1; otherwise nothing, *done = 0.  f->design,
    f->set, f->n_exemplars set.  LOOM_EMISMATCH for a pair the database
    lacks. */
+/* "warp/weft, ..." of the pairs the tags hold (first seen first). */
+void loom__fabric_pair_list(const uint8_t *tag, uint32_t n_ex, char *buf, size_t n);
+
 int loom__fabric_assign_materials(loom_fabric *f, const loom_db *db,
                                   const loom_synth_options *so,
                                   const uint8_t def[2], int *done,
@@ -262,6 +265,11 @@ int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
  * With a database of several material pairs the candidates are the blocks
  * of the exemplars with the pair of the crossing's old source, most
  * matching neighbour bits first (engine/synth/material.c).
+ * A painted fibre (fibre != 0, enum loom_fibre): the painted crossings'
+ * pairs take `fibre` on the side of `kind` (0 any: both sides), and they
+ * copy blocks of their new pair (pass want = 1 + the current bits to keep
+ * the weave); LOOM_EMISMATCH, naming the pair and the database's pairs,
+ * when the database has no exemplar of a new pair.
  * On success *fp becomes a new fabric that owns the old one and shares its
  * tables; the edge fix then runs across the patch's border as anywhere.
  * Memory 3 bytes per crossing of the widened rectangle (at most
@@ -271,6 +279,6 @@ int loom__fabric_bind(loom_fabric *f, const loom_db *db, int check_hash,
 #define LOOM__FABRIC_BAND_MAX 8u
 int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
                          uint32_t rows, uint32_t cols, const uint8_t *want,
-                         uint32_t band, loom_diag *diag);
+                         uint32_t band, int kind, int fibre, loom_diag *diag);
 
 #endif /* LOOM_FABRIC_INTERNAL_H */

@@ -47,7 +47,7 @@ int loom__fabric_db_pairs(const loom_db *db, uint32_t n_ex, uint8_t *tag,
 	return LOOM_OK;
 }
 
-static void pair_list(const uint8_t *tag, uint32_t n_ex, char *buf, size_t n)
+void loom__fabric_pair_list(const uint8_t *tag, uint32_t n_ex, char *buf, size_t n)
 {
 	int seen[LOOM_FIBRE_COUNT_ * LOOM_FIBRE_COUNT_];
 	size_t w = 0;
@@ -104,7 +104,7 @@ int loom__fabric_assign_materials(loom_fabric *f, const loom_db *db,
 		cell[k] = (uint8_t)(w * LOOM_FIBRE_COUNT_ + e);
 		if (!have[cell[k]]) {
 			char list[256];
-			pair_list(tag, n_ex, list, sizeof list);
+			loom__fabric_pair_list(tag, n_ex, list, sizeof list);
 			rc = loom__fail(diag, LOOM_EMISMATCH, "synth: crossing (%zu, %zu) has "
 			                "warp yarn type '%s' of %s and weft yarn type '%s' of "
 			                "%s, but the database has exemplars of the pairs %s "

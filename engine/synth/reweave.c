@@ -26,9 +26,25 @@ typedef struct rw {
 	uint8_t *in;                  /* R*C: 1 = assigned again */
 	uint16_t *src;                /* R*C: new sources (NONE until set) */
 	const uint8_t *tag;           /* per exemplar: material pair tag, when
-	                                 the database has two or more pairs;
-	                                 NULL otherwise (engine/synth/material.c) */
+	                                 the database has two or more pairs or
+	                                 a fibre is painted; NULL otherwise
+	                                 (engine/synth/material.c) */
+	const uint8_t *painted;       /* R*C: 1 = painted (not the band) */
+	int kind, fibre;              /* painted fibre: the yarn kind (0 any)
+	                                 and its material; fibre 0 = keep */
 } rw;
+
+/* The pair a crossing of old pair `pair` has after painting. */
+static uint8_t new_pair(const rw *w, uint8_t pair)
+{
+	unsigned wm = pair / LOOM_FIBRE_COUNT_, em = pair % LOOM_FIBRE_COUNT_;
+
+	if (w->kind != LOOM_YARN_WEFT)
+		wm = (unsigned)w->fibre;
+	if (w->kind != LOOM_YARN_WARP)
+		em = (unsigned)w->fibre;
+	return (uint8_t)(wm * LOOM_FIBRE_COUNT_ + em);
+}
 
 /* Warp-over bit of (I, J) after painting. */
 static unsigned bit_at(const rw *w, int64_t I, int64_t J)
@@ -76,6 +92,8 @@ static int assign_one(rw *w, uint32_t r, uint32_t c, uint64_t key)
 		int best_m = -1;
 		loom_synth_block_info(w->f->set, loom__fabric_src(w->f, I, J), &ob);
 		pair = w->tag[ob.exemplar];
+		if (w->fibre && w->painted[(size_t)r * w->C + c])
+			pair = new_pair(w, pair);
 		for (uint32_t t = 0; t < K; t++) {
 			loom_synth_block b;
 			int m, score;
@@ -130,14 +148,49 @@ static int assign_one(rw *w, uint32_t r, uint32_t c, uint64_t key)
 	return LOOM_OK;
 }
 
+static int check_pairs(const rw *w, const uint8_t *tag, uint32_t n_ex,
+                       loom_diag *diag)
+{
+	int have[LOOM_FIBRE_COUNT_ * LOOM_FIBRE_COUNT_];
+	char list[256];
+
+	memset(have, 0, sizeof have);
+	for (uint32_t u = 0; u < n_ex; u++)
+		have[tag[u]] = 1;
+	loom__fabric_pair_list(tag, n_ex, list, sizeof list);
+	for (uint32_t r = 0; r < w->R; r++)
+		for (uint32_t c = 0; c < w->C; c++) {
+			int64_t I = w->I0 + r, J = w->J0 + c;
+			loom_synth_block ob;
+			uint8_t old, np;
+			if (!w->painted[(size_t)r * w->C + c])
+				continue;
+			loom_synth_block_info(w->f->set, loom__fabric_src(w->f, I, J), &ob);
+			old = tag[ob.exemplar];
+			if (!old)
+				return loom__fail(diag, LOOM_EMISMATCH, "painted fibre: the "
+				                  "fabric's database records no material pairs "
+				                  "(its exemplars are not tagged)");
+			np = new_pair(w, old);
+			if (!have[np])
+				return loom__fail(diag, LOOM_EMISMATCH, "painted fibre: crossing "
+				                  "(%lld, %lld) would have the (warp, weft) pair "
+				                  "%s/%s, but the database has exemplars of the "
+				                  "pairs %s only", (long long)I, (long long)J,
+				                  loom_fibre_name(np / LOOM_FIBRE_COUNT_),
+				                  loom_fibre_name(np % LOOM_FIBRE_COUNT_), list);
+		}
+	return LOOM_OK;
+}
+
 int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
                          uint32_t rows, uint32_t cols, const uint8_t *want,
-                         uint32_t band, loom_diag *diag)
+                         uint32_t band, int kind, int fibre, loom_diag *diag)
 {
 	rw w;
 	loom_fabric *f, *g = NULL;
 	loom__fabric_patch *p = NULL;
-	uint8_t *tmp = NULL, *tag = NULL;
+	uint8_t *tmp = NULL, *tag = NULL, *painted = NULL;
 	size_t n;
 	uint64_t key;
 	uint32_t n_pairs = 0;
@@ -151,6 +204,9 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 	if (band > LOOM__FABRIC_BAND_MAX)
 		return loom__fail(diag, LOOM_EINVAL, "reweave: band %u crossings, at most %u",
 		                  band, LOOM__FABRIC_BAND_MAX);
+	if (fibre < 0 || fibre >= LOOM_FIBRE_COUNT_ || kind < 0 || kind > LOOM_YARN_WEFT)
+		return loom__fail(diag, LOOM_EINVAL, "reweave: fibre %d or kind %d out of "
+		                  "range", fibre, kind);
 	if ((uint64_t)rows + 2 * band > LOOM__FABRIC_PATCH_MAX ||
 	    (uint64_t)cols + 2 * band > LOOM__FABRIC_PATCH_MAX ||
 	    ((uint64_t)rows + 2 * band) * ((uint64_t)cols + 2 * band) > LOOM__FABRIC_PATCH_MAX)
@@ -172,17 +228,21 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 	w.in = calloc(n, 1);
 	w.src = malloc(n * sizeof *w.src);
 	tmp = calloc(n, 1);
+	painted = calloc(n, 1);
 	p = calloc(1, sizeof *p);
 	g = malloc(sizeof *g);
 	tag = malloc(f->n_exemplars ? f->n_exemplars : 1);
-	if (!w.bit || !w.in || !w.src || !tmp || !p || !g || !tag)
+	if (!w.bit || !w.in || !w.src || !tmp || !painted || !p || !g || !tag)
 		goto fail;
 	if ((rc = loom__fabric_db_pairs(f->db, f->n_exemplars, tag, &n_pairs)) != LOOM_OK) {
 		rc = loom__fail(diag, rc, "painted weave: database exemplars: %s",
 		                loom_strerror(rc));
 		goto fail_quiet;
 	}
-	w.tag = n_pairs >= 2 ? tag : NULL;
+	w.tag = n_pairs >= 2 || fibre ? tag : NULL;
+	w.painted = painted;
+	w.kind = kind;
+	w.fibre = fibre;
 	/* the bits after painting, and the painted crossings */
 	for (uint32_t r = 0; r < w.R; r++)
 		for (uint32_t c = 0; c < w.C; c++) {
@@ -198,12 +258,17 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 			if (v) {
 				w.bit[k] = (uint8_t)(v - 1);
 				tmp[k] = 1;
+				painted[k] = 1;
 			} else {
 				loom__fabric_crossing(f, w.I0 + r, w.J0 + c, &x);
 				w.bit[k] = x.warp_over;
 			}
 			w.src[k] = LOOM_SYNTH_NONE;
 		}
+	/* a painted fibre: every painted crossing's new pair must have
+	   exemplars in the database */
+	if (fibre && (rc = check_pairs(&w, tag, f->n_exemplars, diag)) != LOOM_OK)
+		goto fail_quiet;
 	/* widen by the band (Chebyshev): along rows, then along columns */
 	for (uint32_t r = 0; r < w.R; r++)
 		for (uint32_t c = 0; c < w.C; c++) {
@@ -243,6 +308,7 @@ int loom__fabric_reweave(loom_fabric **fp, int64_t I0, int64_t J0,
 			w.src[k] = LOOM_SYNTH_NONE;
 	free(tmp);
 	free(tag);
+	free(painted);
 	free(w.in);
 	p->prev = f->patch;
 	p->I0 = w.I0;
@@ -264,6 +330,7 @@ fail_quiet:
 	free(w.src);
 	free(tmp);
 	free(tag);
+	free(painted);
 	free(p);
 	free(g);
 	return rc;

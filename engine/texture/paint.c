@@ -47,16 +47,16 @@ struct loom_paint {
 };
 
 static const char *const effect_names[] = {
-	NULL, "yarn", "stain", "slub", "broken-end", "missing-pick", "pull", "weave"};
+	NULL, "yarn", "stain", "slub", "broken-end", "missing-pick", "pull", "weave", "fibre"};
 
 LOOM_API const char *loom_paint_effect_name(int effect)
 {
-	return effect >= 1 && effect <= LOOM_PAINT_WEAVE ? effect_names[effect] : NULL;
+	return effect >= 1 && effect <= LOOM_PAINT_FIBRE ? effect_names[effect] : NULL;
 }
 
 LOOM_API int loom_paint_effect_parse(const char *name)
 {
-	for (int e = 1; e <= LOOM_PAINT_WEAVE; e++)
+	for (int e = 1; e <= LOOM_PAINT_FIBRE; e++)
 		if (name && !strcmp(name, effect_names[e]))
 			return e;
 	return 0;
@@ -157,9 +157,15 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 		return loom__fail(diag, LOOM_EINVAL, "paint: a weave region needs its "
 		                  "weave, 1..%u x 1..%u crossings", LOOM_PAINT_MAX_MASK,
 		                  LOOM_PAINT_MAX_MASK);
-	if (r->effect == LOOM_PAINT_WEAVE && r->band > LOOM_PAINT_MAX_BAND)
-		return loom__fail(diag, LOOM_EINVAL, "paint: weave band must be 0..%u "
-		                  "crossings", LOOM_PAINT_MAX_BAND);
+	if ((r->effect == LOOM_PAINT_WEAVE || r->effect == LOOM_PAINT_FIBRE) &&
+	    r->band > LOOM_PAINT_MAX_BAND)
+		return loom__fail(diag, LOOM_EINVAL, "paint: %s band must be 0..%u "
+		                  "crossings", loom_paint_effect_name(r->effect),
+		                  LOOM_PAINT_MAX_BAND);
+	if (r->effect == LOOM_PAINT_FIBRE &&
+	    (r->fibre <= LOOM_FIBRE_DEFAULT || r->fibre >= LOOM_FIBRE_COUNT_))
+		return loom__fail(diag, LOOM_EINVAL, "paint: a fibre region needs a "
+		                  "material (cotton, silk, ...), got code %d", r->fibre);
 	if (p->n >= LOOM_PAINT_MAX_REGIONS)
 		return loom__fail(diag, LOOM_ERANGE, "paint: more than %u regions",
 		                  LOOM_PAINT_MAX_REGIONS);
@@ -174,9 +180,12 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 	c = *r;
 	c.mask = NULL;
 	c.weave = NULL;
+	if (r->effect != LOOM_PAINT_FIBRE)
+		c.fibre = 0;
 	if (r->effect != LOOM_PAINT_WEAVE) {
 		c.weave_w = c.weave_h = 0;
-		c.band = 0;
+		if (r->effect != LOOM_PAINT_FIBRE)
+			c.band = 0;
 	} else {
 		size_t nw = (size_t)r->weave_w * r->weave_h;
 		uint8_t *w = malloc(nw);
@@ -206,6 +215,7 @@ LOOM_API int loom_paint_add(loom_paint *p, const loom_paint_region *r, loom_diag
 
 #define MAGIC "loom-paint 1"  /* version 2 (MAGIC2): weave regions */
 #define MAGIC2 "loom-paint 2"
+#define MAGIC3 "loom-paint 3" /* version 3: fibre regions */
 
 typedef struct growbuf {
 	char *s;
@@ -254,11 +264,13 @@ LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len)
 
 	if (!p || !text)
 		return LOOM_EINVAL;
-	int v2 = 0;
+	int v2 = 0, v3 = 0;
 
-	for (uint32_t i = 0; i < p->n; i++)
+	for (uint32_t i = 0; i < p->n; i++) {
 		v2 |= p->r[i].effect == LOOM_PAINT_WEAVE;
-	put(&b, "%s\nfabric %s\n", v2 ? MAGIC2 : MAGIC, p->fabric);
+		v3 |= p->r[i].effect == LOOM_PAINT_FIBRE;
+	}
+	put(&b, "%s\nfabric %s\n", v3 ? MAGIC3 : v2 ? MAGIC2 : MAGIC, p->fabric);
 	for (uint32_t i = 0; i < p->n; i++) {
 		const loom_paint_region *r = &p->r[i];
 		put(&b, "region %s %.15g %.15g %.15g %.15g kind=%s rgb=%.6g,%.6g,%.6g "
@@ -266,8 +278,10 @@ LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len)
 		    loom_paint_effect_name(r->effect), r->x0, r->y0, r->x1, r->y1,
 		    kinds[r->kind], (double)r->rgb[0], (double)r->rgb[1],
 		    (double)r->rgb[2], (double)r->strength, r->blend_mm, r->amount);
-		if (r->effect == LOOM_PAINT_WEAVE)
+		if (r->effect == LOOM_PAINT_WEAVE || r->effect == LOOM_PAINT_FIBRE)
 			put(&b, " band=%u", r->band);
+		if (r->effect == LOOM_PAINT_FIBRE)
+			put(&b, " fibre=%s", loom_fibre_name(r->fibre));
 		put(&b, "\n");
 		if (r->mask_w) {
 			put(&b, "mask %u %u\n", r->mask_w, r->mask_h);
@@ -387,11 +401,20 @@ static int region_opts(lines *L, char *rest, loom_paint_region *r)
 			for (int k = 0; k < 3; k++)
 				r->rgb[k] = (float)x[k];
 		} else if (!strcmp(tok, "band")) {
-			if (r->effect != LOOM_PAINT_WEAVE)
-				return bad(L, LOOM_EFORMAT, "band goes with 'region weave'", NULL);
+			if (r->effect != LOOM_PAINT_WEAVE && r->effect != LOOM_PAINT_FIBRE)
+				return bad(L, LOOM_EFORMAT, "band goes with 'region weave' or "
+				           "'region fibre'", NULL);
 			if (!num(eq, &v) || v < 0 || v > LOOM_PAINT_MAX_BAND || v != floor(v))
 				return bad(L, LOOM_EFORMAT, "band must be a whole number 0..8", eq);
 			r->band = (uint32_t)v;
+		} else if (!strcmp(tok, "fibre")) {
+			int code;
+			if (r->effect != LOOM_PAINT_FIBRE)
+				return bad(L, LOOM_EFORMAT, "fibre goes with 'region fibre'", NULL);
+			if (loom_fibre_parse(eq, &code) != LOOM_OK || code == LOOM_FIBRE_DEFAULT)
+				return bad(L, LOOM_EFORMAT, "fibre must be cotton, rayon, silk, "
+				           "polyester, wool, linen, monofilament or none", eq);
+			r->fibre = code;
 		} else if (!strcmp(tok, "strength") || !strcmp(tok, "blend") ||
 		           !strcmp(tok, "amount")) {
 			if (!num(eq, &v))
@@ -406,7 +429,7 @@ static int region_opts(lines *L, char *rest, loom_paint_region *r)
 				return bad(L, LOOM_EFORMAT, "amount must be a whole number", eq);
 		} else {
 			return bad(L, LOOM_EFORMAT, "unknown key (kind, rgb, strength, "
-			           "blend, amount, band)", tok);
+			           "blend, amount, band, fibre)", tok);
 		}
 	}
 	return LOOM_OK;
@@ -467,10 +490,12 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 	if (len > LOOM_PAINT_MAX_FILE)
 		return loom__fail(diag, LOOM_ERANGE, "%s: %zu bytes, more than the %u a "
 		                  "paint file may have", L.name, len, LOOM_PAINT_MAX_FILE);
-	if (len < ml || (memcmp(text, MAGIC, ml) && memcmp(text, MAGIC2, ml)) ||
+	if (len < ml || (memcmp(text, MAGIC, ml) && memcmp(text, MAGIC2, ml) &&
+	                 memcmp(text, MAGIC3, ml)) ||
 	    (len > ml && text[ml] != '\n' && text[ml] != '\r'))
 		return loom__fail(diag, LOOM_EFORMAT, "%s: not a loom paint file (the "
-		                  "first line must be '%s' or '%s')", L.name, MAGIC, MAGIC2);
+		                  "first line must be '%s', '%s' or '%s')", L.name, MAGIC,
+		                  MAGIC2, MAGIC3);
 	version = text[ml - 1] - '0';
 	buf = malloc(cap);
 	if (!buf)
@@ -548,12 +573,17 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 			if (!tok[4] || !(pend.effect = loom_paint_effect_parse(tok[0]))) {
 				rc = bad(&L, LOOM_EFORMAT, "expected 'region EFFECT X0 Y0 X1 Y1 "
 				         "[key=value...]' with EFFECT yarn, stain, slub, "
-				         "broken-end, missing-pick, pull or weave", tok[0]);
+				         "broken-end, missing-pick, pull, weave or fibre", tok[0]);
 				goto fail;
 			}
 			if (pend.effect == LOOM_PAINT_WEAVE && version < 2) {
 				rc = bad(&L, LOOM_EFORMAT, "a weave region needs version 2 "
 				         "(first line '" MAGIC2 "')", NULL);
+				goto fail;
+			}
+			if (pend.effect == LOOM_PAINT_FIBRE && version < 3) {
+				rc = bad(&L, LOOM_EFORMAT, "a fibre region needs version 3 "
+				         "(first line '" MAGIC3 "')", NULL);
 				goto fail;
 			}
 			for (int i = 0; i < 4; i++)
@@ -721,7 +751,8 @@ LOOM_API int loom_paint_sample(const loom_paint *p, const double q[3], loom_texe
 		const loom_paint_region *r = &p->r[i];
 		loom_texel nb;
 		if (r->effect == LOOM_PAINT_YARN || r->effect == LOOM_PAINT_STAIN ||
-		    r->effect == LOOM_PAINT_WEAVE) /* weaves: in the fabric */
+		    r->effect == LOOM_PAINT_WEAVE || r->effect == LOOM_PAINT_FIBRE)
+			/* weaves and fibres: in the fabric */
 			continue;
 		if (region_dist(p, i, cx, cy, 0.0) != 0)
 			continue;
@@ -1130,7 +1161,7 @@ LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
 		vreg v;
 		loom_fabric *next;
 
-		if (r->effect != LOOM_PAINT_WEAVE)
+		if (r->effect != LOOM_PAINT_WEAVE && r->effect != LOOM_PAINT_FIBRE)
 			continue;
 		to_voxels(r, vmm, &v);
 		/* crossings whose centre may lie in the rectangle */
@@ -1142,8 +1173,9 @@ LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
 		    !(fI1 - fI0 + 1 <= LOOM__FABRIC_PATCH_MAX) ||
 		    !((fJ1 - fJ0 + 1) * (fI1 - fI0 + 1) <= LOOM__FABRIC_PATCH_MAX) ||
 		    fabs(fJ0) > 1e15 || fabs(fI0) > 1e15) {
-			rc = loom__fail(diag, LOOM_ERANGE, "paint: weave region %u covers "
-			                "%.0f x %.0f crossings; at most %u", i + 1, fI1 - fI0 + 1,
+			rc = loom__fail(diag, LOOM_ERANGE, "paint: %s region %u covers "
+			                "%.0f x %.0f crossings; at most %u",
+			                loom_paint_effect_name(r->effect), i + 1, fI1 - fI0 + 1,
 			                fJ1 - fJ0 + 1, LOOM__FABRIC_PATCH_MAX);
 			goto fail;
 		}
@@ -1161,7 +1193,12 @@ LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
 				int64_t I = I0 + a, J = J0 + c;
 				double cx = ((double)J + 0.5) * b1, cy = ((double)I + 0.5) * b2;
 				uint8_t w = 0;
-				if (region_dist_rv(r, &v, cx, cy, 0.0) == 0) {
+				int in = region_dist_rv(r, &v, cx, cy, 0.0) == 0;
+				if (in && r->effect == LOOM_PAINT_FIBRE) {
+					loom__fabric_xing x; /* the weave kept */
+					loom__fabric_crossing(cur, I, J, &x);
+					w = (uint8_t)(1 + x.warp_over);
+				} else if (in) {
 					uint64_t wi = (uint64_t)loom_synth_floormod(I, r->weave_h);
 					uint64_t wj = (uint64_t)loom_synth_floormod(J, r->weave_w);
 					w = (uint8_t)(1 + r->weave[wi * r->weave_w + wj]);
@@ -1169,7 +1206,9 @@ LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
 				want[(size_t)a * cols + c] = w;
 			}
 		next = cur;
-		rc = loom__fabric_reweave(&next, I0, J0, rows, cols, want, r->band, diag);
+		rc = loom__fabric_reweave(&next, I0, J0, rows, cols, want, r->band,
+		                          r->kind, r->effect == LOOM_PAINT_FIBRE ? r->fibre : 0,
+		                          diag);
 		free(want);
 		if (rc != LOOM_OK)
 			goto fail;

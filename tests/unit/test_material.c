@@ -267,7 +267,7 @@ static void test_reweave(void)
 	for (int r = 0; r < 6; r++) /* a 1/1 plain weave over ends 2..11 */
 		for (int c = 0; c < 10; c++)
 			want[r * 10 + c] = (uint8_t)(1 + ((r + c) & 1));
-	CHECK(loom__fabric_reweave(&f, 3, 2, 6, 10, want, 2, NULL) == LOOM_OK);
+	CHECK(loom__fabric_reweave(&f, 3, 2, 6, 10, want, 2, 0, 0, NULL) == LOOM_OK);
 	for (int64_t I = 1; I < 11; I++)
 		for (int64_t J = 0; J < 14; J++) {
 			loom_fabric_source s;
@@ -286,6 +286,165 @@ static void test_reweave(void)
 	CHECK_EQ_INT(bad, 0);
 	CHECK_EQ_INT(changed, 60); /* the painted crossings copy plain-weave bits */
 out:
+	loom_fabric_free(f);
+	loom_design_free(d);
+	loom_db_close(two);
+}
+
+static int same_texel(const loom_texel *a, const loom_texel *b)
+{
+	return a->density == b->density && a->kind == b->kind && a->type == b->type &&
+	       !memcmp(a->albedo, b->albedo, sizeof a->albedo) &&
+	       !memcmp(a->orientation, b->orientation, sizeof a->orientation);
+}
+
+/* Painting a silk warp over cotton crossings (loom paint --yarn warp
+   --fibre silk): the painted crossings copy silk/cotton blocks with the
+   weave kept, the band keeps its pairs, everything else its sources, and
+   the voxels change only at the re-assigned crossings and their four
+   neighbours (brute force against the unpainted fabric); a pair the
+   database lacks is LOOM_EMISMATCH naming it and the database's pairs. */
+static void test_paint_fibre(void)
+{
+	const int64_t PI0 = 3, PI1 = 7, PJ0 = 1, PJ1 = 4, M = 3; /* painted, margin */
+	const uint32_t band = 1;
+	loom_db *two = NULL;
+	loom_design *d = stripe_design();
+	loom_fabric *f0 = NULL, *f = NULL;
+	loom_texture *t0 = NULL, *t = NULL;
+	loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
+	loom_fabric_db_identity id;
+	loom_paint *p = NULL, *q = NULL;
+	loom_paint_region r;
+	loom_diag diag;
+	char *text = NULL;
+	size_t len = 0;
+	double vmm;
+	uint64_t changed = 0, outside = 0, painted_silk = 0, band_kept = 0, rest_kept = 0;
+	uint64_t bits_kept = 0, changed_painted = 0;
+
+	memset(&diag, 0, sizeof diag);
+	CHECK(loom_db_open(tpath("two.ldb"), &two, NULL) == LOOM_OK);
+	if (!two || !d)
+		goto out;
+	CHECK(loom_fabric_synthesize(d, two, "two.ldb", &o, &f0, NULL) == LOOM_OK);
+	CHECK(loom_fabric_synthesize(d, two, "two.ldb", &o, &f, NULL) == LOOM_OK);
+	if (!f0 || !f)
+		goto out;
+	loom_fabric_get_db_identity(f, &id);
+	vmm = id.voxel_size_um * 1e-3;
+	memset(&r, 0, sizeof r);
+	r.effect = LOOM_PAINT_FIBRE;
+	r.kind = LOOM_YARN_WARP;
+	r.fibre = LOOM_FIBRE_SILK;
+	r.band = band;
+	r.x0 = (PJ0 + 0.25) * id.block[0] * vmm;
+	r.x1 = (PJ1 - 0.25) * id.block[0] * vmm;
+	r.y0 = (PI0 + 0.25) * id.block[1] * vmm;
+	r.y1 = (PI1 - 0.25) * id.block[1] * vmm;
+	CHECK_EQ_INT(loom_paint_new("f", &p, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_paint_add(p, &r, &diag), LOOM_OK);
+	/* the text round trip (version 3) */
+	CHECK_EQ_INT(loom_paint_format(p, &text, &len), LOOM_OK);
+	CHECK(text && !strncmp(text, "loom-paint 3\n", 13) && strstr(text, " fibre=silk\n"));
+	CHECK_EQ_INT(loom_paint_parse(text, len, "w", &q, &diag), LOOM_OK);
+	if (q) {
+		const loom_paint_region *rq = loom_paint_get(q, 0);
+		CHECK(rq && rq->effect == LOOM_PAINT_FIBRE && rq->fibre == LOOM_FIBRE_SILK &&
+		      rq->kind == LOOM_YARN_WARP && rq->band == band && rq->x0 == r.x0 &&
+		      rq->y1 == r.y1);
+	}
+	/* a fibre region in a version-2 file is refused */
+	if (text) {
+		text[11] = '2';
+		loom_paint_free(q);
+		q = NULL;
+		CHECK_EQ_INT(loom_paint_parse(text, len, "w", &q, &diag), LOOM_EFORMAT);
+		CHECK(strstr(diag.message, "needs version 3") != NULL);
+	}
+	CHECK_EQ_INT(loom_paint_apply_weaves(p, &f, &diag), LOOM_OK);
+	CHECK(loom_texture_open(f0, two, NULL, &t0, &diag) == LOOM_OK);
+	CHECK(loom_texture_open(f, two, NULL, &t, &diag) == LOOM_OK);
+	if (!t0 || !t)
+		goto out;
+	for (int64_t I = PI0 - M; I < PI1 + M; I++)
+		for (int64_t J = PJ0 - M; J < PJ1 + M; J++) {
+			int64_t di = I < PI0 ? PI0 - I : I >= PI1 ? I - PI1 + 1 : 0;
+			int64_t dj = J < PJ0 ? PJ0 - J : J >= PJ1 ? J - PJ1 + 1 : 0;
+			int64_t cheb = di > dj ? di : dj;
+			int allowed = cheb <= (int64_t)band + 1 &&
+			              !(di == (int64_t)band + 1 && dj == (int64_t)band + 1);
+			loom_fabric_source s0, s;
+			loom_db_exemplar_info e;
+			loom_synth_block b0, b;
+			loom_fabric_source_at(f0, I, J, &s0);
+			loom_fabric_source_at(f, I, J, &s);
+			loom_db_exemplar(two, s.exemplar, &e);
+			loom_synth_block_info(f->set, s.block, &b);
+			loom_synth_block_info(f->set, s0.block, &b0);
+			if (cheb == 0) {
+				painted_silk += e.fibre[0] == LOOM_FIBRE_SILK &&
+				                e.fibre[1] == LOOM_FIBRE_COTTON;
+				bits_kept += (b.code & 1u) == (b0.code & 1u);
+			} else if (cheb <= (int64_t)band) {
+				band_kept += e.fibre[0] == (in_stripe(J) ? LOOM_FIBRE_SILK
+				                                          : LOOM_FIBRE_COTTON);
+			} else {
+				rest_kept += s.block == s0.block;
+			}
+			for (uint32_t ly = 0; ly < id.block[1]; ly++)
+				for (uint32_t lx = 0; lx < id.block[0]; lx++)
+					for (uint32_t z = 0; z < id.block[2]; z++) {
+						double pt[3] = {J * (double)id.block[0] + lx + 0.5,
+						                I * (double)id.block[1] + ly + 0.5, z + 0.5};
+						loom_texel a, c;
+						if (loom_texture_sample(t0, pt, LOOM_FILTER_NEAREST, &a) ||
+						    loom_texture_sample(t, pt, LOOM_FILTER_NEAREST, &c)) {
+							outside++;
+							continue;
+						}
+						if (!same_texel(&a, &c)) {
+							changed++;
+							changed_painted += cheb == 0;
+							outside += !allowed;
+						}
+					}
+		}
+	{
+		const uint64_t n_p = (uint64_t)(PI1 - PI0) * (PJ1 - PJ0);
+		const uint64_t n_b = (uint64_t)(PI1 - PI0 + 2) * (PJ1 - PJ0 + 2) - n_p;
+		const uint64_t n_all = (uint64_t)(PI1 - PI0 + 2 * M) * (PJ1 - PJ0 + 2 * M);
+		printf("  painted fibre: %llu voxels changed (%llu at painted crossings), "
+		       "%llu outside the allowed set\n", (unsigned long long)changed,
+		       (unsigned long long)changed_painted, (unsigned long long)outside);
+		CHECK_EQ_INT(painted_silk, n_p);
+		CHECK_EQ_INT(bits_kept, n_p);
+		CHECK_EQ_INT(band_kept, n_b);
+		CHECK_EQ_INT(rest_kept, n_all - n_p - n_b);
+		CHECK_EQ_INT(outside, 0);
+		CHECK(changed_painted > 1000);
+	}
+	/* then a weft of silk over the silk warps: silk/silk, which the
+	   database lacks */
+	{
+		loom_paint *pw = NULL;
+		loom_fabric *keep = f;
+		r.kind = LOOM_YARN_WEFT;
+		CHECK_EQ_INT(loom_paint_new("f", &pw, NULL), LOOM_OK);
+		CHECK_EQ_INT(loom_paint_add(pw, &r, &diag), LOOM_OK);
+		CHECK_EQ_INT(loom_paint_apply_weaves(pw, &f, &diag), LOOM_EMISMATCH);
+		CHECK(f == keep);
+		CHECK(strstr(diag.message, "pair silk/silk") != NULL &&
+		      strstr(diag.message, "pairs cotton/cotton, silk/cotton only") != NULL);
+		loom_paint_free(pw);
+	}
+out:
+	free(text);
+	loom_paint_free(p);
+	loom_paint_free(q);
+	loom_texture_close(t0);
+	loom_texture_close(t);
+	loom_fabric_free(f0);
 	loom_fabric_free(f);
 	loom_design_free(d);
 	loom_db_close(two);
@@ -390,6 +549,7 @@ int main(void)
 	RUN(test_tags);
 	RUN(test_synth_stripe);
 	RUN(test_reweave);
+	RUN(test_paint_fibre);
 	RUN(test_determinism);
 	RUN(test_errors);
 	CHECK_MAIN_END();

@@ -31,7 +31,7 @@ int cli_is_paint(const char *path)
 	ok = fstat(fd, &st) == 0 && S_ISREG(st.st_mode) &&
 	     read(fd, buf, sizeof buf) == (ssize_t)sizeof buf &&
 	     !memcmp(buf, magic, sizeof magic - 1) &&
-	     (buf[sizeof magic - 1] == '1' || buf[sizeof magic - 1] == '2');
+	     buf[sizeof magic - 1] >= '1' && buf[sizeof magic - 1] <= '3';
 	close(fd);
 	return ok;
 }
@@ -122,27 +122,30 @@ void cli_paint_note(const char *prog, const char *path, const loom_paint *p)
 	uint32_t other = 0;
 
 	for (uint32_t i = 0; i < loom_paint_count(p); i++)
-		other += loom_paint_get(p, i)->effect != LOOM_PAINT_WEAVE;
+		other += loom_paint_get(p, i)->effect != LOOM_PAINT_WEAVE &&
+		         loom_paint_get(p, i)->effect != LOOM_PAINT_FIBRE;
 	if (other)
 		fprintf(stderr, "%s: warning: %s: %u region%s of colour or defect "
 		        "(applied at lookup time) not shown by this command (loom render, "
-		        "preview, export and serve show them); painted weaves are "
-		        "shown\n", prog, path, other, other == 1 ? "" : "s");
+		        "preview, export and serve show them); painted weaves and "
+		        "fibres are shown\n", prog, path, other, other == 1 ? "" : "s");
 }
 
 /* ---- loom paint ------------------------------------------------------------ */
 
 static const char usage[] =
 	"loom paint FABRIC (--rect X0,Y0:X1,Y1 | --mask PNG [--at X,Y]\n"
-	"           [--cell W,H]) (--yarn warp|weft|any --rgb R,G,B |\n"
+	"           [--cell W,H]) (--yarn warp|weft|any [--rgb R,G,B]\n"
+	"           [--fibre F [--band N]] |\n"
 	"            --weave WEAVE|DESIGN [--band N] |\n"
 	"            --defect stain|slub|broken-end|missing-pick|pull)\n"
 	"           [--rgb R,G,B] [--strength S] [--blend MM] [--radius V]\n"
 	"           [--lift V] [--kind warp|weft] [--db DB] [--quiet] -o PAINT\n";
 
 static const char about[] =
-	"Paint a region of the cloth: recolour a yarn kind, stain it, weave it\n"
-	"in another weave (its crossings and a band around them re-synthesised),\n"
+	"Paint a region of the cloth: recolour a yarn kind or change its fibre\n"
+	"material, stain it, weave it in another weave (a new fibre or weave:\n"
+	"its crossings and a band around them re-synthesised),\n"
 	"or add a defect (slub, broken end, missing pick, pulled thread).  FABRIC is a\n"
 	"fabric or a paint file (its regions are kept and the new one added);\n"
 	"PAINT is a paint file naming the fabric, which loom render opens like a\n"
@@ -155,6 +158,11 @@ static const opt_choice defect_names[] = {
 	{"stain", LOOM_PAINT_STAIN}, {"slub", LOOM_PAINT_SLUB},
 	{"broken-end", LOOM_PAINT_BROKEN_END}, {"missing-pick", LOOM_PAINT_MISSING_PICK},
 	{"pull", LOOM_PAINT_PULL}, {NULL, 0}};
+static const opt_choice fibre_names[] = {
+	{"cotton", LOOM_FIBRE_COTTON}, {"rayon", LOOM_FIBRE_RAYON},
+	{"silk", LOOM_FIBRE_SILK}, {"polyester", LOOM_FIBRE_POLYESTER},
+	{"wool", LOOM_FIBRE_WOOL}, {"linen", LOOM_FIBRE_LINEN},
+	{"monofilament", LOOM_FIBRE_MONOFILAMENT}, {"none", LOOM_FIBRE_NONE}, {NULL, 0}};
 
 static const char *opt_rect(const char *text, void *dest)
 {
@@ -241,7 +249,7 @@ int cmd_paint(int argc, char **argv)
 	double rect[4] = {0, 0, 0, 0}, at[2] = {0, 0}, cell[2] = {0, 0};
 	double strength = 0.7, blend = 0.2;
 	float rgb[3] = {0.35f, 0.22f, 0.08f};
-	int yarn = -1, defect = 0, kind = LOOM_YARN_WARP, quiet = 0, rc = EXIT_BAD_INPUT;
+	int yarn = -1, defect = 0, fibre = 0, kind = LOOM_YARN_WARP, quiet = 0, rc = EXIT_BAD_INPUT;
 	uint32_t radius = 2, lift = 4, band = 1;
 	loom_paint *p = NULL;
 	loom_fabric *f = NULL;
@@ -250,6 +258,7 @@ int cmd_paint(int argc, char **argv)
 	loom_paint_region r;
 	loom_diag diag;
 	char *text = NULL;
+	uint8_t *m = NULL;
 	size_t len = 0;
 	opt_entry opts[] = {
 		OPT_CALLBACK(0, "rect", rect, "X0,Y0:X1,Y1", opt_rect,
@@ -261,12 +270,17 @@ int cmd_paint(int argc, char **argv)
 		OPT_CALLBACK(0, "cell", cell, "W,H", opt_pair, "mask: mm per pixel (default "
 		             "one crossing)"),
 		OPT_ENUM(0, "yarn", &yarn, "KIND", kind_names, "recolour the yarns of KIND "
-		         "(warp, weft or any) to --rgb"),
+		         "(warp, weft or any) to --rgb, or change their material (--fibre)"),
+		OPT_ENUM(0, "fibre", &fibre, "F", fibre_names, "yarn: the new fibre "
+		         "material (cotton, rayon, silk, polyester, wool, linen, "
+		         "monofilament, none); the crossings copy exemplars of their new "
+		         "(warp, weft) pair, which the fabric's database must have "
+		         "(loom synth --yarn-fibre)"),
 		OPT_STRING(0, "weave", &weave_arg, "WEAVE", "weave the region in another "
 		           "weave: a name (plain, twill:2/2, satin:1/4, ...) or a design "
 		           "file (WIF, PBM, PNG), tiled from crossing 0,0"),
-		OPT_U32(0, "band", &band, "N", 0, 8, "weave: crossings re-synthesised "
-		        "around the region, %r (default 1)"),
+		OPT_U32(0, "band", &band, "N", 0, 8, "weave and fibre: crossings "
+		        "re-synthesised around the region, %r (default 1)"),
 		OPT_ENUM(0, "defect", &defect, "D", defect_names, "add a defect: stain, "
 		         "slub, broken-end, missing-pick or pull"),
 		OPT_CALLBACK(0, "rgb", rgb, "R,G,B", opt_rgb, "yarn colour or stain tint, "
@@ -299,12 +313,16 @@ int cmd_paint(int argc, char **argv)
 		opts_usage(&cmd, "--cell: W,H must be > 0");
 	if ((yarn >= 0) + (defect != 0) + (weave_arg != NULL) != 1)
 		opts_usage(&cmd, "give exactly one of --yarn, --weave and --defect");
-	if (opt_given(&cmd, &band) && !weave_arg)
-		opts_usage(&cmd, "--band goes with --weave");
+	if (opt_given(&cmd, &fibre) && yarn < 0)
+		opts_usage(&cmd, "--fibre goes with --yarn KIND");
+	if (opt_given(&cmd, &band) && !weave_arg && !opt_given(&cmd, &fibre))
+		opts_usage(&cmd, "--band goes with --weave or --yarn --fibre");
 	if (weave_arg && opt_given(&cmd, rgb))
 		opts_usage(&cmd, "--rgb goes with --yarn or --defect stain");
-	if (yarn >= 0 && !opt_given(&cmd, rgb))
-		opts_usage(&cmd, "--yarn needs --rgb R,G,B");
+	if (yarn >= 0 && !opt_given(&cmd, rgb) && !opt_given(&cmd, &fibre))
+		opts_usage(&cmd, "--yarn needs --rgb R,G,B or --fibre F (or both)");
+	if (opt_given(&cmd, &blend) && yarn >= 0 && !opt_given(&cmd, rgb))
+		opts_usage(&cmd, "--blend goes with --rgb (a new fibre blends over --band)");
 	if (opt_given(&cmd, &kind) && defect != LOOM_PAINT_SLUB && defect != LOOM_PAINT_PULL)
 		opts_usage(&cmd, "--kind goes with --defect slub or pull");
 	if (opt_given(&cmd, &radius) && defect != LOOM_PAINT_SLUB)
@@ -369,7 +387,6 @@ int cmd_paint(int argc, char **argv)
 	r.amount = defect == LOOM_PAINT_SLUB ? radius : defect == LOOM_PAINT_PULL ? lift : 0;
 	if (mask_path) {
 		loom_fabric_db_identity id;
-		uint8_t *m;
 		size_t np;
 		if (loom_image_read(mask_path, &img, &diag) != LOOM_OK) {
 			cli_error(prog, "%s", diag.message);
@@ -405,13 +422,22 @@ int cmd_paint(int argc, char **argv)
 		r.mask_w = img->width;
 		r.mask_h = img->height;
 		r.mask = m;
-		rc = loom_paint_add(p, &r, &diag);
-		free(m);
 	} else {
 		r.x0 = rect[0];
 		r.y0 = rect[1];
 		r.x1 = rect[2];
 		r.y1 = rect[3];
+	}
+	/* --yarn: a colour region (--rgb), then a fibre region (--fibre) */
+	rc = LOOM_OK;
+	if (r.effect != LOOM_PAINT_YARN || opt_given(&cmd, rgb))
+		rc = loom_paint_add(p, &r, &diag);
+	if (rc == LOOM_OK && fibre) {
+		r.effect = LOOM_PAINT_FIBRE;
+		r.fibre = fibre;
+		r.band = band;
+		memset(r.rgb, 0, sizeof r.rgb);
+		r.blend_mm = 0;
 		rc = loom_paint_add(p, &r, &diag);
 	}
 	if (rc != LOOM_OK) {
@@ -419,16 +445,25 @@ int cmd_paint(int argc, char **argv)
 		rc = EXIT_BAD_INPUT;
 		goto done;
 	}
-	if (weave_arg) {
-		/* synthesise the new weave once now: its errors (a region too
-		   large, no exemplar block) belong to this command */
+	if (weave_arg || fibre) {
+		/* synthesise the new weave or fibre once now: its errors (a
+		   region too large, no exemplar block, a material pair the
+		   database lacks) belong to this command */
 		loom_paint *one = NULL;
 		loom_fabric *g = f;
+		int e = LOOM_OK;
 		rc = EXIT_BAD_INPUT;
 		if (loom_paint_new(loom_paint_fabric(p), &one, &diag) != LOOM_OK ||
 		    loom_paint_add(one, &r, &diag) != LOOM_OK ||
-		    loom_paint_apply_weaves(one, &g, &diag) != LOOM_OK) {
-			cli_error(prog, "%s", diag.message);
+		    (e = loom_paint_apply_weaves(one, &g, &diag)) != LOOM_OK) {
+			if (e == LOOM_EMISMATCH)
+				cli_error(prog, "%s: %s; for a database with that pair, "
+				          "synthesize the fabric with the material per yarn "
+				          "type (loom synth DESIGN --yarn-fibre TYPE=%s ..., "
+				          "docs/exemplars.md) and paint that fabric", path,
+				          diag.message, loom_fibre_name(fibre));
+			else
+				cli_error(prog, "%s", diag.message);
 			loom_paint_free(one);
 			goto done;
 		}
@@ -450,6 +485,7 @@ int cmd_paint(int argc, char **argv)
 	rc = 0;
 done:
 	free(text);
+	free(m);
 	loom_image_free(img);
 	loom_design_free(weave);
 	loom_paint_free(p);

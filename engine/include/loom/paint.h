@@ -24,7 +24,10 @@ enum loom_paint_effect {
 	LOOM_PAINT_BROKEN_END = 4,   /* warp voxels removed */
 	LOOM_PAINT_MISSING_PICK = 5, /* weft voxels removed */
 	LOOM_PAINT_PULL = 6,         /* yarns of `kind` lifted `amount` voxels */
-	LOOM_PAINT_WEAVE = 7         /* another weave: crossings re-synthesised */
+	LOOM_PAINT_WEAVE = 7,        /* another weave: crossings re-synthesised */
+	LOOM_PAINT_FIBRE = 8         /* yarns of `kind` of material `fibre`:
+	                                crossings re-synthesised from the
+	                                exemplars of their new material pair */
 };
 
 #define LOOM_PAINT_MAX_REGIONS 4096u
@@ -51,8 +54,10 @@ typedef struct loom_paint_region {
 	   the bolt (copied by loom_paint_add) */
 	uint32_t weave_w, weave_h;
 	const uint8_t *weave;
-	uint32_t band;          /* weave: crossings re-synthesised around the
-	                           painted ones, 0..LOOM_PAINT_MAX_BAND */
+	uint32_t band;          /* weave and fibre: crossings re-synthesised
+	                           around the painted ones, 0..LOOM_PAINT_MAX_BAND */
+	int fibre;              /* LOOM_PAINT_FIBRE only: the material, enum
+	                           loom_fibre (not LOOM_FIBRE_DEFAULT) */
 } loom_paint_region;
 
 typedef struct loom_paint loom_paint;
@@ -74,14 +79,16 @@ LOOM_API int loom_paint_parse(const char *text, size_t len, const char *name,
 /* The paint file's text (malloc'ed, NUL-terminated; *len its length). */
 LOOM_API int loom_paint_format(const loom_paint *p, char **text, size_t *len);
 /* Effect names as in the file: "yarn", "stain", "slub", "broken-end",
-   "missing-pick", "pull"; NULL for others. */
+   "missing-pick", "pull", "weave", "fibre"; NULL for others. */
 LOOM_API const char *loom_paint_effect_name(int effect);
 LOOM_API int loom_paint_effect_parse(const char *name);
 
 /*
- * The fabric with the painted weaves applied (LOOM_PAINT_WEAVE regions, in
- * file order; docs/fabric.md "Painted weaves"): the crossings whose
- * centre a weave region contains take its weave, and they and `band`
+ * The fabric with the painted weaves applied (LOOM_PAINT_WEAVE and
+ * LOOM_PAINT_FIBRE regions, in file order; docs/fabric.md "Painted
+ * weaves", "Painted fibres"): the crossings whose
+ * centre a weave region contains take its weave (a fibre region: their
+ * yarns of its kind take its material), and they and `band`
  * crossings around them are assigned exemplar blocks again with the
  * synthesis rules; the edge fix then runs across the border.  On success
  * *f is replaced by a fabric that owns the old one (free only the new
@@ -89,7 +96,8 @@ LOOM_API int loom_paint_effect_parse(const char *name);
  * kept.  Open the texture on the result.  Memory 3 bytes per crossing of
  * each region's rectangle widened by its band.  LOOM_EINVAL, LOOM_ERANGE
  * (a region over more than 4194304 crossings), LOOM_EUNUSABLE (detached),
- * LOOM_ENOMEM; *f unchanged on failure.
+ * LOOM_ENOMEM, LOOM_EMISMATCH (a fibre region needing a material pair the
+ * database has no exemplars of); *f unchanged on failure.
  */
 LOOM_API int loom_paint_apply_weaves(const loom_paint *p, loom_fabric **f,
                                      loom_diag *diag);
