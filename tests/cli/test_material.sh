@@ -104,4 +104,77 @@ expect_err_contains with_db_warn "warning: --yarn-fibre:"
 # with --db of the stripe's database, a pair it lacks: an error
 expect_exit db_lacks_pair 1 "$LOOM" synth "$W/colors.wif" --yarn-fibre 1=wool --db "$p" -o "$T/z.loomf"
 expect_err_contains db_lacks_pair_msg "of wool and weft yarn type"
+# painting a fibre material (docs/fabric.md "Painted fibres"): a silk warp
+# over crossings 4..7 x 12..15 of the cotton part of the stripe fabric
+# (crossings 24 x 16 voxels of 24 um: centres (J+0.5)*0.576, (I+0.5)*0.384 mm)
+PF="--rect 7.0,1.6:9.1,3.0 --yarn warp --fibre silk"
+expect_ok paint_fibre "$LOOM" paint "$T/s.loomf" $PF -q -o "$T/pf.loomp"
+if [ "$(head -1 "$T/pf.loomp")" = "loom-paint 3" ] &&
+   grep -qx "region fibre 7 1.6 9.1 3 kind=warp rgb=0,0,0 strength=0 blend=0 amount=0 band=1 fibre=silk" "$T/pf.loomp"
+then pass paint_fibre_file; else fail paint_fibre_file "$(cat "$T/pf.loomp")"; fi
+expect_ok paint_fibre_again "$LOOM" paint "$T/s.loomf" $PF -q -o "$T/pf2.loomp"
+expect_same paint_fibre_same_bytes "$T/pf.loomp" "$T/pf2.loomp"
+# read back: a colour added to the file keeps the fibre region as written
+expect_ok paint_fibre_chain "$LOOM" paint "$T/pf.loomp" --rect 0,0:1,1 --yarn any --rgb 0.5,0.5,0.5 -q -o "$T/pf3.loomp"
+if [ "$(sed -n 3p "$T/pf3.loomp")" = "$(sed -n 3p "$T/pf.loomp")" ] && [ "$(grep -c '^region ' "$T/pf3.loomp")" = 2 ]
+then pass paint_fibre_read_back; else fail paint_fibre_read_back "$(cat "$T/pf3.loomp")"; fi
+# --rgb and --fibre together: a colour region, then a fibre region
+expect_ok paint_fibre_rgb "$LOOM" paint "$T/s.loomf" $PF --rgb 0.8,0.8,0.7 -q -o "$T/pf4.loomp"
+if grep -q '^region yarn 7 1.6 9.1 3 kind=warp rgb=0.8,0.8,0.7 ' "$T/pf4.loomp" && grep -q '^region fibre ' "$T/pf4.loomp"
+then pass paint_fibre_rgb_regions; else fail paint_fibre_rgb_regions "$(cat "$T/pf4.loomp")"; fi
+# the voxels: a box around the region exported from the fabric and the
+# paint file; density and albedo differ only at the crossings re-assigned
+# (painted 4..7 x 12..15 and the band of 1) and their four neighbours, and
+# differ at the painted ones
+XF="--region 192,0,0:480,192,48 --tile 288,192,48 --format vol --channels density,albedo --quiet"
+expect_ok export_unpainted "$LOOM" export "$T/s.loomf" $XF -o "$T/e0"
+expect_ok export_fibre "$LOOM" export "$T/pf.loomp" $XF -o "$T/e1"
+python3 - "$T/e0" "$T/e1" <<'PY' && pass paint_fibre_voxels || fail paint_fibre_voxels "$(cat "$T/pyout" 2>/dev/null)"
+import glob, os, struct, sys
+def vol(path):
+    b = open(path, "rb").read()
+    assert b[:4] == b"VOL\x03"
+    enc, X, Y, Z, C = struct.unpack("<5i", b[4:24])
+    return X, Y, Z, C * {1: 4, 3: 1}[enc], b[48:]
+changed = painted = 0
+for ch in ("density", "albedo"):
+    a = glob.glob(os.path.join(sys.argv[1], "*.%s.vol" % ch)); b = glob.glob(os.path.join(sys.argv[2], "*.%s.vol" % ch))
+    assert len(a) == 1 and len(b) == 1, (a, b)
+    X, Y, Z, E, va = vol(a[0]); _, _, _, _, vb = vol(b[0])
+    assert (X, Y, Z) == (288, 192, 48) and len(va) == len(vb) == X * Y * Z * E
+    for z in range(Z):
+        for y in range(Y):
+            k0 = (z * Y + y) * X * E
+            if va[k0:k0 + X * E] == vb[k0:k0 + X * E]:
+                continue
+            for x in range(X):
+                k = k0 + x * E
+                if va[k:k + E] == vb[k:k + E]:
+                    continue
+                J, I = (x + 192) // 24, y // 16
+                di = 4 - I if I < 4 else max(I - 7, 0)
+                dj = 12 - J if J < 12 else max(J - 15, 0)
+                assert max(di, dj) <= 2 and not (di == 2 and dj == 2), (x, y, z, I, J)
+                changed += 1
+                painted += di == 0 and dj == 0
+assert painted > 1000, (changed, painted)
+PY
+# determinism: a render of the paint file, 1 and 2 threads, and it differs
+# from the unpainted fabric's
+R="--width 64 --height 40 --spp 1 --elevation 89 --quiet"
+expect_ok render_unpainted "$LOOM" render "$T/s.loomf" $R -o "$T/r0.png"
+expect_ok render_fibre1 "$LOOM" render "$T/pf.loomp" $R --threads 1 -o "$T/r1.png"
+expect_ok render_fibre2 "$LOOM" render "$T/pf.loomp" $R --threads 2 -o "$T/r2.png"
+expect_same render_fibre_threads "$T/r1.png" "$T/r2.png"
+if cmp -s "$T/r0.png" "$T/r1.png"; then fail render_fibre_differs "same bytes"; else pass render_fibre_differs; fi
+# bad input
+expect_exit paint_bad_fibre 2 "$LOOM" paint "$T/s.loomf" --rect 0,0:1,1 --yarn warp --fibre tweed -o "$T/x.loomp"
+expect_err_contains paint_bad_fibre_msg "--fibre: expected cotton, rayon, silk, polyester, wool, linen, monofilament or none, got 'tweed'"
+expect_exit paint_fibre_no_yarn 2 "$LOOM" paint "$T/s.loomf" --rect 0,0:1,1 --fibre silk --defect stain -o "$T/x.loomp"
+expect_exit paint_missing_pair 1 "$LOOM" paint "$T/s.loomf" --rect 7.0,1.6:9.1,3.0 --yarn weft --fibre wool -o "$T/x.loomp"
+expect_err_contains paint_missing_pair_msg "painted fibre: crossing (4, 12) would have the (warp, weft) pair cotton/wool, but the database has exemplars of the pairs cotton/cotton, silk/cotton only; for a database with that pair, synthesize the fabric with the material per yarn type (loom synth DESIGN --yarn-fibre TYPE=wool"
+if [ ! -e "$T/x.loomp" ]; then pass paint_missing_pair_no_output; else fail paint_missing_pair_no_output "written"; fi
+printf 'loom-paint 2\nfabric %s\nregion fibre 0 0 1 1 kind=warp band=1 fibre=silk\n' "$T/s.loomf" >"$T/v2.loomp"
+expect_exit paint_fibre_v2 1 "$LOOM" render "$T/v2.loomp" $R -o "$T/x.png"
+expect_err_contains paint_fibre_v2_msg "v2.loomp:3: a fibre region needs version 3"
 rm -rf "$T"
