@@ -116,7 +116,7 @@ static void test_text_errors(void)
 	static const struct {
 		const char *text, *msg;
 	} cases[] = {
-		{"loom-paint 3\nfabric f\n", "not a loom paint file"},
+		{"loom-paint 4\nfabric f\n", "not a loom paint file"},
 		{"LOOM-paint 1\n", "not a loom paint file"},
 		{"loom-paint 1\nregion stain 0 0 1 1\n", "t:2: expected 'fabric PATH' first"},
 		{"loom-paint 1\n", "t:1: no 'fabric PATH' line"},
@@ -137,6 +137,11 @@ static void test_text_errors(void)
 		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1 band=1\n", "t:3: paint: a weave region needs its weave"},
 		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1 band=9\nweave 1 1\n#\n", "t:3: band must be a whole number 0..8"},
 		{"loom-paint 2\nfabric f\nregion stain 0 0 1 1 band=1\n", "t:3: band goes with 'region weave'"},
+		{"loom-paint 2\nfabric f\nregion fibre 0 0 1 1 fibre=silk\n", "t:3: a fibre region needs version 3"},
+		{"loom-paint 3\nfabric f\nregion fibre 0 0 1 1 kind=warp\n", "t:3: paint: a fibre region needs a material"},
+		{"loom-paint 3\nfabric f\nregion fibre 0 0 1 1 fibre=tweed\n", "t:3: fibre must be cotton, rayon"},
+		{"loom-paint 3\nfabric f\nregion fibre 0 0 1 1 fibre=default\n", "t:3: fibre must be cotton, rayon"},
+		{"loom-paint 3\nfabric f\nregion stain 0 0 1 1 fibre=silk\n", "t:3: fibre goes with 'region fibre'"},
 		{"loom-paint 2\nfabric f\nregion stain 0 0 1 1\nweave 1 1\n#\n", "t:4: 'weave W H' goes once after"},
 		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1\nweave 2 1\n#\n", "t:5: expected a row of W"},
 		{"loom-paint 2\nfabric f\nregion weave 0 0 1 1\nweave 1 1\n#\nweave 1 1\n#\n", "t:6: 'weave W H' goes once"},

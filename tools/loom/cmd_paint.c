@@ -275,7 +275,7 @@ int cmd_paint(int argc, char **argv)
 		         "material (cotton, rayon, silk, polyester, wool, linen, "
 		         "monofilament, none); the crossings copy exemplars of their new "
 		         "(warp, weft) pair, which the fabric's database must have "
-		         "(loom synth --yarn-fibre)"),
+		         "(see loom synth)"),
 		OPT_STRING(0, "weave", &weave_arg, "WEAVE", "weave the region in another "
 		           "weave: a name (plain, twill:2/2, satin:1/4, ...) or a design "
 		           "file (WIF, PBM, PNG), tiled from crossing 0,0"),
