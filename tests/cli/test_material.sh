@@ -172,7 +172,7 @@ expect_exit paint_bad_fibre 2 "$LOOM" paint "$T/s.loomf" --rect 0,0:1,1 --yarn w
 expect_err_contains paint_bad_fibre_msg "--fibre: expected cotton, rayon, silk, polyester, wool, linen, monofilament or none, got 'tweed'"
 expect_exit paint_fibre_no_yarn 2 "$LOOM" paint "$T/s.loomf" --rect 0,0:1,1 --fibre silk --defect stain -o "$T/x.loomp"
 expect_exit paint_missing_pair 1 "$LOOM" paint "$T/s.loomf" --rect 7.0,1.6:9.1,3.0 --yarn weft --fibre wool -o "$T/x.loomp"
-expect_err_contains paint_missing_pair_msg "painted fibre: crossing (4, 12) would have the (warp, weft) pair cotton/wool, but the database has exemplars of the pairs cotton/cotton, silk/cotton only; for a database with that pair, synthesize the fabric with the material per yarn type (loom synth DESIGN --yarn-fibre TYPE=wool"
+expect_err_contains paint_missing_pair_msg "painted fibre: crossing (4, 12) would have the (warp, weft) pair cotton/wool, but the database has exemplars of the pairs cotton/cotton, silk/cotton only; for a database with the pairs needed, synthesize the fabric with the material per yarn type (loom synth DESIGN --yarn-fibre TYPE=wool"
 if [ ! -e "$T/x.loomp" ]; then pass paint_missing_pair_no_output; else fail paint_missing_pair_no_output "written"; fi
 printf 'loom-paint 2\nfabric %s\nregion fibre 0 0 1 1 kind=warp band=1 fibre=silk\n' "$T/s.loomf" >"$T/v2.loomp"
 expect_exit paint_fibre_v2 1 "$LOOM" render "$T/v2.loomp" $R -o "$T/x.png"

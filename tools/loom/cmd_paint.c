@@ -457,7 +457,7 @@ int cmd_paint(int argc, char **argv)
 		    loom_paint_add(one, &r, &diag) != LOOM_OK ||
 		    (e = loom_paint_apply_weaves(one, &g, &diag)) != LOOM_OK) {
 			if (e == LOOM_EMISMATCH)
-				cli_error(prog, "%s: %s; for a database with that pair, "
+				cli_error(prog, "%s: %s; for a database with the pairs needed, "
 				          "synthesize the fabric with the material per yarn "
 				          "type (loom synth DESIGN --yarn-fibre TYPE=%s ..., "
 				          "docs/exemplars.md) and paint that fabric", path,
