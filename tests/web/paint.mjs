@@ -8,33 +8,21 @@
 //   node tests/web/paint.mjs URL OUTDIR
 // Prints one JSON line: the rectangle in cloth mm the page sent; exit 1 on
 // a failure it can tell.
-import { createRequire } from 'node:module';
-import { mkdtempSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { rmSync } from 'node:fs';
 import { join } from 'node:path';
+import { slow, newProfile, launch, firstPage } from './chromium.mjs';
 
 const [url, out] = process.argv.slice(2);
-const require = createRequire(join(process.env.LOOM_BUILD, 'web', 'package.json'));
-const { chromium } = require('playwright-core');
-const profile = mkdtempSync(join(tmpdir(), 'loom-chromium-'));
+const profile = newProfile();
 const result = { ok: false };
-const slow = process.env.LOOM_SAN ? 5 : 1;
 let ctx;
 const loaded = () => {
   const item = window.loomViewer && window.loomViewer.world.getItemAt(0);
   return item && item.getFullyLoaded();
 };
 try {
-  ctx = await chromium.launchPersistentContext(profile, {
-    executablePath: '/usr/bin/chromium',
-    headless: true,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
-           '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-    viewport: { width: 1200, height: 700 },
-  });
-  const page = ctx.pages()[0] || await ctx.newPage();
-  const errors = [];
-  page.on('pageerror', (e) => errors.push(String(e)));
+  ctx = await launch(profile);
+  const { page, errors } = await firstPage(ctx);
   await page.goto(url, { waitUntil: 'load', timeout: 60000 * slow });
   await page.waitForFunction(() => window.loomStats && window.loomStats.ready, null,
                              { timeout: 60000 * slow });
