@@ -46,7 +46,7 @@ elif [ "$what" = openvdb ]; then
 	need g++            command -v g++
 	need libopenvdb-dev has_header openvdb/openvdb.h
 	need libnanovdb-dev has_header nanovdb/NanoVDB.h
-	need libboost-dev   has_header boost/version.hpp
+	need libboost-dev   has_header boost/numeric/conversion/conversion_traits.hpp
 else
 	need pkg-config      command -v pkg-config
 	need libdeflate-dev  has_header libdeflate.h
@@ -60,6 +60,9 @@ else
 	need g++             command -v g++
 	need libopenvdb-dev  has_header openvdb/openvdb.h
 	need libnanovdb-dev  has_header nanovdb/NanoVDB.h
+	# OpenVDB's headers include Boost's, but Debian's libopenvdb-dev does
+	# not depend on libboost-dev: a fresh machine lacks them
+	need libboost-dev    has_header boost/numeric/conversion/conversion_traits.hpp
 fi
 if [ "$what" = fuzz ]; then
 	need clang       command -v clang
