@@ -868,7 +868,7 @@ static int vdb_child(char **argv)
 	double *ray = malloc(6 * n_rays * sizeof *ray);
 	uint64_t s = 99, ck[2] = {0, 0}, cnt[2] = {0, 0};
 	double rate[2];
-	int errors = 0;
+	int errors = 0, warmed = 0;
 
 	if (!pi || !ray)
 		return 1;
@@ -904,6 +904,7 @@ static int vdb_child(char **argv)
 		double c0 = cpu_s();
 		loom_texel tx;
 		if (k == 0) {
+			ck[0] = 0;
 			for (size_t i = 0; i < n_pts; i++) {
 				const int32_t *q = &pi[3 * i];
 				errors += loom_texture_voxel_ch(t, lo[0] + q[0], lo[1] + q[1], lo[2] + q[2],
@@ -930,6 +931,17 @@ static int vdb_child(char **argv)
 			}
 		}
 		rate[k] = (double)cnt[k] / fmax(cpu_s() - c0, 1e-9);
+		if (getenv("BENCH_VDB_CHILD_STATS")) { /* for profiling: not parsed */
+			loom_texture_stats ts;
+			loom_texture_get_stats(t, &ts);
+			printf("stats after %s: lookups %llu crossings %llu dz %llu hits %llu misses "
+			       "%llu rate %.0f/s\n", k ? "rays" : "random",
+			       (unsigned long long)ts.lookups, (unsigned long long)ts.crossings,
+			       (unsigned long long)ts.dz_columns, (unsigned long long)ts.hits,
+			       (unsigned long long)ts.misses, rate[k]);
+		}
+		if (k == 0 && getenv("BENCH_VDB_CHILD_WARM") && !warmed++)
+			k = -1; /* for profiling: the random pass again, warm */
 	}
 	loom_texture_close(t);
 	loom_fabric_free(f);
