@@ -635,18 +635,26 @@ static void *sc_run(void *arg)
 	return NULL;
 }
 
-static long vm_hwm(void)
+/* A "Vm...:" field of /proc/self/status in KiB (key with its colon), -1
+   when absent. */
+static long vm_kib(const char *key)
 {
 	char line[256];
-	long kb = -1;
-	FILE *f = fopen("/proc/self/status", "r");
-	if (!f)
+	long v = -1;
+	size_t n = strlen(key);
+	FILE *fp = fopen("/proc/self/status", "r");
+	if (!fp)
 		return -1;
-	while (fgets(line, sizeof line, f))
-		if (sscanf(line, "VmHWM: %ld", &kb) == 1)
-			break;
-	fclose(f);
-	return kb;
+	while (fgets(line, sizeof line, fp))
+		if (strncmp(line, key, n) == 0)
+			v = atol(line + n);
+	fclose(fp);
+	return v;
+}
+
+static long vm_hwm(void)
+{
+	return vm_kib("VmHWM:");
 }
 
 /* The child: bench_texture --stream LAYOUT THREADS BUDGET_MIB ORDER;
@@ -821,22 +829,6 @@ static void streams(const char *self)
 }
 
 /* ------------------------------------------- bench_vdb's loom child */
-
-/* A "Vm...:" field of /proc/self/status in KiB, -1 when absent. */
-static long vm_kib(const char *key)
-{
-	char line[256];
-	long v = -1;
-	size_t n = strlen(key);
-	FILE *fp = fopen("/proc/self/status", "r");
-	if (!fp)
-		return -1;
-	while (fgets(line, sizeof line, fp))
-		if (strncmp(line, key, n) == 0)
-			v = atol(line + n);
-	fclose(fp);
-	return v;
-}
 
 /*
  * bench_vdb's below-the-working-set child for loom, in C so that the peak
