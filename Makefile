@@ -263,7 +263,7 @@ tsan:
 # The peer benchmark (bench/bench_vdb.cpp, the only C++ in bench/): built
 # with g++ against OpenVDB and NanoVDB (no .pc file, so the libraries are
 # named here).
-$(BUILD)/bench/bench_vdb: bench/bench_vdb.cpp $(STATIC)
+$(BUILD)/bench/bench_vdb: bench/bench_vdb.cpp $(STATIC) $(BUILD)/bench/bench_texture
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CXX     $<")
 	$(Q)$(CXX) -std=c++17 $(OPT) -g -Wall -Wextra -Werror -Wno-unused-parameter \

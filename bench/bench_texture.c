@@ -31,6 +31,7 @@
  *
  *   build/bench/bench_texture [PARTS]    PARTS: digits of the parts to run
  *                                        (default 12345)
+ *   build/bench/bench_texture --vdb-child ...   bench_vdb's loom child (below)
  */
 #include "loom.h"
 
@@ -634,18 +635,26 @@ static void *sc_run(void *arg)
 	return NULL;
 }
 
-static long vm_hwm(void)
+/* A "Vm...:" field of /proc/self/status in KiB (key with its colon), -1
+   when absent. */
+static long vm_kib(const char *key)
 {
 	char line[256];
-	long kb = -1;
-	FILE *f = fopen("/proc/self/status", "r");
-	if (!f)
+	long v = -1;
+	size_t n = strlen(key);
+	FILE *fp = fopen("/proc/self/status", "r");
+	if (!fp)
 		return -1;
-	while (fgets(line, sizeof line, f))
-		if (sscanf(line, "VmHWM: %ld", &kb) == 1)
-			break;
-	fclose(f);
-	return kb;
+	while (fgets(line, sizeof line, fp))
+		if (strncmp(line, key, n) == 0)
+			v = atol(line + n);
+	fclose(fp);
+	return v;
+}
+
+static long vm_hwm(void)
+{
+	return vm_kib("VmHWM:");
 }
 
 /* The child: bench_texture --stream LAYOUT THREADS BUDGET_MIB ORDER;
@@ -819,6 +828,127 @@ static void streams(const char *self)
 				}
 }
 
+/* ------------------------------------------- bench_vdb's loom child */
+
+/*
+ * bench_vdb's below-the-working-set child for loom, in C so that the peak
+ * RSS it reports is loom's and not that of OpenVDB, TBB and libstdc++
+ * (34 MiB mapped before loom opens anything in the C++ bench):
+ *
+ *   bench_texture --vdb-child DB FABRIC X0 Y0 NX NY NZ NPTS NRAYS BUDGET_MIB
+ *
+ * The same work as bench_vdb's child (its work_make with seed 99: random
+ * voxels, then ray walks of unit steps, up to 256 inside the voxel
+ * centres' hull; density through loom_texture_voxel_ch), so the checksums
+ * agree with OpenVDB's.  Prints "RESULT rnd_rate ray_rate ck_rnd ck_ray
+ * hwm_kib base_kib".
+ */
+static int vdb_child(char **argv)
+{
+	long base = vm_kib("VmRSS:");
+	const char *dbp = argv[2], *fabp = argv[3];
+	int64_t lo[3] = {atoll(argv[4]), atoll(argv[5]), 0};
+	int n[3] = {atoi(argv[6]), atoi(argv[7]), atoi(argv[8])};
+	size_t n_pts = (size_t)atoll(argv[9]), n_rays = (size_t)atoll(argv[10]);
+	size_t budget = (size_t)atoll(argv[11]) * MIB;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_diag diag = {0};
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	int32_t *pi = malloc(3 * n_pts * sizeof *pi);
+	double *ray = malloc(6 * n_rays * sizeof *ray);
+	uint64_t s = 99, ck[2] = {0, 0}, cnt[2] = {0, 0};
+	double rate[2];
+	int errors = 0, warmed = 0;
+
+	if (!pi || !ray)
+		return 1;
+	/* bench_vdb's work_make: the real positions are drawn too (unused) */
+	for (size_t i = 0; i < n_pts; i++)
+		for (int a = 0; a < 3; a++) {
+			pi[3 * i + a] = (int32_t)(unit(&s) * n[a]);
+			(void)unit(&s);
+		}
+	for (size_t i = 0; i < n_rays; i++) {
+		double dir[3], len = 0;
+		for (int a = 0; a < 3; a++) {
+			ray[6 * i + a] = 0.5 + unit(&s) * (n[a] - 1);
+			dir[a] = 2 * unit(&s) - 1;
+			len += dir[a] * dir[a];
+		}
+		len = sqrt(len);
+		for (int a = 0; a < 3; a++)
+			ray[6 * i + 3 + a] = len > 0 ? dir[a] / len : (a == 2);
+	}
+	if (loom_db_open(dbp, &db, &diag) != LOOM_OK ||
+	    loom_fabric_open(fabp, db, 0, &f, &diag) != LOOM_OK) {
+		printf("bench_texture: vdb child: %s\n", diag.message);
+		return 1;
+	}
+	o.budget_bytes = budget;
+	o.max_threads = 2;
+	if (loom_texture_open(f, db, &o, &t, &diag) != LOOM_OK) {
+		printf("bench_texture: vdb child: %s\n", diag.message);
+		return 1;
+	}
+	for (int k = 0; k < 2; k++) {
+		double c0 = cpu_s();
+		loom_texel tx;
+		if (k == 0) {
+			ck[0] = 0;
+			for (size_t i = 0; i < n_pts; i++) {
+				const int32_t *q = &pi[3 * i];
+				errors += loom_texture_voxel_ch(t, lo[0] + q[0], lo[1] + q[1], lo[2] + q[2],
+				                                LOOM_CHANNEL_DENSITY, &tx) != LOOM_OK;
+				ck[0] += (uint64_t)lroundf(tx.density * 255.0f);
+			}
+			cnt[0] = n_pts;
+		} else {
+			for (size_t i = 0; i < n_rays; i++) {
+				const double *r = &ray[6 * i];
+				double p[3] = {r[0], r[1], r[2]};
+				for (int st = 0; st < 256; st++) {
+					if (!(p[0] >= 0.5 && p[0] <= n[0] - 0.5 && p[1] >= 0.5 &&
+					      p[1] <= n[1] - 0.5 && p[2] >= 0.5 && p[2] <= n[2] - 0.5))
+						break;
+					errors += loom_texture_voxel_ch(t, lo[0] + (int32_t)p[0],
+					                                lo[1] + (int32_t)p[1],
+					                                lo[2] + (int32_t)p[2],
+					                                LOOM_CHANNEL_DENSITY, &tx) != LOOM_OK;
+					ck[1] += (uint64_t)lroundf(tx.density * 255.0f);
+					cnt[1]++;
+					p[0] += r[3], p[1] += r[4], p[2] += r[5];
+				}
+			}
+		}
+		rate[k] = (double)cnt[k] / fmax(cpu_s() - c0, 1e-9);
+		if (getenv("BENCH_VDB_CHILD_STATS")) { /* for profiling: not parsed */
+			loom_texture_stats ts;
+			loom_texture_get_stats(t, &ts);
+			printf("stats after %s: lookups %llu crossings %llu dz %llu hits %llu misses "
+			       "%llu rate %.0f/s\n", k ? "rays" : "random",
+			       (unsigned long long)ts.lookups, (unsigned long long)ts.crossings,
+			       (unsigned long long)ts.dz_columns, (unsigned long long)ts.hits,
+			       (unsigned long long)ts.misses, rate[k]);
+		}
+		if (k == 0 && getenv("BENCH_VDB_CHILD_WARM") && !warmed++)
+			k = -1; /* for profiling: the random pass again, warm */
+	}
+	loom_texture_close(t);
+	loom_fabric_free(f);
+	loom_db_close(db);
+	free(pi);
+	free(ray);
+	if (errors) {
+		printf("bench_texture: vdb child: %d lookups failed\n", errors);
+		return 1;
+	}
+	printf("RESULT %.0f %.0f %llu %llu %ld %ld\n", rate[0], rate[1], (unsigned long long)ck[0],
+	       (unsigned long long)ck[1], vm_kib("VmHWM:"), base);
+	return 0;
+}
+
 /* ---------------------------------------------------------------- main */
 
 int main(int argc, char **argv)
@@ -846,6 +976,8 @@ int main(int argc, char **argv)
 	else
 		snprintf(dbp, sizeof dbp, "%s/bench/paper.ldb", build);
 	snprintf(fabp, sizeof fabp, "%s/bench/texture-paper.lfab", build);
+	if (argc == 12 && strcmp(argv[1], "--vdb-child") == 0)
+		return vdb_child(argv);
 	if (argc == 6 && strcmp(argv[1], "--stream") == 0)
 		return stream_child(argv, dbp, fabp);
 	if (stat(dbp, &st) != 0) {

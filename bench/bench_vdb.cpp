@@ -40,7 +40,9 @@
  * on first touch and never evicted) and loom at budgets of 16 and 64 MiB.
  * Their per-core rates, checksums (must agree) and peak RSS (VmHWM),
  * with each child's RSS before it opens anything (its base: libraries,
- * OpenVDB initialised) and loom's against budget + 16 MiB.
+ * OpenVDB initialised) and loom's against budget + 16 MiB.  loom's child
+ * is bench_texture --vdb-child (the same work in C, built next to this
+ * binary), so its peak RSS carries no OpenVDB, TBB or libstdc++.
  *
  *   build/bench/bench_vdb              the full run (~2 GB of RAM, minutes)
  *   build/bench/bench_vdb --check      a small run on the default database
@@ -682,7 +684,8 @@ bool warm(const Setup &S, loom_texture *t, const Mat &M, const Work &W)
 
 /* ---------------------------------------------- below the working set */
 
-/* Child: from cold, random voxels then ray walks, density; prints
+/* OpenVDB's child (loom's is bench_texture --vdb-child, the same work in
+   C): from cold, random voxels then ray walks, density; prints
    "RESULT rnd_rate ray_rate ck_rnd ck_ray hwm_kib base_kib". */
 int child(Setup &S, const char *what, const char *arg)
 {
@@ -692,18 +695,9 @@ int child(Setup &S, const char *what, const char *arg)
 	work_make(S, W, n_pts, n_rays, 99);
 	Sum s[2];
 	double rate[2];
-	if (strcmp(what, "loom") == 0) {
-		loom_texture *t = tex_open(S, (size_t)atol(arg) * MIB);
-		if (!t)
-			return 1;
-		Ctx c = {&S, &W, t, NULL};
-		for (int k = 0; k < 2; k++) {
-			double cpu;
-			s[k] = run_backend(c, B_LOOM, k ? M_RAYS : M_RANDOM, &cpu);
-			rate[k] = (double)s[k].n / std::max(cpu, 1e-9);
-		}
-		loom_texture_close(t);
-	} else {
+	if (strcmp(what, "vdb") != 0)
+		return 1;
+	{
 		openvdb::io::File file(arg);
 		file.open(true); /* delayed loading */
 		openvdb::FloatGrid::Ptr g =
@@ -739,11 +733,28 @@ struct ChildOut {
 	bool ok = false;
 };
 
+/* loom's child is bench_texture --vdb-child (next to this binary): a C
+   process, so its peak RSS is loom's own, without OpenVDB's libraries. */
+std::string loom_child_cmd(const char *self, const Setup &S, const char *budget)
+{
+	std::string dir(self);
+	size_t k = dir.rfind('/');
+	dir = k == std::string::npos ? "." : dir.substr(0, k);
+	size_t n_pts = (size_t)(S.scale * (S.check ? 2e4 : 3e5));
+	size_t n_rays = (size_t)(S.scale * (S.check ? 200 : 4000));
+	char num[256];
+	snprintf(num, sizeof num, " %lld %lld %d %d %d %zu %zu %s", (long long)S.lo[0],
+	         (long long)S.lo[1], S.n[0], S.n[1], S.n[2], n_pts, n_rays, budget);
+	return "'" + dir + "/bench_texture' --vdb-child '" + S.dbp + "' '" + S.fabp + "'" + num;
+}
+
 ChildOut run_child(const char *self, const Setup &S, const char *what, const char *arg)
 {
 	ChildOut o;
-	std::string cmd = std::string("'") + self + "' " + (S.check ? "--check " : "") +
-	                  "--child " + what + " '" + arg + "'";
+	std::string cmd = strcmp(what, "loom") == 0
+	                          ? loom_child_cmd(self, S, arg)
+	                          : std::string("'") + self + "' " + (S.check ? "--check " : "") +
+	                                    "--child " + what + " '" + arg + "'";
 	FILE *p = popen(cmd.c_str(), "r");
 	char line[512];
 	if (!p)
@@ -774,7 +785,8 @@ bool below(const char *self, const Setup &S, const Mat &M)
 	printf("\nbelow the working set: from cold, 1 thread, density; OpenVDB delayed loading "
 	       "of a %.1f MiB .vdb file\nagainst loom at a fixed budget (one process each, "
 	       "peak RSS = VmHWM); load average %s\n", (double)st.st_size / MIB, loadavg().c_str());
-	printf("base = the child's RSS before it opens anything (libraries, OpenVDB initialised);"
+	printf("base = the child's RSS before it opens anything (OpenVDB's: libraries, OpenVDB "
+	       "initialised;\nloom's child is bench_texture --vdb-child, a C process without them);"
 	       "\nloom's target: peak RSS <= budget + 16 MiB (\"limit\"; \"within\" also shown "
 	       "for peak - base)\n");
 	printf("%-22s %12s %12s %10s %8s | %8s %8s | %s\n", "backend", "random M/s", "rays M/s",

@@ -8,7 +8,8 @@
  *   Step 2.  Crossing: if (x, y) lies in the thread's current crossing
  *            entry, use it; else I = floor(y / b2), J = floor(x / b1) and
  *            find (I, J) in its set of XENT_WAYS among the thread's n_ent
- *            entries, or set one up (evicting the set's least recently
+ *            entries (the set: low bits of I and J, a tile of crossings), or
+ *            set one up (evicting the set's least recently
  *            used): the crossing's sources
  *            and its neighbours' (loom__fabric_crossing: base assignment of
  *            (I mod M, J mod N) shifted by its group's symmetry), the
@@ -145,9 +146,17 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	struct xent *e = NULL;
 	loom__fabric_xing xg;
 
-	/* the set of (I, J): a multiplicative hash, n_ent / XENT_WAYS sets */
-	uint64_t h = ((uint64_t)I * 0x9e3779b97f4a7c15ull) ^ ((uint64_t)J * 0xc2b2ae3d27d4eb4full);
-	struct xent *set = s->ent + (size_t)((h >> 32) & (t->n_ent / XENT_WAYS - 1)) * XENT_WAYS;
+	/* the set of (I, J): the low bits of J and I side by side (a tile of
+	   2^jb x 2^ib crossings, n_ent / XENT_WAYS sets), so that any
+	   rectangle of up to XENT_WAYS tiles' worth of crossings (16 x 16 with
+	   256 entries) fills every set evenly; a hash left a sixth of the
+	   warm random lookups of such a region setting up a crossing again
+	   (conflicts in sets holding more than XENT_WAYS of its crossings) */
+	uint32_t nset = t->n_ent / XENT_WAYS, lg = (uint32_t)__builtin_ctz(nset);
+	uint32_t jb = (lg + 1) / 2, ib = lg - jb;
+	uint32_t si = ((uint32_t)(uint64_t)I & ((1u << ib) - 1)) << jb |
+	              ((uint32_t)(uint64_t)J & ((1u << jb) - 1));
+	struct xent *set = s->ent + (size_t)si * XENT_WAYS;
 
 	for (int k = 0; k < XENT_WAYS; k++) {
 		struct xent *q = &set[k];

@@ -743,6 +743,51 @@ static void brute_force_voxels(void)
 	loom_texture_close(t);
 }
 
+/* A 16 x 16-crossing tile, anywhere on the bolt (negative crossings too),
+   fits the 256 crossing entries a thread gets at 64 MiB: looked up in
+   random order again and again, each crossing is set up once (the
+   entries' sets are tiles of crossings; a hash of (I, J) put more than
+   XENT_WAYS of them in some sets, which then set crossings up again on
+   every pass).  The values equal the reference throughout. */
+static void crossing_tile_fits(void)
+{
+	const int64_t origins[2][2] = {{-5, 37}, {1000003, -2000001}};
+	int64_t b1, b2, b3;
+
+	if (!g_ok)
+		return;
+	b1 = g_ref.b1, b2 = g_ref.b2, b3 = g_ref.b3;
+	for (int o = 0; o < 2; o++) {
+		loom_texture *t = open_tex(g_fab, g_db, 64u << 20, 1);
+		loom_texture_stats st;
+		uint64_t bad = 0;
+		if (!t)
+			return;
+		for (int pass = 0; pass < 4; pass++)
+			for (int k = 0; k < 256; k++) {
+				uint64_t c = rnd() % 256;
+				int64_t I = origins[o][0] + (int64_t)(c / 16), J = origins[o][1] + (int64_t)(c % 16);
+				int64_t x = J * b1 + rnd_range(0, b1), y = I * b2 + rnd_range(0, b2);
+				int64_t z = rnd_range(0, b3);
+				loom_texel a, b = ref_texel(&g_ref, x, y, z);
+				if (loom_texture_voxel(t, x, y, z, &a) != LOOM_OK || !texel_eq(&a, &b))
+					bad++;
+			}
+		/* and every crossing at least once */
+		for (int64_t c = 0; c < 256; c++) {
+			int64_t I = origins[o][0] + c / 16, J = origins[o][1] + c % 16;
+			loom_texel a, b = ref_texel(&g_ref, J * b1, I * b2, b3 / 2);
+			if (loom_texture_voxel(t, J * b1, I * b2, b3 / 2, &a) != LOOM_OK ||
+			    !texel_eq(&a, &b))
+				bad++;
+		}
+		CHECK_EQ_INT(bad, 0);
+		CHECK_EQ_INT(loom_texture_get_stats(t, &st), LOOM_OK);
+		CHECK_EQ_INT(st.crossings, 256);
+		loom_texture_close(t);
+	}
+}
+
 /* Non-power-of-two brick shape (3x5x7): the division path. */
 static void odd_brick_shape(void)
 {
@@ -1713,6 +1758,7 @@ int main(void)
 	RUN(orient_blend_no_cancel);
 	RUN(reference_matches_fabric);
 	RUN(brute_force_voxels);
+	RUN(crossing_tile_fits);
 	RUN(odd_brick_shape);
 	RUN(region_equals_points);
 	RUN(tiny_budgets_deterministic);
