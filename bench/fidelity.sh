@@ -13,7 +13,9 @@
 #   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite;
 #   FIDELITY_SIZE=N weaves the generated designs at N x N crossings, default
 #   32; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
-#   generation: give the fibre the database DB was made with)
+#   generation: give the fibre the database DB was made with;
+#   FIDELITY_REUSE=1 keeps the references already in WORKDIR, to compare
+#   another database against the same ones)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
@@ -27,6 +29,7 @@ mkdir -p "$W"
 "$LOOM" pattern make broken-twill --size ${S}x$S -q -o "$W/broken-twill.pbm"
 "$LOOM" pattern make basket --size ${S}x$S -q -o "$W/basket.pbm"
 "$LOOM" pattern make satin:1/7 --size ${S}x$S -q -o "$W/satin-1-7.pbm"
+"$LOOM" pattern make satin:1/9 --size ${S}x$S -q -o "$W/satin-1-9.pbm"
 cp "$TOP/data/herringbone-8.wif" "$TOP/data/overshot-sampler.wif" "$W/"
 get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))[sys.argv[2]])" "$1" "$2"; }
 # block size of DB (b1 b2)
@@ -34,7 +37,7 @@ set -- $("$LOOM" exemplar info "$DB" --json | python3 -c "import json,sys; b=jso
 B1=$1; B2=$2
 printf '| design | crossings | consistency | pair | top agreement (columns) | height RMSE debiased | block-offset SD | histogram L1 | seam ratio (ref %s) |\n' "->"
 printf '|---|---|---|---|---|---|---|---|---|\n'
-for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-7 herringbone-8 overshot-sampler}; do
+for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-7 satin-1-9 herringbone-8 overshot-sampler}; do
 	f=$W/$d.pbm
 	win=""
 	region=""
@@ -43,10 +46,11 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		win="--window 0,0:$WIN,$WIN"
 		region="--region 0,0:$((WIN * B1)),$((WIN * B2))"
 	fi
-	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 1 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt1.ldb"
-	# shellcheck disable=SC2086
-	"$LOOM" exemplar generate --design "$f" --like "$DB" --seed 2 $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt2.ldb"
+	for seed in 1 2; do
+		[ "${FIDELITY_REUSE:-0}" = 1 ] && [ -s "$W/$d-gt$seed.ldb" ] && continue
+		# shellcheck disable=SC2086
+		"$LOOM" exemplar generate --design "$f" --like "$DB" --seed $seed $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt$seed.ldb"
+	done
 	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
 	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")

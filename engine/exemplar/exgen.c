@@ -1728,11 +1728,15 @@ void loom__exgen_section(const loom__exgen *g, int kind, int index, float t,
    (docs/fidelity.md, "Exemplar coverage"): the S twills give the corners
    of herringbone turns, broken twills and baskets (codes 10, 11, 20, 21),
    basket 1/3 the warp and weft ribs (6, 9, 14, 17, 22, 25), so every code
-   of loom_synth_code has a source block. */
+   of loom_synth_code has a source block.  The 1/7 and 7/1 satins add floats
+   of seven (the others' are at most four): the 5-bit code sees a float's
+   neighbours but not its length, and a long float sits higher than a short
+   one ("Per-block height offsets" there). */
 static const char *const default_weaves[] = {
 	"twill:2/3", "twill:3/2", "twill:1/4", "twill:4/1",
 	"satin:2/3", "satin:3/2", "satin:1/4", "satin:4/1",
 	"twill:2/3:s", "twill:3/2:s", "basket:1/3",
+	"satin:1/7", "satin:7/1",
 };
 #define N_DEFAULT_WEAVES (sizeof default_weaves / sizeof default_weaves[0])
 

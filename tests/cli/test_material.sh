@@ -48,8 +48,8 @@ p=$(db_of "$T/s.loomf")
 python3 - "$T/info.json" <<'PY' && pass stripe_tags || fail stripe_tags "$(head -c 300 "$T/info.json")"
 import json, sys
 ex = json.load(open(sys.argv[1]))["exemplars"]
-assert len(ex) == 22
-assert all(e["fibre_warp"] == ("cotton" if i < 11 else "silk") and e["fibre_weft"] == "cotton"
+assert len(ex) == 26   # two pairs of the thirteen default weaves
+assert all(e["fibre_warp"] == ("cotton" if i < 13 else "silk") and e["fibre_weft"] == "cotton"
            for i, e in enumerate(ex))
 PY
 expect_ok stripe_verify "$LOOM" exemplar verify "$p"

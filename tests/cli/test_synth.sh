@@ -75,7 +75,7 @@ assert abs(j["seam_before_ratio"] - j["seam_before"] / j["internal_step"]) < 1e-
 assert j["fabric_bytes"] == os.path.getsize(sys.argv[2])
 assert j["algo"] == "dp" and j["seed"] == 3 and j["rank"] == 10 and j["group"] == 4
 assert sum(u["crossings"] for u in j["usage"]) == j["crossings"]
-assert len(j["usage"]) == j["database"]["exemplars"] == 11
+assert len(j["usage"]) == j["database"]["exemplars"] == 13
 assert j["database"]["block"] == [24, 16, 48]
 assert j["assignment_map"]["rows"] == j["rows"] and j["seam_map"]["max_voxels"] > 0
 sm = j["seam_map"]

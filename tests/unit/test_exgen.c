@@ -587,7 +587,7 @@ static int bottom_z(const vol *v, const loom_db_yarn *yarns, uint32_t x, uint32_
 
 /* Every exemplar of a database has its cloth mid-plane at the same z: the
    middle of the cloth at crossing centres, averaged separately over
-   warp-over and weft-over crossings, agrees between all eight default
+   warp-over and weft-over crossings, agrees between all the default
    weaves within one voxel.  The depth is 160 voxels so that an offset of
    a few percent of b3 per exemplar would show.  For smooth yarns and for
    cotton fibre-level yarns (the command's default). */

@@ -204,7 +204,8 @@ static int sub_generate(int argc, char **argv)
 		             "scale) or\ntiny (8x6x12, 72 um: test corpora)"),
 		OPT_STRING(0, "weaves", &weaves, "LIST", "comma-separated weaves (loom pattern "
 		           "names, e.g. twill:2/3,satin:1/4,plain); default: the 2/3, 3/2, 1/4, "
-		           "4/1 twills and the same four satins"),
+		           "4/1 twills and the same four satins, the 2/3 and 3/2 S twills, "
+		           "basket:1/3, satin:1/7 and satin:7/1"),
 		OPT_SEED(&seed, "N", "random seed (default 1)"),
 		OPT_SIZE2(0, "crossings", cross, "RxC", 1, UINT32_MAX, "crossings per exemplar, "
 		          "multiples of each weave's repeat (default: the smallest multiple >= "

@@ -281,8 +281,9 @@ LOOM_API int loom_exgen_check_params(const loom_exgen_params *p, loom_diag *diag
 /*
  * Fill p for a preset: "paper" (block 115x70x300, 5 um voxels), "small"
  * (24x16x48, 24 um; the built-in default) or "tiny" (8x6x12, 72 um; test
- * corpora), with the eleven default weaves (2/3, 3/2, 1/4, 4/1 twills and
- * satins, the 2/3 and 3/2 S twills, basket 1/3), seed 1, the default brick
+ * corpora), with the thirteen default weaves (2/3, 3/2, 1/4, 4/1 twills and
+ * satins, the 2/3 and 3/2 S twills, basket 1/3, the 1/7 and 7/1 satins),
+ * seed 1, the default brick
  * shape and level.  LOOM_EINVAL for an unknown name.
  */
 LOOM_API int loom_exgen_preset(const char *name, loom_exgen_params *p);
