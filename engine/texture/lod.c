@@ -56,9 +56,15 @@ unsigned loom__lod_setup(loom_texture *t)
 {
 	uint64_t next = t->n_bricks;
 
+	loom_db_info di;
+
 	t->lod = loom__lod_levels_for(t->bs);
 	if (!t->lod)
 		return 0;
+	/* the extinction of one density byte over a voxel (lod_density) */
+	t->lod_sigma = loom_db_get_info(t->db, &di) == LOOM_OK && di.voxel_size_um > 0
+	                       ? LOOM__LOD_EXTINCTION_MM * di.voxel_size_um * 1e-3 / 255.0
+	                       : 0;
 	t->cbs[0] = t->bs[0];
 	t->cbs[1] = t->bs[1];
 	t->cbs[2] = t->bs[2] / 2;
@@ -131,18 +137,54 @@ static double eig_max(double m[9], double v[3])
 	return m[4 * best];
 }
 
+/* The coarse density byte of an n x n x n box whose density bytes sum to
+   sum, with col[a][i][j] the sums of its n-voxel columns along axis a:
+   the density whose uniform block lets as much light through along the
+   three axes as the box does (mean of exp(-sigma col) over the 3 n^2
+   columns, sigma the extinction of a density byte over one voxel), so
+   gaps between yarns stay as transparent as they are at level 0 (the box
+   mean would close them: a uniform block always transmits less than a
+   heterogeneous one of the same mean).  Never above the rounded mean
+   (Jensen: equal for a uniform box); the mean itself when the box is
+   opaque along every column or sigma is 0.  Rounded to a byte; at least
+   1 when sum > 0. */
+static uint8_t lod_density(uint32_t col[3][LOD_BOX][LOD_BOX], uint32_t n, uint64_t sum,
+                           double sigma)
+{
+	uint64_t n3 = (uint64_t)n * n * n, mean = (sum + n3 / 2) / n3;
+	double tsum = 0, d;
+
+	if (!(sigma > 0))
+		return (uint8_t)mean;
+	for (int a = 0; a < 3; a++)
+		for (uint32_t i = 0; i < n; i++)
+			for (uint32_t j = 0; j < n; j++)
+				tsum += exp(-sigma * (double)col[a][i][j]);
+	tsum /= 3.0 * n * n;
+	if (!(tsum > 1e-300))
+		return (uint8_t)mean;
+	d = -log(tsum) / (sigma * n);
+	d = floor(d + 0.5);
+	if (d > (double)mean)
+		d = (double)mean;
+	return (uint8_t)(d < 1 ? 1 : d);
+}
+
 /* Coarse voxel of the n x n x n level-0 voxels from (x0, y0, z0) of brick
-   b (shape bs, V voxels a plane); kind maps labels to kinds. */
+   b (shape bs, V voxels a plane); kind maps labels to kinds; sigma the
+   extinction of a density byte over one voxel (lod_density). */
 static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
                        const uint8_t *kind, uint32_t x0, uint32_t y0, uint32_t z0,
-                       uint32_t n, uint8_t out[LOD_PLANES])
+                       uint32_t n, double sigma, uint8_t out[LOD_PLANES])
 {
-	uint64_t sum = 0, n3 = (uint64_t)n * n * n;
+	uint64_t sum = 0;
+	uint32_t col[3][LOD_BOX][LOD_BOX]; /* density sums of the columns along x, y, z */
 	double T[9] = {0}, kw[3] = {0, 0, 0}, ev[3], l1, tr;
 	uint8_t best[3] = {0, 0, 0}, bestd[3] = {0, 0, 0};
 	uint16_t code;
 	int kd;
 
+	memset(col, 0, sizeof col);
 	for (uint32_t y = y0; y < y0 + n; y++)
 		for (uint32_t x = x0; x < x0 + n; x++) {
 			size_t i0 = ((size_t)y * bs[0] + x) * bs[2];
@@ -153,6 +195,9 @@ static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
 				if (!d)
 					continue;
 				sum += d;
+				col[0][y - y0][z - z0] += d;
+				col[1][x - x0][z - z0] += d;
+				col[2][x - x0][y - y0] += d;
 				loom__orient_decode((uint16_t)(b[V + i] | b[2 * V + i] << 8), v);
 				for (int r = 0; r < 3; r++)
 					for (int c = 0; c < 3; c++)
@@ -169,7 +214,7 @@ static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
 		out[p] = 0;
 	if (!sum)
 		return;
-	out[0] = (uint8_t)((sum + n3 / 2) / n3);
+	out[0] = lod_density(col, n, sum, sigma);
 	tr = T[0] + T[4] + T[8];
 	l1 = eig_max(T, ev);
 	code = loom__orient_encode((float)ev[0], (float)ev[1], (float)ev[2]);
@@ -282,7 +327,7 @@ int loom__lod_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *
 							size_t i = ((size_t)ly * t->cbs[0] + lx) * t->cbs[2] + lz;
 							uint8_t v[LOD_PLANES];
 							filter_box(s->buf, t->bs, t->bv, e->kind, x * n, y * n,
-							           z * n, n, v);
+							           z * n, n, t->lod_sigma, v);
 							for (int p = 0; p < LOD_PLANES; p++)
 								out[p * cv + i] = v[p];
 						}
@@ -426,7 +471,7 @@ static int lod_sample(loom_texture *t, struct tslot *s, const double p[3], int f
 	}
 	an = wsum > 0 ? an / wsum : 0;
 	an = an < 0 ? 0 : an > 1 ? 1 : an; /* rounding of the weighted mean */
-	*spread = (1.0f - an) / 3.0f;
+	*spread = LOD_SPREAD_GAIN * (1.0f - an) / 3.0f;
 	return rc;
 }
 

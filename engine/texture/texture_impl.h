@@ -53,6 +53,12 @@
 
 #define LOD_MAX 3           /* coarse levels 1..LOD_MAX (2x, 4x, 8x; lod.c) */
 #define LOD_PLANES 5        /* density, orientation lo, hi, label, anisotropy */
+#define LOD_BOX (1 << LOD_MAX) /* level-0 voxels per axis of a coarsest voxel */
+/* How far a coarse voxel's fibres widen the microflake lobe: the render
+   adds LOD_SPREAD_GAIN (1 - a) / 3 to s^2 (a the anisotropy).  Fitted to
+   0 on the grazing scene of docs/rendering.md together with
+   LOOM__LOD_EXTINCTION_MM: the wider lobe made far cloth brighter. */
+#define LOD_SPREAD_GAIN 0.0f
 
 /* Per exemplar, read-only after open. */
 struct exm {
@@ -165,6 +171,8 @@ struct loom_texture {
 	unsigned lod;            /* coarse levels available (0: LOD off; lod.c) */
 	uint32_t cbs[3];         /* coarse brick shape: bx, by, bz / 2 */
 	size_t cbv;              /* voxels per coarse brick */
+	double lod_sigma;        /* extinction of a density byte over one voxel
+	                            for the coarse density (lod.c) */
 	loom_texture *live_next; /* registry (slots.c, under its lock) */
 };
 

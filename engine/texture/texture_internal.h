@@ -44,6 +44,13 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
    in flight on t.  NULL: no-op. */
 void loom__texture_simd(loom_texture *t, int on);
 
+/* The extinction per millimetre of a density-1 voxel for which a coarse
+   voxel's density matches its box's transmittance (lod.c, lod_density):
+   7 times the default loom render --density-scale of 80, fitted so the
+   grazing scene of docs/rendering.md renders with the mean colour of
+   full resolution. */
+#define LOOM__LOD_EXTINCTION_MM 560.0
+
 /* Coarse voxel (X, Y, Z) of level k (1..loom_texture_lod_levels) of
    exemplar u, read through the brick cache: its five bytes (density,
    orientation code low and high, label, anisotropy; lod.c), zeros outside
