@@ -481,10 +481,7 @@ static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 
 	if (rc != LOOM_OK)
 		return rc;
-	out->density = tx.density;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
+	loom__texel_medium(&tx, out);
 	return LOOM_OK;
 }
 
@@ -513,10 +510,8 @@ static int grid_lookup_lod(void *ctx, const double p[3], double fp,
 	c[2] = (int64_t)floor(p[2]) / m->zcell;
 	if ((rc = mj_cell_max(th, c, &bound)))
 		return rc;
+	loom__texel_medium(&tx, out);
 	out->density = tx.density < bound ? tx.density : bound;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
 	out->spread = spread;
 	return LOOM_OK;
 }
