@@ -1,14 +1,16 @@
 /*
  * engine/render/render_majorant.c - the majorant grid of a fabric's virtual
  * texture (docs/rendering.md, "Majorant grid"): an upper bound of the
- * density over every cell of one crossing (b1 x b2 voxels) by Z voxels of
- * height, so the tracer takes long free flights through empty space and
- * short ones only where the cloth is.
+ * density over every cell of sx x sy voxels (at most 4 x 4, tiling a
+ * crossing of b1 x b2) by Z voxels of height, so the tracer takes long free
+ * flights through empty space and short ones only where the fibres are
+ * (with whole-crossing cells three quarters of the tentative collisions on
+ * the cotton database fell between fibres).
  *
  * Built once from the database: per source block (every block of every
- * exemplar) and per z layer, the largest raw density of the block's
- * voxels in that layer: n_blocks * b3 bytes, O(source blocks), never
- * proportional to the bolt or the design.
+ * exemplar), per cell column of the block and per z layer, the largest
+ * raw density of the column's voxels in that layer: n_blocks * nsub * b3
+ * bytes, O(source blocks), never proportional to the bolt or the design.
  *
  * Per crossing (I, J) of the bolt, at render time: the crossing's source
  * block (loom_fabric_source_at, randomisation included) and a range
@@ -23,11 +25,12 @@
  * output layer z reads source layer z - dz, so its bound is the largest
  * layer maximum over source z in [z - dz_hi, z - dz_lo].  A trilinear
  * lookup blends the 8 voxels around the point, which may lie in the
- * neighbouring crossings and layers: its bound is the maximum over the 3 x 3
- * crossings and one more layer on each side.  Cell bounds are kept per
- * render thread in a small direct-mapped cache of crossings (fixed size),
- * so a crossing's edge-fix offsets are computed once per thread while it
- * stays cached.  Every value depends only on the fabric, never on the
+ * neighbouring cells, crossings and layers: its bound is the maximum over
+ * every cell of the 3 x 3 crossings and one more layer on each side.  Per
+ * render thread a small direct-mapped cache of crossings (fixed size)
+ * keeps each crossing's source block and offset range, so its edge-fix
+ * offsets are computed once per thread while it stays cached; a nearest
+ * cell's bound is then the largest of its column's few source layers.  Every value depends only on the fabric, never on the
  * thread or the order, so images stay identical for any thread count.
  */
 #include "render_internal.h"
