@@ -6,8 +6,10 @@
 #define LOOM_RENDER_INTERNAL_H
 
 #include "core/internal.h"
+#include "loom/texture.h"
 
 #include <math.h>
+#include <string.h>
 
 /* splitmix64 step: advance *state and return the next 64 random bits. */
 static inline uint64_t loom__splitmix64(uint64_t *state)
@@ -166,6 +168,16 @@ void loom__aov_begin(loom__aov_acc *a);
 void loom__aov_add(loom__aov_acc *a, const double L[3], const loom__aov_hit *h);
 void loom__aov_store(const loom__aov_acc *a, const loom_render_aov *out, size_t pix);
 void loom__aov_normal(const double g[3], const double d[3], double n[3]);
+
+/* The medium of texel tx (the virtual texture's volume sources: render_texture.c,
+   render_majorant.c); out->spread is the caller's. */
+static inline void loom__texel_medium(const loom_texel *tx, loom_medium_sample *out)
+{
+	out->density = tx->density;
+	memcpy(out->orient, tx->orientation, sizeof out->orient);
+	memcpy(out->albedo, tx->albedo, sizeof out->albedo);
+	out->alignment = tx->alignment;
+}
 
 /* Level of detail for a ray footprint of fp voxels with `levels` coarse
    levels: floor(log2 fp) clamped to [0, levels] (render_texture.c). */

@@ -1,14 +1,16 @@
 /*
  * engine/render/render_majorant.c - the majorant grid of a fabric's virtual
  * texture (docs/rendering.md, "Majorant grid"): an upper bound of the
- * density over every cell of one crossing (b1 x b2 voxels) by Z voxels of
- * height, so the tracer takes long free flights through empty space and
- * short ones only where the cloth is.
+ * density over every cell of sx x sy voxels (at most 4 x 4, tiling a
+ * crossing of b1 x b2) by Z voxels of height, so the tracer takes long free
+ * flights through empty space and short ones only where the fibres are
+ * (with whole-crossing cells three quarters of the tentative collisions on
+ * the cotton database fell between fibres).
  *
  * Built once from the database: per source block (every block of every
- * exemplar) and per z layer, the largest raw density of the block's
- * voxels in that layer: n_blocks * b3 bytes, O(source blocks), never
- * proportional to the bolt or the design.
+ * exemplar), per cell column of the block and per z layer, the largest
+ * raw density of the column's voxels in that layer: n_blocks * nsub * b3
+ * bytes, O(source blocks), never proportional to the bolt or the design.
  *
  * Per crossing (I, J) of the bolt, at render time: the crossing's source
  * block (loom_fabric_source_at, randomisation included) and a range
@@ -23,11 +25,12 @@
  * output layer z reads source layer z - dz, so its bound is the largest
  * layer maximum over source z in [z - dz_hi, z - dz_lo].  A trilinear
  * lookup blends the 8 voxels around the point, which may lie in the
- * neighbouring crossings and layers: its bound is the maximum over the 3 x 3
- * crossings and one more layer on each side.  Cell bounds are kept per
- * render thread in a small direct-mapped cache of crossings (fixed size),
- * so a crossing's edge-fix offsets are computed once per thread while it
- * stays cached.  Every value depends only on the fabric, never on the
+ * neighbouring cells, crossings and layers: its bound is the maximum over
+ * every cell of the 3 x 3 crossings and one more layer on each side.  Per
+ * render thread a small direct-mapped cache of crossings (fixed size)
+ * keeps each crossing's source block and offset range, so its edge-fix
+ * offsets are computed once per thread while it stays cached; a nearest
+ * cell's bound is then the largest of its column's few source layers.  Every value depends only on the fabric, never on the
  * thread or the order, so images stay identical for any thread count.
  */
 #include "render_internal.h"
@@ -40,17 +43,32 @@
 
 #define CACHE_ENTRIES 1024u /* crossings cached per render thread */
 #define MAX_ZCELLS 64u     /* z cells per crossing (Z grows to fit) */
+#define CELL_XY 4u         /* target cell size in x and y (voxels) */
+
+/* The largest divisor of b at most CELL_XY (cells tile a crossing). */
+static uint32_t cell_side(uint32_t b)
+{
+	uint32_t s = CELL_XY;
+	if (s > b)
+		s = b;
+	while (b % s)
+		s--;
+	return s;
+}
 
 struct loom_majorant {
 	const loom_fabric *f;
 	loom_texture *t;          /* set by loom_texture_volume_source_grid */
 	int filter;
 	uint32_t b1, b2, b3, zcell, nzc;
+	uint32_t sx, sy;          /* cell size in x, y (divides b1, b2) */
+	uint32_t nsx, nsy, nsub;  /* cells per crossing in x, y; nsub = nsx nsy */
 	uint32_t n_exemplars;
 	uint32_t *off;            /* first block of each exemplar */
 	uint32_t *bcols;          /* block columns of each exemplar */
 	uint64_t n_blocks;
-	uint8_t *layer;           /* n_blocks * b3: largest raw density */
+	uint8_t *layer;           /* n_blocks * nsub * b3: largest raw density
+	                             of each block's cell column per layer */
 	loom_edgefix_tables ef;   /* the fabric's edge fix (ef.coef NULL:
 	                             none) */
 	float *frange;            /* min, max of each field: 2 rh, then 2 rv */
@@ -59,14 +77,15 @@ struct loom_majorant {
 typedef struct mj_entry {
 	int64_t I, J;
 	int valid;
-	uint8_t cell[MAX_ZCELLS];
+	const uint8_t *blk;       /* the source block's nsub * b3 cell layers */
+	int64_t dlo, dhi;         /* range of the crossing's edge-fix offsets */
+	uint8_t tri[MAX_ZCELLS];  /* trilinear: bound of each z cell */
 } mj_entry;
 
 typedef struct mj_thread {
 	loom_majorant *m;
 	float a[4 * LOOM_EDGEFIX_MAX_RANK]; /* a crossing's coefficients */
-	uint8_t *vl;              /* 9 * b3: output layer bounds of 3 x 3
-	                             crossings */
+	mj_entry *last;           /* the entry of the last query */
 	mj_entry cache[CACHE_ENTRIES];
 } mj_thread;
 
@@ -98,6 +117,11 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 	while ((m->b3 + m->zcell - 1) / m->zcell > MAX_ZCELLS)
 		m->zcell *= 2;
 	m->nzc = (m->b3 + m->zcell - 1) / m->zcell;
+	m->sx = cell_side(m->b1);
+	m->sy = cell_side(m->b2);
+	m->nsx = m->b1 / m->sx;
+	m->nsy = m->b2 / m->sy;
+	m->nsub = m->nsx * m->nsy;
 	m->n_exemplars = info.n_exemplars;
 	m->off = calloc(info.n_exemplars + 1u, sizeof *m->off);
 	m->bcols = calloc(info.n_exemplars + 1u, sizeof *m->bcols);
@@ -138,7 +162,7 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 	} else {
 		memset(&m->ef, 0, sizeof m->ef);
 	}
-	m->layer = calloc(m->n_blocks * m->b3 + 1u, 1);
+	m->layer = calloc(m->n_blocks * m->nsub * m->b3 + 1u, 1);
 	if (!m->layer) {
 		rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
 		goto fail;
@@ -162,11 +186,13 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 				for (uint32_t y = 0; y < m->b2; y++) {
 					const uint8_t *row = buf + ((size_t)z * m->b2 + y) * ei.size[0];
 					for (uint32_t c = 0; c < ei.cols; c++) {
-						uint8_t *dst = m->layer +
-						    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->b3 + z;
-						for (uint32_t x = 0; x < m->b1; x++)
+						uint8_t *blk = m->layer +
+						    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->nsub * m->b3;
+						for (uint32_t x = 0; x < m->b1; x++) {
+							uint8_t *dst = blk + ((size_t)(y / m->sy) * m->nsx + x / m->sx) * m->b3 + z;
 							if (row[c * m->b1 + x] > *dst)
 								*dst = row[c * m->b1 + x];
+						}
 					}
 				}
 		}
@@ -197,16 +223,16 @@ LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads)
 
 	if (!m)
 		return 0;
-	per_thread = sizeof(mj_thread) + 9u * m->b3;
+	per_thread = sizeof(mj_thread);
 	return sizeof *m + 2u * (m->n_exemplars + 1u) * sizeof(uint32_t) +
 	       (m->frange ? 2u * (m->ef.rank_h + m->ef.rank_v + 1u) * sizeof(float) : 0) +
-	       (size_t)m->n_blocks * m->b3 + (size_t)threads * per_thread;
+	       (size_t)m->n_blocks * m->nsub * m->b3 + (size_t)threads * per_thread;
 }
 
 LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3])
 {
-	cell[0] = m ? m->b1 : 0;
-	cell[1] = m ? m->b2 : 0;
+	cell[0] = m ? m->sx : 0;
+	cell[1] = m ? m->sy : 0;
 	cell[2] = m ? m->zcell : 0;
 }
 
@@ -292,66 +318,71 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 	*dhi = (int64_t)ceil(hi);
 }
 
-/* Output layer bounds of crossing (I, J) into vl[b3]. */
-static int crossing_layers(const loom_majorant *m, float *a, int64_t I, int64_t J,
-                           uint8_t *vl)
+/* The source block's cell layers and the edge-fix offset range of
+   crossing (I, J). */
+static int crossing_src(const loom_majorant *m, float *a, int64_t I, int64_t J,
+                        const uint8_t **blk, int64_t *dlo, int64_t *dhi)
 {
 	loom_fabric_source s;
-	const uint8_t *blk;
-	int64_t dlo, dhi;
 	int rc;
 
 	if ((rc = loom_fabric_source_at(m->f, I, J, &s)) != LOOM_OK)
 		return rc;
 	if (s.exemplar >= m->n_exemplars)
 		return LOOM_ECORRUPT;
-	dz_range(m, &s.nbhd, a, &dlo, &dhi);
-	blk = m->layer + ((uint64_t)m->off[s.exemplar] +
-	                  (uint64_t)s.row * m->bcols[s.exemplar] + s.col) * m->b3;
-	for (int64_t z = 0; z < m->b3; z++) {
-		int64_t s0 = z - dhi, s1 = z - dlo;
-		uint8_t best = 0;
-		if (s0 < 0)
-			s0 = 0;
-		if (s1 > (int64_t)m->b3 - 1)
-			s1 = (int64_t)m->b3 - 1;
-		for (int64_t sz = s0; sz <= s1; sz++)
-			best = blk[sz] > best ? blk[sz] : best;
-		vl[z] = best;
-	}
+	dz_range(m, &s.nbhd, a, dlo, dhi);
+	*blk = m->layer + ((uint64_t)m->off[s.exemplar] +
+	                   (uint64_t)s.row * m->bcols[s.exemplar] + s.col) * m->nsub * m->b3;
 	return LOOM_OK;
 }
 
-/* Fill entry e with the cell bounds of crossing (I, J) for `filter`. */
+/* Bound of output layers [z0, z1] of one cell column col (b3 source layer
+   maxima) whose crossing has offsets in [dlo, dhi]: output layer z reads
+   source layer z - dz. */
+static uint8_t column_bound(const loom_majorant *m, const uint8_t *col, int64_t z0,
+                            int64_t z1, int64_t dlo, int64_t dhi)
+{
+	int64_t s0 = z0 - dhi, s1 = z1 - dlo;
+	uint8_t best = 0;
+
+	if (s0 < 0)
+		s0 = 0;
+	if (s1 > (int64_t)m->b3 - 1)
+		s1 = (int64_t)m->b3 - 1;
+	for (int64_t sz = s0; sz <= s1; sz++)
+		best = col[sz] > best ? col[sz] : best;
+	return best;
+}
+
+/* Fill entry e for crossing (I, J).  Nearest: the source block and offset
+   range (cell bounds are read from them per query, a few bytes each).
+   Trilinear: the 8 voxels around a point may lie in any neighbouring
+   cell, crossing or layer, so every cell of the crossing takes the
+   largest bound over the 3 x 3 crossings' cells, one layer more on each
+   side: tri[z cell]. */
 static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry *e)
 {
 	loom_majorant *m = th->m;
-	int tri = filter == LOOM_FILTER_TRILINEAR, rc;
-	int nb = tri ? 9 : 1;
+	int rc;
 
-	for (int k = 0; k < nb; k++) {
-		int64_t dI = tri ? k / 3 - 1 : 0, dJ = tri ? k % 3 - 1 : 0;
-		if ((rc = crossing_layers(m, th->a, I + dI, J + dJ,
-		                          th->vl + (size_t)k * m->b3)))
-			return rc;
-	}
-	for (uint32_t c = 0; c < m->nzc; c++) {
-		int64_t z0 = (int64_t)c * m->zcell, z1 = z0 + m->zcell - 1;
-		uint8_t best = 0;
-		if (tri) { /* the 8 voxels around a point: one more layer */
-			z0--;
-			z1++;
-		}
-		if (z0 < 0)
-			z0 = 0;
-		if (z1 > (int64_t)m->b3 - 1)
-			z1 = (int64_t)m->b3 - 1;
-		for (int k = 0; k < nb; k++)
-			for (int64_t z = z0; z <= z1; z++) {
-				uint8_t v = th->vl[(size_t)k * m->b3 + (size_t)z];
-				best = v > best ? v : best;
+	if ((rc = crossing_src(m, th->a, I, J, &e->blk, &e->dlo, &e->dhi)))
+		return rc;
+	if (filter == LOOM_FILTER_TRILINEAR) {
+		memset(e->tri, 0, sizeof e->tri);
+		for (int k = 0; k < 9; k++) {
+			const uint8_t *blk;
+			int64_t dlo, dhi;
+			if ((rc = crossing_src(m, th->a, I + k / 3 - 1, J + k % 3 - 1, &blk, &dlo,
+			                       &dhi)))
+				return rc;
+			for (uint32_t c = 0; c < m->nzc; c++) {
+				int64_t z0 = (int64_t)c * m->zcell - 1, z1 = z0 + m->zcell + 1;
+				for (uint32_t u = 0; u < m->nsub; u++) {
+					uint8_t v = column_bound(m, blk + (size_t)u * m->b3, z0, z1, dlo, dhi);
+					e->tri[c] = v > e->tri[c] ? v : e->tri[c];
+				}
 			}
-		e->cell[c] = best;
+		}
 	}
 	e->I = I;
 	e->J = J;
@@ -359,27 +390,51 @@ static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry 
 	return LOOM_OK;
 }
 
+/* Raw bound of cell (cx, cy) (within the crossing) and z cell cz of the
+   filled entry e. */
+static uint8_t entry_bound(const loom_majorant *m, int filter, const mj_entry *e,
+                           uint32_t cx, uint32_t cy, uint32_t cz)
+{
+	int64_t z0 = (int64_t)cz * m->zcell;
+
+	if (filter == LOOM_FILTER_TRILINEAR)
+		return e->tri[cz];
+	return column_bound(m, e->blk + ((size_t)cy * m->nsx + cx) * m->b3, z0,
+	                    z0 + m->zcell - 1, e->dlo, e->dhi);
+}
+
 static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
 {
 	mj_thread *th = thread_ctx;
 	loom_majorant *m = th->m;
 	uint64_t h;
+	int64_t I, J;
 	mj_entry *e;
+	uint8_t v;
 	int rc;
 
 	*bound = 0.0f;
 	if (c[2] < 0 || c[2] >= (int64_t)m->nzc)
 		return LOOM_OK;
-	h = (uint64_t)c[1] * 0x9e3779b97f4a7c15ull ^ (uint64_t)c[0] * 0xc2b2ae3d27d4eb4full;
-	e = &th->cache[(h >> 40) % CACHE_ENTRIES];
-	if (!e->valid || e->I != c[1] || e->J != c[0]) {
-		e->valid = 0;
-		if ((rc = fill_entry(th, m->filter, c[1], c[0], e)))
-			return rc;
+	I = loom_synth_floordiv(c[1], m->nsy);
+	J = loom_synth_floordiv(c[0], m->nsx);
+	e = th->last;
+	if (!e || e->I != I || e->J != J) {
+		h = (uint64_t)I * 0x9e3779b97f4a7c15ull ^ (uint64_t)J * 0xc2b2ae3d27d4eb4full;
+		e = &th->cache[(h >> 40) % CACHE_ENTRIES];
+		if (!e->valid || e->I != I || e->J != J) {
+			e->valid = 0;
+			th->last = NULL;
+			if ((rc = fill_entry(th, m->filter, I, J, e)))
+				return rc;
+		}
+		th->last = e;
 	}
+	v = entry_bound(m, m->filter, e, (uint32_t)(c[0] - J * m->nsx),
+	                (uint32_t)(c[1] - I * m->nsy), (uint32_t)c[2]);
 	/* raw / 255 as the texture computes it, widened a little so that no
 	   rounding of a blend can exceed it */
-	*bound = e->cell[c[2]] ? (float)e->cell[c[2]] / 255.0f * 1.0001f : 0.0f;
+	*bound = v ? (float)v / 255.0f * 1.0001f : 0.0f;
 	return LOOM_OK;
 }
 
@@ -387,39 +442,34 @@ static mj_thread *thread_new(loom_majorant *m)
 {
 	mj_thread *th = calloc(1, sizeof *th);
 
-	if (!th)
-		return NULL;
-	th->m = m;
-	th->vl = malloc(9u * m->b3);
-	if (!th->vl) {
-		free(th);
-		return NULL;
-	}
+	if (th)
+		th->m = m;
 	return th;
 }
 
 static void thread_free(mj_thread *th)
 {
-	if (th) {
-		free(th->vl);
-		free(th);
-	}
+	free(th);
 }
 
 LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I, int64_t J,
                                  uint8_t *out)
 {
 	mj_thread *th;
-	mj_entry e;
+	mj_entry *e;
 	int rc;
 
 	if (!m || !out || (filter != LOOM_FILTER_NEAREST && filter != LOOM_FILTER_TRILINEAR))
 		return LOOM_EINVAL;
 	if (!(th = thread_new(m)))
 		return LOOM_ENOMEM;
-	rc = fill_entry(th, filter, I, J, &e);
+	e = &th->cache[0];
+	rc = fill_entry(th, filter, I, J, e);
 	if (!rc)
-		memcpy(out, e.cell, m->nzc);
+		for (uint32_t u = 0; u < m->nsub; u++)
+			for (uint32_t c = 0; c < m->nzc; c++)
+				out[(size_t)u * m->nzc + c] =
+				    entry_bound(m, filter, e, u % m->nsx, u / m->nsx, c);
 	thread_free(th);
 	return rc;
 }
@@ -434,10 +484,7 @@ static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 
 	if (rc != LOOM_OK)
 		return rc;
-	out->density = tx.density;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
+	loom__texel_medium(&tx, out);
 	return LOOM_OK;
 }
 
@@ -461,15 +508,13 @@ static int grid_lookup_lod(void *ctx, const double p[3], double fp,
 
 	if (rc != LOOM_OK)
 		return rc;
-	c[0] = loom_synth_floordiv((int64_t)floor(p[0]), m->b1);
-	c[1] = loom_synth_floordiv((int64_t)floor(p[1]), m->b2);
+	c[0] = loom_synth_floordiv((int64_t)floor(p[0]), m->sx);
+	c[1] = loom_synth_floordiv((int64_t)floor(p[1]), m->sy);
 	c[2] = (int64_t)floor(p[2]) / m->zcell;
 	if ((rc = mj_cell_max(th, c, &bound)))
 		return rc;
+	loom__texel_medium(&tx, out);
 	out->density = tx.density < bound ? tx.density : bound;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
 	out->spread = spread;
 	return LOOM_OK;
 }

@@ -20,10 +20,7 @@ static int lookup_common(loom_texture *t, const double p[3], int filter,
 
 	if (rc != LOOM_OK)
 		return rc;
-	out->density = tx.density;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
+	loom__texel_medium(&tx, out);
 	return LOOM_OK;
 }
 
@@ -58,10 +55,7 @@ static int lookup_lod_common(loom_texture *t, const double p[3], double fp, int 
 
 	if (rc != LOOM_OK)
 		return rc;
-	out->density = tx.density;
-	memcpy(out->orient, tx.orientation, sizeof out->orient);
-	memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-	out->alignment = tx.alignment;
+	loom__texel_medium(&tx, out);
 	out->spread = spread;
 	return LOOM_OK;
 }

@@ -196,8 +196,8 @@ LOOM_API int loom_texture_volume_source(loom_texture *t, const loom_fabric *f,
  * Majorant grid of a fabric (docs/rendering.md, "Majorant grid"): per
  * source block of the database and per z layer the largest density, built
  * by reading every block once (n_blocks * b3 bytes; never proportional to
- * the bolt).  Cells are one crossing (b1 x b2 voxels) by Z voxels (1, more
- * when b3 > 64).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
+ * the bolt).  Cells are at most 4 x 4 voxels of a crossing (the largest
+ * divisors of b1, b2) by Z voxels (1, more when b3 > 64).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
  * detached fabric); read errors of loom_db_read_box; LOOM_ENOMEM.
  */
 typedef struct loom_majorant loom_majorant;
@@ -208,8 +208,9 @@ LOOM_API void loom_majorant_free(loom_majorant *m);
 LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads);
 /* Cell size in voxels (x, y, z). */
 LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3]);
-/* Raw density bounds (0..255) of the z cells of crossing (I, J) for lookups
-   with `filter`, into out[ceil(b3 / Z)] (for tests and tools).  LOOM_OK,
+/* Raw density bounds (0..255) of the cells of crossing (I, J) for lookups
+   with `filter`, into out[(cy * nsx + cx) * nzc + z cell] (nsx, nsy: cells
+   per crossing in x, y; nzc = ceil(b3 / Z); for tests and tools).  LOOM_OK,
    LOOM_EINVAL, LOOM_ENOMEM, or an error of the fabric's lookups. */
 LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I,
                                  int64_t J, uint8_t *out);
