@@ -911,31 +911,47 @@ static void tiny_budgets_deterministic(void)
 	free(ref_bytes);
 }
 
+/* A database NAME of the tiny preset with the given brick, seed and block
+   shape in tmpdir, a fabric of g_design over it and its reference: 0, or
+   -1 with what was made freed (*db, *f NULL). */
+static int block_fixture(const char *name, const uint32_t brick[3], uint64_t seed,
+                         const uint32_t block[3], loom_db **db, loom_fabric **f, ref *r)
+{
+	char path[4300];
+
+	*db = NULL;
+	*f = NULL;
+	snprintf(path, sizeof path, "%s/%s", tmpdir, name);
+	CHECK_EQ_INT(make_db_block(path, "tiny", brick, seed, block), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(path, db, NULL), LOOM_OK);
+	if (!*db)
+		return -1;
+	*f = synth(g_design, *db);
+	if (!*f || ref_init(r, *f, *db) != 0) {
+		CHECK(0);
+		loom_fabric_free(*f);
+		loom_db_close(*db);
+		*f = NULL;
+		*db = NULL;
+		return -1;
+	}
+	return 0;
+}
+
 /* Blocks 70 voxels wide: region reads gather and transpose whole 16-column
    blocks and 64-column chunks (the tiny preset's 8-voxel blocks never
    fill one); both layouts against the reference. */
 static void wide_blocks_region(void)
 {
 	const uint32_t block[3] = {70, 5, 20}, brick[3] = {16, 4, 16};
-	char path[4300];
-	loom_db *db = NULL;
-	loom_fabric *f = NULL;
+	loom_db *db;
+	loom_fabric *f;
 	loom_texture *t = NULL;
 	ref r;
 	uint64_t bad = 0;
 
-	if (!g_ok)
+	if (!g_ok || block_fixture("wide.ldb", brick, 5, block, &db, &f, &r) != 0)
 		return;
-	snprintf(path, sizeof path, "%s/wide.ldb", tmpdir);
-	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 5, block), LOOM_OK);
-	CHECK_EQ_INT(loom_db_open(path, &db, NULL), LOOM_OK);
-	if (!db)
-		return;
-	f = synth(g_design, db);
-	if (!f || ref_init(&r, f, db) != 0) {
-		CHECK(0);
-		goto done;
-	}
 	t = open_tex(f, db, 8u << 20, 1);
 	for (int it = 0; t && it < 12; it++) {
 		int64_t lo[3], hi[3];
@@ -979,7 +995,6 @@ static void wide_blocks_region(void)
 	CHECK_EQ_INT(bad, 0);
 	loom_texture_close(t);
 	ref_free(&r);
-done:
 	loom_fabric_free(f);
 	loom_db_close(db);
 }
@@ -1145,25 +1160,14 @@ static void region_paths(void)
 static void region_sub_voxel(void)
 {
 	const uint32_t block[3] = {40, 6, 150}, brick[3] = {16, 2, 32};
-	char path[4300];
-	loom_db *db = NULL;
-	loom_fabric *f = NULL;
+	loom_db *db;
+	loom_fabric *f;
 	loom_texture *t = NULL;
 	ref r;
 	uint64_t bad = 0, boxes = 0, cols[3] = {0, 0, 0};
 
-	if (!g_ok)
+	if (!g_ok || block_fixture("thick.ldb", brick, 11, block, &db, &f, &r) != 0)
 		return;
-	snprintf(path, sizeof path, "%s/thick.ldb", tmpdir);
-	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 11, block), LOOM_OK);
-	CHECK_EQ_INT(loom_db_open(path, &db, NULL), LOOM_OK);
-	if (!db)
-		return;
-	f = synth(g_design, db);
-	if (!f || ref_init(&r, f, db) != 0) {
-		CHECK(0);
-		goto done;
-	}
 	/* whole (f = 0), below (1..8), above (9..15) in a few crossings */
 	for (int64_t I = 0; I < 3; I++)
 		for (int64_t J = 0; J < 3; J++) {
@@ -1225,7 +1229,6 @@ static void region_sub_voxel(void)
 	CHECK_EQ_INT(bad, 0);
 	loom_texture_close(t);
 	ref_free(&r);
-done:
 	loom_fabric_free(f);
 	loom_db_close(db);
 }
