@@ -8,9 +8,11 @@
  *      texture) looked up the same way (a non-inlined call per voxel that
  *      fills the same loom_texel: density, orientation decode, kind, type,
  *      albedo).  Checksums of both must agree.
- *   2. region reads (64 x 64 x b3 tiles, x fastest, all five channels and
- *      density alone) in voxels/s against memcpy of the same bytes and
- *      against copying the tile out of the dense array.
+ *   2. region reads (64 x 64 x b3 tiles, x and z fastest, all five
+ *      channels and density alone) in voxels/s against memcpy of the same
+ *      bytes, against copying the tile out of the dense array, and against
+ *      the same reads with whole-voxel offsets (every column copied with
+ *      its nearer whole offset, no sub-voxel blend: issue 13's peer).
  *   3. from cold, per budget (8 MiB .. 1 GiB): coherent and random lookups
  *      over a whole design repeat, rates per core and hit rates.
  *   4. peak resident memory (VmHWM) of `loom sample --random` on a
@@ -34,6 +36,7 @@
  *   build/bench/bench_texture --vdb-child ...   bench_vdb's loom child (below)
  */
 #include "loom.h"
+#include "texture/texture_internal.h" /* loom__texture_region_whole */
 
 #include <math.h>
 #include <pthread.h>
@@ -387,30 +390,35 @@ static void region_reads(loom_texture *t, const int64_t lo[3], const int64_t hi[
 	printf("\n2. region reads, %zux%zux%zu tiles, M voxels/s per core (best of %d).\n"
 	       "   memcpy: the same number of output bytes.  hot: every tile into the same\n"
 	       "   buffer (it stays in cache); fresh: tiles into successive parts of a\n"
-	       "   768 MiB ring (beyond the caches, as an export writes them)\n", tile, tile,
-	       nz, REPS);
-	printf("%-9s %-9s %4s | %9s %9s %6s | %9s %9s %6s | %9s %6s\n", "channels", "layout",
-	       "B/v", "memcpy", "texture", "ratio", "memcpy", "texture", "ratio", "dense", "t/d");
-	printf("%-24s | %-26s | %-26s |\n", "", "hot", "fresh");
+	       "   768 MiB ring (beyond the caches, as an export writes them).  whole: the\n"
+	       "   same reads with whole-voxel offsets (no sub-voxel blend); s/w: texture\n"
+	       "   over whole\n", tile, tile, nz, REPS);
+	printf("%-9s %-9s %4s | %9s %9s %9s %6s %6s | %9s %9s %9s %6s %6s | %9s %6s\n",
+	       "channels", "layout", "B/v", "memcpy", "texture", "whole", "ratio", "s/w", "memcpy",
+	       "texture", "whole", "ratio", "s/w", "dense", "t/d");
+	printf("%-24s | %-46s | %-46s |\n", "", "hot", "fresh");
 	memset(src, 1, 6 * n + 64);
 	memset(buf, 0, 6 * n);
 	memset(ring, 0, ring_bytes); /* resident before timing */
 	for (int cfg = 0; cfg < 4; cfg++) {
 		int dens_only = cfg & 1, zf = cfg >> 1;
 		size_t bpv = dens_only ? 1 : 6, tb = bpv * n, slots = ring_bytes / tb;
-		double best[5] = {0, 0, 0, 0, 0}; /* memcpy hot, tex hot, memcpy fresh,
-		                                     tex fresh, dense */
+		/* memcpy hot, tex hot, memcpy fresh, tex fresh, dense, whole hot,
+		   whole fresh; interleaved within each repetition */
+		double best[7] = {0, 0, 0, 0, 0, 0, 0};
 		uint64_t next = 0;
 		for (int rep = 0; rep < REPS; rep++) {
 			int tiles = (int)(40 * g_scale) + 1;
-			for (int m = 0; m < 5; m++) {
+			for (int m = 0; m < 7; m++) {
 				double c0 = cpu_s();
 				uint64_t s = (uint64_t)rep * 77 + 5;
+				int fresh = m == 2 || m == 3 || m == 6;
 				if (m == 4 && zf)
 					continue; /* the dense array is x fastest */
+				loom__texture_region_whole(t, m >= 5);
 				for (int k = 0; k < tiles; k++) {
 					int64_t a[3], b[3];
-					uint8_t *dst = m == 2 || m == 3 ? ring + (next++ % slots) * tb : buf;
+					uint8_t *dst = fresh ? ring + (next++ % slots) * tb : buf;
 					loom_texture_region r = {0};
 					r.layout = zf ? LOOM_REGION_Z_FASTEST : LOOM_REGION_X_FASTEST;
 					region_at(&r, dst, n, dens_only);
@@ -425,6 +433,7 @@ static void region_reads(loom_texture *t, const int64_t lo[3], const int64_t hi[
 					else
 						loom_texture_read_region(t, a, b, &r);
 				}
+				loom__texture_region_whole(t, 0);
 				{
 					double rate = (double)tiles * (double)n / (cpu_s() - c0);
 					if (rate > best[m])
@@ -432,10 +441,11 @@ static void region_reads(loom_texture *t, const int64_t lo[3], const int64_t hi[
 				}
 			}
 		}
-		printf("%-9s %-9s %4zu | %8.0fM %8.0fM %6.3f | %8.0fM %8.0fM %6.3f | ",
-		       dens_only ? "density" : "all five", zf ? "z-fastest" : "x-fastest", bpv,
-		       best[0] / 1e6, best[1] / 1e6, best[1] / best[0], best[2] / 1e6,
-		       best[3] / 1e6, best[3] / best[2]);
+		printf("%-9s %-9s %4zu | %8.0fM %8.0fM %8.0fM %6.3f %6.3f | %8.0fM %8.0fM %8.0fM "
+		       "%6.3f %6.3f | ", dens_only ? "density" : "all five",
+		       zf ? "z-fastest" : "x-fastest", bpv, best[0] / 1e6, best[1] / 1e6,
+		       best[5] / 1e6, best[1] / best[0], best[1] / best[5], best[2] / 1e6,
+		       best[3] / 1e6, best[6] / 1e6, best[3] / best[2], best[3] / best[6]);
 		if (zf)
 			printf("%9s %6s\n", "-", "-");
 		else
@@ -443,9 +453,12 @@ static void region_reads(loom_texture *t, const int64_t lo[3], const int64_t hi[
 		printf("{\"bench\":\"texture_region\",\"channels\":\"%s\",\"layout\":\"%s\","
 		       "\"bytes_per_voxel\":%zu,\"memcpy_hot\":%.0f,\"texture_hot\":%.0f,"
 		       "\"ratio_hot\":%.4f,\"memcpy_fresh\":%.0f,\"texture_fresh\":%.0f,"
-		       "\"ratio_fresh\":%.4f,\"dense\":%.0f}\n", dens_only ? "density" : "all",
+		       "\"ratio_fresh\":%.4f,\"dense\":%.0f,\"whole_hot\":%.0f,"
+		       "\"whole_fresh\":%.0f,\"sub_over_whole_hot\":%.4f,"
+		       "\"sub_over_whole_fresh\":%.4f}\n", dens_only ? "density" : "all",
 		       zf ? "z" : "x", bpv, best[0], best[1], best[1] / best[0], best[2], best[3],
-		       best[3] / best[2], best[4]);
+		       best[3] / best[2], best[4], best[5], best[6], best[1] / best[5],
+		       best[3] / best[6]);
 	}
 	free(buf);
 	free(src);

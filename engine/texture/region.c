@@ -9,9 +9,12 @@
  *   column (offset and valid z range), step 5 once per brick of the group,
  *   then each column's z-run in that brick is copied; z above, below or
  *   beyond the source block is filled with zeros.  A column whose offset
- *   has a fraction is blended in the same pass straight from the brick
- *   (frac_run: SSE2 or SSSE3 PMADDUBSW, scalar tails), the density
- *   outside a run carried from brick to brick.  label -> kind / type
+ *   has a fraction is copied like a whole-voxel column with its nearer
+ *   whole offset (the other planes are then final), the one source voxel
+ *   past its run read in the same brick pass; after the pass its copied
+ *   densities are blended in place (blend_col: 16 voxels at a time, SSE2
+ *   or SSSE3 PMADDUBSW, raw_blend's density rule in one place).
+ *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
  *   (kind_type), else through 256-entry tables.  z-fastest output: the
@@ -231,173 +234,174 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 		kind_type(t, k, ok ? ok + off : NULL, ot ? ot + off : NULL, lab, n);
 }
 
-/* The SIMD blends below compute raw_blend's density with a shift by 4. */
+/* ------------------------------------------- the sub-voxel density blend */
+
+/* raw_blend's density rule for region reads, in one place: a column whose
+   offset has a fraction is first copied like a whole-voxel column with
+   its nearer whole offset (every plane the nearer voxel's, as raw_blend
+   keeps them); then blend_col rewrites its densities in place, each from
+   its nearer density n (the voxel itself) and its farther density o (the
+   copied voxel above or below it, or the end voxel past the run): n where
+   n is empty or o is not, else the linear blend (DZ_SUB - g) n + g o,
+   rounded (o = 0 there), g the farther voxel's weight.  blend1 is the
+   scalar form, blend16 the same for 16 voxels (SSE2, or SSSE3 PMADDUBSW
+   and PMULHRSW where the CPU has it); a change of raw_blend's density rule
+   is a change of these two. */
+
 _Static_assert(DZ_SUB == 16, "region blends assume 1/16-voxel offsets");
 
-/* One blended voxel at D[at] (raw_blend): nearer density nr, farther fr
-   (weight g / DZ_SUB): nr, except at a surface (nr > 0, fr = 0), where
-   the blend.  (The other planes are the nearer voxel's, copied by the
-   whole-voxel path.) */
-static inline void blend1(uint8_t *D, size_t at, unsigned nr, unsigned fr, unsigned g)
+static inline uint8_t blend1(unsigned n, unsigned o, unsigned g)
 {
-	D[at] = (uint8_t)(nr && !fr ? ((DZ_SUB - g) * nr + DZ_SUB / 2) / DZ_SUB : nr);
+	return (uint8_t)(n && !o ? (g * o + (DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB : n);
 }
 
 #ifdef __SSE2__
-/* The 16 blends v of voxels i .. i + 15 of a run (nearer densities nr,
-   farther fr) to out as blend1 keeps them: the blend where the farther
-   voxel is empty and the nearer is not, else the nearer density; shared
-   by the SSE2 and SSSE3 kernels (SSE2 only, so it inlines into both). */
-static inline void blend_store16(uint8_t *out, __m128i v, __m128i nr, __m128i fr, size_t i)
+/* 16 blends of nearer densities n and farther o with weights w: for the
+   SSSE3 form, (DZ_SUB - g, g) byte pairs; for the SSE2 form, 16-bit
+   DZ_SUB - g (w) and g (w2).  Returns them; *any: some voxel changed
+   (n non-empty over an empty o), else the result is n. */
+static inline __m128i blend16_sse2(__m128i n, __m128i o, __m128i w, __m128i w2, int *any)
 {
-	const __m128i zero = _mm_setzero_si128();
-	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(nr, zero), _mm_cmpeq_epi8(fr, zero));
+	const __m128i zero = _mm_setzero_si128(), h = _mm_set1_epi16(DZ_SUB / 2);
+	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(n, zero), _mm_cmpeq_epi8(o, zero));
+	__m128i lo, hi, v;
 
-	_mm_storeu_si128((__m128i *)(out + i),
-	                 _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, nr)));
+	*any = _mm_movemask_epi8(m);
+	if (!*any)
+		return n;
+	lo = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(n, zero), w),
+	                                 _mm_mullo_epi16(_mm_unpacklo_epi8(o, zero), w2)),
+	                   h);
+	hi = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(n, zero), w),
+	                                 _mm_mullo_epi16(_mm_unpackhi_epi8(o, zero), w2)),
+	                   h);
+	v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
+	return _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, n));
 }
 #endif
-
-/* n >= 1 consecutive output voxels of a column (sink offset at0 for the
-   first) straight from a brick's density run: their nearer densities are
-   near[0 .. n), the farther ones near[i + dir], inside the brick, except
-   that with c0 >= 0 (dir -1 only) voxel 0's farther density is c0 (from
-   the previous brick or the end voxel; near[-1] is not read).  Writes the
-   blends (weight g / DZ_SUB for the farther voxel; zero where the nearer
-   is empty) to D at at0 .. at0 + n - 1, 16 voxels at a time (SSE2; the
-   last 16 overlapping; the first block's farther densities for c0 >= 0
-   are the nearer ones shifted by a byte). */
-static void blend_run(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                      size_t at0, int c0)
-{
-	uint8_t *out = D + at0;
-	const uint8_t *far = near + dir;
-	const unsigned gn = DZ_SUB - g;
-	size_t i = 0;
-
-#ifdef __SSE2__
-	if (n >= 16) {
-		const __m128i zero = _mm_setzero_si128(), G = _mm_set1_epi16((short)g);
-		const __m128i GN = _mm_set1_epi16((short)gn), H = _mm_set1_epi16(DZ_SUB / 2);
-		for (;;) {
-			__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
-			__m128i fr = c0 >= 0 && i == 0
-			                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
-			                     : _mm_loadu_si128((const __m128i *)(far + i));
-			__m128i lo = _mm_add_epi16(
-			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(fr, zero), G),
-			                      _mm_mullo_epi16(_mm_unpacklo_epi8(nr, zero), GN)),
-			        H);
-			__m128i hi = _mm_add_epi16(
-			        _mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(fr, zero), G),
-			                      _mm_mullo_epi16(_mm_unpackhi_epi8(nr, zero), GN)),
-			        H);
-			__m128i v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
-			blend_store16(out, v, nr, fr, i);
-			if (i + 16 == n)
-				return;
-			i = i + 32 <= n ? i + 16 : n - 16;
-		}
-	}
-#endif
-	if (c0 >= 0) {
-		blend1(D, at0, near[0], (unsigned)c0, g);
-		i = 1;
-	}
-	for (; i < n; i++)
-		blend1(D, at0 + i, near[i], far[i], g);
-}
 
 #ifdef HAVE_KT_SSSE3
-/* blend_run with PSHUFB's sibling PMADDUBSW (the CPU checked at open, as
-   for kind_type): the nearer and farther bytes interleaved, multiplied by
-   (DZ_SUB - g, g) and summed in one instruction; PMULHRSW by 2^11 then
-   gives (s + 8) >> 4 exactly (s <= 255 * 16).  n >= 16. */
-__attribute__((target("ssse3"))) static void
-blend_run_ssse3(uint8_t *D, const uint8_t *near, size_t n, int dir, unsigned g,
-                size_t at0, int c0)
+/* The same with PMADDUBSW ((n, o) byte pairs times (DZ_SUB - g, g) summed
+   in one instruction) and PMULHRSW by 2^11, which gives (s + 8) >> 4
+   exactly for s <= 255 * 16; w2 unused. */
+__attribute__((target("ssse3"))) static inline __m128i
+blend16_ssse3(__m128i n, __m128i o, __m128i w, __m128i w2, int *any)
 {
-	uint8_t *out = D + at0;
-	const uint8_t *far = near + dir;
-	const __m128i W = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* near, far */
-	const __m128i R = _mm_set1_epi16(1 << 11);
-	size_t i = 0;
+	const __m128i zero = _mm_setzero_si128(), r = _mm_set1_epi16(1 << 11);
+	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(n, zero), _mm_cmpeq_epi8(o, zero));
+	__m128i lo, hi, v;
 
-	for (;;) {
-		__m128i nr = _mm_loadu_si128((const __m128i *)(near + i));
-		__m128i fr = c0 >= 0 && i == 0
-		                     ? _mm_or_si128(_mm_slli_si128(nr, 1), _mm_cvtsi32_si128(c0))
-		                     : _mm_loadu_si128((const __m128i *)(far + i));
-		__m128i lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(nr, fr), W), R);
-		__m128i hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(nr, fr), W), R);
-		__m128i v = _mm_packus_epi16(lo, hi);
-		blend_store16(out, v, nr, fr, i);
-		if (i + 16 == n)
-			return;
-		i = i + 32 <= n ? i + 16 : n - 16;
-	}
+	(void)w2;
+	*any = _mm_movemask_epi8(m);
+	if (!*any)
+		return n;
+	lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(n, o), w), r);
+	hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(n, o), w), r);
+	v = _mm_packus_epi16(lo, hi);
+	return _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, n));
 }
 #endif
+
+/* The in-place pass of blend_col over L >= 16 densities d[0 .. L) with
+   the 16-voxel blend B, farther voxel d[i + dir] (dir -1 or +1) and, past
+   the ends, edge.  Every blend is computed from the copied densities:
+   dir +1 ascends, reading d[i + 1 ..] before it is stored; dir -1 carries
+   the last copied voxel of the previous 16 in a register; the last 16
+   (overlapping the one before when 16 does not divide L) are computed
+   first and stored last. */
+#define BLEND_COL_BODY(B)                                                               \
+	do {                                                                            \
+		__m128i e = _mm_slli_si128(_mm_cvtsi32_si128((int)edge), 15);           \
+		__m128i nt = _mm_loadu_si128((const __m128i *)(d + L - 16)), ot, tv;    \
+		int tany, any;                                                          \
+		size_t i = 0;                                                           \
+		if (dir > 0) {                                                          \
+			ot = _mm_or_si128(_mm_srli_si128(nt, 1), e);                    \
+			tv = B(nt, ot, w, w2, &tany);                                   \
+			for (; i + 16 < L; i += 16) {                                   \
+				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
+				__m128i o = _mm_loadu_si128((const __m128i *)(d + i + 1)); \
+				__m128i v = B(n, o, w, w2, &any);                       \
+				if (any)                                                \
+					_mm_storeu_si128((__m128i *)(d + i), v);        \
+			}                                                               \
+		} else {                                                                \
+			__m128i prev = e;                                               \
+			ot = L > 16 ? _mm_loadu_si128((const __m128i *)(d + L - 17))    \
+			            : _mm_or_si128(_mm_slli_si128(nt, 1), _mm_srli_si128(e, 15)); \
+			tv = B(nt, ot, w, w2, &tany);                                   \
+			for (; i + 16 < L; i += 16) {                                   \
+				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
+				__m128i o = _mm_or_si128(_mm_slli_si128(n, 1),          \
+				                         _mm_srli_si128(prev, 15));     \
+				__m128i v = B(n, o, w, w2, &any);                       \
+				prev = n;                                               \
+				if (any)                                                \
+					_mm_storeu_si128((__m128i *)(d + i), v);        \
+			}                                                               \
+		}                                                                       \
+		if (tany)                                                               \
+			_mm_storeu_si128((__m128i *)(d + L - 16), tv);                  \
+	} while (0)
+
+#ifdef __SSE2__
+static void blend_col_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
+{
+	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
+	BLEND_COL_BODY(blend16_sse2);
+}
+#endif
+
+#ifdef HAVE_KT_SSSE3
+__attribute__((target("ssse3"))) static void blend_col_ssse3(uint8_t *d, size_t L, int dir,
+                                                              unsigned g, unsigned edge)
+{
+	const __m128i w = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* n, o */
+	const __m128i w2 = w;
+	BLEND_COL_BODY(blend16_ssse3);
+}
+#endif
+
+/* Blend the L >= 1 copied densities d[0 .. L) of a fractional column in
+   place: voxel i's farther density is d[i + dir] (dir -1: below, +1:
+   above), past the ends edge (the source voxel beyond the run, 0 outside
+   the block), weight g / DZ_SUB (1 .. DZ_SUB / 2). */
+static void blend_col(const loom_texture *t, uint8_t *d, size_t L, int dir, unsigned g,
+                      unsigned edge)
+{
+#ifdef __SSE2__
+	if (L >= 16) {
+#ifdef HAVE_KT_SSSE3
+		if (t->ssse3) {
+			blend_col_ssse3(d, L, dir, g, edge);
+			return;
+		}
+#endif
+		blend_col_sse2(d, L, dir, g, edge);
+		return;
+	}
+#endif
+	(void)t;
+	if (dir > 0) /* ascending: d[i + 1] not yet blended */
+		for (size_t i = 0; i < L; i++)
+			d[i] = blend1(d[i], i + 1 < L ? d[i + 1] : edge, g);
+	else /* descending: d[i - 1] not yet blended */
+		for (size_t i = L; i-- > 0;)
+			d[i] = blend1(d[i], i ? d[i - 1] : edge, g);
+}
 
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
 
-/* Per fractional column of a group: how its voxels blend. */
+/* Per column of a group: how its densities blend. */
 struct fcol {
 	int8_t dir;    /* 0: whole offset; -1, +1: the farther voxel */
 	uint8_t g;     /* the farther voxel's weight, 1 .. DZ_SUB/2 */
-	uint8_t cy;    /* dir -1: density of the source voxel below the next
-	                  run voxel; dir +1: of the last run voxel (its blend
-	                  waits for the voxel above) */
-	uint8_t xd;    /* dir +1: density of the end voxel (above the run) */
+	uint8_t edge;  /* density of the end voxel (the farther voxel past
+	                  the run; 0 outside the block or its brick failed) */
 	int64_t xz;    /* source z of the end voxel, below the run for dir -1,
 	                  above it for dir +1 (-1: outside the block) */
 };
-
-/* The density of one brick run [a, b) of a fractional column (sink
-   offset o for a; q: its densities in the brick, NULL when the brick
-   failed: zeros), in the brick pass, after the run's other planes went
-   into the sink.  The output voxels are blended straight from the brick
-   (blend_run); the farther density that lies outside the run comes from
-   fc->cy: for dir -1 that of voxel a (the previous run's last, or the end
-   voxel below the run), inside blend_run's first block; for dir +1 the
-   voxel a - 1 waits for this run (the previous run's last; at the
-   column's start there is none: the voxel below has no nearer voxel and
-   stays empty), and this run's last waits for the next run or the end
-   voxel. */
-static void frac_run(const loom_texture *t, uint8_t *D, struct fcol *fc, size_t o,
-                     const uint8_t *q, size_t n, int first)
-{
-	unsigned g = fc->g;
-	int dir = fc->dir;
-	const uint8_t *nr = q;
-	size_t at = o, m = n;
-	int c0 = -1;
-
-	if (!q) { /* a failed brick: nearer densities 0, the sink's zeros */
-		if (dir > 0 && !first)
-			blend1(D, o - 1, fc->cy, 0, g);
-		fc->cy = 0;
-		return;
-	}
-	if (dir < 0) { /* all n, voxel 0's farther density carried */
-		c0 = fc->cy;
-	} else { /* the voxel below first, then n - 1 (the last waits) */
-		if (!first)
-			blend1(D, o - 1, fc->cy, q[0], g);
-		m = n - 1;
-	}
-	if (m) {
-#ifdef HAVE_KT_SSSE3
-		if (t->ssse3 && m >= 16)
-			blend_run_ssse3(D, nr, m, dir, g, at, c0);
-		else
-#endif
-			blend_run(D, nr, m, dir, g, at, c0);
-	}
-	(void)t;
-	fc->cy = q[n - 1];
-}
 
 /*
  * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
@@ -410,13 +414,11 @@ static void frac_run(const loom_texture *t, uint8_t *D, struct fcol *fc, size_t 
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
  * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
  * output voxel whose nearer voxel lies outside the block is empty.  With
- * density wanted, its densities are then blended in the same pass
- * straight from the brick (frac_run; the voxel at a brick boundary from
- * the density carried over from the previous brick), and the one source
- * voxel past the run on the farther side that the blend also needs is
- * read in the same brick pass; fraction 0 is the whole-voxel path
- * unchanged.  Voxels whose brick fails are empty (or blended with empty);
- * the first error is returned.
+ * density wanted, the one source voxel past its run on the farther side
+ * (the end voxel) is read in the same brick pass, and after the pass its
+ * copied densities are blended in place (blend_col); fraction 0 is the
+ * whole-voxel path unchanged.  Voxels whose brick fails are empty (or
+ * blended with empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -431,13 +433,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	uint64_t base;
 	size_t col;
 	int rc = LOOM_OK, nfrac = 0;
-	/* fractional columns: the planes but density through sink kn */
-	struct sink kn = *k;
 	uint8_t *D = k->raw ? k->rd : k->d;
-	int others = (k->raw ? k->rl || k->rk || k->rt || k->rlo
-	                     : k->l || k->k || k->ty || k->o) != 0;
 
-	kn.rd = kn.d = NULL;
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
@@ -445,6 +442,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		size_t o = off + c * cstride;
 		struct fcol *F = &fc[c];
 		int far_up = 2 * f > DZ_SUB; /* nearer voxel z - w - 1 */
+		if (t->region_whole)
+			f = 0; /* the bench's whole-voxel peer: the nearer copy only */
 		F->dir = 0;
 		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
@@ -470,7 +469,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			nfrac++;
 			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
 			F->dir = (int8_t)(far_up ? 1 : -1);
-			F->cy = F->xd = 0;
+			F->edge = 0;
 			/* the farther voxel of the run's end voxel, when in the block */
 			F->xz = far_up ? sb[c] : sa[c] - 1;
 			if (F->xz >= 0 && F->xz < b3) {
@@ -508,39 +507,25 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			struct fcol *F = &fc[c];
-			const uint8_t *q;
 			size_t o;
-			if (F->dir && p && F->xz >= z0 && F->xz < z1) {
-				uint8_t d = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
-				if (F->dir < 0) /* below the run: before its first voxel */
-					F->cy = d;
-				else
-					F->xd = d;
-			}
+			if (F->dir && p && F->xz >= z0 && F->xz < z1)
+				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
-			q = p ? p + col + (size_t)c * bz + (size_t)(a - z0) : NULL;
-			if (!F->dir) {
-				if (q)
-					sink_run(t, k, o, q, (size_t)(b - a));
-				else
-					sink_empty(k, o, (size_t)(b - a));
-				continue;
-			}
-			if (!q)
+			if (p)
+				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
+				         (size_t)(b - a));
+			else
 				sink_empty(k, o, (size_t)(b - a));
-			else if (others)
-				sink_run(t, &kn, o, q, (size_t)(b - a));
-			frac_run(t, D, F, o, q, (size_t)(b - a), a == sa[c]);
 		}
 	}
-	/* dir +1: the run's last voxel, its farther voxel the end voxel */
+	/* the fractional columns' densities, from the copied ones */
 	if (nfrac)
 		for (uint32_t c = 0; c < n; c++)
-			if (fc[c].dir > 0)
-				blend1(D, off + c * cstride + (size_t)(sb[c] - 1 + dzs[c] - za), fc[c].cy,
-				       fc[c].xd, fc[c].g);
+			if (fc[c].dir)
+				blend_col(t, D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za),
+				          (size_t)(sb[c] - sa[c]), fc[c].dir, fc[c].g, fc[c].edge);
 	return rc;
 }
 
@@ -1096,6 +1081,12 @@ LOOM_API int loom_texture_read_region(loom_texture *t, const int64_t lo[3],
 	bump(&s->cnt.lookups, total);
 	slot_leave(t, s);
 	return rc;
+}
+
+void loom__texture_region_whole(loom_texture *t, int on)
+{
+	if (t)
+		t->region_whole = on != 0;
 }
 
 void loom__texture_simd(loom_texture *t, int on)

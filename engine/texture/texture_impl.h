@@ -134,6 +134,9 @@ struct loom_texture {
 	uint32_t sh[3], mk[3];   /* shifts and masks when pow2 */
 	int pow2;                /* every brick side a power of two */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
+	int region_whole;        /* region reads copy every column with its
+	                            nearer whole offset, no blend (the bench's
+	                            whole-voxel peer; loom__texture_region_whole) */
 	size_t bv;               /* voxels per brick (plane size) */
 	uint32_t rh, rv;         /* edge-fix ranks */
 	const float *coef, *field_h, *field_v; /* the fabric's tables */

@@ -51,6 +51,14 @@ void loom__texture_simd(loom_texture *t, int on);
    full resolution. */
 #define LOOM__LOD_EXTINCTION_MM 560.0
 
+/* on = 1: region reads of t copy every column with its nearer whole
+   offset (the offset rounded to whole voxels, halves down), no sub-voxel
+   blend: the whole-voxel path, which bench_texture measures as the peer
+   of sub-voxel reads (issue 13); the bytes then differ from point lookups.
+   0 restores the default.  Not thread-safe against reads in flight on t.
+   NULL: no-op. */
+void loom__texture_region_whole(loom_texture *t, int on);
+
 /* Coarse voxel (X, Y, Z) of level k (1..loom_texture_lod_levels) of
    exemplar u, read through the brick cache: its five bytes (density,
    orientation code low and high, label, anisotropy; lod.c), zeros outside

@@ -956,31 +956,47 @@ static void tiny_budgets_deterministic(void)
 	free(ref_bytes);
 }
 
+/* A database NAME of the tiny preset with the given brick, seed and block
+   shape in tmpdir, a fabric of g_design over it and its reference: 0, or
+   -1 with what was made freed (*db, *f NULL). */
+static int block_fixture(const char *name, const uint32_t brick[3], uint64_t seed,
+                         const uint32_t block[3], loom_db **db, loom_fabric **f, ref *r)
+{
+	char path[4300];
+
+	*db = NULL;
+	*f = NULL;
+	snprintf(path, sizeof path, "%s/%s", tmpdir, name);
+	CHECK_EQ_INT(make_db_block(path, "tiny", brick, seed, block), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(path, db, NULL), LOOM_OK);
+	if (!*db)
+		return -1;
+	*f = synth(g_design, *db);
+	if (!*f || ref_init(r, *f, *db) != 0) {
+		CHECK(0);
+		loom_fabric_free(*f);
+		loom_db_close(*db);
+		*f = NULL;
+		*db = NULL;
+		return -1;
+	}
+	return 0;
+}
+
 /* Blocks 70 voxels wide: region reads gather and transpose whole 16-column
    blocks and 64-column chunks (the tiny preset's 8-voxel blocks never
    fill one); both layouts against the reference. */
 static void wide_blocks_region(void)
 {
 	const uint32_t block[3] = {70, 5, 20}, brick[3] = {16, 4, 16};
-	char path[4300];
-	loom_db *db = NULL;
-	loom_fabric *f = NULL;
+	loom_db *db;
+	loom_fabric *f;
 	loom_texture *t = NULL;
 	ref r;
 	uint64_t bad = 0;
 
-	if (!g_ok)
+	if (!g_ok || block_fixture("wide.ldb", brick, 5, block, &db, &f, &r) != 0)
 		return;
-	snprintf(path, sizeof path, "%s/wide.ldb", tmpdir);
-	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 5, block), LOOM_OK);
-	CHECK_EQ_INT(loom_db_open(path, &db, NULL), LOOM_OK);
-	if (!db)
-		return;
-	f = synth(g_design, db);
-	if (!f || ref_init(&r, f, db) != 0) {
-		CHECK(0);
-		goto done;
-	}
 	t = open_tex(f, db, 8u << 20, 1);
 	for (int it = 0; t && it < 12; it++) {
 		int64_t lo[3], hi[3];
@@ -1024,7 +1040,6 @@ static void wide_blocks_region(void)
 	CHECK_EQ_INT(bad, 0);
 	loom_texture_close(t);
 	ref_free(&r);
-done:
 	loom_fabric_free(f);
 	loom_db_close(db);
 }
@@ -1177,6 +1192,90 @@ static void region_paths(void)
 	printf("  %llu boxes, %llu mismatches\n", (unsigned long long)boxes,
 	       (unsigned long long)bad);
 	CHECK_EQ_INT(bad, 0);
+}
+
+/* Sub-voxel offsets in region reads: a database 150 voxels thick in
+   bricks 32 high, so an x-fastest read gathers several 64-voxel slabs and
+   a column's run crosses bricks; boxes that start and end inside the
+   cloth (the end voxel past a run, blended columns of every length), both
+   layouts, every channel subset with density, the SSSE3 and SSE2 blends,
+   against the reference voxel for voxel.  A guard that columns of both
+   blend directions and whole columns are there; and the bench's
+   whole-voxel peer (loom__texture_region_whole) changes densities only. */
+static void region_sub_voxel(void)
+{
+	const uint32_t block[3] = {40, 6, 150}, brick[3] = {16, 2, 32};
+	loom_db *db;
+	loom_fabric *f;
+	loom_texture *t = NULL;
+	ref r;
+	uint64_t bad = 0, boxes = 0, cols[3] = {0, 0, 0};
+
+	if (!g_ok || block_fixture("thick.ldb", brick, 11, block, &db, &f, &r) != 0)
+		return;
+	/* whole (f = 0), below (1..8), above (9..15) in a few crossings */
+	for (int64_t I = 0; I < 3; I++)
+		for (int64_t J = 0; J < 3; J++) {
+			ref_raw(&r, J * (int64_t)r.b1, I * (int64_t)r.b2, 0); /* r.dz of (I, J) */
+			for (uint32_t c = 0; c < r.b1 * r.b2; c++) {
+				long q = ref_dz16(r.dz[c]), fr = ((q % 16) + 16) % 16;
+				cols[fr == 0 ? 0 : fr <= 8 ? 1 : 2]++;
+			}
+		}
+	printf("  columns: %llu whole, %llu blended with the voxel below, %llu above\n",
+	       (unsigned long long)cols[0], (unsigned long long)cols[1],
+	       (unsigned long long)cols[2]);
+	CHECK(cols[0] > 0 && cols[1] > 0 && cols[2] > 0);
+	t = open_tex(f, db, min_budget(f, db, 1) + 60000, 1);
+	for (int it = 0; t && it < 16; it++) {
+		static const unsigned masks[4] = {1, 3, 31, 17};
+		int64_t lo[3], hi[3];
+		unsigned mask = it < 4 ? masks[it] : (unsigned)(rnd() % 16) * 2 + 1;
+		lo[0] = rnd_range(-60, 60);
+		lo[1] = rnd_range(-8, 8);
+		hi[0] = lo[0] + rnd_range(1, 90);
+		hi[1] = lo[1] + rnd_range(1, 7);
+		lo[2] = rnd_range(-3, (int64_t)r.b3 - 20);
+		hi[2] = lo[2] + rnd_range(1, (int64_t)r.b3 + 3 - lo[2]);
+		if (it % 4 == 0) { /* whole columns: every slab, both faces */
+			lo[2] = -2;
+			hi[2] = (int64_t)r.b3 + 2;
+		}
+		for (int simd = 1; simd >= 0; simd--) {
+			loom__texture_simd(t, simd);
+			bad += region_vs_ref(t, &r, lo, hi, mask, it & 1);
+			boxes++;
+		}
+		loom__texture_simd(t, 1);
+	}
+	/* the whole-voxel peer: other planes identical, some density not */
+	if (t) {
+		int64_t lo[3] = {-13, -5, 0}, hi[3] = {67, 7, 0};
+		size_t n;
+		uint8_t *a, *b;
+		loom_texture_region ra = {0}, rb = {0};
+		hi[2] = r.b3;
+		n = (size_t)80 * 12 * r.b3;
+		a = malloc(6 * n), b = malloc(6 * n);
+		ra.density = a, ra.orientation = (uint16_t *)(a + n), ra.label = a + 3 * n;
+		ra.kind = a + 4 * n, ra.type = a + 5 * n;
+		rb.density = b, rb.orientation = (uint16_t *)(b + n), rb.label = b + 3 * n;
+		rb.kind = b + 4 * n, rb.type = b + 5 * n;
+		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &ra), LOOM_OK);
+		loom__texture_region_whole(t, 1);
+		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &rb), LOOM_OK);
+		loom__texture_region_whole(t, 0);
+		CHECK(memcmp(a, b, n) != 0);
+		CHECK(memcmp(a + n, b + n, 5 * n) == 0);
+		free(a), free(b);
+	}
+	printf("  %llu boxes, %llu mismatches\n", (unsigned long long)boxes,
+	       (unsigned long long)bad);
+	CHECK_EQ_INT(bad, 0);
+	loom_texture_close(t);
+	ref_free(&r);
+	loom_fabric_free(f);
+	loom_db_close(db);
 }
 
 /* Labels: the exemplars of the tall database have labels above 15 (the
@@ -1764,6 +1863,7 @@ int main(void)
 	RUN(tiny_budgets_deterministic);
 	RUN(wide_blocks_region);
 	RUN(region_paths);
+	RUN(region_sub_voxel);
 	RUN(labels_above_15);
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
