@@ -74,7 +74,7 @@ done
 # renders: --uv-mm enlarges the cloth so a crossing spans about 3 pixels
 # (square crossings of 0.47 mm: the default database states no sett); a
 # studio set: each object stands on a grey floor (--ground) that catches
-# its shadow, lit by the grey sky and a sun 60 degrees round from the
+# its shadow, lit by the built-in studio sky (loom render's default) and a sun 60 degrees round from the
 # camera and 45 up (a front-side key light) with an 8-degree disc (a
 # soft-edged shadow), printed through the filmic curve
 R="--ground --ground-albedo 0.45 --tone filmic --width $W --height $H --spp $SPP --quiet"
