@@ -1011,12 +1011,13 @@ static void wide_blocks_region(void)
 		hi[2] = lo[2] + rnd_range(14, 26);
 		nx = (size_t)(hi[0] - lo[0]), ny = (size_t)(hi[1] - lo[1]), nz = (size_t)(hi[2] - lo[2]);
 		n = nx * ny * nz;
-		buf = malloc(6 * n);
+		/* orientation after density, at an even offset (n may be odd) */
+		buf = malloc(6 * n + 1);
 		reg.density = buf;
-		reg.orientation = (uint16_t *)(buf + n);
-		reg.kind = buf + 3 * n;
-		reg.type = buf + 4 * n;
-		reg.label = buf + 5 * n;
+		reg.orientation = (uint16_t *)(buf + (n + 1) / 2 * 2);
+		reg.kind = (uint8_t *)(reg.orientation + n);
+		reg.type = reg.kind + n;
+		reg.label = reg.type + n;
 		reg.layout = it & 1;
 		CHECK_EQ_INT(loom_texture_read_region(t, lo, hi, &reg), LOOM_OK);
 		for (size_t i = 0; i < n; i++) {
