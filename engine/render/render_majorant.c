@@ -30,8 +30,9 @@
  * render thread a small direct-mapped cache of crossings (fixed size)
  * keeps each crossing's source block and offset range, so its edge-fix
  * offsets are computed once per thread while it stays cached; a nearest
- * cell's bound is then the largest of its column's few source layers.  Every value depends only on the fabric, never on the
- * thread or the order, so images stay identical for any thread count.
+ * cell's bound is then the largest of its column's few source layers.
+ * Every value depends only on the fabric, never on the thread or the
+ * order, so images stay identical for any thread count.
  */
 #include "render_internal.h"
 #include "loom/preview.h"
@@ -370,10 +371,10 @@ static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry 
 	if (filter == LOOM_FILTER_TRILINEAR) {
 		memset(e->tri, 0, sizeof e->tri);
 		for (int k = 0; k < 9; k++) {
-			const uint8_t *blk;
-			int64_t dlo, dhi;
-			if ((rc = crossing_src(m, th->a, I + k / 3 - 1, J + k % 3 - 1, &blk, &dlo,
-			                       &dhi)))
+			const uint8_t *blk = e->blk; /* k == 4: the crossing itself */
+			int64_t dlo = e->dlo, dhi = e->dhi;
+			if (k != 4 && (rc = crossing_src(m, th->a, I + k / 3 - 1, J + k % 3 - 1,
+			                                 &blk, &dlo, &dhi)))
 				return rc;
 			for (uint32_t c = 0; c < m->nzc; c++) {
 				int64_t z0 = (int64_t)c * m->zcell - 1, z1 = z0 + m->zcell + 1;

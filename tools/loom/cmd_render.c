@@ -552,9 +552,9 @@ int cmd_render(int argc, char **argv)
 		OPT_ENUM(0, "lod", &lod, "L", lod_names, "flat patch: level of detail: "
 		         "off (default: full resolution everywhere) or auto (where a "
 		         "pixel's footprint covers 2, 4 or 8 voxels, look up the 2x, "
-		         "4x or 8x filtered exemplar: fewer lookups; the mean colour "
-		         "matches full resolution at grazing views, steeper views "
-		         "render darker; docs/rendering.md)"),
+		         "4x or 8x filtered exemplar: less noise at few samples, not fewer "
+		         "lookups; the mean colour matches full resolution at grazing "
+		         "views, steeper views render darker; docs/rendering.md)"),
 		OPT_ENUM(0, "majorant", &global_mj, "M", majorant_names,
 		         "flat patch: track through the per-crossing majorant grid "
 		         "(default) or against one global bound (slower; for "
