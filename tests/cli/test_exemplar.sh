@@ -3,6 +3,14 @@
 SUITE=exemplar
 . "$LOOM_TOP/tests/cli/lib.sh"
 UNU=teem-unu
+# run on its own (not through make test, which installs the test packages
+# first), the suite installs its independent reader itself
+if ! command -v $UNU >/dev/null 2>&1; then
+	sh "$LOOM_TOP/tools/deps.sh" test >"$T/deps.log" 2>&1 ||
+		echo "test_exemplar: tools/deps.sh test failed (see $T/deps.log)" >&2
+fi
+if command -v $UNU >/dev/null 2>&1; then pass unu_installed; else
+	fail unu_installed "teem-unu is not installed and tools/deps.sh test could not install it"; fi
 DB=$T/two.ldb
 
 for c in "" generate info verify export; do
