@@ -947,6 +947,22 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id, const void **data
 	return LOOM_OK;
 }
 
+const void *loom__cache_peek(const loom__cache_thread *th, uint64_t id)
+{
+	const loom__cache *c = th->cache;
+	uint64_t h = mix64(id);
+	uint32_t f = link_get(bucket_of(stripe_of(c, h), h));
+
+	/* step 3a's walk without the pin: a hint, validated by nothing */
+	for (uint32_t k = 0; k < MAX_WALK && f < c->n_frames; k++) {
+		const struct frame *fr = &c->frames[f];
+		if (atomic_load_explicit(&fr->tag, memory_order_relaxed) == id)
+			return frame_data(c, f);
+		f = link_get(&fr->next);
+	}
+	return NULL;
+}
+
 int loom__cache_release(loom__cache_thread *th, const void *data)
 {
 	loom__cache *c;

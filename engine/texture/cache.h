@@ -264,6 +264,14 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id,
    pin (checked by arithmetic; data is never read). */
 int loom__cache_release(loom__cache_thread *th, const void *data);
 
+/* Where brick_id's bytes are if it is cached now, else NULL: a hint for a
+   prefetch only.  Nothing is pinned and the frame may be evicted and
+   reused at any time, so the bytes must never be read through it (only
+   __builtin_prefetch'ed).  Lock-free, no write to shared memory; the
+   loads it makes (hash bucket, frame tag) warm the lines a get of the
+   same id reads next. */
+const void *loom__cache_peek(const loom__cache_thread *th, uint64_t brick_id);
+
 /* Statistics snapshot (counters are exact when no call is in flight). */
 void loom__cache_get_stats(const loom__cache *c, loom__cache_stats *st);
 /* Caller pins (distinct bricks) one thread may hold at once (deadlock

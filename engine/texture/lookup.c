@@ -387,6 +387,45 @@ static inline void planes_read(const loom_texture *t, const struct xent *e,
 	}
 }
 
+/* Step 5's brick id and step 6's index in it of source voxel (sx, sy, sz)
+   of crossing e. */
+static inline uint64_t src_brick(const loom_texture *t, const struct xent *e, uint32_t sx,
+                                 uint32_t sy, uint32_t sz)
+{
+	return e->ex->first_brick +
+	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) * e->ex->nb[2] +
+	       brick_of(t, 2, sz);
+}
+
+static inline size_t src_index(const loom_texture *t, uint32_t sx, uint32_t sy, uint32_t sz)
+{
+	return ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
+	       in_brick(t, 2, sz);
+}
+
+/* Before step 3: prefetch the density line of source voxel (sx, sy, z),
+   the voxel steps 4-6 read when the column's offset keeps it in the same
+   brick (a brick's column of bz voxels is one line at bz = 64), so that
+   the offset lane's cache miss and the brick's (hash bucket, frame tag,
+   voxel line) overlap instead of following each other.  Only a hint: the
+   brick is peeked at without a pin (loom__cache_peek) and nothing read
+   through it; a wrong guess costs the peek. */
+static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
+                                const struct xent *e, uint32_t sx, uint32_t sy, uint32_t z)
+{
+	uint64_t id = src_brick(t, e, sx, sy, z);
+	const uint8_t *p;
+
+	if (id == s->memo_id)
+		p = s->memo;
+	else if (brick_empty(t, id))
+		return;
+	else
+		p = loom__cache_peek(s->cth, id);
+	if (p)
+		__builtin_prefetch(p + src_index(t, sx, sy, z));
+}
+
 /* Steps 4-6 for source voxel (sx, sy, zs) of crossing e. */
 static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e,
                           uint32_t sx, uint32_t sy, int64_t zs, unsigned ch, rawvox *r)
@@ -399,10 +438,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	if ((uint64_t)zs >= t->b3) /* Step 4 */
 		return LOOM_OK;
 	sz = (uint32_t)zs;
-	id = e->ex->first_brick +
-	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
-	             e->ex->nb[2] +
-	     brick_of(t, 2, sz);
+	id = src_brick(t, e, sx, sy, sz);
 	if (id != s->memo_id) { /* Step 5 */
 		int rc = loom__memo_switch(t, s, id);
 		if (rc != LOOM_OK)
@@ -412,8 +448,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	}
 	if (!s->memo)
 		return LOOM_OK;
-	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
-	    in_brick(t, 2, sz); /* Step 6 */
+	i = src_index(t, sx, sy, sz); /* Step 6 */
 	planes_read(t, e, s->memo, i, ch, r);
 	return LOOM_OK;
 }
@@ -437,9 +472,10 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		e = loom__xent_enter(t, s, x, y); /* Step 2 */
 	lx = (uint32_t)(x - e->x0);
 	ly = (uint32_t)(y - e->y0);
-	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
 	sx = e->sx0 + lx;
 	sy = e->sy0 + ly;
+	src_prefetch(t, s, e, sx, sy, (uint32_t)z);
+	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
 	if (!f)
 		return src_raw(t, s, e, sx, sy, z - w, ch, r);
 	if (!(ch & (CH_D | CH_O))) /* the material is the nearer voxel's */
@@ -450,6 +486,58 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		return rc != LOOM_OK ? rc : rc2;
 	raw_blend(&a, &b, f, r);
 	return LOOM_OK;
+}
+
+/* Steps 1-6 for voxels (x, y, z) and (x, y, z + 1), a trilinear corner
+   pair: the same as two voxel_raw calls, with one crossing and offset
+   look-up, and with a fractional offset three source voxels read instead
+   of four (z - w is the upper voxel of z's pair and the lower of z + 1's).
+   A failed source voxel leaves each voxel blended from it empty; returns
+   the first error, as the two calls would. */
+static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                           int64_t z, unsigned ch, rawvox r[2])
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly, sx, sy;
+	int in0 = (uint64_t)z < t->b3, in1 = (uint64_t)(z + 1) < t->b3;
+	int64_t w;
+	int f, rc[3] = {LOOM_OK, LOOM_OK, LOOM_OK};
+	rawvox v[3];
+
+	r[0] = r[1] = raw_empty;
+	if (!in0 && !in1) /* Step 1 */
+		return LOOM_OK;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y); /* Step 2 */
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	sx = e->sx0 + lx;
+	sy = e->sy0 + ly;
+	src_prefetch(t, s, e, sx, sy, (uint32_t)(in0 ? z : z + 1));
+	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
+	if (!f || !(ch & (CH_D | CH_O))) {
+		/* one source voxel each: the nearer one (the material's) */
+		int64_t d = f && 2 * f > DZ_SUB;
+		if (in0)
+			rc[0] = src_raw(t, s, e, sx, sy, z - w - d, ch, &r[0]);
+		if (in1)
+			rc[1] = src_raw(t, s, e, sx, sy, z + 1 - w - d, ch, &r[1]);
+		return rc[0] != LOOM_OK ? rc[0] : rc[1];
+	}
+	/* v[k] = source voxel z - w - 1 + k */
+	v[0] = v[2] = raw_empty;
+	if (in0)
+		rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
+	rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
+	if (in1)
+		rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+	if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK)
+		raw_blend(&v[0], &v[1], f, &r[0]);
+	if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK)
+		raw_blend(&v[1], &v[2], f, &r[1]);
+	if (in0 && (rc[0] != LOOM_OK || rc[1] != LOOM_OK))
+		return rc[0] != LOOM_OK ? rc[0] : rc[1];
+	return rc[1] != LOOM_OK ? rc[1] : rc[2];
 }
 
 /* The texel of raw voxel r, the fields of the channels outside ch zero
@@ -542,14 +630,10 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	for (int c = 0; c < 8; c += 2) {
 		int dx = c >> 1 & 1, dy = c >> 2 & 1;
 		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
-		int e = LOOM_OK, e2 = LOOM_OK;
+		int e = LOOM_OK;
 		r[c] = r[c + 1] = raw_empty;
-		if (cch) {
-			e = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c]);
-			e2 = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2] + 1, cch, &r[c + 1]);
-		}
-		if (e == LOOM_OK)
-			e = e2;
+		if (cch)
+			e = pair_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c]);
 		if (e != LOOM_OK && rc == LOOM_OK)
 			rc = e;
 	}
