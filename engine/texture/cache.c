@@ -947,20 +947,22 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id, const void **data
 	return LOOM_OK;
 }
 
-const void *loom__cache_peek(const loom__cache_thread *th, uint64_t id)
+uint32_t loom__cache_frame_of(const loom__cache_thread *th, const void *data)
+{
+	const loom__cache *c = th->cache;
+	return (uint32_t)((size_t)((const uint8_t *)data - c->slab) / c->frame_alloc);
+}
+
+const void *loom__cache_hint(const loom__cache_thread *th, uint64_t id, uint32_t f)
 {
 	const loom__cache *c = th->cache;
 	uint64_t h = mix64(id);
-	uint32_t f = link_get(bucket_of(stripe_of(c, h), h));
 
-	/* step 3a's walk without the pin: a hint, validated by nothing */
-	for (uint32_t k = 0; k < MAX_WALK && f < c->n_frames; k++) {
-		const struct frame *fr = &c->frames[f];
-		if (atomic_load_explicit(&fr->tag, memory_order_relaxed) == id)
-			return frame_data(c, f);
-		f = link_get(&fr->next);
-	}
-	return NULL;
+	if (f >= c->n_frames)
+		return NULL;
+	__builtin_prefetch(bucket_of(stripe_of(c, h), h));
+	__builtin_prefetch(&c->frames[f]);
+	return frame_data(c, f);
 }
 
 int loom__cache_release(loom__cache_thread *th, const void *data)

@@ -360,6 +360,11 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	s->memo_id = id;
 	s->memo = p;
 	s->memo_pinned = 1;
+	if (id < t->n_bricks) { /* src_prefetch's hint (a store only when new) */
+		uint32_t h = loom__cache_frame_of(s->cth, p) + 1;
+		if (atomic_load_explicit(&t->hint[id], memory_order_relaxed) != h)
+			atomic_store_explicit(&t->hint[id], h, memory_order_relaxed);
+	}
 	return LOOM_OK;
 }
 
@@ -405,23 +410,28 @@ static inline size_t src_index(const loom_texture *t, uint32_t sx, uint32_t sy, 
 
 /* Before step 3: prefetch the density line of source voxel (sx, sy, z),
    the voxel steps 4-6 read when the column's offset keeps it in the same
-   brick (a brick's column of bz voxels is one line at bz = 64), so that
-   the offset lane's cache miss and the brick's (hash bucket, frame tag,
-   voxel line) overlap instead of following each other.  Only a hint: the
-   brick is peeked at without a pin (loom__cache_peek) and nothing read
-   through it; a wrong guess costs the peek. */
+   brick (a brick's column of bz voxels is one line at bz = 64), and the
+   cache's bucket and frame descriptor of its brick, so that the offset
+   lane's cache miss and the brick's overlap instead of following each
+   other.  The frame comes from the texture's brick table (t->hint: the
+   frame each brick was last got from, one relaxed load, no pin): only a
+   hint, nothing is read through it; a stale or wrong guess costs a
+   prefetch. */
 static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
                                 const struct xent *e, uint32_t sx, uint32_t sy, uint32_t z)
 {
 	uint64_t id = src_brick(t, e, sx, sy, z);
 	const uint8_t *p;
 
-	if (id == s->memo_id)
+	if (id == s->memo_id) {
 		p = s->memo;
-	else if (brick_empty(t, id))
-		return;
-	else
-		p = loom__cache_peek(s->cth, id);
+	} else {
+		uint32_t h;
+		if (id >= t->n_bricks || brick_empty(t, id))
+			return;
+		h = atomic_load_explicit(&t->hint[id], memory_order_relaxed);
+		p = h ? loom__cache_hint(s->cth, id, h - 1) : NULL;
+	}
 	if (p)
 		__builtin_prefetch(p + src_index(t, sx, sy, z));
 }
