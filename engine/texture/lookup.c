@@ -608,6 +608,26 @@ LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_
 	return voxel_ch(t, x, y, z, channels, out);
 }
 
+/* A trilinear corner column (x, y) from z: its crossing entered, its
+   offset lane and its voxel line prefetched, so that the 4 columns'
+   misses overlap before pair_raw resolves them one after the other. */
+static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                                   int64_t z)
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly;
+
+	if ((uint64_t)z >= t->b3 && (uint64_t)++z >= t->b3)
+		return;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y);
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	if (e->map != NO_MAP)
+		__builtin_prefetch(&e->w[((size_t)ly * t->b1 + lx) >> 2]);
+	src_prefetch(t, s, e, e->sx0 + lx, e->sy0 + ly, (uint32_t)z);
+}
+
 /* The calling thread's slot is s; p is finite and in range.  Only the
    planes of channel mask ch are read: the 8 corners for density and
    orientation, the label of the voxel containing p for the material. */
@@ -637,6 +657,9 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	if (ch)
+		for (int c = 0; c < 8; c += 2)
+			column_prefetch(t, s, i0[0] + (c >> 1 & 1), i0[1] + (c >> 2 & 1), i0[2]);
 	for (int c = 0; c < 8; c += 2) {
 		int dx = c >> 1 & 1, dy = c >> 2 & 1;
 		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
