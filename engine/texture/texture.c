@@ -23,10 +23,11 @@
  *   - the texture header (density, albedo and alignment tables) and one
  *     block allocated at open (calloc: pages become resident when first
  *     used): per-exemplar tables (first brick, brick counts, label ->
- *     kind), a bit per brick (stored empty), and max_threads + 1 thread
- *     slots, each holding its cache thread handle, its current brick, its
- *     error message, the region gather buffer (6 planes of RCOLS x RZ
- *     bytes) and n_ent crossing entries (coefficients, label -> type table;
+ *     kind), a bit per brick (stored empty), 4 bytes per brick (the
+ *     frame it was last got from: lookup.c's prefetch hint), and
+ *     max_threads + 1 thread slots, each holding its cache thread
+ *     handle, its current brick, its error message, the region gather
+ *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries (coefficients, label -> type table;
  *     n_ent = 4 .. 256, the most whose total stays within budget / 32),
  *     and the shared offset maps (below; 4 .. the most within another
  *     budget / 32);
