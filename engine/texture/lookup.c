@@ -693,6 +693,8 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	return rc;
 }
 
+#define BATCH_AHEAD 4 /* batch calls prefetch this many points ahead */
+
 static int pos_check(const double p[3])
 {
 	for (int a = 0; a < 3; a++) {
@@ -756,6 +758,13 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
 		double p[3] = {x[i], y[i], z[i]};
 		loom_texel tx;
 		int e = pos_check(p);
+		if (i + BATCH_AHEAD < n && ch) { /* software pipeline: point i + k's
+		                                   lane and line on their way */
+			double q[3] = {x[i + BATCH_AHEAD], y[i + BATCH_AHEAD], z[i + BATCH_AHEAD]};
+			if (pos_check(q) == LOOM_OK)
+				column_prefetch(t, s, (int64_t)floor(q[0]), (int64_t)floor(q[1]),
+				                (int64_t)floor(q[2]));
+		}
 		if (e == LOOM_OK)
 			e = sample_one(t, s, p, filter, ch, &tx);
 		else
