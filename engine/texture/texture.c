@@ -27,8 +27,9 @@
  *     frame it was last got from: lookup.c's prefetch hint), and
  *     max_threads + 1 thread slots, each holding its cache thread
  *     handle, its current brick, its error message, the region gather
- *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries (coefficients, label -> type table;
- *     n_ent = 4 .. 256, the most whose total stays within budget / 32),
+ *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries
+ *     (coefficients, label -> type table; n_ent = 4 .. 256, the most
+ *     whose total stays within budget / 32),
  *     and the shared offset maps (below; 4 .. the most within another
  *     budget / 32);
  *   - the brick cache, opened with budget - (that block): frames,
