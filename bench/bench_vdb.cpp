@@ -748,13 +748,23 @@ std::string loom_child_cmd(const char *self, const Setup &S, const char *budget)
 	return "'" + dir + "/bench_texture' --vdb-child '" + S.dbp + "' '" + S.fabp + "'" + num;
 }
 
+/* The region for OpenVDB's child ("X0 Y0 NX NY NZ"): it needs nothing else
+   of loom's, so it opens neither the database nor the fabric. */
+std::string region_args(const Setup &S)
+{
+	char num[160];
+	snprintf(num, sizeof num, " %lld %lld %d %d %d", (long long)S.lo[0], (long long)S.lo[1],
+	         S.n[0], S.n[1], S.n[2]);
+	return num;
+}
+
 ChildOut run_child(const char *self, const Setup &S, const char *what, const char *arg)
 {
 	ChildOut o;
 	std::string cmd = strcmp(what, "loom") == 0
 	                          ? loom_child_cmd(self, S, arg)
 	                          : std::string("'") + self + "' " + (S.check ? "--check " : "") +
-	                                    "--child " + what + " '" + arg + "'";
+	                                    "--child " + what + " '" + arg + "'" + region_args(S);
 	FILE *p = popen(cmd.c_str(), "r");
 	char line[512];
 	if (!p)
@@ -859,30 +869,15 @@ int main(int argc, char **argv)
 	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper.vdb");
 	mkdir((S.build + "/bench").c_str(), 0777);
 	openvdb::initialize();
-	if (ai + 2 < argc + 0 && strcmp(argv[ai], "--child") == 0) {
-		/* a child: the parent made the database and saved the fabric */
+	if (ai + 7 < argc && strcmp(argv[ai], "--child") == 0) {
+		/* OpenVDB's child: the .vdb file and the region from the parent;
+		   nothing of loom's is opened (its RSS is OpenVDB's alone) */
 		g_base_kib = vm_kib("VmRSS:");
-		loom_diag diag;
-		memset(&diag, 0, sizeof diag);
-		const char *paper = getenv("LOOM_PAPER_DB");
-		S.dbp = S.check ? S.build + "/share/loom/default.ldb"
-		                : (paper && *paper ? std::string(paper) : S.build + "/bench/paper.ldb");
-		if (loom_db_open(S.dbp.c_str(), &S.db, &diag) != LOOM_OK ||
-		    loom_fabric_open(S.fabp.c_str(), S.db, 0, &S.fab, &diag) != LOOM_OK) {
-			printf("bench_vdb: child: %s\n", diag.message);
-			return 1;
-		}
-		loom_db_info info;
-		loom_db_get_info(S.db, &info);
-		S.lo[0] = 7 * (int64_t)info.block[0];
-		S.lo[1] = 11 * (int64_t)info.block[1];
-		S.n[0] = S.xings * (int)info.block[0];
-		S.n[1] = S.xings * (int)info.block[1];
-		S.n[2] = (int)info.block[2];
-		int rc = child(S, argv[ai + 1], argv[ai + 2]);
-		loom_fabric_free(S.fab);
-		loom_db_close(S.db);
-		return rc;
+		S.lo[0] = atoll(argv[ai + 3]);
+		S.lo[1] = atoll(argv[ai + 4]);
+		for (int a = 0; a < 3; a++)
+			S.n[a] = atoi(argv[ai + 5 + a]);
+		return child(S, argv[ai + 1], argv[ai + 2]);
 	}
 	printf("bench_vdb: loom %s against OpenVDB %s and NanoVDB %d.%d.%d; load average %s\n",
 	       loom_version(), openvdb::getLibraryVersionString(),

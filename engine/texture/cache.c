@@ -947,6 +947,24 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id, const void **data
 	return LOOM_OK;
 }
 
+uint32_t loom__cache_frame_of(const loom__cache_thread *th, const void *data)
+{
+	const loom__cache *c = th->cache;
+	return (uint32_t)((size_t)((const uint8_t *)data - c->slab) / c->frame_alloc);
+}
+
+const void *loom__cache_hint(const loom__cache_thread *th, uint64_t id, uint32_t f)
+{
+	const loom__cache *c = th->cache;
+	uint64_t h = mix64(id);
+
+	if (f >= c->n_frames)
+		return NULL;
+	__builtin_prefetch(bucket_of(stripe_of(c, h), h));
+	__builtin_prefetch(&c->frames[f]);
+	return frame_data(c, f);
+}
+
 int loom__cache_release(loom__cache_thread *th, const void *data)
 {
 	loom__cache *c;

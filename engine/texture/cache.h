@@ -264,6 +264,15 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id,
    pin (checked by arithmetic; data is never read). */
 int loom__cache_release(loom__cache_thread *th, const void *data);
 
+/* Prefetch hints (the texture's brick table, lookup.c): the frame of a
+   pointer returned by get (arithmetic; data is never read), and for a
+   frame f that held brick_id when last seen, the prefetch of the hash
+   bucket and frame descriptor a get of brick_id reads, returning f's
+   bytes.  Nothing is pinned and f may hold another brick by now: the
+   bytes must never be read through the result, only prefetched. */
+uint32_t loom__cache_frame_of(const loom__cache_thread *th, const void *data);
+const void *loom__cache_hint(const loom__cache_thread *th, uint64_t brick_id, uint32_t f);
+
 /* Statistics snapshot (counters are exact when no call is in flight). */
 void loom__cache_get_stats(const loom__cache *c, loom__cache_stats *st);
 /* Caller pins (distinct bricks) one thread may hold at once (deadlock

@@ -360,6 +360,11 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	s->memo_id = id;
 	s->memo = p;
 	s->memo_pinned = 1;
+	if (id < t->n_bricks) { /* src_prefetch's hint (a store only when new) */
+		uint32_t h = loom__cache_frame_of(s->cth, p) + 1;
+		if (atomic_load_explicit(&t->hint[id], memory_order_relaxed) != h)
+			atomic_store_explicit(&t->hint[id], h, memory_order_relaxed);
+	}
 	return LOOM_OK;
 }
 
@@ -387,6 +392,50 @@ static inline void planes_read(const loom_texture *t, const struct xent *e,
 	}
 }
 
+/* Step 5's brick id and step 6's index in it of source voxel (sx, sy, sz)
+   of crossing e. */
+static inline uint64_t src_brick(const loom_texture *t, const struct xent *e, uint32_t sx,
+                                 uint32_t sy, uint32_t sz)
+{
+	return e->ex->first_brick +
+	       ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) * e->ex->nb[2] +
+	       brick_of(t, 2, sz);
+}
+
+static inline size_t src_index(const loom_texture *t, uint32_t sx, uint32_t sy, uint32_t sz)
+{
+	return ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
+	       in_brick(t, 2, sz);
+}
+
+/* Before step 3: prefetch the density line of source voxel (sx, sy, z),
+   the voxel steps 4-6 read when the column's offset keeps it in the same
+   brick (a brick's column of bz voxels is one line at bz = 64), and the
+   cache's bucket and frame descriptor of its brick, so that the offset
+   lane's cache miss and the brick's overlap instead of following each
+   other.  The frame comes from the texture's brick table (t->hint: the
+   frame each brick was last got from, one relaxed load, no pin): only a
+   hint, nothing is read through it; a stale or wrong guess costs a
+   prefetch. */
+static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
+                                const struct xent *e, uint32_t sx, uint32_t sy, uint32_t z)
+{
+	uint64_t id = src_brick(t, e, sx, sy, z);
+	const uint8_t *p;
+
+	if (id == s->memo_id) {
+		p = s->memo;
+	} else {
+		uint32_t h;
+		if (id >= t->n_bricks || brick_empty(t, id))
+			return;
+		h = atomic_load_explicit(&t->hint[id], memory_order_relaxed);
+		p = h ? loom__cache_hint(s->cth, id, h - 1) : NULL;
+	}
+	if (p)
+		__builtin_prefetch(p + src_index(t, sx, sy, z));
+}
+
 /* Steps 4-6 for source voxel (sx, sy, zs) of crossing e. */
 static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e,
                           uint32_t sx, uint32_t sy, int64_t zs, unsigned ch, rawvox *r)
@@ -399,10 +448,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	if ((uint64_t)zs >= t->b3) /* Step 4 */
 		return LOOM_OK;
 	sz = (uint32_t)zs;
-	id = e->ex->first_brick +
-	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
-	             e->ex->nb[2] +
-	     brick_of(t, 2, sz);
+	id = src_brick(t, e, sx, sy, sz);
 	if (id != s->memo_id) { /* Step 5 */
 		int rc = loom__memo_switch(t, s, id);
 		if (rc != LOOM_OK)
@@ -412,8 +458,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	}
 	if (!s->memo)
 		return LOOM_OK;
-	i = ((size_t)in_brick(t, 1, sy) * t->bs[0] + in_brick(t, 0, sx)) * t->bs[2] +
-	    in_brick(t, 2, sz); /* Step 6 */
+	i = src_index(t, sx, sy, sz); /* Step 6 */
 	planes_read(t, e, s->memo, i, ch, r);
 	return LOOM_OK;
 }
@@ -437,9 +482,10 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		e = loom__xent_enter(t, s, x, y); /* Step 2 */
 	lx = (uint32_t)(x - e->x0);
 	ly = (uint32_t)(y - e->y0);
-	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
 	sx = e->sx0 + lx;
 	sy = e->sy0 + ly;
+	src_prefetch(t, s, e, sx, sy, (uint32_t)z);
+	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
 	if (!f)
 		return src_raw(t, s, e, sx, sy, z - w, ch, r);
 	if (!(ch & (CH_D | CH_O))) /* the material is the nearer voxel's */
@@ -450,6 +496,58 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		return rc != LOOM_OK ? rc : rc2;
 	raw_blend(&a, &b, f, r);
 	return LOOM_OK;
+}
+
+/* Steps 1-6 for voxels (x, y, z) and (x, y, z + 1), a trilinear corner
+   pair: the same as two voxel_raw calls, with one crossing and offset
+   look-up, and with a fractional offset three source voxels read instead
+   of four (z - w is the upper voxel of z's pair and the lower of z + 1's).
+   A failed source voxel leaves each voxel blended from it empty; returns
+   the first error, as the two calls would. */
+static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                           int64_t z, unsigned ch, rawvox r[2])
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly, sx, sy;
+	int in0 = (uint64_t)z < t->b3, in1 = (uint64_t)(z + 1) < t->b3;
+	int64_t w;
+	int f, rc[3] = {LOOM_OK, LOOM_OK, LOOM_OK};
+	rawvox v[3];
+
+	r[0] = r[1] = raw_empty;
+	if (!in0 && !in1) /* Step 1 */
+		return LOOM_OK;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y); /* Step 2 */
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	sx = e->sx0 + lx;
+	sy = e->sy0 + ly;
+	src_prefetch(t, s, e, sx, sy, (uint32_t)(in0 ? z : z + 1));
+	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
+	if (!f || !(ch & (CH_D | CH_O))) {
+		/* one source voxel each: the nearer one (the material's) */
+		int64_t d = f && 2 * f > DZ_SUB;
+		if (in0)
+			rc[0] = src_raw(t, s, e, sx, sy, z - w - d, ch, &r[0]);
+		if (in1)
+			rc[1] = src_raw(t, s, e, sx, sy, z + 1 - w - d, ch, &r[1]);
+		return rc[0] != LOOM_OK ? rc[0] : rc[1];
+	}
+	/* v[k] = source voxel z - w - 1 + k */
+	v[0] = v[2] = raw_empty;
+	if (in0)
+		rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
+	rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
+	if (in1)
+		rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+	if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK)
+		raw_blend(&v[0], &v[1], f, &r[0]);
+	if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK)
+		raw_blend(&v[1], &v[2], f, &r[1]);
+	if (in0 && (rc[0] != LOOM_OK || rc[1] != LOOM_OK))
+		return rc[0] != LOOM_OK ? rc[0] : rc[1];
+	return rc[1] != LOOM_OK ? rc[1] : rc[2];
 }
 
 /* The texel of raw voxel r, the fields of the channels outside ch zero
@@ -510,6 +608,26 @@ LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_
 	return voxel_ch(t, x, y, z, channels, out);
 }
 
+/* A trilinear corner column (x, y) from z: its crossing entered, its
+   offset lane and its voxel line prefetched, so that the 4 columns'
+   misses overlap before pair_raw resolves them one after the other. */
+static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                                   int64_t z)
+{
+	struct xent *e = s->cur;
+	uint32_t lx, ly;
+
+	if ((uint64_t)z >= t->b3 && (uint64_t)++z >= t->b3)
+		return;
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y);
+	lx = (uint32_t)(x - e->x0);
+	ly = (uint32_t)(y - e->y0);
+	if (e->map != NO_MAP)
+		__builtin_prefetch(&e->w[((size_t)ly * t->b1 + lx) >> 2]);
+	src_prefetch(t, s, e, e->sx0 + lx, e->sy0 + ly, (uint32_t)z);
+}
+
 /* The calling thread's slot is s; p is finite and in range.  Only the
    planes of channel mask ch are read: the 8 corners for density and
    orientation, the label of the voxel containing p for the material. */
@@ -539,17 +657,16 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	if (ch)
+		for (int c = 0; c < 8; c += 2)
+			column_prefetch(t, s, i0[0] + (c >> 1 & 1), i0[1] + (c >> 2 & 1), i0[2]);
 	for (int c = 0; c < 8; c += 2) {
 		int dx = c >> 1 & 1, dy = c >> 2 & 1;
 		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
-		int e = LOOM_OK, e2 = LOOM_OK;
+		int e = LOOM_OK;
 		r[c] = r[c + 1] = raw_empty;
-		if (cch) {
-			e = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c]);
-			e2 = voxel_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2] + 1, cch, &r[c + 1]);
-		}
-		if (e == LOOM_OK)
-			e = e2;
+		if (cch)
+			e = pair_raw(t, s, i0[0] + dx, i0[1] + dy, i0[2], cch, &r[c]);
 		if (e != LOOM_OK && rc == LOOM_OK)
 			rc = e;
 	}
@@ -575,6 +692,8 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 		loom__orient_blend(8, wd, (const float(*)[3])v, out->orientation);
 	return rc;
 }
+
+#define BATCH_AHEAD 4 /* batch calls prefetch this many points ahead */
 
 static int pos_check(const double p[3])
 {
@@ -639,6 +758,13 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
 		double p[3] = {x[i], y[i], z[i]};
 		loom_texel tx;
 		int e = pos_check(p);
+		if (i + BATCH_AHEAD < n && ch) { /* software pipeline: point i + k's
+		                                   lane and line on their way */
+			double q[3] = {x[i + BATCH_AHEAD], y[i + BATCH_AHEAD], z[i + BATCH_AHEAD]};
+			if (pos_check(q) == LOOM_OK)
+				column_prefetch(t, s, (int64_t)floor(q[0]), (int64_t)floor(q[1]),
+				                (int64_t)floor(q[2]));
+		}
 		if (e == LOOM_OK)
 			e = sample_one(t, s, p, filter, ch, &tx);
 		else

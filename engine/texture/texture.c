@@ -23,11 +23,13 @@
  *   - the texture header (density, albedo and alignment tables) and one
  *     block allocated at open (calloc: pages become resident when first
  *     used): per-exemplar tables (first brick, brick counts, label ->
- *     kind), a bit per brick (stored empty), and max_threads + 1 thread
- *     slots, each holding its cache thread handle, its current brick, its
- *     error message, the region gather buffer (6 planes of RCOLS x RZ
- *     bytes) and n_ent crossing entries (coefficients, label -> type table;
- *     n_ent = 4 .. 256, the most whose total stays within budget / 32),
+ *     kind), a bit per brick (stored empty), 4 bytes per brick (the
+ *     frame it was last got from: lookup.c's prefetch hint), and
+ *     max_threads + 1 thread slots, each holding its cache thread
+ *     handle, its current brick, its error message, the region gather
+ *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries
+ *     (coefficients, label -> type table; n_ent = 4 .. 256, the most
+ *     whose total stays within budget / 32),
  *     and the shared offset maps (below; 4 .. the most within another
  *     budget / 32);
  *   - the brick cache, opened with budget - (that block): frames,
@@ -306,7 +308,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	ent_bytes = sizeof(struct xent) +
 	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN);
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
-	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN);
+	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN) +
+	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN); /* t->hint */
 	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
 	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
 	n_ent = XENT_WAYS;
@@ -399,6 +402,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->n_ex = g.n_exemplars;
 	t->ex = (struct exm *)t->mem;
 	t->empty = (uint64_t *)(t->mem + round_up(sizeof(struct exm) * g.n_exemplars, ALIGN));
+	t->hint = (_Atomic uint32_t *)((uint8_t *)t->empty +
+	                               round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN));
 	t->n_bricks = g.n_bricks;
 	for (uint32_t id = 0; id < g.n_bricks; id++)
 		if (loom__db_brick_empty(db, id))

@@ -146,6 +146,9 @@ struct loom_texture {
 	struct exm *ex;          /* n_ex entries (in mem) */
 	uint32_t n_ex;
 	uint64_t *empty;         /* bit per brick: stored as nothing (in mem) */
+	_Atomic uint32_t *hint;  /* per brick: 1 + the cache frame it was last
+	                            got from, 0 = none (a prefetch hint only,
+	                            lookup.c src_prefetch; in mem) */
 	uint32_t n_bricks;
 	uint8_t *slots;          /* n_slots thread slots (in mem) */
 	loom__cache *cache;

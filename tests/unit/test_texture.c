@@ -1305,11 +1305,22 @@ static void labels_above_15(void)
 
 /* Trilinear density and orientation from the 8 reference voxels; the
    nearest kind/type; nearest filter = floor. */
+static void filtered_lookups_at(size_t budget);
+
+/* At a budget holding the working set and at the smallest one (a corner
+   column pair's source voxels evicting each other's bricks). */
 static void filtered_lookups(void)
 {
-	loom_texture *t = open_tex(g_fab, g_db, 8u << 20, 2);
+	filtered_lookups_at(8u << 20);
+	filtered_lookups_at(min_budget(g_fab, g_db, 2));
+}
+
+static void filtered_lookups_at(size_t budget)
+{
+	loom_texture *t = open_tex(g_fab, g_db, budget, 2);
 	uint64_t bad = 0, blended = 0;
 
+	printf("  budget %zu\n", budget);
 	if (!t)
 		return;
 	for (int it = 0; it < 20000; it++) {
