@@ -344,8 +344,10 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	const void *p;
 	int rc;
 
+	uint64_t bid = id & ~DUNIT_TAG; /* the brick; id may be its density unit */
+
 	memo_drop(s);
-	if (brick_empty(t, id)) {
+	if (brick_empty(t, bid)) {
 		s->memo_id = id;
 		bump(&s->cnt.empty, 1);
 		return LOOM_OK;
@@ -354,11 +356,12 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	d.warn = NULL;
 	d.user = NULL;
 	d.n_warnings = 0;
-	rc = loom__cache_get(s->cth, id, &p, &d);
+	rc = loom__cache_get(s->cth, id == bid ? id : DUNIT_TAG | bid >> 2, &p, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
+	s->memo_off = id == bid ? 0 : (uint32_t)((bid & 3) * t->bv);
 	s->memo_id = id;
-	s->memo = p;
+	s->memo = (const uint8_t *)p + s->memo_off;
 	s->memo_pinned = 1;
 	return LOOM_OK;
 }
@@ -403,6 +406,8 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	     ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 	             e->ex->nb[2] +
 	     brick_of(t, 2, sz);
+	if (ch == CH_D && t->dunits) /* only the density plane: its unit */
+		id |= DUNIT_TAG;
 	if (id != s->memo_id) { /* Step 5 */
 		int rc = loom__memo_switch(t, s, id);
 		if (rc != LOOM_OK)
