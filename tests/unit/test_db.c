@@ -403,7 +403,10 @@ static void fill_brick(uint8_t *raw, uint32_t bx, uint32_t by, uint32_t bz,
 		}
 }
 
-static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
+/* The hand-made exemplar, into a new database of voxel layout `layout`
+   (0: the current one), or appended to path's when append is set. */
+static int write_hand(const char *path, unsigned layout, int append, uint64_t *hash,
+                      loom_diag *d)
 {
 	loom__dbw_params wp;
 	loom__dbw_exemplar e;
@@ -422,6 +425,7 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	wp.voxel_size_um = 10;
 	wp.top_threshold = 64;
 	wp.level = 6;
+	wp.layout = layout;
 	memset(yarns, 0, sizeof yarns);
 	for (int l = 1; l < 256; l++) {
 		yarns[l].kind = LOOM_YARN_WEFT;
@@ -436,7 +440,9 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	e.weave = weave;
 	e.n_yarns = 255;
 	e.yarns = yarns;
-	if ((rc = loom__dbw_create(path, &wp, &w, d)) != LOOM_OK)
+	rc = append ? loom__dbw_append(path, 1, 0, &w, NULL, d) :
+	              loom__dbw_create(path, &wp, &w, d);
+	if (rc != LOOM_OK)
 		return rc;
 	if ((rc = loom__dbw_begin_exemplar(w, &e, d)) != LOOM_OK) {
 		loom__dbw_abort(w);
@@ -452,6 +458,45 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 				}
 			}
 	return loom__dbw_finish(w, hash, d);
+}
+
+static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
+{
+	return write_hand(path, 0, 0, hash, d);
+}
+
+/* Appending keeps the database's layout: a version-1 file stays version 1
+   (its bricks are copied verbatim), a version-2 file version 2; the
+   appended exemplar reads back equal to the first in both. */
+static void test_append_layouts(void)
+{
+	for (unsigned lay = 1; lay <= 2; lay++) {
+		loom_diag d = {0};
+		loom_db *db = NULL;
+		loom_db_info info;
+		uint64_t h = 0;
+		const char *p = tpath(lay == 1 ? "app1.ldb" : "app2.ldb");
+		uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
+		uint8_t a[512], b[512], al[512], bl[512];
+		uint16_t ao[512], bo[512];
+		CHECK_EQ_INT(write_hand(p, lay, 0, &h, &d), LOOM_OK);
+		CHECK_EQ_INT(write_hand(p, 0, 1, &h, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_open(p, &db, &d), LOOM_OK);
+		if (!db) {
+			printf("  %s\n", d.message);
+			continue;
+		}
+		loom_db_get_info(db, &info);
+		CHECK_EQ_INT(info.version, lay);
+		CHECK_EQ_INT(info.voxel_layout, lay);
+		CHECK_EQ_INT(info.n_exemplars, 2);
+		CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_read_box(db, 0, org, sz, a, ao, al, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_read_box(db, 1, org, sz, b, bo, bl, &d), LOOM_OK);
+		CHECK(memcmp(a, b, sizeof a) == 0 && memcmp(al, bl, sizeof al) == 0 &&
+		      memcmp(ao, bo, sizeof ao) == 0);
+		loom_db_close(db);
+	}
 }
 
 static void test_handmade(void)
@@ -1190,6 +1235,7 @@ int main(void)
 	RUN(test_threaded_reads);
 	RUN(test_reader_object);
 	RUN(test_handmade);
+	RUN(test_append_layouts);
 	RUN(test_streamed_height_map);
 	RUN(test_bad_magic_version);
 	RUN(test_truncation);
