@@ -31,6 +31,7 @@ typedef struct db_brick {
 	uint32_t stored;       /* bytes on disk */
 	uint32_t crc;          /* CRC32 of the stored bytes */
 	uint8_t storage;       /* LOOM__DB_STORE_* */
+	uint32_t ub[LOOM__DB_UNITS], uc[LOOM__DB_UNITS]; /* layout 2: unit bytes, CRC */
 } db_brick;
 
 typedef struct db_exm {
@@ -51,6 +52,7 @@ struct loom_db {
 	size_t max_stored;
 	size_t reader_bytes;   /* bound of one loom__db_reader, set at open */
 	uint64_t data_end;     /* = metadata offset: bricks lie in [128, data_end) */
+	size_t entry_bytes;    /* brick index entry: 24 (version 1) or 56 */
 	db_exm *ex;
 	db_brick *bricks;
 };
@@ -105,9 +107,9 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 		             "an exemplar database)", p, h[0], h[1], h[2], h[3], h[4], h[5],
 		             h[6], h[7]);
 	v = loom__le32(h + 8);
-	if (v != LOOM__DB_VERSION)
+	if (v != LOOM__DB_VERSION && v != LOOM__DB_VERSION_PLANES1)
 		return FAILF(LOOM_EVERSION, "%s: offset 8: format version %u, this loom "
-		             "reads version %u", p, v, LOOM__DB_VERSION);
+		             "reads versions 1 and %u", p, v, LOOM__DB_VERSION);
 	if (loom__le32(h + 124) != libdeflate_crc32(0, h, 124))
 		return FAILF(LOOM_ECORRUPT, "%s: offset 124: header CRC32 0x%08x does not "
 		             "match the header (0x%08x)", p, loom__le32(h + 124),
@@ -138,9 +140,14 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 		return FAILF(LOOM_EFORMAT, "%s: offset 32: brick %ux%ux%u is larger than "
 		             "%u bytes", p, db->info.brick[0], db->info.brick[1],
 		             db->info.brick[2], LOOM__DB_MAX_BRICK_BYTES);
-	if (loom__le32(h + 44) != LOOM__DB_LAYOUT_PLANES)
+	/* version 1 stores a brick as one stream (layout 1), version 2 each
+	   plane as a unit of its own (layout 2) */
+	db->info.voxel_layout = v == 1 ? LOOM__DB_LAYOUT_PLANES : LOOM__DB_LAYOUT_UNITS;
+	db->entry_bytes = v == 1 ? LOOM__DB_INDEX_BYTES : LOOM__DB_INDEX2_BYTES;
+	if (loom__le32(h + 44) != db->info.voxel_layout)
 		return FAILF(LOOM_EUNSUPPORTED, "%s: offset 44: voxel layout %u, expected "
-		             "%u", p, loom__le32(h + 44), LOOM__DB_LAYOUT_PLANES);
+		             "%u (format version %u)", p, loom__le32(h + 44),
+		             db->info.voxel_layout, v);
 	db->info.voxel_size_um = loom__lef32(h + 48);
 	if (!(db->info.voxel_size_um > 0.0f) || !(db->info.voxel_size_um < 1e6f))
 		return FAILF(LOOM_EFORMAT, "%s: offset 48: voxel size %g um", p,
@@ -367,12 +374,60 @@ static int parse_exemplar(loom_db *db, uint32_t k, const uint8_t *m,
 	return LOOM_OK;
 }
 
+static const char *const unit_names[LOOM__DB_UNITS] = {
+	"density", "orientation low byte", "orientation high byte", "label"};
+
+/* Layout 2: the four unit entries of brick i (bytes 24..55 of its index
+   entry).  A unit is 0 bytes (an all-zero plane, CRC 0), V bytes (raw) or
+   1..V-1 (DEFLATE); they lie back to back from the brick's offset and
+   add up to its stored_bytes; the brick's own CRC field is 0. */
+static int parse_units(loom_db *db, uint32_t i, const uint8_t *x, uint64_t io,
+                       loom_diag *diag)
+{
+	db_brick *b = &db->bricks[i];
+	uint64_t sum = 0;
+	char name[192];
+
+	for (unsigned u = 0; u < LOOM__DB_UNITS; u++) {
+		b->ub[u] = loom__le32(x + 24 + 8 * u);
+		b->uc[u] = loom__le32(x + 28 + 8 * u);
+		sum += b->ub[u];
+		if (b->ub[u] > db->brick_voxels || (b->ub[u] == 0 && b->uc[u])) {
+			loom__db_brick_name(db, i, name, sizeof name);
+			return FAILF(LOOM_ERANGE, "%s, unit %u (%s): index entry at metadata "
+			             "offset %zu: %u bytes (CRC 0x%08x), expected 0..%zu (CRC 0 "
+			             "when 0)", name, u, unit_names[u],
+			             (size_t)(io + (size_t)i * db->entry_bytes), b->ub[u],
+			             b->uc[u], db->brick_voxels);
+		}
+	}
+	if (sum != b->stored || b->crc != 0 ||
+	    (b->storage == LOOM__DB_STORE_EMPTY) != (sum == 0)) {
+		loom__db_brick_name(db, i, name, sizeof name);
+		return FAILF(LOOM_EFORMAT, "%s: index entry at metadata offset %zu: units "
+		             "of %llu bytes, stored_bytes %u, CRC field 0x%08x, storage %u "
+		             "(expected the sum, 0, and 0 exactly when empty)", name,
+		             (size_t)(io + (size_t)i * db->entry_bytes),
+		             (unsigned long long)sum, b->stored, b->crc, b->storage);
+	}
+	return LOOM_OK;
+}
+
+/* 1 if no unit of a layout-2 brick is compressed. */
+static int units_raw(const loom_db *db, const db_brick *b)
+{
+	for (unsigned u = 0; u < LOOM__DB_UNITS; u++)
+		if (b->ub[u] && b->ub[u] != db->brick_voxels)
+			return 0;
+	return 1;
+}
+
 static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
                        uint64_t io, loom_diag *diag)
 {
 
 	for (uint32_t i = 0; i < db->n_bricks; i++) {
-		const uint8_t *x = m + io + (size_t)i * LOOM__DB_INDEX_BYTES;
+		const uint8_t *x = m + io + (size_t)i * db->entry_bytes;
 		db_brick *b = &db->bricks[i];
 		uint32_t raw = loom__le32(x + 12);
 		char name[192];
@@ -381,11 +436,18 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 		b->stored = loom__le32(x + 8);
 		b->crc = loom__le32(x + 16);
 		b->storage = x[20];
-		if (b->storage > LOOM__DB_STORE_RAW || x[21] || x[22] || x[23]) {
+		if (b->storage > (db->entry_bytes == LOOM__DB_INDEX_BYTES ?
+		                  LOOM__DB_STORE_RAW : LOOM__DB_STORE_DEFLATE) ||
+		    x[21] || x[22] || x[23]) {
 			loom__db_brick_name(db, i, name, sizeof name);
 			return FAILF(LOOM_EFORMAT, "%s: index entry at metadata offset %zu: "
-			             "storage kind %u", name, (size_t)(io + (size_t)i * 24),
-			             b->storage);
+			             "storage kind %u", name,
+			             (size_t)(io + (size_t)i * db->entry_bytes), b->storage);
+		}
+		if (db->entry_bytes == LOOM__DB_INDEX2_BYTES) {
+			int rc = parse_units(db, i, x, io, diag);
+			if (rc)
+				return rc;
 		}
 		if (raw != db->brick_bytes) {
 			loom__db_brick_name(db, i, name, sizeof name);
@@ -422,7 +484,8 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 			             (unsigned long long)b->offset + b->stored,
 			             LOOM__DB_HEADER_BYTES, (unsigned long long)db->data_end);
 		}
-		if (b->storage == LOOM__DB_STORE_RAW)
+		if (b->storage == LOOM__DB_STORE_RAW ||
+		    (db->entry_bytes == LOOM__DB_INDEX2_BYTES && units_raw(db, b)))
 			db->info.n_raw_bricks++;
 		db->info.stored_bytes += b->stored;
 		if (b->stored > db->max_stored)
@@ -491,13 +554,13 @@ static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
 		return FAILF(LOOM_EFORMAT, "%s: metadata offset 8: %u exemplars, the "
 		             "header says %u", p, loom__le32(m + 8), db->info.n_exemplars);
 	if (loom__le32(m + 12) != LOOM__DB_EXEMPLAR_BYTES ||
-	    loom__le32(m + 20) != LOOM__DB_INDEX_BYTES ||
+	    loom__le32(m + 20) != db->entry_bytes ||
 	    loom__le32(m + 24) != loom__db_block_entry_bytes(db->info.block[0],
 	                                                     db->info.block[1]))
 		return FAILF(LOOM_EFORMAT, "%s: metadata offset 12: entry sizes %u/%u/%u, "
 		             "expected %u/%u/%zu", p, loom__le32(m + 12), loom__le32(m + 20),
 		             loom__le32(m + 24), LOOM__DB_EXEMPLAR_BYTES,
-		             LOOM__DB_INDEX_BYTES,
+		             (unsigned)db->entry_bytes,
 		             loom__db_block_entry_bytes(db->info.block[0], db->info.block[1]));
 	if (loom__le32(m + 28) != 0 || !all_zero(m + 48, 16))
 		return FAILF(LOOM_EFORMAT, "%s: metadata offset %d: reserved field is not "
@@ -513,7 +576,7 @@ static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
 		return FAILF(LOOM_ERANGE, "%s: metadata offset 32: exemplar table at %llu "
 		             "outside the %llu-byte metadata", p, (unsigned long long)xo,
 		             (unsigned long long)mlen);
-	if (!sect_ok(io, (uint64_t)db->n_bricks * LOOM__DB_INDEX_BYTES, mlen))
+	if (!sect_ok(io, (uint64_t)db->n_bricks * db->entry_bytes, mlen))
 		return FAILF(LOOM_ERANGE, "%s: metadata offset 40: brick index at %llu "
 		             "(%u bricks) outside the %llu-byte metadata", p,
 		             (unsigned long long)io, db->n_bricks, (unsigned long long)mlen);
@@ -852,6 +915,90 @@ const loom_db_yarn *loom__db_yarn_lut(const loom_db *db, uint32_t k)
 	return k < db->info.n_exemplars ? db->ex[k].yarns : NULL;
 }
 
+/* Unit u of brick id (layout 2), its stored bytes src (already read):
+   CRC, then zero, copy or inflate to exactly V bytes at out. */
+static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
+                       struct libdeflate_decompressor *dec, const uint8_t *src,
+                       uint64_t off, uint8_t *out, loom_diag *diag)
+{
+	const db_brick *b = &db->bricks[id];
+	size_t V = db->brick_voxels;
+	uint32_t crc;
+	enum libdeflate_result r;
+	char name[192];
+
+	if (b->ub[u] == 0) {
+		memset(out, 0, V);
+		return LOOM_OK;
+	}
+	crc = libdeflate_crc32(0, src, b->ub[u]);
+	if (crc != b->uc[u]) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ECORRUPT, "%s, unit %u (%s): CRC32 mismatch at "
+		                  "offset %llu (%u bytes): computed 0x%08x, index says "
+		                  "0x%08x", name, u, unit_names[u], (unsigned long long)off,
+		                  b->ub[u], crc, b->uc[u]);
+	}
+	if (b->ub[u] == V) {
+		if (src != out)
+			memcpy(out, src, V);
+		return LOOM_OK;
+	}
+	r = libdeflate_deflate_decompress(dec, src, b->ub[u], out, V, NULL);
+	if (r != LIBDEFLATE_SUCCESS) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ECORRUPT, "%s, unit %u (%s) at offset %llu: %s "
+		                  "(expected %zu bytes)", name, u, unit_names[u],
+		                  (unsigned long long)off,
+		                  r == LIBDEFLATE_SHORT_OUTPUT ?
+		                          "decompressed size mismatch: fewer bytes" :
+		                  r == LIBDEFLATE_INSUFFICIENT_SPACE ?
+		                          "decompressed size mismatch: more bytes" :
+		                          "invalid deflate data", V);
+	}
+	return LOOM_OK;
+}
+
+/* pread n bytes of brick id at off; the error names the brick. */
+static int brick_pread(const loom_db *db, uint32_t id, uint8_t *dst, size_t n,
+                       uint64_t off, size_t *n_read, loom_diag *diag)
+{
+	size_t got;
+	char name[192];
+
+	if (read_at(db->fd, dst, n, off, &got) != 0) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_EIO, "%s: read at offset %llu failed: %s",
+		                  name, (unsigned long long)off, strerror(errno));
+	}
+	if (n_read)
+		*n_read += got;
+	if (got != n) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ETRUNCATED, "%s: file ends after %zu of %zu "
+		                  "bytes at offset %llu (truncated)", name, got, n,
+		                  (unsigned long long)off);
+	}
+	return LOOM_OK;
+}
+
+/* Layout 2, the whole brick: one pread of its units, each checked. */
+static int read_units(const loom_db *db, uint32_t id,
+                      struct libdeflate_decompressor *dec, uint8_t *scratch,
+                      uint8_t *out, size_t *n_read, loom_diag *diag)
+{
+	const db_brick *b = &db->bricks[id];
+	uint64_t off = b->offset;
+	int rc = brick_pread(db, id, scratch, b->stored, off, n_read, diag);
+
+	for (unsigned u = 0; u < LOOM__DB_UNITS && !rc; u++) {
+		rc = unit_decode(db, id, u, dec, scratch + (off - b->offset), off,
+		                 out + u * db->brick_voxels, diag);
+		off += b->ub[u];
+	}
+	return rc;
+}
+
 int loom__db_read_brick(const loom_db *db, uint32_t id,
                         struct libdeflate_decompressor *dec, uint8_t *scratch,
                         uint8_t *out, size_t *n_read, loom_diag *diag)
@@ -873,6 +1020,8 @@ int loom__db_read_brick(const loom_db *db, uint32_t id,
 		memset(out, 0, db->brick_bytes);
 		return LOOM_OK;
 	}
+	if (db->entry_bytes == LOOM__DB_INDEX2_BYTES)
+		return read_units(db, id, dec, scratch, out, n_read, diag);
 	dst = b->storage == LOOM__DB_STORE_RAW ? out : scratch;
 	if (read_at(db->fd, dst, b->stored, b->offset, &got) != 0) {
 		loom__db_brick_name(db, id, name, sizeof name);
@@ -952,6 +1101,43 @@ int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
                          size_t *n_read, loom_diag *diag)
 {
 	return loom__db_read_brick(r->db, id, r->dec, r->scratch, out, n_read, diag);
+}
+
+unsigned loom__db_layout(const loom_db *db)
+{
+	return db->info.voxel_layout;
+}
+
+int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
+                              uint8_t *out, size_t *n_read, loom_diag *diag)
+{
+	const loom_db *db = r->db;
+	const db_brick *b;
+	uint64_t off;
+	uint8_t *src;
+	int rc;
+
+	if (n_read)
+		*n_read = 0;
+	if (id >= db->n_bricks || u >= LOOM__DB_UNITS)
+		return loom__fail(diag, LOOM_ERANGE, "%s: brick %u unit %u out of range "
+		                  "(the database has %u bricks)", db->path, id, u,
+		                  db->n_bricks);
+	if (db->entry_bytes != LOOM__DB_INDEX2_BYTES)
+		return loom__fail(diag, LOOM_EUNSUPPORTED, "%s: voxel layout %u stores "
+		                  "whole bricks, not plane units", db->path,
+		                  db->info.voxel_layout);
+	b = &db->bricks[id];
+	off = b->offset;
+	for (unsigned k = 0; k < u; k++)
+		off += b->ub[k];
+	if (b->ub[u] == 0) {
+		memset(out, 0, db->brick_voxels);
+		return LOOM_OK;
+	}
+	src = b->ub[u] == db->brick_voxels ? out : r->scratch;
+	rc = brick_pread(db, id, src, b->ub[u], off, n_read, diag);
+	return rc ? rc : unit_decode(db, id, u, r->dec, src, off, out, diag);
 }
 
 /* ---- whole-exemplar helpers -------------------------------------------------- */

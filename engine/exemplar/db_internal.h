@@ -40,13 +40,17 @@ struct libdeflate_decompressor;
 #define LOOM__DB_MAGIC "\x89LDB\r\n\x1a\n"   /* 8 bytes */
 #define LOOM__DB_META_MAGIC "LDBMETA1"        /* 8 bytes */
 #define LOOM__DB_TRAILER_MAGIC "LDBTRAIL"     /* 8 bytes */
-#define LOOM__DB_VERSION 1u
+#define LOOM__DB_VERSION 2u                   /* written; 1 is still read */
+#define LOOM__DB_VERSION_PLANES1 1u           /* whole-brick streams */
 #define LOOM__DB_HEADER_BYTES 128u
 #define LOOM__DB_TRAILER_BYTES 64u
 #define LOOM__DB_META_HEADER_BYTES 64u
 #define LOOM__DB_EXEMPLAR_BYTES 192u
-#define LOOM__DB_INDEX_BYTES 24u
+#define LOOM__DB_INDEX_BYTES 24u              /* version 1 */
+#define LOOM__DB_INDEX2_BYTES 56u             /* version 2: + 4 unit entries */
 #define LOOM__DB_LAYOUT_PLANES 1u             /* voxel_layout: 4 byte planes */
+#define LOOM__DB_LAYOUT_UNITS 2u              /* the planes stored apart */
+#define LOOM__DB_UNITS 4u                     /* units of a layout-2 brick */
 #define LOOM__DB_TOP_THRESHOLD 64u            /* density of the surface rule */
 
 /* Brick storage kinds (index entry byte 20). */
@@ -191,6 +195,17 @@ size_t loom__db_reader_bytes(const loom_db *db);
 /* loom__db_read_brick with the reader's decompressor and scratch. */
 int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
                          size_t *n_read, loom_diag *diag);
+
+/*
+ * Read plane unit u (0 density, 1 and 2 orientation low and high byte,
+ * 3 label) of brick id into out (brick_voxels bytes).  Layout 2 reads and
+ * checks that unit only; layout 1 cannot (LOOM_EUNSUPPORTED: callers ask
+ * loom__db_layout first).  Errors name the brick and the unit.
+ */
+int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
+                              uint8_t *out, size_t *n_read, loom_diag *diag);
+/* voxel_layout of the database: LOOM__DB_LAYOUT_PLANES or _UNITS. */
+unsigned loom__db_layout(const loom_db *db);
 
 /* Yarn table of exemplar k for label lookups: 256 entries, labels beyond
    n_yarns are kind 0.  NULL if k is out of range. */

@@ -344,8 +344,10 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	const void *p;
 	int rc;
 
+	uint64_t bid = id & ~DUNIT_TAG; /* the brick; id may be its density unit */
+
 	memo_drop(s);
-	if (brick_empty(t, id)) {
+	if (brick_empty(t, bid)) {
 		s->memo_id = id;
 		bump(&s->cnt.empty, 1);
 		return LOOM_OK;
@@ -354,16 +356,17 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	d.warn = NULL;
 	d.user = NULL;
 	d.n_warnings = 0;
-	rc = loom__cache_get(s->cth, id, &p, &d);
+	rc = loom__cache_get(s->cth, id == bid ? id : DUNIT_TAG | bid >> 2, &p, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
+	s->memo_off = id == bid ? 0 : (uint32_t)((bid & 3) * t->bv);
 	s->memo_id = id;
-	s->memo = p;
+	s->memo = (const uint8_t *)p + s->memo_off;
 	s->memo_pinned = 1;
-	if (id < t->n_bricks) { /* src_prefetch's hint (a store only when new) */
-		uint32_t h = loom__cache_frame_of(s->cth, p) + 1;
-		if (atomic_load_explicit(&t->hint[id], memory_order_relaxed) != h)
-			atomic_store_explicit(&t->hint[id], h, memory_order_relaxed);
+	if (bid < t->n_bricks) { /* src_prefetch's hint (a store only when new) */
+		uint32_t h = (loom__cache_frame_of(s->cth, p) + 1) | (id == bid ? 0 : HINT_DUNIT);
+		if (atomic_load_explicit(&t->hint[bid], memory_order_relaxed) != h)
+			atomic_store_explicit(&t->hint[bid], h, memory_order_relaxed);
 	}
 	return LOOM_OK;
 }
@@ -423,14 +426,22 @@ static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
 	uint64_t id = src_brick(t, e, sx, sy, z);
 	const uint8_t *p;
 
-	if (id == s->memo_id) {
+	if (id == (s->memo_id & ~DUNIT_TAG)) {
 		p = s->memo;
 	} else {
 		uint32_t h;
 		if (id >= t->n_bricks || brick_empty(t, id))
 			return;
 		h = atomic_load_explicit(&t->hint[id], memory_order_relaxed);
-		p = h ? loom__cache_hint(s->cth, id, h - 1) : NULL;
+		if (!h)
+			return;
+		if (h & HINT_DUNIT) { /* a density unit's frame: the brick's plane in it */
+			p = loom__cache_hint(s->cth, DUNIT_TAG | id >> 2, (h & ~HINT_DUNIT) - 1);
+			if (p)
+				p += (id & 3) * t->bv;
+		} else {
+			p = loom__cache_hint(s->cth, id, h - 1);
+		}
 	}
 	if (p)
 		__builtin_prefetch(p + src_index(t, sx, sy, z));
@@ -449,6 +460,8 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 		return LOOM_OK;
 	sz = (uint32_t)zs;
 	id = src_brick(t, e, sx, sy, sz);
+	if (ch == CH_D && t->dunits) /* only the density plane: its unit */
+		id |= DUNIT_TAG;
 	if (id != s->memo_id) { /* Step 5 */
 		int rc = loom__memo_switch(t, s, id);
 		if (rc != LOOM_OK)

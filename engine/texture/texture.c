@@ -67,11 +67,39 @@
 
 /* ------------------------------------------------------------ open/close */
 
+/* A density unit (DUNIT_TAG | g): the density planes of bricks 4g .. 4g+3,
+   read as their layout-2 units alone (empty or past the end: zeros).  It
+   takes one frame, as a whole brick does, so a density-only working set
+   holds four times the bricks in the same budget. */
+static int dunit_load(loom_texture *t, uint64_t g, uint8_t *dst, void *scratch,
+                      loom_diag *diag)
+{
+	for (uint64_t j = 0; j < 4; j++) {
+		uint64_t id = 4 * g + j;
+		size_t n = 0;
+		int rc;
+		if (id >= t->n_bricks || brick_empty(t, id)) {
+			memset(dst + j * t->bv, 0, t->bv);
+			continue;
+		}
+		rc = loom__db_reader_read_unit(scratch, (uint32_t)id, 0, dst + j * t->bv,
+		                               &n, diag);
+		atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
+		if (rc)
+			return rc;
+	}
+	return LOOM_OK;
+}
+
 static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *diag)
 {
 	loom_texture *t = ctx;
 	size_t n = 0;
-	int rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
+	int rc;
+
+	if (id & DUNIT_TAG)
+		return dunit_load(t, id & ~DUNIT_TAG, dst, scratch, diag);
+	rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
 	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
 	return rc;
 }
@@ -429,6 +457,12 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		goto fail;
 	if (o.lod)
 		loom__lod_setup(t);
+	/* density units need a layout-2 database and the plain loader (the
+	   LOD loader reads whole level-0 bricks); LOOM_DUNITS=0 turns them
+	   off (benchmarks, tests of both paths) */
+	t->dunits = !o.lod && loom__db_layout(db) == LOOM__DB_LAYOUT_UNITS &&
+	            t->bv * LOOM__VOXEL_PLANES == g.brick_bytes &&
+	            !(getenv("LOOM_DUNITS") && !strcmp(getenv("LOOM_DUNITS"), "0"));
 
 	co.ctx = t;
 	if ((rc = loom__cache_open(&co, &t->cache, diag)) != LOOM_OK) {

@@ -36,6 +36,12 @@
 #define XENT_MAX 256        /* crossing entries per thread slot, at most */
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
+/* Cache key of a density unit (texture.c): this bit | (brick id / 4), a
+   frame of the density planes of bricks 4g .. 4g+3 (layout-2 databases,
+   density-only lookups; LOD off). */
+#define DUNIT_TAG ((uint64_t)1 << 62)
+/* t->hint: the frame holds the brick's density unit, not the brick */
+#define HINT_DUNIT ((uint32_t)1 << 31)
 #define COORD_LIMIT ((int64_t)1 << 62) /* |x|, |y|, |z| below this */
 #define DZ_SUB 16           /* dz is kept in 1/DZ_SUB voxel (fixed point; a
                                power of two, dz_split) */
@@ -115,6 +121,7 @@ struct tslot {
 	uint64_t memo_id;        /* current brick (NO_BRICK: none) */
 	const uint8_t *memo;     /* its bytes; NULL for an empty brick */
 	int memo_pinned;         /* memo holds a caller pin */
+	uint32_t memo_off;       /* memo - its frame (a density unit's plane) */
 	int shared;              /* the overflow slot */
 	uint32_t clock;          /* stamps for the entries' LRU */
 	uint32_t next_free;      /* pool free list */
@@ -147,8 +154,9 @@ struct loom_texture {
 	uint32_t n_ex;
 	uint64_t *empty;         /* bit per brick: stored as nothing (in mem) */
 	_Atomic uint32_t *hint;  /* per brick: 1 + the cache frame it was last
-	                            got from, 0 = none (a prefetch hint only,
-	                            lookup.c src_prefetch; in mem) */
+	                            got from, 0 = none, | HINT_DUNIT when that
+	                            frame is its density unit (a prefetch hint
+	                            only, lookup.c src_prefetch; in mem) */
 	uint32_t n_bricks;
 	uint8_t *slots;          /* n_slots thread slots (in mem) */
 	loom__cache *cache;
@@ -175,6 +183,7 @@ struct loom_texture {
 	char msg[LOOM_DIAG_MSG_MAX]; /* last error of any thread */
 	_Atomic uint64_t bytes_read;
 	unsigned lod;            /* coarse levels available (0: LOD off; lod.c) */
+	int dunits;              /* density-only lookups use density units */
 	uint32_t cbs[3];         /* coarse brick shape: bx, by, bz / 2 */
 	size_t cbv;              /* voxels per coarse brick */
 	double lod_sigma;        /* extinction of a density byte over one voxel
@@ -223,8 +232,9 @@ static inline int brick_empty(const loom_texture *t, uint64_t id)
 static inline void memo_drop(struct tslot *s)
 {
 	if (s->memo_pinned)
-		loom__cache_release(s->cth, s->memo);
+		loom__cache_release(s->cth, s->memo - s->memo_off);
 	s->memo_pinned = 0;
+	s->memo_off = 0;
 	s->memo = NULL;
 	s->memo_id = NO_BRICK;
 }

@@ -49,6 +49,7 @@ struct loom__dbw {
 	loom__atomic out;
 	loom__dbw_params p;
 	size_t brick_voxels, brick_bytes;
+	size_t entry_bytes;         /* brick index entry of the layout */
 	uint64_t pos;               /* bytes written so far */
 	uint8_t hdr[LOOM__DB_HEADER_BYTES]; /* the header as written */
 	dbw_exemplar *ex;           /* p.n_exemplars */
@@ -172,6 +173,10 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	if (!w)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	w->p = *p;
+	if (w->p.layout != LOOM__DB_LAYOUT_PLANES)
+		w->p.layout = LOOM__DB_LAYOUT_UNITS;
+	w->entry_bytes = w->p.layout == LOOM__DB_LAYOUT_PLANES ? LOOM__DB_INDEX_BYTES :
+	                                                         LOOM__DB_INDEX2_BYTES;
 	w->brick_voxels = (size_t)p->brick[0] * p->brick[1] * p->brick[2];
 	w->brick_bytes = w->brick_voxels * LOOM__VOXEL_PLANES;
 	w->ex = calloc(p->n_exemplars, sizeof *w->ex);
@@ -191,7 +196,8 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	}
 	h = w->hdr;
 	memcpy(h, LOOM__DB_MAGIC, 8);
-	loom__put32(h + 8, LOOM__DB_VERSION);
+	loom__put32(h + 8, w->p.layout == LOOM__DB_LAYOUT_PLANES ?
+	                   LOOM__DB_VERSION_PLANES1 : LOOM__DB_VERSION);
 	loom__put32(h + 12, LOOM__DB_HEADER_BYTES);
 	loom__put32(h + 16, p->n_exemplars);
 	loom__put32(h + 20, p->block[0]);
@@ -200,7 +206,7 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	loom__put32(h + 32, p->brick[0]);
 	loom__put32(h + 36, p->brick[1]);
 	loom__put32(h + 40, p->brick[2]);
-	loom__put32(h + 44, LOOM__DB_LAYOUT_PLANES);
+	loom__put32(h + 44, w->p.layout);
 	loom__putf32(h + 48, p->voxel_size_um);
 	loom__put32(h + 52, p->top_threshold);
 	loom__put32(h + 56, (uint32_t)p->level);
@@ -456,10 +462,46 @@ const uint8_t *loom__dbw_solid(const loom__dbw *w)
 	return w->solid;
 }
 
+unsigned loom__dbw_layout(const loom__dbw *w)
+{
+	return w->p.layout;
+}
+
+/* Layout 2: each of the four planes as a unit of its own, back to back in
+   cbuf (4V bytes: every unit is at most V). */
+static void encode_units(const uint8_t *raw, size_t nv,
+                         struct libdeflate_compressor *comp, uint8_t *cbuf,
+                         loom__dbw_brick *out)
+{
+	size_t at = 0;
+
+	for (unsigned u = 0; u < LOOM__DB_UNITS; u++) {
+		const uint8_t *pl = raw + u * nv;
+		size_t n = 0, i = 0;
+		while (i < nv && pl[i] == 0)
+			i++;
+		if (i < nv) {
+			n = nv > 1 ? libdeflate_deflate_compress(comp, pl, nv, cbuf + at,
+			                                         nv - 1) : 0;
+			if (n == 0) {
+				memcpy(cbuf + at, pl, nv);
+				n = nv;
+			}
+		}
+		out->unit_bytes[u] = (uint32_t)n;
+		out->unit_crc[u] = n ? libdeflate_crc32(0, cbuf + at, n) : 0;
+		at += n;
+	}
+	out->storage = LOOM__DB_STORE_DEFLATE;
+	out->stored_bytes = (uint32_t)at;
+	out->data = cbuf;
+	out->crc = 0;
+}
+
 void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
                       const uint8_t solid[256], uint8_t threshold,
-                      struct libdeflate_compressor *comp, uint8_t *cbuf,
-                      loom__dbw_brick *out)
+                      unsigned layout, struct libdeflate_compressor *comp,
+                      uint8_t *cbuf, loom__dbw_brick *out)
 {
 	size_t nv = (size_t)brick[0] * brick[1] * brick[2];
 	size_t nb = nv * LOOM__VOXEL_PLANES, ncol = (size_t)brick[0] * brick[1];
@@ -476,6 +518,8 @@ void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
 		out->top[col] = -1;
 		out->top_label[col] = 0;
 	}
+	memset(out->unit_bytes, 0, sizeof out->unit_bytes);
+	memset(out->unit_crc, 0, sizeof out->unit_crc);
 	if (!any) {
 		out->storage = LOOM__DB_STORE_EMPTY;
 		out->stored_bytes = 0;
@@ -491,6 +535,10 @@ void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
 				out->top_label[col] = lab[base + z];
 				break;
 			}
+	}
+	if (layout != LOOM__DB_LAYOUT_PLANES) {
+		encode_units(raw, nv, comp, cbuf, out);
+		return;
 	}
 	csize = libdeflate_deflate_compress(comp, raw, nb, cbuf, nb - 1);
 	if (csize == 0) {
@@ -521,7 +569,7 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 	e = &w->ex[w->n_begun - 1];
 	if (w->n_bricks == w->cap_index) {
 		size_t nc = w->cap_index ? 2 * w->cap_index : 1024;
-		uint8_t *ni = realloc(w->index, nc * LOOM__DB_INDEX_BYTES);
+		uint8_t *ni = realloc(w->index, nc * w->entry_bytes);
 		if (!ni) {
 			w->failed = 1;
 			return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", w->out.path);
@@ -529,8 +577,8 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 		w->index = ni;
 		w->cap_index = nc;
 	}
-	ent = w->index + (size_t)w->n_bricks * LOOM__DB_INDEX_BYTES;
-	memset(ent, 0, LOOM__DB_INDEX_BYTES);
+	ent = w->index + (size_t)w->n_bricks * w->entry_bytes;
+	memset(ent, 0, w->entry_bytes);
 	if (b->storage != LOOM__DB_STORE_EMPTY) {
 		loom__put64(ent, w->pos);
 		loom__put32(ent + 8, b->stored_bytes);
@@ -542,6 +590,11 @@ int loom__dbw_put(loom__dbw *w, const loom__dbw_brick *b, loom_diag *diag)
 	}
 	loom__put32(ent + 12, (uint32_t)w->brick_bytes);
 	ent[20] = b->storage;
+	if (w->entry_bytes == LOOM__DB_INDEX2_BYTES)
+		for (unsigned u = 0; u < LOOM__DB_UNITS; u++) {
+			loom__put32(ent + 24 + 8 * u, b->unit_bytes[u]);
+			loom__put32(ent + 28 + 8 * u, b->unit_crc[u]);
+		}
 	/* merge the column tops into the exemplar's height map */
 	local = w->cur_put;
 	bz = local % e->bricks[2];
@@ -594,8 +647,8 @@ int loom__dbw_add_brick(loom__dbw *w, const uint8_t *raw, loom_diag *diag)
 
 	b.top = w->btop;
 	b.top_label = w->blabel;
-	loom__dbw_encode(raw, w->p.brick, w->solid, w->p.top_threshold, w->comp,
-	                 w->cbuf, &b);
+	loom__dbw_encode(raw, w->p.brick, w->solid, w->p.top_threshold, w->p.layout,
+	                 w->comp, w->cbuf, &b);
 	return loom__dbw_put(w, &b, diag);
 }
 
@@ -627,7 +680,7 @@ static uint8_t *build_metadata(loom__dbw *w, size_t *len)
 		off += pad8((size_t)e->rows * e->cols * esz);
 	}
 	index_off = off;
-	off += (size_t)w->n_bricks * LOOM__DB_INDEX_BYTES;
+	off += (size_t)w->n_bricks * w->entry_bytes;
 	m = calloc(1, off);
 	if (!m) {
 		free(wo);
@@ -637,7 +690,7 @@ static uint8_t *build_metadata(loom__dbw *w, size_t *len)
 	loom__put32(m + 8, w->p.n_exemplars);
 	loom__put32(m + 12, LOOM__DB_EXEMPLAR_BYTES);
 	loom__put32(m + 16, w->n_bricks);
-	loom__put32(m + 20, LOOM__DB_INDEX_BYTES);
+	loom__put32(m + 20, (uint32_t)w->entry_bytes);
 	loom__put32(m + 24, (uint32_t)esz);
 	loom__put64(m + 32, LOOM__DB_META_HEADER_BYTES);
 	loom__put64(m + 40, index_off);
@@ -678,7 +731,7 @@ static uint8_t *build_metadata(loom__dbw *w, size_t *len)
 		}
 		memcpy(m + wo[4 * k + 3], e->blocks, (size_t)e->rows * e->cols * esz);
 	}
-	memcpy(m + index_off, w->index, (size_t)w->n_bricks * LOOM__DB_INDEX_BYTES);
+	memcpy(m + index_off, w->index, (size_t)w->n_bricks * w->entry_bytes);
 	free(wo);
 	*len = off;
 	return m;
@@ -887,6 +940,7 @@ int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
 		p.level = LOOM_DB_DEFAULT_LEVEL;
 	p.flags = loom__le32(hdr + 60) & ~clear_flags;
 	p.seed = info.seed;
+	p.layout = info.voxel_layout; /* an old file keeps its layout */
 	if (old)
 		*old = p;
 	meta = malloc(meta_len ? meta_len : 1);
@@ -921,7 +975,7 @@ int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
 	esz = loom__db_block_entry_bytes(p.block[0], p.block[1]);
 	n_bricks = loom__le32(meta + 16);
 	index_off = loom__le64(meta + 40);
-	if (index_off + (uint64_t)n_bricks * LOOM__DB_INDEX_BYTES > meta_len) {
+	if (index_off + (uint64_t)n_bricks * w->entry_bytes > meta_len) {
 		rc = loom__fail(diag, LOOM_ECORRUPT, "%s: brick index out of range", path);
 		goto done;
 	}
@@ -932,12 +986,12 @@ int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
 			goto done;
 		}
 	w->cap_index = n_bricks > 1024 ? n_bricks : 1024;
-	w->index = malloc(w->cap_index * LOOM__DB_INDEX_BYTES);
+	w->index = malloc(w->cap_index * w->entry_bytes);
 	if (!w->index) {
 		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 		goto done;
 	}
-	memcpy(w->index, meta + index_off, (size_t)n_bricks * LOOM__DB_INDEX_BYTES);
+	memcpy(w->index, meta + index_off, (size_t)n_bricks * w->entry_bytes);
 	w->n_bricks = n_bricks;
 	w->n_begun = w->n_copied = n_old;
 done:

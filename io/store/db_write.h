@@ -35,6 +35,9 @@ typedef struct loom__dbw_params {
 	int level;              /* libdeflate level */
 	uint64_t seed;
 	uint32_t flags;         /* header flags (bit 0: procedural) */
+	uint32_t layout;        /* voxel layout: 0 or LOOM__DB_LAYOUT_UNITS
+	                           (version 2), LOOM__DB_LAYOUT_PLANES (version
+	                           1: appending to an old file, tests) */
 } loom__dbw_params;
 
 typedef struct loom__dbw_exemplar {
@@ -54,6 +57,8 @@ typedef struct loom__dbw_brick {
 	uint32_t stored_bytes;
 	uint32_t crc;            /* CRC32 of the stored bytes */
 	const uint8_t *data;     /* stored bytes (cbuf or the raw brick) */
+	uint32_t unit_bytes[4];  /* layout 2: the planes' units in data, */
+	uint32_t unit_crc[4];    /* back to back (0 bytes: an all-zero plane) */
 	int16_t *top;            /* per column (ly*bx + lx): local z of the top
 	                            solid voxel, -1 if none */
 	uint8_t *top_label;      /* label of that voxel (0 if none) */
@@ -66,15 +71,19 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *e,
 
 /*
  * Encode raw (four planes, voxel.h) for storage: all-zero -> empty;
- * deflate at the compressor's level into cbuf (brick_bytes) if it shrinks,
- * else raw (data = raw).  Fills the top-surface columns with solid[]
+ * layout 1: deflate at the compressor's level into cbuf (brick_bytes) if it
+ * shrinks, else raw (data = raw); layout 2: each plane on its own into
+ * cbuf (deflated if that shrinks it, else copied; an all-zero plane is 0
+ * bytes), data = cbuf.  Fills the top-surface columns with solid[]
  * (loom__db_solid_lut) and threshold.  Thread-safe given its own
  * compressor and buffers.
  */
 void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
                       const uint8_t solid[256], uint8_t threshold,
-                      struct libdeflate_compressor *comp, uint8_t *cbuf,
-                      loom__dbw_brick *out);
+                      unsigned layout, struct libdeflate_compressor *comp,
+                      uint8_t *cbuf, loom__dbw_brick *out);
+/* The voxel layout the writer writes (LOOM__DB_LAYOUT_*). */
+unsigned loom__dbw_layout(const loom__dbw *w);
 
 /*
  * Append to an existing database: opens and checks `path` (loom_db_open),

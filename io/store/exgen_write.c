@@ -33,6 +33,12 @@ typedef struct slot {
 	uint8_t *top_label;
 } slot;
 
+/* The voxel layout params ask for (db_version 1: layout 1). */
+static unsigned exgen_layout(const loom_exgen_params *p)
+{
+	return p->db_version == 1 ? LOOM__DB_LAYOUT_PLANES : LOOM__DB_LAYOUT_UNITS;
+}
+
 typedef struct pipe {
 	pthread_mutex_t mu;
 	pthread_cond_t cv;
@@ -134,7 +140,8 @@ static void *worker(void *arg)
 			pack_brick(P, bz, P->nb[k][2] * bs[2], d, o, l, pack);
 			b->top = s->top + bz * ncol;
 			b->top_label = s->top_label + bz * ncol;
-			loom__dbw_encode(pack, bs, P->solid[k], LOOM__DB_TOP_THRESHOLD, comp, cb, b);
+			loom__dbw_encode(pack, bs, P->solid[k], LOOM__DB_TOP_THRESHOLD,
+			                 exgen_layout(P->p), comp, cb, b);
 			if (b->storage == LOOM__DB_STORE_RAW) {
 				memcpy(cb, pack, P->brick_bytes);
 				b->data = cb;
@@ -351,6 +358,7 @@ static int run_pipe(const char *path, const loom_exgen_params *p, pipe *P_,
 	wp.level = p->level;
 	wp.seed = p->seed;
 	wp.flags = 1;
+	wp.layout = exgen_layout(p);
 	rc = loom__dbw_create(path, &wp, &w, diag);
 	if (rc) {
 		free_pipe(&P);

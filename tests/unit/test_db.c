@@ -80,7 +80,8 @@ static size_t index_entry(const uint8_t *b, size_t n, uint32_t id)
 {
 	const uint8_t *t = b + n - LOOM__DB_TRAILER_BYTES;
 	uint64_t mo = loom__le64(t + 8);
-	return (size_t)(mo + loom__le64(b + mo + 40) + (uint64_t)id * LOOM__DB_INDEX_BYTES);
+	/* the entry size of the file's version (24 or 56, metadata byte 20) */
+	return (size_t)(mo + loom__le64(b + mo + 40) + (uint64_t)id * loom__le32(b + mo + 20));
 }
 
 static int open_code(const char *path, loom_diag *d)
@@ -126,6 +127,13 @@ static void test_roundtrip_generated(void)
 
 	rc = loom_exgen_write_db(tpath("gen.ldb"), &p, &hash, &d);
 	CHECK_EQ_INT(rc, LOOM_OK);
+	if (rc == LOOM_OK) { /* the same exemplars in format version 1 */
+		loom_exgen_params p1 = p;
+		uint64_t h1 = 0;
+		p1.db_version = 1;
+		CHECK_EQ_INT(loom_exgen_write_db(tpath("gen1.ldb"), &p1, &h1, &d), LOOM_OK);
+		CHECK(h1 != hash);
+	}
 	if (rc) {
 		printf("  %s\n", d.message);
 		return;
@@ -395,7 +403,10 @@ static void fill_brick(uint8_t *raw, uint32_t bx, uint32_t by, uint32_t bz,
 		}
 }
 
-static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
+/* The hand-made exemplar, into a new database of voxel layout `layout`
+   (0: the current one), or appended to path's when append is set. */
+static int write_hand(const char *path, unsigned layout, int append, uint64_t *hash,
+                      loom_diag *d)
 {
 	loom__dbw_params wp;
 	loom__dbw_exemplar e;
@@ -414,6 +425,7 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	wp.voxel_size_um = 10;
 	wp.top_threshold = 64;
 	wp.level = 6;
+	wp.layout = layout;
 	memset(yarns, 0, sizeof yarns);
 	for (int l = 1; l < 256; l++) {
 		yarns[l].kind = LOOM_YARN_WEFT;
@@ -428,7 +440,9 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	e.weave = weave;
 	e.n_yarns = 255;
 	e.yarns = yarns;
-	if ((rc = loom__dbw_create(path, &wp, &w, d)) != LOOM_OK)
+	rc = append ? loom__dbw_append(path, 1, 0, &w, NULL, d) :
+	              loom__dbw_create(path, &wp, &w, d);
+	if (rc != LOOM_OK)
 		return rc;
 	if ((rc = loom__dbw_begin_exemplar(w, &e, d)) != LOOM_OK) {
 		loom__dbw_abort(w);
@@ -444,6 +458,45 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 				}
 			}
 	return loom__dbw_finish(w, hash, d);
+}
+
+static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
+{
+	return write_hand(path, 0, 0, hash, d);
+}
+
+/* Appending keeps the database's layout: a version-1 file stays version 1
+   (its bricks are copied verbatim), a version-2 file version 2; the
+   appended exemplar reads back equal to the first in both. */
+static void test_append_layouts(void)
+{
+	for (unsigned lay = 1; lay <= 2; lay++) {
+		loom_diag d = {0};
+		loom_db *db = NULL;
+		loom_db_info info;
+		uint64_t h = 0;
+		const char *p = tpath(lay == 1 ? "app1.ldb" : "app2.ldb");
+		uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
+		uint8_t a[512], b[512], al[512], bl[512];
+		uint16_t ao[512], bo[512];
+		CHECK_EQ_INT(write_hand(p, lay, 0, &h, &d), LOOM_OK);
+		CHECK_EQ_INT(write_hand(p, 0, 1, &h, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_open(p, &db, &d), LOOM_OK);
+		if (!db) {
+			printf("  %s\n", d.message);
+			continue;
+		}
+		loom_db_get_info(db, &info);
+		CHECK_EQ_INT(info.version, lay);
+		CHECK_EQ_INT(info.voxel_layout, lay);
+		CHECK_EQ_INT(info.n_exemplars, 2);
+		CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_read_box(db, 0, org, sz, a, ao, al, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_read_box(db, 1, org, sz, b, bo, bl, &d), LOOM_OK);
+		CHECK(memcmp(a, b, sizeof a) == 0 && memcmp(al, bl, sizeof al) == 0 &&
+		      memcmp(ao, bo, sizeof ao) == 0);
+		loom_db_close(db);
+	}
 }
 
 static void test_handmade(void)
@@ -694,13 +747,20 @@ static void test_bad_magic_version(void)
 	spit(tpath("text2.ldb"), (const uint8_t *)"hello world, not a db\n", 22);
 	CHECK_EQ_INT(open_code(tpath("text2.ldb"), &d), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(d.message, "bad magic");
-	/* version 2, even with a valid CRC, is a version error */
+	/* version 3, even with a valid CRC, is a version error */
 	memcpy(c, b, n);
-	loom__put32(c + 8, 2);
+	loom__put32(c + 8, 3);
 	reseal(c, n);
-	spit(tpath("v2.ldb"), c, n);
-	CHECK_EQ_INT(open_code(tpath("v2.ldb"), &d), LOOM_EVERSION);
-	CHECK_STR_CONTAINS(d.message, "offset 8: format version 2");
+	spit(tpath("v3.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("v3.ldb"), &d), LOOM_EVERSION);
+	CHECK_STR_CONTAINS(d.message, "offset 8: format version 3");
+	/* a version whose layout field disagrees */
+	memcpy(c, b, n);
+	loom__put32(c + 44, loom__le32(c + 8) == 1 ? 2 : 1);
+	reseal(c, n);
+	spit(tpath("vlay.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("vlay.ldb"), &d), LOOM_EUNSUPPORTED);
+	CHECK_STR_CONTAINS(d.message, "offset 44: voxel layout");
 	/* header CRC */
 	memcpy(c, b, n);
 	c[100] ^= 1;
@@ -869,10 +929,136 @@ static void test_crc_mismatch(void)
 	loom_db_close(db);
 }
 
+/* Version 2 against version 1 of the same exemplars: every voxel of
+   every channel equal; each unit alone equals its plane of the whole
+   brick; a damaged unit is named, and the brick's other units still read. */
+static void test_units(void)
+{
+	loom_db *d2 = NULL, *d1 = NULL;
+	loom_db_info i1, i2;
+	loom_diag d = {0};
+	loom__db_geom g;
+	loom__db_reader *r = NULL;
+	uint8_t *brick = NULL, *plane = NULL, *b = NULL, *c = NULL;
+	size_t n = 0;
+	uint32_t id;
+	char want[80];
+
+	CHECK_EQ_INT(loom_db_open(tpath("gen.ldb"), &d2, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("gen1.ldb"), &d1, &d), LOOM_OK);
+	if (!d1 || !d2)
+		goto out;
+	loom_db_get_info(d1, &i1);
+	loom_db_get_info(d2, &i2);
+	CHECK_EQ_INT(i1.version, 1);
+	CHECK_EQ_INT(i1.voxel_layout, 1);
+	CHECK_EQ_INT(i2.version, 2);
+	CHECK_EQ_INT(i2.voxel_layout, 2);
+	CHECK_EQ_INT(i1.n_empty_bricks, i2.n_empty_bricks);
+	for (uint32_t k = 0; k < i1.n_exemplars; k++) {
+		loom_db_exemplar_info e;
+		uint32_t org[3] = {0, 0, 0};
+		size_t nv;
+		uint8_t *a8, *b8, *al, *bl;
+		uint16_t *ao, *bo;
+		loom_db_exemplar(d1, k, &e);
+		nv = (size_t)e.size[0] * e.size[1] * e.size[2];
+		a8 = malloc(nv), b8 = malloc(nv), al = malloc(nv), bl = malloc(nv);
+		ao = malloc(2 * nv), bo = malloc(2 * nv);
+		CHECK_EQ_INT(loom_db_read_box(d1, k, org, e.size, a8, ao, al, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_read_box(d2, k, org, e.size, b8, bo, bl, &d), LOOM_OK);
+		CHECK(memcmp(a8, b8, nv) == 0 && memcmp(al, bl, nv) == 0 &&
+		      memcmp(ao, bo, 2 * nv) == 0);
+		free(a8), free(b8), free(al), free(bl), free(ao), free(bo);
+	}
+	CHECK_EQ_INT(loom_db_verify(d2, NULL, NULL, &d), LOOM_OK);
+	loom__db_geometry(d2, &g);
+	r = loom__db_reader_new(d2);
+	brick = malloc(g.brick_bytes);
+	plane = malloc(g.brick_voxels);
+	{
+		long bad = 0;
+		for (id = 0; id < g.n_bricks; id++) {
+			CHECK_EQ_INT(loom__db_reader_read(r, id, brick, NULL, &d), LOOM_OK);
+			for (unsigned u = 0; u < 4; u++) {
+				memset(plane, 0xa5, g.brick_voxels);
+				CHECK_EQ_INT(loom__db_reader_read_unit(r, id, u, plane, NULL, &d),
+				             LOOM_OK);
+				bad += memcmp(plane, brick + u * g.brick_voxels, g.brick_voxels) != 0;
+			}
+		}
+		CHECK_EQ_INT(bad, 0);
+	}
+	/* a version-1 database has no units */
+	{
+		loom__db_reader *r1 = loom__db_reader_new(d1);
+		CHECK_EQ_INT(loom__db_reader_read_unit(r1, 0, 0, plane, NULL, &d),
+		             LOOM_EUNSUPPORTED);
+		loom__db_reader_free(r1);
+	}
+	/* flip a byte inside the density unit of the first stored brick */
+	b = slurp(tpath("gen.ldb"), &n);
+	c = malloc(n);
+	id = first_deflate(b, n);
+	{
+		size_t e = index_entry(b, n, id);
+		uint64_t off = loom__le64(b + e);
+		uint32_t u0 = loom__le32(b + e + 24), u3 = loom__le32(b + e + 48);
+		loom_db *bd = NULL;
+		loom__db_reader *br;
+		CHECK(u0 > 0 && u3 > 0);
+		memcpy(c, b, n);
+		c[off + u0 / 2] ^= 0x10;
+		spit(tpath("unit.ldb"), c, n);
+		CHECK_EQ_INT(loom_db_open(tpath("unit.ldb"), &bd, &d), LOOM_OK);
+		if (bd) {
+			br = loom__db_reader_new(bd);
+			snprintf(want, sizeof want, "unit.ldb: brick %u (exemplar", id);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, id, 0, plane, NULL, &d),
+			             LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, want);
+			CHECK_STR_CONTAINS(d.message, "unit 0 (density): CRC32 mismatch");
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, id, 3, plane, NULL, &d),
+			             LOOM_OK);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read(br, id, brick, NULL, &d), LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, "unit 0 (density)");
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom_db_verify(bd, NULL, NULL, &d), LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, want);
+			loom__db_reader_free(br);
+			loom_db_close(bd);
+		}
+		/* the index: units that do not add up to stored_bytes */
+		memcpy(c, b, n);
+		loom__put32(c + e + 24, u0 + 1);
+		reseal(c, n);
+		spit(tpath("unit.ldb"), c, n);
+		CHECK_EQ_INT(open_code(tpath("unit.ldb"), &d), LOOM_EFORMAT);
+		CHECK_STR_CONTAINS(d.message, "units of");
+		/* a unit larger than a plane */
+		memcpy(c, b, n);
+		loom__put32(c + e + 48, (uint32_t)g.brick_voxels + 1);
+		reseal(c, n);
+		spit(tpath("unit.ldb"), c, n);
+		CHECK_EQ_INT(open_code(tpath("unit.ldb"), &d), LOOM_ERANGE);
+		CHECK_STR_CONTAINS(d.message, "unit 3 (label)");
+	}
+out:
+	free(b);
+	free(c);
+	free(brick);
+	free(plane);
+	loom__db_reader_free(r);
+	loom_db_close(d1);
+	loom_db_close(d2);
+}
+
 static void test_index_out_of_range(void)
 {
 	size_t n;
-	uint8_t *b = slurp(tpath("gen.ldb"), &n), *c = malloc(n);
+	uint8_t *b = slurp(tpath("gen1.ldb"), &n), *c = malloc(n);
 	uint32_t id = first_deflate(b, n);
 	size_t e = index_entry(b, n, id);
 	loom_diag d;
@@ -932,7 +1118,7 @@ static void test_index_out_of_range(void)
 static void test_size_mismatch(void)
 {
 	size_t n, csz;
-	uint8_t *b = slurp(tpath("gen.ldb"), &n), *c = malloc(n), *brick, *scratch;
+	uint8_t *b = slurp(tpath("gen1.ldb"), &n), *c = malloc(n), *brick, *scratch;
 	uint32_t id = first_deflate(b, n);
 	size_t e = index_entry(b, n, id);
 	uint64_t off = loom__le64(b + e);
@@ -956,7 +1142,7 @@ static void test_size_mismatch(void)
 	CHECK_STR_CONTAINS(d.message, "decompressed size mismatch");
 	/* (b) a valid deflate stream that inflates to too few / too many bytes,
 	   with a matching CRC: caught at read time */
-	CHECK_EQ_INT(loom_db_open(tpath("gen.ldb"), &db, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("gen1.ldb"), &db, &d), LOOM_OK);
 	if (!db)
 		goto out;
 	loom__db_geometry(db, &geo);
@@ -1049,11 +1235,13 @@ int main(void)
 	RUN(test_threaded_reads);
 	RUN(test_reader_object);
 	RUN(test_handmade);
+	RUN(test_append_layouts);
 	RUN(test_streamed_height_map);
 	RUN(test_bad_magic_version);
 	RUN(test_truncation);
 	RUN(test_truncated_after_open);
 	RUN(test_crc_mismatch);
+	RUN(test_units);
 	RUN(test_index_out_of_range);
 	RUN(test_size_mismatch);
 	RUN(test_random_damage);

@@ -1495,6 +1495,86 @@ static loom_texel masked(loom_texel a, unsigned ch)
    with one channel against single samples; at the smallest budget (the
    bricks churn, corner pairs straddle bricks: 8-deep bricks) and a large
    one, with the lookups of all masks interleaved on one thread state. */
+/* Format version 1 against version 2 (each plane a unit; density-only
+   lookups then cache density units, texture.c): the same exemplars in
+   both, every mask against each one's brute-force reference, at the
+   smallest budget (below the working set) and a large one; version 2
+   reads fewer bytes for density alone. */
+static void old_format_same_lookups(void)
+{
+	char p1[4200], p2[4200];
+	uint32_t brick[3] = {8, 8, 8};
+	uint64_t read_d[2] = {0, 0};
+
+	snprintf(p1, sizeof p1, "%s/v1.ldb", tmpdir);
+	snprintf(p2, sizeof p2, "%s/v2.ldb", tmpdir);
+	for (int v = 0; v < 2; v++) {
+		loom_exgen_params p;
+		loom_diag d = {0};
+		loom_db *db = NULL;
+		loom_fabric *f = NULL;
+		ref r;
+		loom_exgen_preset("tiny", &p);
+		p.seed = 5;
+		p.threads = 2;
+		memcpy(p.brick, brick, sizeof p.brick);
+		p.db_version = v ? 2 : 1;
+		CHECK_EQ_INT(loom_exgen_write_db(v ? p2 : p1, &p, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_open(v ? p2 : p1, &db, &d), LOOM_OK);
+		if (db)
+			f = synth(g_design, db);
+		if (!f || ref_init(&r, f, db) != 0) {
+			CHECK(0);
+			loom_fabric_free(f);
+			loom_db_close(db);
+			continue;
+		}
+		{
+			loom_db_info info;
+			loom_db_get_info(db, &info);
+			CHECK_EQ_INT(info.version, v ? 2 : 1);
+		}
+		for (int b = 0; b < 2; b++) {
+			size_t budget = b ? 8u << 20 : min_budget(f, db, 1);
+			loom_texture *t = open_tex(f, db, budget, 1);
+			loom_texture_stats st;
+			uint64_t bad = 0;
+			if (!t)
+				continue;
+			for (int it = 0; it < 4000; it++) {
+				unsigned ch = it % 3 ? LOOM_CHANNEL_DENSITY : (unsigned)(it % 8);
+				int64_t x = rnd_range(-300, 300), y = rnd_range(-200, 200),
+				        z = rnd_range(-2, r.b3 + 2);
+				loom_texel a, e = masked(ref_texel(&r, x, y, z), ch);
+				CHECK_EQ_INT(loom_texture_voxel_ch(t, x, y, z, ch, &a), LOOM_OK);
+				bad += !texel_eq(&a, &e);
+			}
+			CHECK_EQ_INT(bad, 0);
+			if (b == 0) { /* density alone, from cold */
+				loom_texture_close(t);
+				t = open_tex(f, db, budget, 1);
+				for (int it = 0; t && it < 2000; it++) {
+					loom_texel a;
+					loom_texture_voxel_ch(t, rnd_range(-300, 300), rnd_range(-200, 200),
+					                      rnd_range(0, r.b3), LOOM_CHANNEL_DENSITY, &a);
+				}
+				if (t) {
+					loom_texture_get_stats(t, &st);
+					read_d[v] = st.bytes_read;
+				}
+			}
+			loom_texture_close(t);
+		}
+		ref_free(&r);
+		loom_fabric_free(f);
+		loom_db_close(db);
+	}
+	printf("  density-only lookups at the smallest budget read %llu bytes "
+	       "(version 1) and %llu (version 2)\n", (unsigned long long)read_d[0],
+	       (unsigned long long)read_d[1]);
+	CHECK(read_d[1] > 0 && read_d[1] < read_d[0]);
+}
+
 static void channel_masks(void)
 {
 	size_t budgets[2];
@@ -1880,6 +1960,7 @@ int main(void)
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
 	RUN(channel_masks);
+	RUN(old_format_same_lookups);
 	RUN(corrupt_brick);
 	RUN(warp_on_top_real_designs);
 	RUN(no_terraces);

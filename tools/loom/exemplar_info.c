@@ -85,6 +85,7 @@ int exemplar_info(int argc, char **argv)
 		jw_begin(&w, stdout);
 		jw_str(&w, "path", pos ? pos : cli_db_path(dbopt));
 		jw_uint(&w, "version", info.version);
+		jw_uint(&w, "voxel_layout", info.voxel_layout);
 		jw_str(&w, "content_hash", hs);
 		jw_arr(&w, "block");
 		for (int k = 0; k < 3; k++)
@@ -155,8 +156,9 @@ int exemplar_info(int argc, char **argv)
 		jw_end(&w);
 	} else {
 		printf("database %s\n", pos ? pos : cli_db_path(dbopt));
-		printf("  format version %u, content hash %s, %llu bytes\n", info.version,
-		       hs, (unsigned long long)info.file_bytes);
+		printf("  format version %u (%s), content hash %s, %llu bytes\n",
+		       info.version, info.voxel_layout == 2 ? "each plane of a brick stored "
+		       "apart" : "one stream a brick", hs, (unsigned long long)info.file_bytes);
 		printf("  block %ux%ux%u voxels of %g um, brick %ux%ux%u, %llu bricks "
 		       "(%llu empty, %llu stored raw)\n", info.block[0], info.block[1],
 		       info.block[2], (double)info.voxel_size_um, info.brick[0],

@@ -51,7 +51,7 @@ typedef struct loom_db_yarn {
 
 /* Whole-database facts. */
 typedef struct loom_db_info {
-	uint32_t version;         /* format version (1) */
+	uint32_t version;         /* format version (1 or 2) */
 	uint32_t n_exemplars;
 	uint32_t block[3];        /* b1 (x, ends), b2 (y, picks), b3 (z) voxels */
 	uint32_t brick[3];        /* brick shape in voxels (x, y, z) */
@@ -66,6 +66,8 @@ typedef struct loom_db_info {
 	uint64_t raw_bytes;       /* voxels * 4 over all exemplars */
 	uint64_t stored_bytes;    /* brick bytes in the file */
 	uint64_t metadata_bytes;  /* tables + index read at open */
+	uint32_t voxel_layout;    /* 1: one stream a brick (version 1); 2: each
+	                             plane a unit of its own (version 2) */
 } loom_db_info;
 
 /* One exemplar.  Pointers are owned by the database and valid until
@@ -259,6 +261,9 @@ typedef struct loom_exgen_params {
 	const char *pairs[LOOM_EXGEN_MAX_PAIRS][2]; /* warp, weft fibre names
 	                             (as fibre[]; NULL = the other one), distinct
 	                             pairs */
+	uint32_t db_version;      /* 0 or 2: the current format (each plane of
+	                             a brick stored apart); 1: format version 1
+	                             (one stream a brick) for older readers */
 } loom_exgen_params;
 
 /*
