@@ -208,6 +208,10 @@ static void run_dmin(dp_ctx *cx, const uint8_t *codes)
 		uint8_t *ok = cx->okb + (size_t)q * cx->okw;
 		uint32_t n = cx->len[codes[q]];
 		unsigned dmin = ~0u;
+		if (!run_long(want)) {
+			memset(ok, 1, n);
+			continue;
+		}
 		for (uint32_t i = 0; i < n; i++) {
 			unsigned d = run_dist(want, br + 4 * (size_t)list[i]);
 			cx->dist[i] = d;

@@ -118,6 +118,19 @@ static inline void loom_synth_runs(const uint8_t *w, uint32_t rows, uint32_t col
 	out[3] = (uint8_t)run_along(w, at, cols, (size_t)(rows - 1) * cols, rows, r, 0);
 }
 
+/*
+ * The rule applies to crossings on a float of RUN_LONG crossings or more
+ * (along the row or the column): shorter floats are those of the 5-end
+ * weaves the code already tells apart, and forcing their runs costs
+ * vertical continuity for no better height (docs/fidelity.md, "Float
+ * runs").
+ */
+#define RUN_LONG 6u
+static inline int run_long(const uint8_t r[4])
+{
+	return r[0] + r[1] + 1u >= RUN_LONG || r[2] + r[3] + 1u >= RUN_LONG;
+}
+
 /* How far two crossings' float runs differ (0 = the same). */
 static inline unsigned run_dist(const uint8_t a[4], const uint8_t b[4])
 {

@@ -312,7 +312,12 @@ static unsigned runs_dist_ref(const uint8_t *wa, uint32_t ma, uint32_t na, uint3
                               uint32_t rb, uint32_t cb)
 {
 	static const int dir[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
-	unsigned d = 0;
+	unsigned d = 0, ra4[4];
+	for (int k = 0; k < 4; k++)
+		ra4[k] = run_ref(wa, ma, na, ra, ca, dir[k][0], dir[k][1]);
+	/* the rule is for floats of 6 or more (along the row or the column) */
+	if (ra4[0] + ra4[1] + 1 < 6 && ra4[2] + ra4[3] + 1 < 6)
+		return 0;
 	for (int k = 0; k < 4; k++) {
 		unsigned a = run_ref(wa, ma, na, ra, ca, dir[k][0], dir[k][1]);
 		unsigned b = run_ref(wb, mb, nb, rb, cb, dir[k][0], dir[k][1]);
@@ -418,6 +423,8 @@ static void dp_column_optimal(void)
 	for (int trial = 0; trial < 300; trial++) {
 		exdef e[3];
 		uint32_t ne = 1 + rnd(3), M = 1 + rnd(7), N = 1 + rnd(5);
+		if (trial % 3 == 0)
+			M = 6 + rnd(2); /* room for floats of 6 (the float-run rule) */
 		loom_synth_set *s;
 		loom_design *d;
 		for (uint32_t u = 0; u < ne; u++)
@@ -434,6 +441,13 @@ static void dp_column_optimal(void)
 				for (uint32_t j = 0; j < N; j++)
 					d->weave[i * N + j] =
 					        e[0].w[(i % e[0].rows) * e[0].cols + j % e[0].cols];
+		/* a long float down one column (the float-run rule) */
+		if (trial % 3 == 0) {
+			uint32_t j0 = rnd(N);
+			uint8_t v = (uint8_t)rnd(2);
+			for (uint32_t i = 0; i < M; i++)
+				d->weave[i * N + j0] = v;
+		}
 		for (uint32_t flags = 0; flags < 4; flags++) {
 			loom_synth_metrics m;
 			CHECK_EQ_INT(assign(s, d, LOOM_SYNTH_DP, (uint64_t)trial * 7 + flags, flags, base),
