@@ -17,6 +17,11 @@
  *                  dr = 0 otherwise: the ones that map a vertical run of
  *                  blocks onto a vertical run).
  *
+ * Of each crossing's list the DP uses only the blocks whose float runs
+ * (loom_synth_runs) are nearest the design crossing's (run_ok; a mask per
+ * row, so the lists below are these smaller lists).  Symmetries keep float
+ * runs, so everything said of the lists holds for the masked ones.
+ *
  * A symmetry g maps a block onto a block with the same code, and a chain
  * symmetry maps a vertical run onto a vertical run, so any column solution
  * over full lists maps run by run onto one over reduced lists with the same
@@ -125,6 +130,7 @@ static int assign_identity(const loom_synth_set *s, const loom_design *d,
 
 #define ONE_V ((int64_t)1 << 32) /* one vertical link in a (V, H) value */
 #define DEAD (INT64_MIN / 4)      /* value of the sentinel slot */
+#define H_LEFT 1                  /* continuing the left column */
 
 typedef struct dp_ctx {
 	const loom_synth_set *s;
@@ -145,6 +151,10 @@ typedef struct dp_ctx {
 	uint32_t *foff;       /* M + 1: start of each row in f */
 	int64_t *best;        /* M: best value of each row */
 	uint16_t *tgt;        /* M: block continuing the left column, or NONE */
+	const uint8_t *run;   /* 4M: the column's float runs (loom_synth_runs) */
+	uint8_t *okb;         /* M * okw: candidate i of row q has the nearest runs */
+	uint32_t okw;         /* longest list */
+	unsigned *dist;       /* longest list: run distances of one row */
 	uint32_t *votes;      /* max_chain */
 	uint32_t *touched;    /* max_chain */
 } dp_ctx;
@@ -172,6 +182,55 @@ static inline const uint16_t *pair_map(const dp_ctx *cx, int dir,
 }
 
 /*
+ * Float runs (docs/fidelity.md, "Float runs"): of the candidates of row q
+ * only those whose float runs are nearest the design crossing's
+ * (run_dist; cx->okb, run_dmin) take part.  Among the blocks of one
+ * neighbourhood code this copies a long float from the longest floats the
+ * set has, at the same place along the float: the code sees whether a
+ * float goes on, not how long it is, and a block from a 4-float sits at
+ * the height of a 4-float.  With the lists restricted this way the DP is
+ * Eq. 1 over smaller lists, so the cut and the recurrence stay exact.
+ */
+static inline int run_ok(const dp_ctx *cx, uint32_t q, unsigned c, uint32_t i)
+{
+	(void)c;
+	return cx->okb[(size_t)q * cx->okw + i];
+}
+
+/* Which candidates of every row of the column have the nearest runs. */
+static void run_dmin(dp_ctx *cx, const uint8_t *codes)
+{
+	const uint8_t *br = cx->s->blk_run;
+
+	for (uint32_t q = 0; q < cx->M; q++) {
+		const uint16_t *list = cx->s->cand + cx->off[codes[q]];
+		const uint8_t *want = cx->run + 4 * (size_t)q;
+		uint8_t *ok = cx->okb + (size_t)q * cx->okw;
+		uint32_t n = cx->len[codes[q]];
+		unsigned dmin = ~0u;
+		if (!run_long(want)) {
+			memset(ok, 1, n);
+			continue;
+		}
+		for (uint32_t i = 0; i < n; i++) {
+			unsigned d = run_dist(want, br + 4 * (size_t)list[i]);
+			cx->dist[i] = d;
+			dmin = d < dmin ? d : dmin;
+		}
+		for (uint32_t i = 0; i < n; i++)
+			ok[i] = cx->dist[i] == dmin;
+	}
+}
+
+/* Block t is a candidate of row q (in its list and of the nearest runs). */
+static inline int row_has(const dp_ctx *cx, const uint8_t *codes, uint32_t q,
+                          uint16_t t)
+{
+	uint16_t p = cx->pos[(size_t)codes[q] * cx->K + t];
+	return p != NONE && run_ok(cx, q, codes[q], p);
+}
+
+/*
  * Where to cut the cyclic column so that the linear DP from the cut reaches
  * the cyclic optimum of vertical continuity.  Returns the cut row; *full is
  * set to a block whose chain closes around the whole column (then that
@@ -190,7 +249,7 @@ static inline const uint16_t *pair_map(const dp_ctx *cx, int dir,
 static uint32_t dp_cut(dp_ctx *cx, const uint8_t *codes, uint16_t *full)
 {
 	const loom_synth_set *s = cx->s;
-	uint32_t M = cx->M, K = cx->K, nu = 0, *la = cx->la, *lb = cx->lb, *tmp;
+	uint32_t M = cx->M, nu = 0, *la = cx->la, *lb = cx->lb, *tmp;
 	unsigned c0 = codes[0];
 
 	*full = NONE;
@@ -199,7 +258,7 @@ static uint32_t dp_cut(dp_ctx *cx, const uint8_t *codes, uint16_t *full)
 			return q;
 	/* backward pass: chain lengths, reach */
 	for (uint32_t k = 0; k < cx->len[codes[M - 1]]; k++)
-		la[k] = 1;
+		la[k] = (uint32_t)run_ok(cx, M - 1, codes[M - 1], k);
 	la[cx->len[codes[M - 1]]] = 0;
 	cx->reach[M - 1] = M - 1;
 	for (uint32_t q = M - 1; q-- > 0;) {
@@ -207,7 +266,7 @@ static uint32_t dp_cut(dp_ctx *cx, const uint8_t *codes, uint16_t *full)
 		const uint16_t *dn = pair_map(cx, 1, codes[q + 1], c);
 		uint32_t n = cx->len[c], mx = 1;
 		for (uint32_t k = 0; k < n; k++) {
-			uint32_t l = la[dn[k]] + 1;
+			uint32_t l = run_ok(cx, q, c, k) ? la[dn[k]] + 1 : 0;
 			lb[k] = l;
 			mx = l > mx ? l : mx;
 		}
@@ -223,7 +282,7 @@ static uint32_t dp_cut(dp_ctx *cx, const uint8_t *codes, uint16_t *full)
 	for (uint32_t k = 0; k < cx->len[c0]; k++) {
 		uint16_t x = s->cand[cx->off[c0] + k], u = s->up[x], y;
 		uint32_t rho = la[k], cnt = 1, last = 0, a;
-		if (u == NONE || cx->pos[(size_t)codes[M - 1] * K + u] == NONE)
+		if (rho == 0 || u == NONE || !row_has(cx, codes, M - 1, u))
 			continue;
 		if (rho >= M) { /* x's chain covers the column: does it close? */
 			y = x;
@@ -244,7 +303,7 @@ static uint32_t dp_cut(dp_ctx *cx, const uint8_t *codes, uint16_t *full)
 		/* the chain ending in up(x) at row M-1 must reach up to `last` */
 		y = u;
 		for (uint32_t q = M - 1;; q--) {
-			if (cx->pos[(size_t)codes[q] * K + y] == NONE)
+			if (!row_has(cx, codes, q, y))
 				break;
 			if (q == last)
 				return rho;
@@ -307,9 +366,15 @@ static void dp_lex(dp_ctx *cx, const uint8_t *codes, uint32_t j, uint32_t cut,
 				mx = v > mx ? v : mx;
 			}
 		}
+		mx = DEAD;
+		for (uint32_t i = 0; i < n; i++) {
+			if (!run_ok(cx, q, c, i))
+				fr[i] = DEAD;
+			mx = fr[i] > mx ? fr[i] : mx;
+		}
 		fr[n] = DEAD; /* sentinel slot: "up() is not a candidate" */
 		if (tg != NONE && cx->pos[(size_t)c * K + tg] != NONE) {
-			int64_t v = ++fr[cx->pos[(size_t)c * K + tg]];
+			int64_t v = fr[cx->pos[(size_t)c * K + tg]] += H_LEFT;
 			mx = v > mx ? v : mx;
 		}
 		cx->best[k] = mx;
@@ -437,6 +502,7 @@ static void dp_column(dp_ctx *cx, const uint8_t *codes, uint32_t j,
 		}
 		cx->tgt[q] = y;
 	}
+	run_dmin(cx, codes);
 	cut = dp_cut(cx, codes, &full);
 	if (full != NONE) {
 		for (uint32_t q = 0; q < M; q++) {
@@ -452,7 +518,8 @@ static void dp_column(dp_ctx *cx, const uint8_t *codes, uint32_t j,
 static size_t dp_work_bytes(const loom_synth_set *s, uint32_t M, int mode)
 {
 	size_t ml = s->max_len[mode];
-	return (size_t)BATCH * M * 3 + (size_t)M * (2 + 4 + 4 + 8 + 2) +
+	return (size_t)BATCH * M * 7 + (size_t)M * (2 + 4 + 4 + 8 + 2) +
+	       (size_t)M * (ml ? ml : 1) + (ml + 1) * sizeof(unsigned) +
 	       (size_t)M * (ml + 1) * 8 + (ml + 1) * (2 + 4 + 4) +
 	       ((size_t)s->max_chain + 1) * 8;
 }
@@ -462,7 +529,7 @@ static int assign_dp(const loom_synth_set *s, const loom_design *d,
 {
 	dp_ctx cx;
 	uint32_t M = d->rows, N = d->cols, ml;
-	uint8_t *codes = NULL;
+	uint8_t *codes = NULL, *runs = NULL;
 	uint16_t *outb = NULL, *prevcol = NULL;
 	int rc = LOOM_ENOMEM;
 
@@ -489,14 +556,18 @@ static int assign_dp(const loom_synth_set *s, const loom_design *d,
 	cx.foff = malloc(((size_t)M + 1) * 4);
 	cx.best = malloc((size_t)M * 8);
 	cx.tgt = malloc((size_t)M * 2);
+	cx.okw = ml ? ml : 1;
+	cx.okb = malloc((size_t)M * cx.okw);
+	cx.dist = malloc(((size_t)ml + 1) * sizeof *cx.dist);
 	cx.votes = calloc((size_t)s->max_chain + 1, 4);
 	cx.touched = malloc(((size_t)s->max_chain + 1) * 4);
 	codes = malloc((size_t)BATCH * M);
+	runs = malloc((size_t)BATCH * M * 4);
 	outb = malloc((size_t)BATCH * M * 2);
 	prevcol = malloc((size_t)M * 2);
 	if (!cx.scratch || !cx.reach || !cx.la || !cx.lb || !cx.f || !cx.foff ||
-	    !cx.best || !cx.tgt || !cx.votes || !cx.touched || !codes || !outb ||
-	    !prevcol)
+	    !cx.best || !cx.tgt || !cx.okb || !cx.dist || !cx.votes || !cx.touched || !codes || !runs ||
+	    !outb || !prevcol)
 		goto done;
 
 	for (uint32_t j0 = 0; j0 < N; j0 += BATCH) {
@@ -512,11 +583,14 @@ static int assign_dp(const loom_synth_set *s, const loom_design *d,
 				codes[(size_t)jj * M + i] =
 				        (uint8_t)((r0[j] & 1) | (rm[j] & 1) << 1 | (rp[j] & 1) << 2 |
 				                  (r0[jm] & 1) << 3 | (r0[jp] & 1) << 4);
+				loom_synth_runs(d->weave, M, N, i, j,
+				                runs + ((size_t)jj * M + i) * 4);
 			}
 		}
 		for (uint32_t jj = 0; jj < nb; jj++) {
 			const uint16_t *prev = jj ? outb + (size_t)(jj - 1) * M :
 			                       j0 ? prevcol : NULL;
+			cx.run = runs + (size_t)jj * M * 4;
 			dp_column(&cx, codes + (size_t)jj * M, j0 + jj, prev,
 			          outb + (size_t)jj * M);
 		}
@@ -537,9 +611,12 @@ done:
 	free(cx.foff);
 	free(cx.best);
 	free(cx.tgt);
+	free(cx.okb);
+	free(cx.dist);
 	free(cx.votes);
 	free(cx.touched);
 	free(codes);
+	free(runs);
 	free(outb);
 	free(prevcol);
 	return rc;

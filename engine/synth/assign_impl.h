@@ -31,6 +31,7 @@ struct loom_synth_set {
 	uint32_t *blk_ex;        /* K */
 	uint16_t *blk_r, *blk_c; /* K */
 	uint8_t *blk_code;       /* K */
+	uint8_t *blk_run;        /* 4K: float runs (loom_synth_runs) */
 	uint16_t *up, *down, *left, *right; /* K */
 	uint16_t *canon;         /* K: representative of t's chain orbit */
 	/* randomisation tables (loom_synth_lookup) */
@@ -66,6 +67,77 @@ static inline unsigned popc5(unsigned x)
 static inline unsigned match_bits(unsigned a, unsigned b)
 {
 	return popc5(~(a ^ b) & 0x1eu);
+}
+
+/*
+ * Float runs through crossing (r, c) of a rows x cols weave (cyclic): how
+ * many crossings on each side continue the crossing's own value, left,
+ * right, up and down, each capped at RUN_CAP.  The neighbourhood code sees
+ * only whether a float goes on; these say how long it is and where the
+ * crossing sits in it (a 9-float's middle lies lower than a 4-float's).
+ */
+#define RUN_CAP 15u
+static inline unsigned run_along(const uint8_t *w, size_t at, size_t step,
+                                 size_t wrap, uint32_t side, uint32_t pos, int back)
+{
+	unsigned v = w[at] & 1u, k = 0;
+	size_t i = at;
+
+	/* step through the cyclic line (side crossings, `step` apart, the
+	   line's start wrap * step before the end) without a division */
+	while (k < RUN_CAP && k + 1 < side) {
+		if (back) {
+			if (pos == 0) {
+				pos = side - 1;
+				i += wrap;
+			} else {
+				pos--;
+				i -= step;
+			}
+		} else if (++pos == side) {
+			pos = 0;
+			i -= wrap;
+		} else {
+			i += step;
+		}
+		if ((w[i] & 1u) != v)
+			break;
+		k++;
+	}
+	return k;
+}
+
+static inline void loom_synth_runs(const uint8_t *w, uint32_t rows, uint32_t cols,
+                                   uint32_t r, uint32_t c, uint8_t out[4])
+{
+	size_t at = (size_t)r * cols + c;
+
+	out[0] = (uint8_t)run_along(w, at, 1, cols - 1, cols, c, 1);
+	out[1] = (uint8_t)run_along(w, at, 1, cols - 1, cols, c, 0);
+	out[2] = (uint8_t)run_along(w, at, cols, (size_t)(rows - 1) * cols, rows, r, 1);
+	out[3] = (uint8_t)run_along(w, at, cols, (size_t)(rows - 1) * cols, rows, r, 0);
+}
+
+/*
+ * The rule applies to crossings on a float of RUN_LONG crossings or more
+ * (along the row or the column): shorter floats are those of the 5-end
+ * weaves the code already tells apart, and forcing their runs costs
+ * vertical continuity for no better height (docs/fidelity.md, "Float
+ * runs").
+ */
+#define RUN_LONG 6u
+static inline int run_long(const uint8_t r[4])
+{
+	return r[0] + r[1] + 1u >= RUN_LONG || r[2] + r[3] + 1u >= RUN_LONG;
+}
+
+/* How far two crossings' float runs differ (0 = the same). */
+static inline unsigned run_dist(const uint8_t a[4], const uint8_t b[4])
+{
+	unsigned d = 0;
+	for (int k = 0; k < 4; k++)
+		d += (unsigned)(a[k] > b[k] ? a[k] - b[k] : b[k] - a[k]);
+	return d;
 }
 
 /* Image of block (r, c) of e under (dr, dc). */

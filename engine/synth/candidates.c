@@ -113,6 +113,7 @@ LOOM_API void loom_synth_set_free(loom_synth_set *s)
 	free(s->blk_r);
 	free(s->blk_c);
 	free(s->blk_code);
+	free(s->blk_run);
 	free(s->up);
 	free(s->down);
 	free(s->left);
@@ -142,6 +143,7 @@ static int alloc_blocks(loom_synth_set *s)
 	s->blk_r = malloc(K * sizeof *s->blk_r);
 	s->blk_c = malloc(K * sizeof *s->blk_c);
 	s->blk_code = malloc(K);
+	s->blk_run = malloc(4 * K);
 	s->up = malloc(K * 2);
 	s->down = malloc(K * 2);
 	s->left = malloc(K * 2);
@@ -153,7 +155,7 @@ static int alloc_blocks(loom_synth_set *s)
 	s->pos[1] = malloc(32 * K * 2);
 	s->own_list[0] = malloc(K * 2);
 	s->own_list[1] = malloc(K * 2);
-	if (!s->blk_ex || !s->blk_r || !s->blk_c || !s->blk_code || !s->up ||
+	if (!s->blk_ex || !s->blk_r || !s->blk_c || !s->blk_code || !s->blk_run || !s->up ||
 	    !s->down || !s->left || !s->right || !s->canon || !s->n_sym ||
 	    !s->sym_first || !s->pos[0] || !s->pos[1] || !s->own_list[0] ||
 	    !s->own_list[1])
@@ -183,6 +185,7 @@ static int fill_blocks(loom_synth_set *s)
 				s->blk_r[t] = (uint16_t)r;
 				s->blk_c[t] = (uint16_t)c;
 				s->blk_code[t] = (uint8_t)block_code(e, r, c);
+				loom_synth_runs(e->weave, m, n, r, c, s->blk_run + 4 * (size_t)t);
 				s->up[t] = (r > 0) ? (uint16_t)(t - n) :
 				           e->periodic ? (uint16_t)(t + (m - 1) * n) : NONE;
 				s->down[t] = (r + 1 < m) ? (uint16_t)(t + n) :

@@ -289,16 +289,98 @@ static void max_consistency_brute_force(void)
 	loom_synth_set_free(s);
 }
 
-/* Largest cyclic vertical continuity of column j over all choices of
-   max-consistency candidates (brute force). */
-static long column_best(const loom_synth_set *s, const loom_design *d, uint32_t j)
+/* Crossings continuing (r, c)'s value from it along (dr, dc), cyclic, at
+   most 15 and fewer than the weave's side (the float runs of
+   docs/fidelity.md, written out). */
+static unsigned run_ref(const uint8_t *w, uint32_t rows, uint32_t cols,
+                        uint32_t r, uint32_t c, int dr, int dc)
 {
-	const uint16_t *lists[8];
-	uint32_t lens[8], idx[8] = {0}, M = d->rows;
+	uint32_t side = dr ? rows : cols;
+	unsigned k = 0;
+	for (uint32_t step = 1; step < side && k < 15; step++) {
+		uint32_t r2 = (uint32_t)(((int64_t)r + dr * (int64_t)step) % rows + rows) % rows;
+		uint32_t c2 = (uint32_t)(((int64_t)c + dc * (int64_t)step) % cols + cols) % cols;
+		if ((w[r2 * cols + c2] & 1) != (w[r * cols + c] & 1))
+			break;
+		k++;
+	}
+	return k;
+}
+
+static unsigned runs_dist_ref(const uint8_t *wa, uint32_t ma, uint32_t na, uint32_t ra,
+                              uint32_t ca, const uint8_t *wb, uint32_t mb, uint32_t nb,
+                              uint32_t rb, uint32_t cb)
+{
+	static const int dir[4][2] = {{0, -1}, {0, 1}, {-1, 0}, {1, 0}};
+	unsigned d = 0, ra4[4];
+	for (int k = 0; k < 4; k++)
+		ra4[k] = run_ref(wa, ma, na, ra, ca, dir[k][0], dir[k][1]);
+	/* the rule is for floats of 6 or more (along the row or the column) */
+	if (ra4[0] + ra4[1] + 1 < 6 && ra4[2] + ra4[3] + 1 < 6)
+		return 0;
+	for (int k = 0; k < 4; k++) {
+		unsigned a = run_ref(wa, ma, na, ra, ca, dir[k][0], dir[k][1]);
+		unsigned b = run_ref(wb, mb, nb, rb, cb, dir[k][0], dir[k][1]);
+		d += a > b ? a - b : b - a;
+	}
+	return d;
+}
+
+/* Every crossing of column j copies a block whose float runs are as near
+   the design's as those of any candidate of its code. */
+static int column_runs_nearest(const loom_synth_set *s, const exdef *e,
+                               const loom_design *d, const uint16_t *base, uint32_t j)
+{
+	for (uint32_t q = 0; q < d->rows; q++) {
+		const uint16_t *all;
+		uint32_t n;
+		unsigned dmin = ~0u, got = 0;
+		loom_synth_candidates(s, loom_synth_code(d, q, j), 0, &all, &n, NULL);
+		for (uint32_t k = 0; k <= n; k++) {
+			loom_synth_block bi;
+			unsigned dd;
+			loom_synth_block_info(s, k < n ? all[k] : base[q * d->cols + j], &bi);
+			dd = runs_dist_ref(d->weave, d->rows, d->cols, q, j, e[bi.exemplar].w,
+			                   e[bi.exemplar].rows, e[bi.exemplar].cols, bi.row, bi.col);
+			if (k < n)
+				dmin = dd < dmin ? dd : dmin;
+			else
+				got = dd;
+		}
+		if (got != dmin)
+			return 0;
+	}
+	return 1;
+}
+
+/* Largest cyclic vertical continuity of column j over all choices of
+   max-consistency candidates whose float runs are nearest the design
+   crossing's (brute force). */
+static long column_best(const loom_synth_set *s, const exdef *e,
+                        const loom_design *d, uint32_t j)
+{
+	const uint16_t *all;
+	uint16_t lists[8][64];
+	uint32_t lens[8], idx[8] = {0}, M = d->rows, n;
 	uint64_t total = 1;
 	long best = -1;
 	for (uint32_t q = 0; q < M; q++) {
-		loom_synth_candidates(s, loom_synth_code(d, q, j), 0, &lists[q], &lens[q], NULL);
+		unsigned dmin = ~0u;
+		loom_synth_candidates(s, loom_synth_code(d, q, j), 0, &all, &n, NULL);
+		lens[q] = 0;
+		for (int pass = 0; pass < 2; pass++)
+			for (uint32_t k = 0; k < n; k++) {
+				loom_synth_block bi;
+				unsigned dd;
+				loom_synth_block_info(s, all[k], &bi);
+				dd = runs_dist_ref(d->weave, d->rows, d->cols, q, j,
+				                   e[bi.exemplar].w, e[bi.exemplar].rows,
+				                   e[bi.exemplar].cols, bi.row, bi.col);
+				if (pass == 0)
+					dmin = dd < dmin ? dd : dmin;
+				else if (dd == dmin && lens[q] < 64)
+					lists[q][lens[q]++] = all[k];
+			}
 		total *= lens[q];
 	}
 	if (total > 300000)
@@ -341,6 +423,8 @@ static void dp_column_optimal(void)
 	for (int trial = 0; trial < 300; trial++) {
 		exdef e[3];
 		uint32_t ne = 1 + rnd(3), M = 1 + rnd(7), N = 1 + rnd(5);
+		if (trial % 3 == 0)
+			M = 6 + rnd(2); /* room for floats of 6 (the float-run rule) */
 		loom_synth_set *s;
 		loom_design *d;
 		for (uint32_t u = 0; u < ne; u++)
@@ -357,6 +441,13 @@ static void dp_column_optimal(void)
 				for (uint32_t j = 0; j < N; j++)
 					d->weave[i * N + j] =
 					        e[0].w[(i % e[0].rows) * e[0].cols + j % e[0].cols];
+		/* a long float down one column (the float-run rule) */
+		if (trial % 3 == 0) {
+			uint32_t j0 = rnd(N);
+			uint8_t v = (uint8_t)rnd(2);
+			for (uint32_t i = 0; i < M; i++)
+				d->weave[i * N + j0] = v;
+		}
 		for (uint32_t flags = 0; flags < 4; flags++) {
 			loom_synth_metrics m;
 			CHECK_EQ_INT(assign(s, d, LOOM_SYNTH_DP, (uint64_t)trial * 7 + flags, flags, base),
@@ -365,7 +456,9 @@ static void dp_column_optimal(void)
 			CHECK_EQ_INT(m.correct, M * N);
 			CHECK_EQ_INT(m.matches, m.best_matches);
 			for (uint32_t j = 0; j < N; j++) {
-				long want = column_best(s, d, j);
+				long want;
+				CHECK(column_runs_nearest(s, e, d, base, j));
+				want = column_best(s, e, d, j);
 				if (want < -1)
 					continue;
 				compared++;

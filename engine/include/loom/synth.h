@@ -188,7 +188,9 @@ typedef struct loom_synth_options {
  * Compute the base assignment of the design repeat: base[i*cols + j] is the
  * source block of crossing (i, j), for all rows*cols crossings (caller
  * allocates).  Neighbours wrap around the repeat.  Every choice is correct
- * (right yarn on top) and of maximal consistency (greedy, dp); dp also
+ * (right yarn on top) and of maximal consistency (greedy, dp); dp keeps of
+ * those the blocks whose float runs (how far the crossing's value goes on
+ * left, right, up, down) are nearest the design's, and
  * maximises, per column, the number of vertically contiguous pairs
  * including the wrap-around pair, then (unless LOOM_SYNTH_NO_HPREF) the
  * number of crossings continuing the column on its left.  Same inputs and
