@@ -20,9 +20,15 @@
 # count.  loom runs with both samplers (sobol, the default, and random);
 # lookups per path are loom's at S2.  Prints a table and one JSON line; writes the S2 images and
 # side-by-side.png (loom left, Cycles right) into $BUILD/bench/cycles.
+# LOOM_BASE=/path/to/other/loom also renders every loom case with that
+# binary (a baseline build), interleaved with this one in the same run, and
+# reports its ratios too (the ratio moves +-30 % with the machine's load,
+# so compare builds only within one run).  BENCH_CYCLES_REPS=N (default 1)
+# repeats every case N times, interleaved, and takes each one's fastest.
 set -u
 BUILD=${BUILD:-build}
 LOOM=$BUILD/loom
+LOOM_BASE=${LOOM_BASE:-}
 W=$BUILD/bench/cycles
 if ! command -v blender >/dev/null 2>&1; then
 	echo "cycles: skipped (Blender not installed: tools/deps.sh blender)"
@@ -81,31 +87,52 @@ EYE=$1 TARGET=$2 BOX=$3
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
 "$LOOM" export "$W/h8.loomf" --region "$BOX" --format vdb --channels density,albedo \
 	--tile 256,256 --threads 2 --budget 400 --quiet --json -o "$W/vdb" >"$W/export.json" || exit 1
+REPS=${BENCH_CYCLES_REPS:-1}
+R=0
+while [ $R -lt "$REPS" ]; do
+R=$((R + 1))
+X=""
+[ $R -gt 1 ] && X=".r$R"
 for S in $S1 $S2; do
 	for SMP in sobol random; do
-		"$LOOM" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
-			--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --sky grey --quiet --json \
-			--sampler $SMP -o "$W/loom-$SMP-$S.png" >"$W/loom-$SMP-$S.json" || exit 1
+		for WHO in loom base; do
+			BIN=$LOOM
+			if [ "$WHO" = base ]; then
+				[ -n "$LOOM_BASE" ] || continue
+				BIN=$LOOM_BASE
+			fi
+			"$BIN" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
+				--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --sky grey --quiet --json \
+				--sampler $SMP -o "$W/$WHO-$SMP-$S.png" >"$W/$WHO-$SMP-$S$X.json" || exit 1
+		done
 	done
 	cp "$W/loom-sobol-$S.png" "$W/loom-$S.png"
 	# shellcheck disable=SC2086
 	$BL -P tools/blender/render_tile.py -- "$W"/vdb/tile-*.vdb -o "$W/cycles-$S.png" \
 		--camera persp --eye "$EYE" --target "$TARGET" --fov $FOV --size $WIDTH,$HEIGHT \
 		--samples "$S" --threads 2 --sun "$SUN" --density 80 --background 0.18 --bounces 32 \
-		--json "$W/cycles-$S.json" >"$W/cycles-$S.log" 2>&1 || { tail -20 "$W/cycles-$S.log"; exit 1; }
+		--json "$W/cycles-$S$X.json" >"$W/cycles-$S.log" 2>&1 || { tail -20 "$W/cycles-$S.log"; exit 1; }
+done
 done
 load1=$(cut -d' ' -f1-3 /proc/loadavg)
 $BL -P bench/side_by_side.py -- "$W/loom-$S2.png" "$W/cycles-$S2.png" "$W/side-by-side.png" \
 	>"$W/side.log" 2>&1 || tail -5 "$W/side.log"
-python3 - "$W" "$S1" "$S2" "$WIDTH" "$HEIGHT" "$BOX" "$load0" "$load1" <<'EOF'
-import json, sys
+python3 - "$W" "$S1" "$S2" "$WIDTH" "$HEIGHT" "$BOX" "$load0" "$load1" "$LOOM_BASE" <<'EOF'
+import glob, json, sys
 d, s1, s2, w, h, box, l0, l1 = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), \
     int(sys.argv[5]), sys.argv[6], sys.argv[7], sys.argv[8]
+base = sys.argv[9]
 t, lk = {}, {}
-for who in ("loom-sobol", "loom-random", "cycles"):
+whos = ("loom-sobol", "loom-random", "cycles") + (("base-sobol", "base-random") if base else ())
+for who in whos:
+    # the fastest of the BENCH_CYCLES_REPS runs of each case (a load
+    # spike only ever slows a run down)
     ja = json.load(open("%s/%s-%d.json" % (d, who, s1)))
     jb = json.load(open("%s/%s-%d.json" % (d, who, s2)))
-    a, b = ja["seconds"], jb["seconds"]
+    a = min(json.load(open(f))["seconds"] for f in glob.glob("%s/%s-%d.json" % (d, who, s1)) +
+            glob.glob("%s/%s-%d.r*.json" % (d, who, s1)))
+    b = min(json.load(open(f))["seconds"] for f in glob.glob("%s/%s-%d.json" % (d, who, s2)) +
+            glob.glob("%s/%s-%d.r*.json" % (d, who, s2)))
     t[who] = (a, b, (b - a) / ((s2 - s1) * w * h) * 1e6)
     if who != "cycles":
         lk[who] = jb["lookups"] / jb["paths"]
@@ -114,13 +141,21 @@ ex = json.load(open(d + "/export.json"))
 ratio = t["loom"][2] / t["cycles"][2]
 print("cycles: %dx%d, %d and %d spp, 2 threads; exported %s (%d tiles, %.1f MiB) in %.2f s" %
       (w, h, s1, s2, box, ex["tiles"], ex["bytes_written"] / 1048576, ex["seconds"]))
-for who in ("loom-sobol", "loom-random", "cycles"):
+for who in whos:
     print("  %-11s %6.2f s at %d spp, %6.2f s at %d spp: %7.2f us per pixel-sample%s" %
           (who, t[who][0], s1, t[who][1], s2, t[who][2],
            ", %.1f lookups per path" % lk[who] if who in lk else ""))
 print("  loom (sobol) / Cycles per pixel-sample: %.2f; random sampler: %.2f (load average %s before, %s after)" %
       (ratio, t["loom-random"][2] / t["cycles"][2], l0, l1))
-print(json.dumps({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "threads": 2,
+res = {}
+if base:
+    print("  baseline %s (same run): sobol / Cycles %.2f; random %.2f; this build / baseline %.3f (sobol), %.3f (random)" %
+          (base, t["base-sobol"][2] / t["cycles"][2], t["base-random"][2] / t["cycles"][2],
+           t["loom-sobol"][2] / t["base-sobol"][2], t["loom-random"][2] / t["base-random"][2]))
+    res = {"base": base, "base_over_cycles": round(t["base-sobol"][2] / t["cycles"][2], 3),
+           "base_random_over_cycles": round(t["base-random"][2] / t["cycles"][2], 3),
+           "base_lookups_per_path": round(lk["base-sobol"], 2)}
+print(json.dumps(dict({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "threads": 2,
                   "export_box": box, "export_seconds": ex["seconds"], "export_tiles": ex["tiles"],
                   "export_bytes": ex["bytes_written"],
                   "loom_us_per_pixel_sample": round(t["loom"][2], 3),
@@ -130,6 +165,6 @@ print(json.dumps({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "
                   "loom_random_over_cycles": round(t["loom-random"][2] / t["cycles"][2], 3),
                   "loom_lookups_per_path": round(lk["loom-sobol"], 2),
                   "loom_random_lookups_per_path": round(lk["loom-random"], 2),
-                  "load_before": l0, "load_after": l1},
+                  "load_before": l0, "load_after": l1}, **res),
                  separators=(",", ":")))
 EOF
