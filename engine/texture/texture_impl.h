@@ -65,6 +65,11 @@
    0 on the grazing scene of docs/rendering.md together with
    LOOM__LOD_EXTINCTION_MM: the wider lobe made far cloth brighter. */
 #define LOD_SPREAD_GAIN 0.0f
+#define LOD_DIRS 13 /* path directions of the coarse density fit (lod.c) */
+/* The flake lobe width s that the coarse density fit's projected areas
+   assume (lod.c, lod_area): the middle of the gallery's yarns (0.15-0.3);
+   the renderer's per-yarn s is not known when a level is built. */
+#define LOD_FLAKE_S 0.2
 
 /* Per exemplar, read-only after open. */
 struct exm {
