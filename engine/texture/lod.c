@@ -9,7 +9,8 @@
  *   axis; coarse voxel (X, Y, Z) is the box filter of the 2^k x 2^k x 2^k
  *   level-0 voxels [2^k X, 2^k X + 2^k) per axis (voxels outside the
  *   exemplar count as empty):
- *     density     the mean density byte, rounded ((sum + n/2) / n, n = 8^k);
+ *     density     fitted to the box's transmittance along 13 directions
+ *                 with projected areas (lod_density);
  *     orientation the principal axis of the second-moment tensor
  *                 T = sum d_i v_i v_i^T of the fibre directions weighted by
  *                 the density bytes (Jacobi eigen-solver, double), encoded
