@@ -160,13 +160,14 @@ static double lod_area(const double w[3], const double v[3], double s)
    directions v, index (x * n + y) * n + z, summing to sum > 0) whose
    coarse fibre axis is vc, after Zhao, Wu, Durand and Ramamoorthi 2016
    (extinction = density x projected area): along each direction w of
-   lod_dirs, the n^2 straight paths of n voxel steps from the centres of
-   one face, wrapping around the box (each voxel once per direction), give
-   the fine mean transmittance T(w) = mean exp(-sigma |w| sum d_i A(w, v_i))
-   (sigma the extinction of a density byte over one voxel); the uniform
-   coarse box transmits exp(-sigma n |w| D A(w, vc)).  D is the least-
+   lod_dirs (step g, w = g / |g|), the n^2 straight paths of n steps from
+   the voxel centres of one face, wrapping around the box (each voxel once
+   per direction), give the fine mean transmittance T(w) = mean
+   exp(-sigma |g| sum d_i A(w, v_i)) (sigma the extinction of a density
+   byte over one voxel); the uniform coarse box of byte D transmits
+   exp(-sigma n |g| D A(w, vc)), vc with the coarse lobe width sc.  D is the least-
    squares fit in log, sum_w a_w b_w / sum_w a_w^2, a_w = A(w, vc), b_w =
-   -log T(w) / (sigma n |w|) (the mean of d_i A(w, v_i) when T(w)
+   -log T(w) / (sigma n |g|) (the mean of d_i A(w, v_i) when T(w)
    underflows), rounded to [1, 255].  Gaps between yarns stay as open as
    at level 0 along every direction, not only along the axes; with sigma 0
    the rounded mean. */
