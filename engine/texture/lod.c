@@ -9,7 +9,8 @@
  *   axis; coarse voxel (X, Y, Z) is the box filter of the 2^k x 2^k x 2^k
  *   level-0 voxels [2^k X, 2^k X + 2^k) per axis (voxels outside the
  *   exemplar count as empty):
- *     density     the mean density byte, rounded ((sum + n/2) / n, n = 8^k);
+ *     density     fitted to the box's transmittance along 13 directions
+ *                 with projected areas (lod_density);
  *     orientation the principal axis of the second-moment tensor
  *                 T = sum d_i v_i v_i^T of the fibre directions weighted by
  *                 the density bytes (Jacobi eigen-solver, double), encoded
@@ -137,37 +138,79 @@ static double eig_max(double m[9], double v[3])
 	return m[4 * best];
 }
 
-/* The coarse density byte of an n x n x n box whose density bytes sum to
-   sum, with col[a][i][j] the sums of its n-voxel columns along axis a:
-   the density whose uniform block lets as much light through along the
-   three axes as the box does (mean of exp(-sigma col) over the 3 n^2
-   columns, sigma the extinction of a density byte over one voxel), so
-   gaps between yarns stay as transparent as they are at level 0 (the box
-   mean would close them: a uniform block always transmits less than a
-   heterogeneous one of the same mean).  Never above the rounded mean
-   (Jensen: equal for a uniform box); the mean itself when the box is
-   opaque along every column or sigma is 0.  Rounded to a byte; at least
-   1 when sum > 0. */
-static uint8_t lod_density(uint32_t col[3][LOD_BOX][LOD_BOX], uint32_t n, uint64_t sum,
-                           double sigma)
+/* The 13 path directions of lod_density: the 3 axes, the 6 face and the
+   4 body diagonals of the box, as steps of -1, 0 or 1 voxel per axis. */
+static const int8_t lod_dirs[LOD_DIRS][3] = {
+	{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {1, -1, 0}, {1, 0, 1}, {1, 0, -1},
+	{0, 1, 1}, {0, 1, -1}, {1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
+
+/* Projected area of a fibre of direction v (unit) seen along unit w, up to
+   a constant factor: the microflake model's A (engine/render/microflake.c)
+   for a narrow lobe of width s, (4/pi) sqrt(sin^2 + (pi/2) s^2) (exact as
+   s -> 0 across and along the fibre), without the 4/pi, which the
+   reference extinction absorbs. */
+static double lod_area(const double w[3], const double v[3], double s)
+{
+	double c = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+	double s2 = 1 - c * c;
+	return sqrt((s2 > 0 ? s2 : 0) + 1.5707963267948966 * s * s);
+}
+
+/* The coarse density byte of an n x n x n box (density bytes d, unit fibre
+   directions v, index (x * n + y) * n + z, summing to sum > 0) whose
+   coarse fibre axis is vc, after Zhao, Wu, Durand and Ramamoorthi 2016
+   (extinction = density x projected area): along each direction w of
+   lod_dirs (step g, w = g / |g|), the n^2 straight paths of n steps from
+   the voxel centres of one face, wrapping around the box (each voxel once
+   per direction), give the fine mean transmittance T(w) = mean
+   exp(-sigma |g| sum d_i A(w, v_i)) (sigma the extinction of a density
+   byte over one voxel); the uniform coarse box of byte D transmits
+   exp(-sigma n |g| D A(w, vc)), vc with the coarse lobe width sc.  D is the least-
+   squares fit in log, sum_w a_w b_w / sum_w a_w^2, a_w = A(w, vc), b_w =
+   -log T(w) / (sigma n |g|) (the mean of d_i A(w, v_i) when T(w)
+   underflows), rounded to [1, 255].  Gaps between yarns stay as open as
+   at level 0 along every direction, not only along the axes; with sigma 0
+   the rounded mean. */
+static uint8_t lod_density(const uint8_t *d, const float (*v)[3], uint32_t n,
+                           uint64_t sum, const double vc[3], double sc, double sigma)
 {
 	uint64_t n3 = (uint64_t)n * n * n, mean = (sum + n3 / 2) / n3;
-	double tsum = 0, d;
+	double num = 0, den = 0, D;
 
 	if (!(sigma > 0))
 		return (uint8_t)mean;
-	for (int a = 0; a < 3; a++)
+	for (int j = 0; j < LOD_DIRS; j++) {
+		const int8_t *g = lod_dirs[j];
+		int a = g[0] ? 0 : g[1] ? 1 : 2, b = (a + 1) % 3, c = (a + 2) % 3;
+		double len = sqrt((double)(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]));
+		double w[3] = {g[0] / len, g[1] / len, g[2] / len}, tsum = 0, esum = 0, bw, aw;
 		for (uint32_t i = 0; i < n; i++)
-			for (uint32_t j = 0; j < n; j++)
-				tsum += exp(-sigma * (double)col[a][i][j]);
-	tsum /= 3.0 * n * n;
-	if (!(tsum > 1e-300))
-		return (uint8_t)mean;
-	d = -log(tsum) / (sigma * n);
-	d = floor(d + 0.5);
-	if (d > (double)mean)
-		d = (double)mean;
-	return (uint8_t)(d < 1 ? 1 : d);
+			for (uint32_t k = 0; k < n; k++) {
+				uint32_t p[3];
+				double e = 0;
+				p[a] = 0;
+				p[b] = i;
+				p[c] = k;
+				for (uint32_t m = 0; m < n; m++) {
+					size_t q = ((size_t)p[0] * n + p[1]) * n + p[2];
+					if (d[q]) {
+						double fv[3] = {v[q][0], v[q][1], v[q][2]};
+						e += d[q] * lod_area(w, fv, LOD_FLAKE_S);
+					}
+					for (int r = 0; r < 3; r++)
+						p[r] = (p[r] + n + (uint32_t)(int32_t)g[r]) % n;
+				}
+				tsum += exp(-sigma * len * e);
+				esum += e;
+			}
+		tsum /= (double)n * n;
+		bw = tsum > 1e-300 ? -log(tsum) / (sigma * n * len) : esum / (double)n3;
+		aw = lod_area(w, vc, sc);
+		num += aw * bw;
+		den += aw * aw;
+	}
+	D = floor(num / den + 0.5);
+	return (uint8_t)(D < 1 ? 1 : D > 255 ? 255 : D);
 }
 
 /* Coarse voxel of the n x n x n level-0 voxels from (x0, y0, z0) of brick
@@ -178,13 +221,14 @@ static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
                        uint32_t n, double sigma, uint8_t out[LOD_PLANES])
 {
 	uint64_t sum = 0;
-	uint32_t col[3][LOD_BOX][LOD_BOX]; /* density sums of the columns along x, y, z */
+	uint8_t bd[LOD_BOX * LOD_BOX * LOD_BOX]; /* the box's density bytes, */
+	float bv[LOD_BOX * LOD_BOX * LOD_BOX][3]; /* fibre directions (lod_density) */
 	double T[9] = {0}, kw[3] = {0, 0, 0}, ev[3], l1, tr;
 	uint8_t best[3] = {0, 0, 0}, bestd[3] = {0, 0, 0};
 	uint16_t code;
 	int kd;
 
-	memset(col, 0, sizeof col);
+	memset(bd, 0, (size_t)n * n * n);
 	for (uint32_t y = y0; y < y0 + n; y++)
 		for (uint32_t x = x0; x < x0 + n; x++) {
 			size_t i0 = ((size_t)y * bs[0] + x) * bs[2];
@@ -195,10 +239,12 @@ static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
 				if (!d)
 					continue;
 				sum += d;
-				col[0][y - y0][z - z0] += d;
-				col[1][x - x0][z - z0] += d;
-				col[2][x - x0][y - y0] += d;
 				loom__orient_decode((uint16_t)(b[V + i] | b[2 * V + i] << 8), v);
+				{
+					size_t q = ((size_t)(x - x0) * n + (y - y0)) * n + (z - z0);
+					bd[q] = d;
+					memcpy(bv[q], v, sizeof v);
+				}
 				for (int r = 0; r < 3; r++)
 					for (int c = 0; c < 3; c++)
 						T[3 * r + c] += (double)d * v[r] * v[c];
@@ -214,19 +260,29 @@ static void filter_box(const uint8_t *b, const uint32_t bs[3], size_t V,
 		out[p] = 0;
 	if (!sum)
 		return;
-	out[0] = lod_density(col, n, sum, sigma);
 	tr = T[0] + T[4] + T[8];
 	l1 = eig_max(T, ev);
-	code = loom__orient_encode((float)ev[0], (float)ev[1], (float)ev[2]);
-	out[1] = (uint8_t)(code & 0xff);
-	out[2] = (uint8_t)(code >> 8);
-	kd = kw[2] > kw[1] ? 2 : kw[1] > 0 ? 1 : 0;
-	out[3] = best[kd]; /* kd 0: no voxel of a kind, all are kind 0 */
 	{
 		double a = tr > 0 ? (3 * l1 / tr - 1) / 2 : 0;
 		a = a < 0 ? 0 : a > 1 ? 1 : a;
 		out[4] = (uint8_t)lround(a * 255);
 	}
+	code = loom__orient_encode((float)ev[0], (float)ev[1], (float)ev[2]);
+	out[1] = (uint8_t)(code & 0xff);
+	out[2] = (uint8_t)(code >> 8);
+	{ /* the axis as the renderer decodes it */
+		float cv[3];
+		double vc[3];
+		loom__orient_decode(code, cv);
+		for (int a = 0; a < 3; a++)
+			vc[a] = cv[a];
+		/* the lobe the renderer gives it: s widened by the spread */
+		double sc = sqrt(LOD_FLAKE_S * LOD_FLAKE_S +
+		                 LOD_SPREAD_GAIN * (1 - out[4] / 255.0) / 3);
+		out[0] = lod_density(bd, (const float(*)[3])bv, n, sum, vc, sc, sigma);
+	}
+	kd = kw[2] > kw[1] ? 2 : kw[1] > 0 ? 1 : 0;
+	out[3] = best[kd]; /* kd 0: no voxel of a kind, all are kind 0 */
 }
 
 /* ------------------------------------------------------------ the loader */

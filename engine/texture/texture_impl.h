@@ -63,8 +63,15 @@
 /* How far a coarse voxel's fibres widen the microflake lobe: the render
    adds LOD_SPREAD_GAIN (1 - a) / 3 to s^2 (a the anisotropy).  Fitted to
    0 on the grazing scene of docs/rendering.md together with
-   LOOM__LOD_EXTINCTION_MM: the wider lobe made far cloth brighter. */
+   LOOM__LOD_EXTINCTION_MM: the wider lobe made far cloth brighter (with
+   the 13-direction density fit too: gain 1 made 12-40 degrees 7-8
+   levels of 255 brighter).  The fit uses the widened lobe (lod.c). */
 #define LOD_SPREAD_GAIN 0.0f
+#define LOD_DIRS 13 /* path directions of the coarse density fit (lod.c) */
+/* The flake lobe width s that the coarse density fit's projected areas
+   assume (lod.c, lod_area): the middle of the gallery's yarns (0.15-0.3);
+   the renderer's per-yarn s is not known when a level is built. */
+#define LOD_FLAKE_S 0.2
 
 /* Per exemplar, read-only after open. */
 struct exm {

@@ -46,9 +46,10 @@ void loom__texture_simd(loom_texture *t, int on);
 
 /* The extinction per millimetre of a density-1 voxel for which a coarse
    voxel's density matches its box's transmittance (lod.c, lod_density):
-   7 times the default loom render --density-scale of 80, fitted so the
-   grazing scene of docs/rendering.md renders with the mean colour of
-   full resolution. */
+   7 times the default loom render --density-scale of 80, fitted for the
+   earlier axis-only rule so the grazing scene of docs/rendering.md
+   rendered with the mean colour of full resolution; kept for the
+   13-direction fit, which it moves little (doubling it: 1 level). */
 #define LOOM__LOD_EXTINCTION_MM 560.0
 
 /* on = 1: region reads of t copy every column with its nearer whole

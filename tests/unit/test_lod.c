@@ -3,7 +3,8 @@
  * coarse voxel of levels 1..3, read through the brick cache, equals a
  * brute-force box filter of the level-0 exemplar (read with
  * loom_db_read_box, filtered here in double with its own eigen solver; the
- * density transmittance-matched, ref_density); coarse lookups of the
+ * density fitted to the fine transmittance along 13 directions, ref_density,
+ * whose transmittance error beats the old axis-only rule's); coarse lookups of the
  * synthesized fabric agree with that filter of its full-resolution lookups
  * away from block edges; a texture opened without
  * options.lod has no levels and sample_lod at level 0 is sample itself.
@@ -20,13 +21,12 @@
 
 static char tmpdir[4096], db_path[4200], db4_path[4200];
 
-/* The coarse density byte of an n x n x n box of density bytes b (index
-   (x * n + y) * n + z) summing to sum > 0, written out from
-   docs/rendering.md: the density d whose uniform box transmits as much
-   along the axes as b, exp(-sigma n d) = mean over the 3 n^2 axis columns
-   of exp(-sigma (column sum)), rounded, at most the rounded mean, at
-   least 1; the rounded mean when every column is opaque. */
-static uint8_t ref_density(const uint8_t *b, uint32_t n, uint64_t sum, double sigma)
+/* The old axis-only rule (before the direction fit), kept to show what
+   the fit buys: the density d whose uniform box transmits as much along
+   the axes as b (index (x * n + y) * n + z), exp(-sigma n d) = mean over
+   the 3 n^2 axis columns of exp(-sigma (column sum)), rounded, at most
+   the rounded mean, at least 1. */
+static uint8_t old_density(const uint8_t *b, uint32_t n, uint64_t sum, double sigma)
 {
 	uint64_t n3 = (uint64_t)n * n * n, mean = (sum + n3 / 2) / n3;
 	double t = 0, d;
@@ -49,6 +49,97 @@ static uint8_t ref_density(const uint8_t *b, uint32_t n, uint64_t sum, double si
 	d = d > (double)mean ? (double)mean : d;
 	return (uint8_t)(d < 1 ? 1 : d);
 }
+
+/* The 13 directions, written out from docs/rendering.md: axes, face and
+   body diagonals, as voxel steps. */
+static const int dirs[13][3] = {{1, 0, 0},  {0, 1, 0},  {0, 0, 1},  {1, 1, 0},  {1, -1, 0},
+                                {1, 0, 1},  {1, 0, -1}, {0, 1, 1},  {0, 1, -1}, {1, 1, 1},
+                                {1, 1, -1}, {1, -1, 1}, {1, -1, -1}};
+
+/* Projected area (docs/rendering.md): sqrt(sin^2 + (pi/2) s^2), s 0.2. */
+static double area(const double w[3], const double v[3])
+{
+	double c = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+	return sqrt(fmax(0, 1 - c * c) + M_PI / 2 * 0.2 * 0.2);
+}
+
+/* The fine box b (fibre directions v) along each direction j: its mean
+   transmittance tf[j] over the n^2 wrapped paths of n voxel steps, each
+   voxel's path found by stepping back to the face its first nonzero step
+   axis leaves (x = 0 for (1, -1, 0)); and len[j] = |step|. */
+static void fine_paths(const uint8_t *b, const double (*v)[3], uint32_t n, double sigma,
+                       double tf[13], double len[13], double eb[13])
+{
+	for (int j = 0; j < 13; j++) {
+		const int *g = dirs[j];
+		int a = g[0] ? 0 : g[1] ? 1 : 2;
+		double tau[64] = {0}, w[3], t = 0, es = 0;
+		len[j] = sqrt((double)(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]));
+		for (int r = 0; r < 3; r++)
+			w[r] = g[r] / len[j];
+		for (uint32_t x = 0; x < n; x++)
+			for (uint32_t y = 0; y < n; y++)
+				for (uint32_t z = 0; z < n; z++) {
+					int64_t p[3] = {x, y, z}, m = p[a], q[3];
+					size_t i = ((size_t)x * n + y) * n + z;
+					if (!b[i])
+						continue;
+					for (int r = 0; r < 3; r++)
+						q[r] = ((p[r] - m * g[r]) % (int64_t)n + n) % n;
+					/* the path is named by its start's other two coordinates */
+					tau[(a == 0 ? q[1] * n + q[2] : a == 1 ? q[0] * n + q[2]
+					                                      : q[0] * n + q[1])] +=
+					        b[i] * area(w, v[i]);
+				}
+		for (uint32_t k = 0; k < n * n; k++) {
+			t += exp(-sigma * len[j] * tau[k]);
+			es += tau[k];
+		}
+		tf[j] = t / (n * n);
+		eb[j] = es / ((double)n * n * n);
+	}
+}
+
+/* The coarse density byte (docs/rendering.md): least squares in log over
+   the 13 directions of D A(w, vc) against -log tf / (sigma n |w|),
+   rounded to [1, 255]. */
+static uint8_t ref_density(const uint8_t *b, const double (*v)[3], uint32_t n,
+                           const double vc[3], double sigma)
+{
+	double tf[13], len[13], eb[13], num = 0, den = 0, D;
+	fine_paths(b, v, n, sigma, tf, len, eb);
+	for (int j = 0; j < 13; j++) {
+		double w[3], aw, bw;
+		for (int r = 0; r < 3; r++)
+			w[r] = dirs[j][r] / len[j];
+		aw = area(w, vc);
+		bw = tf[j] > 1e-300 ? -log(tf[j]) / (sigma * n * len[j]) : eb[j];
+		num += aw * bw;
+		den += aw * aw;
+	}
+	D = floor(num / den + 0.5);
+	return (uint8_t)(D < 1 ? 1 : D > 255 ? 255 : D);
+}
+
+/* Mean over the 13 directions of |fine mean transmittance - coarse
+   transmittance exp(-sigma n |w| D A(w, vc))| of coarse byte D. */
+static double trans_err(const uint8_t *b, const double (*v)[3], uint32_t n,
+                        const double vc[3], double sigma, uint8_t D)
+{
+	double tf[13], len[13], eb[13], e = 0;
+	fine_paths(b, v, n, sigma, tf, len, eb);
+	for (int j = 0; j < 13; j++) {
+		double w[3];
+		for (int r = 0; r < 3; r++)
+			w[r] = dirs[j][r] / len[j];
+		e += fabs(tf[j] - exp(-sigma * n * len[j] * D * area(w, vc)));
+	}
+	return e / 13;
+}
+
+/* Mean transmittance error over the 13 directions per coarse voxel that
+   the direction fit stays under and the axis-only rule does not. */
+#define LOD_TERR_BOUND 0.09
 
 static double db_sigma(loom_db *db)
 {
@@ -187,8 +278,8 @@ static void levels_equal_box_filter(const char *path, unsigned want_levels)
 	uint8_t *den = NULL, *lab = NULL;
 	uint16_t *ori = NULL;
 	long checked = 0, dens_bad = 0, lab_bad = 0, an_bad = 0, dir_bad = 0, dir_n = 0,
-	     nonempty = 0, lowered = 0;
-	double worst = 0;
+	     nonempty = 0, lowered = 0, off1 = 0;
+	double worst = 0, err_new = 0, err_old = 0;
 
 	CHECK_EQ_INT(loom_db_open(path, &db, NULL), LOOM_OK);
 	if (!db)
@@ -219,7 +310,7 @@ static void levels_equal_box_filter(const char *path, unsigned want_levels)
 					for (uint32_t X = 0; X < ls[0]; X++) {
 						uint64_t sum = 0;
 						uint8_t bx[8 * 8 * 8] = {0};
-						double T[9] = {0}, kw[3] = {0, 0, 0};
+						double fv[8 * 8 * 8][3], T[9] = {0}, kw[3] = {0, 0, 0};
 						uint8_t best[3] = {0, 0, 0}, bestd[3] = {0, 0, 0}, got[5],
 						        want_d, want_l;
 						/* brick order: y, x, then z fastest */
@@ -237,8 +328,13 @@ static void levels_equal_box_filter(const char *path, unsigned want_levels)
 										continue;
 									l = lab[i];
 									sum += d;
-									bx[((x - X * n) * n + (y - Y * n)) * n + (z - Z * n)] = d;
 									decode(ori[i], v);
+									{
+										size_t q = ((x - X * n) * n + (y - Y * n)) * n +
+										           (z - Z * n);
+										bx[q] = d;
+										memcpy(fv[q], v, sizeof v);
+									}
 									for (int r = 0; r < 3; r++)
 										for (int c = 0; c < 3; c++)
 											T[3 * r + c] += d * v[r] * v[c];
@@ -253,14 +349,24 @@ static void levels_equal_box_filter(const char *path, unsigned want_levels)
 								}
 						CHECK_EQ_INT(loom__lod_voxel(t, u, k, X, Y, Z, got), LOOM_OK);
 						checked++;
-						want_d = sum ? ref_density(bx, n, sum, db_sigma(db)) : 0;
 						if (!sum) {
 							if (got[0] || got[1] || got[2] || got[3] || got[4])
 								dens_bad++;
 							continue;
 						}
 						nonempty++;
-						dens_bad += got[0] != want_d;
+						{ /* the coarse axis as the renderer decodes it */
+							double vc[3], sg = db_sigma(db);
+							uint8_t od = old_density(bx, n, sum, sg);
+							decode((uint16_t)(got[1] | got[2] << 8), vc);
+							want_d = ref_density(bx, (const double(*)[3])fv, n, vc, sg);
+							/* float decoding in lod.c against double here */
+							dens_bad += abs((int)got[0] - (int)want_d) > 1;
+							off1 += got[0] != want_d;
+							err_new += trans_err(bx, (const double(*)[3])fv, n, vc, sg,
+							                     want_d);
+							err_old += trans_err(bx, (const double(*)[3])fv, n, vc, sg, od);
+						}
 						/* below the box mean: gaps kept open */
 						lowered += want_d < (sum + (uint64_t)n * n * n / 2) / ((uint64_t)n * n * n);
 						{
@@ -297,8 +403,15 @@ static void levels_equal_box_filter(const char *path, unsigned want_levels)
 	printf("  %s: %ld coarse voxels (%ld with density, %ld below the box mean), %ld "
 	       "directions, worst %.3f deg\n",
 	       path + strlen(tmpdir) + 1, checked, nonempty, lowered, dir_n, worst);
+	printf("  density: %ld off by one (float decoding); mean transmittance error over "
+	       "13 directions %.4f (axis-only rule %.4f)\n",
+	       off1, err_new / (double)(nonempty ? nonempty : 1),
+	       err_old / (double)(nonempty ? nonempty : 1));
 	CHECK(nonempty > 100);
 	CHECK(lowered > nonempty / 4);
+	CHECK(off1 <= nonempty / 1000);
+	CHECK(err_new < LOD_TERR_BOUND * (double)nonempty);
+	CHECK(err_old > LOD_TERR_BOUND * (double)nonempty);
 	CHECK(dir_n > 50);
 	CHECK_EQ_INT((int)dens_bad, 0);
 	CHECK_EQ_INT((int)lab_bad, 0);
@@ -366,6 +479,7 @@ static void lookups_match_synthesized(void)
 						continue;
 					{
 						uint8_t bb[8 * 8 * 8];
+						double bv[8 * 8 * 8][3];
 						uint64_t sum = 0;
 						for (int64_t y = y0; y < y0 + s; y++)
 							for (int64_t x = x0; x < x0 + s; x++)
@@ -375,14 +489,23 @@ static void lookups_match_synthesized(void)
 									             LOOM_OK);
 									bb[((x - x0) * s + (y - y0)) * s + (z - z0)] =
 									        (uint8_t)lround(v.density * 255);
+									for (int r = 0; r < 3; r++)
+										bv[((x - x0) * s + (y - y0)) * s + (z - z0)][r] =
+										        v.orientation[r];
 									sum += bb[((x - x0) * s + (y - y0)) * s + (z - z0)];
 								}
-						box = sum ? ref_density(bb, (uint32_t)s, sum, db_sigma(db)) / 255.0
-						          : 0;
+						CHECK_EQ_INT(loom_texture_sample_lod(t, p, LOOM_FILTER_NEAREST,
+						                                     k, &tx, &spread),
+						             LOOM_OK);
+						{ /* the coarse axis the lookup returns */
+							double vc[3] = {tx.orientation[0], tx.orientation[1],
+							                tx.orientation[2]};
+							box = sum ? ref_density(bb, (const double(*)[3])bv,
+							                        (uint32_t)s, vc, db_sigma(db)) /
+							                    255.0
+							          : 0;
+						}
 					}
-					CHECK_EQ_INT(loom_texture_sample_lod(t, p, LOOM_FILTER_NEAREST, k,
-					                                     &tx, &spread),
-					             LOOM_OK);
 					CHECK(spread == 0); /* the lobe is not widened (lod.c) */
 					e = fabs(tx.density - box);
 					sum_err += e;
