@@ -10,11 +10,10 @@
  *   then each column's z-run in that brick is copied; z above, below or
  *   beyond the source block is filled with zeros.  A column whose offset
  *   has a fraction is copied like a whole-voxel column with its nearer
- *   whole offset (the other planes are then final) but for its
- *   densities, which are blended straight from the brick run into the
- *   output in the same pass (fuse_run: 16 voxels at a time, SSE2 or SSSE3
- *   PMADDUBSW, raw_blend's density rule in one place), the one source
- *   voxel past its run read in the same brick pass.
+ *   whole offset (the other planes are then final), the one source voxel
+ *   past its run read in the same brick pass; after the pass its copied
+ *   densities are blended in place (blend_col: 16 voxels at a time, SSE2
+ *   or SSSE3 PMADDUBSW, raw_blend's density rule in one place).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -238,12 +237,11 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 /* ------------------------------------------- the sub-voxel density blend */
 
 /* raw_blend's density rule for region reads, in one place: a column whose
-   offset has a fraction is copied like a whole-voxel column with its
-   nearer whole offset (every plane the nearer voxel's, as raw_blend keeps
-   them) but for its densities, which fuse_run computes from the brick
-   run, each from its nearer density n (the source voxel itself) and its
-   farther density o (the source voxel above or below it, or the end
-   voxel past the column's run): n where
+   offset has a fraction is first copied like a whole-voxel column with
+   its nearer whole offset (every plane the nearer voxel's, as raw_blend
+   keeps them); then blend_col rewrites its densities in place, each from
+   its nearer density n (the voxel itself) and its farther density o (the
+   copied voxel above or below it, or the end voxel past the run): n where
    n is empty or o is not, else the linear blend (DZ_SUB - g) n + g o,
    rounded (o = 0 there), g the farther voxel's weight.  blend1 is the
    scalar form, blend16 the same for 16 voxels (SSE2, or SSSE3 PMADDUBSW
@@ -304,78 +302,92 @@ blend16_ssse3(__m128i n, __m128i o, __m128i w, __m128i w2, int *any)
 }
 #endif
 
-/* The fused blend of a fractional column's brick run: d[i] =
-   blend(np[i], op[i]) for i < cnt, np and op the run's source densities
-   (the nearer voxels and the farther ones, the same run shifted by one),
-   d the output (never overlapping the source).  cnt >= 16: 16 at a time
-   with the 16-voxel blend B, the last 16 overlapping the ones before
-   (recomputed from the source, so the overlap is harmless). */
-#define FUSE_BODY(B)                                                                    \
+/* The in-place pass of blend_col over L >= 16 densities d[0 .. L) with
+   the 16-voxel blend B, farther voxel d[i + dir] (dir -1 or +1) and, past
+   the ends, edge.  Every blend is computed from the copied densities:
+   dir +1 ascends, reading d[i + 1 ..] before it is stored; dir -1 carries
+   the last copied voxel of the previous 16 in a register; the last 16
+   (overlapping the one before when 16 does not divide L) are computed
+   first and stored last. */
+#define BLEND_COL_BODY(B)                                                               \
 	do {                                                                            \
+		__m128i e = _mm_slli_si128(_mm_cvtsi32_si128((int)edge), 15);           \
+		__m128i nt = _mm_loadu_si128((const __m128i *)(d + L - 16)), ot, tv;    \
+		int tany, any;                                                          \
 		size_t i = 0;                                                           \
-		int any;                                                                \
-		for (;;) {                                                              \
-			__m128i n = _mm_loadu_si128((const __m128i *)(np + i));         \
-			__m128i o = _mm_loadu_si128((const __m128i *)(op + i));         \
-			_mm_storeu_si128((__m128i *)(d + i), B(n, o, w, w2, &any));     \
-			if (i + 16 == cnt)                                              \
-				break;                                                  \
-			i = i + 32 <= cnt ? i + 16 : cnt - 16;                          \
+		if (dir > 0) {                                                          \
+			ot = _mm_or_si128(_mm_srli_si128(nt, 1), e);                    \
+			tv = B(nt, ot, w, w2, &tany);                                   \
+			for (; i + 16 < L; i += 16) {                                   \
+				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
+				__m128i o = _mm_loadu_si128((const __m128i *)(d + i + 1)); \
+				__m128i v = B(n, o, w, w2, &any);                       \
+				if (any)                                                \
+					_mm_storeu_si128((__m128i *)(d + i), v);        \
+			}                                                               \
+		} else {                                                                \
+			__m128i prev = e;                                               \
+			ot = L > 16 ? _mm_loadu_si128((const __m128i *)(d + L - 17))    \
+			            : _mm_or_si128(_mm_slli_si128(nt, 1), _mm_srli_si128(e, 15)); \
+			tv = B(nt, ot, w, w2, &tany);                                   \
+			for (; i + 16 < L; i += 16) {                                   \
+				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
+				__m128i o = _mm_or_si128(_mm_slli_si128(n, 1),          \
+				                         _mm_srli_si128(prev, 15));     \
+				__m128i v = B(n, o, w, w2, &any);                       \
+				prev = n;                                               \
+				if (any)                                                \
+					_mm_storeu_si128((__m128i *)(d + i), v);        \
+			}                                                               \
 		}                                                                       \
+		if (tany)                                                               \
+			_mm_storeu_si128((__m128i *)(d + L - 16), tv);                  \
 	} while (0)
 
 #ifdef __SSE2__
-static void fuse_sse2(uint8_t *restrict d, const uint8_t *np, const uint8_t *op, size_t cnt,
-                      unsigned g)
+static void blend_col_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
 {
 	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
-	FUSE_BODY(blend16_sse2);
+	BLEND_COL_BODY(blend16_sse2);
 }
 #endif
 
 #ifdef HAVE_KT_SSSE3
-__attribute__((target("ssse3"))) static void fuse_ssse3(uint8_t *restrict d, const uint8_t *np,
-                                                         const uint8_t *op, size_t cnt,
-                                                         unsigned g)
+__attribute__((target("ssse3"))) static void blend_col_ssse3(uint8_t *d, size_t L, int dir,
+                                                              unsigned g, unsigned edge)
 {
 	const __m128i w = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* n, o */
 	const __m128i w2 = w;
-	FUSE_BODY(blend16_ssse3);
+	BLEND_COL_BODY(blend16_ssse3);
 }
 #endif
 
-/* The densities of m >= 1 voxels of a fractional column's brick run,
-   blended straight from the source run s into d (one pass, no copy
-   first): voxel i's farther density is s[i + dir].  dir -1: voxel 0's
-   farther density is below (the previous brick's last voxel or the end
-   voxel), x; dir +1: the last voxel's farther density is above the run
-   (in the next brick, or the end voxel), so d[m - 1] is left to the
-   caller.  Only bytes of the run are read. */
-static void fuse_run(const loom_texture *t, uint8_t *d, const uint8_t *s, size_t m, int dir,
-                     unsigned g, unsigned x)
+/* Blend the L >= 1 copied densities d[0 .. L) of a fractional column in
+   place: voxel i's farther density is d[i + dir] (dir -1: below, +1:
+   above), past the ends edge (the source voxel beyond the run, 0 outside
+   the block), weight g / DZ_SUB (1 .. DZ_SUB / 2). */
+static void blend_col(const loom_texture *t, uint8_t *d, size_t L, int dir, unsigned g,
+                      unsigned edge)
 {
-	const uint8_t *np = s, *op = s + 1;
-	size_t cnt = m - 1;
-
-	if (dir < 0) {
-		d[0] = blend1(s[0], x, g);
-		np = s + 1, op = s, d++;
-	}
 #ifdef __SSE2__
-	if (cnt >= 16) {
+	if (L >= 16) {
 #ifdef HAVE_KT_SSSE3
 		if (t->ssse3) {
-			fuse_ssse3(d, np, op, cnt, g);
+			blend_col_ssse3(d, L, dir, g, edge);
 			return;
 		}
 #endif
-		fuse_sse2(d, np, op, cnt, g);
+		blend_col_sse2(d, L, dir, g, edge);
 		return;
 	}
 #endif
 	(void)t;
-	for (size_t i = 0; i < cnt; i++)
-		d[i] = blend1(np[i], op[i], g);
+	if (dir > 0) /* ascending: d[i + 1] not yet blended */
+		for (size_t i = 0; i < L; i++)
+			d[i] = blend1(d[i], i + 1 < L ? d[i + 1] : edge, g);
+	else /* descending: d[i - 1] not yet blended */
+		for (size_t i = L; i-- > 0;)
+			d[i] = blend1(d[i], i ? d[i - 1] : edge, g);
 }
 
 /* Columns handled together by group_fill at most. */
@@ -387,14 +399,8 @@ struct fcol {
 	uint8_t g;     /* the farther voxel's weight, 1 .. DZ_SUB/2 */
 	uint8_t edge;  /* density of the end voxel (the farther voxel past
 	                  the run; 0 outside the block or its brick failed) */
-	uint8_t carry; /* dir -1: the source density below the next run
-	                  (the last one of the run before; 0 if it failed) */
-	uint8_t pn;    /* dir +1: the nearer density of the pending voxel */
 	int64_t xz;    /* source z of the end voxel, below the run for dir -1,
 	                  above it for dir +1 (-1: outside the block) */
-	int64_t pz;    /* dir +1: source z of the pending voxel's farther
-	                  voxel (-1: none pending) */
-	size_t po;     /* its output offset */
 };
 
 /*
@@ -407,15 +413,12 @@ struct fcol {
  * A column whose offset has a fraction (q = DZ_SUB w + f, f > 0) is
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
  * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
- * output voxel whose nearer voxel lies outside the block is empty; its
- * densities are blended straight from each brick run (fuse_run), the
- * farther voxel of a run's first (dir -1) or last (dir +1) voxel being
- * the previous brick's last voxel (carried), the next brick's first (the
- * voxel left pending until that brick is read) or the one source voxel
- * past the column's run (the end voxel, read in the same brick pass; 0
- * outside the block).  Fraction 0 is the whole-voxel path unchanged.
- * Voxels whose brick fails are empty (or blended with empty); the first
- * error is returned.
+ * output voxel whose nearer voxel lies outside the block is empty.  With
+ * density wanted, the one source voxel past its run on the farther side
+ * (the end voxel) is read in the same brick pass, and after the pass its
+ * copied densities are blended in place (blend_col); fraction 0 is the
+ * whole-voxel path unchanged.  Voxels whose brick fails are empty (or
+ * blended with empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
@@ -431,9 +434,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	size_t col;
 	int rc = LOOM_OK, nfrac = 0;
 	uint8_t *D = k->raw ? k->rd : k->d;
-	struct sink kn = *k; /* fractional columns: every plane but density */
 
-	kn.d = kn.rd = NULL;
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
 		int64_t dz = dz_split(xent_dz(t, s, e, lx0 + c, ly), &f);
@@ -444,7 +445,6 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		if (t->region_whole)
 			f = 0; /* the bench's whole-voxel peer: the nearer copy only */
 		F->dir = 0;
-		F->pz = -1;
 		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
@@ -470,7 +470,6 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
 			F->dir = (int8_t)(far_up ? 1 : -1);
 			F->edge = 0;
-			F->carry = 0;
 			/* the farther voxel of the run's end voxel, when in the block */
 			F->xz = far_up ? sb[c] : sa[c] - 1;
 			if (F->xz >= 0 && F->xz < b3) {
@@ -508,51 +507,25 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			struct fcol *F = &fc[c];
-			const uint8_t *q;
 			size_t o;
 			if (F->dir && p && F->xz >= z0 && F->xz < z1)
 				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
-			if (F->pz >= z0 && F->pz < z1) { /* the pending voxel's farther one */
-				D[F->po] = blend1(F->pn,
-				                  p ? p[col + (size_t)c * bz + (size_t)(F->pz - z0)] : 0,
-				                  F->g);
-				F->pz = -1;
-			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
-			if (!p) {
+			if (p)
+				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
+				         (size_t)(b - a));
+			else
 				sink_empty(k, o, (size_t)(b - a));
-				F->carry = 0;
-				continue;
-			}
-			q = p + col + (size_t)c * bz + (size_t)(a - z0);
-			if (!F->dir) {
-				sink_run(t, k, o, q, (size_t)(b - a));
-				continue;
-			}
-			/* fractional: the other planes copied, the densities
-			   blended straight from the brick */
-			sink_run(t, &kn, o, q, (size_t)(b - a));
-			fuse_run(t, D + o, q, (size_t)(b - a), F->dir, F->g,
-			         a == sa[c] ? F->edge : F->carry);
-			if (F->dir < 0) {
-				F->carry = q[b - a - 1];
-			} else if (b < sb[c] || F->xz >= z1) { /* farther voxel not yet read */
-				F->pn = q[b - a - 1];
-				F->po = o + (size_t)(b - a - 1);
-				F->pz = b;
-			} else { /* the end voxel, read above, or outside the block */
-				D[o + (size_t)(b - a - 1)] =
-				        blend1(q[b - a - 1], F->xz >= 0 ? F->edge : 0, F->g);
-			}
 		}
 	}
-	/* pending voxels whose farther voxel was never read: empty */
+	/* the fractional columns' densities, from the copied ones */
 	if (nfrac)
 		for (uint32_t c = 0; c < n; c++)
-			if (fc[c].pz >= 0)
-				D[fc[c].po] = blend1(fc[c].pn, 0, fc[c].g);
+			if (fc[c].dir)
+				blend_col(t, D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za),
+				          (size_t)(sb[c] - sa[c]), fc[c].dir, fc[c].g, fc[c].edge);
 	return rc;
 }
 
