@@ -1170,7 +1170,7 @@ static void region_paths(void)
 				hi[2] = -1;
 			}
 			/* the PSHUFB path and the 256-entry tables */
-			for (int simd = 1; simd >= 0; simd--) {
+			for (int simd = 2; simd >= 0; simd--) {
 				loom__texture_simd(t, simd);
 				bad += region_vs_ref(t, &r, lo, hi, mask, lay);
 				boxes++;
@@ -1242,7 +1242,7 @@ static void region_sub_voxel(void)
 			lo[2] = -2;
 			hi[2] = (int64_t)r.b3 + 2;
 		}
-		for (int simd = 1; simd >= 0; simd--) {
+		for (int simd = 2; simd >= 0; simd--) {
 			loom__texture_simd(t, simd);
 			bad += region_vs_ref(t, &r, lo, hi, mask, it & 1);
 			boxes++;
@@ -1284,8 +1284,9 @@ static void region_sub_voxel(void)
    run's first or last voxel in the brick before or after, or the end
    voxel past the column's run): on bricks 8, 7 and 32 high (the tiny and
    np2 databases, and region_sub_voxel's 150 voxels thick), boxes whose z
-   range starts and ends at z = 0, at the top of the block, just below, at
-   and above brick boundaries, runs of odd lengths below and above 16 and
+   range starts and ends at z = 0, at the top of the block, inside the
+   cloth, just below, at and above brick boundaries, runs of odd lengths
+   below and above 16 and
    runs across two, three and all bricks; density alone, with orientation
    and with every channel, both layouts, SSSE3 and SSE2 blends, against
    the reference. */
@@ -1324,8 +1325,11 @@ static void region_fused_edges(void)
 		}
 		b3 = (int64_t)r.b3;
 		t = open_tex(f, db, min_budget(f, db, 1) + 60000, 1);
-		for (int zi = 0; t && zi < 18; zi++) {
-			const int64_t zr[18][2] = {
+		for (int zi = 0; t && zi < 23; zi++) {
+			const int64_t zr[23][2] = {
+				{b3 / 2 - 33, b3 / 2 + 1}, {b3 / 2 - 1, b3 / 2 + 33},
+				{b3 / 3, 2 * b3 / 3}, {b3 / 2 - 48, b3 / 2 - 8},
+				{b3 / 2 + 8, b3 / 2 + 48},
 				{0, b3}, {0, 1}, {0, bz - 1}, {0, bz + 1}, {0, 17}, {0, 33},
 				{b3 - 1, b3}, {b3 - 7, b3}, {b3 - 19, b3}, {bz - 1, bz + 1},
 				{bz - 1, 2 * bz + 1}, {bz, 2 * bz}, {bz + 1, 3 * bz - 1},
@@ -1339,7 +1343,7 @@ static void region_fused_edges(void)
 				continue;
 			for (int m = 0; m < 3; m++)
 				for (int lay = 0; lay < 2; lay++)
-					for (int simd = 1; simd >= 0; simd--) {
+					for (int simd = 2; simd >= 0; simd--) {
 						loom__texture_simd(t, simd);
 						bad += region_vs_ref(t, &r, lo, hi, masks[m], lay);
 						boxes++;
