@@ -38,7 +38,6 @@
 #endif
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
 #include <tmmintrin.h> /* SSSE3, used under a target attribute after a CPU check */
-#include <immintrin.h> /* AVX2, the same */
 #define HAVE_KT_SSSE3 1
 #endif
 
@@ -363,44 +362,6 @@ __attribute__((target("ssse3"))) static void blend_col_ssse3(uint8_t *d, size_t 
 }
 #endif
 
-#ifdef HAVE_KT_SSSE3
-/* Columns up to this long take blend_col_avx2. */
-#define BLEND_AVX2_MAX 1024
-
-/* blend_col with AVX2, 32 voxels at a time, for 32 <= L <= BLEND_AVX2_MAX:
-   the copied densities are first saved with the end voxel on both sides
-   (c[0] = c[L + 1] = edge, c[1 + i] = d[i]), so every blend reads its
-   nearer and farther densities from the saved copy at +0 and +dir
-   (unaligned) and the overlapping last 32 need no ordering.  The blend is
-   blend16_ssse3's (PMADDUBSW, PMULHRSW by 2^11) on both 128-bit lanes. */
-__attribute__((target("avx2"))) static void blend_col_avx2(uint8_t *d, size_t L, int dir,
-                                                            unsigned g, unsigned edge)
-{
-	uint8_t c[BLEND_AVX2_MAX + 2];
-	const __m256i w = _mm256_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* n, o */
-	const __m256i r = _mm256_set1_epi16(1 << 11), zero = _mm256_setzero_si256();
-	const uint8_t *np = c + 1, *op = c + 1 + dir;
-	size_t i = 0;
-
-	c[0] = c[L + 1] = (uint8_t)edge;
-	memcpy(c + 1, d, L);
-	for (;;) {
-		__m256i n = _mm256_loadu_si256((const __m256i *)(np + i));
-		__m256i o = _mm256_loadu_si256((const __m256i *)(op + i));
-		__m256i m = _mm256_andnot_si256(_mm256_cmpeq_epi8(n, zero), _mm256_cmpeq_epi8(o, zero));
-		if (_mm256_movemask_epi8(m)) {
-			__m256i lo = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpacklo_epi8(n, o), w), r);
-			__m256i hi = _mm256_mulhrs_epi16(_mm256_maddubs_epi16(_mm256_unpackhi_epi8(n, o), w), r);
-			_mm256_storeu_si256((__m256i *)(d + i),
-			                    _mm256_blendv_epi8(n, _mm256_packus_epi16(lo, hi), m));
-		}
-		if (i + 32 == L)
-			break;
-		i = i + 64 <= L ? i + 32 : L - 32;
-	}
-}
-#endif
-
 /* Blend the L >= 1 copied densities d[0 .. L) of a fractional column in
    place: voxel i's farther density is d[i + dir] (dir -1: below, +1:
    above), past the ends edge (the source voxel beyond the run, 0 outside
@@ -411,10 +372,6 @@ static void blend_col(const loom_texture *t, uint8_t *d, size_t L, int dir, unsi
 #ifdef __SSE2__
 	if (L >= 16) {
 #ifdef HAVE_KT_SSSE3
-		if (t->avx2 && L >= 32 && L <= BLEND_AVX2_MAX) {
-			blend_col_avx2(d, L, dir, g, edge);
-			return;
-		}
 		if (t->ssse3) {
 			blend_col_ssse3(d, L, dir, g, edge);
 			return;
@@ -1136,12 +1093,11 @@ void loom__texture_simd(loom_texture *t, int on)
 {
 	if (!t)
 		return;
-	t->ssse3 = t->avx2 = 0;
+	t->ssse3 = 0;
 #ifdef HAVE_KT_SSSE3
 	if (on) {
 		__builtin_cpu_init();
 		t->ssse3 = __builtin_cpu_supports("ssse3") != 0;
-		t->avx2 = on == 1 && t->ssse3 && __builtin_cpu_supports("avx2") != 0;
 	}
 #else
 	(void)on;

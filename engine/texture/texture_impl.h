@@ -141,7 +141,6 @@ struct loom_texture {
 	uint32_t sh[3], mk[3];   /* shifts and masks when pow2 */
 	int pow2;                /* every brick side a power of two */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
-	int avx2;                /* and AVX2 (blend_col_avx2) */
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
 	                            whole-voxel peer; loom__texture_region_whole) */

@@ -1170,7 +1170,7 @@ static void region_paths(void)
 				hi[2] = -1;
 			}
 			/* the PSHUFB path and the 256-entry tables */
-			for (int simd = 2; simd >= 0; simd--) {
+			for (int simd = 1; simd >= 0; simd--) {
 				loom__texture_simd(t, simd);
 				bad += region_vs_ref(t, &r, lo, hi, mask, lay);
 				boxes++;
@@ -1242,7 +1242,7 @@ static void region_sub_voxel(void)
 			lo[2] = -2;
 			hi[2] = (int64_t)r.b3 + 2;
 		}
-		for (int simd = 2; simd >= 0; simd--) {
+		for (int simd = 1; simd >= 0; simd--) {
 			loom__texture_simd(t, simd);
 			bad += region_vs_ref(t, &r, lo, hi, mask, it & 1);
 			boxes++;
@@ -1279,18 +1279,18 @@ static void region_sub_voxel(void)
 	loom_db_close(db);
 }
 
-/* The fused sub-voxel blend's brick boundaries (a fractional column's
-   densities blended straight from each brick run: the farther voxel of a
-   run's first or last voxel in the brick before or after, or the end
-   voxel past the column's run): on bricks 8, 7 and 32 high (the tiny and
-   np2 databases, and region_sub_voxel's 150 voxels thick), boxes whose z
-   range starts and ends at z = 0, at the top of the block, inside the
-   cloth, just below, at and above brick boundaries, runs of odd lengths
-   below and above 16 and
-   runs across two, three and all bricks; density alone, with orientation
-   and with every channel, both layouts, SSSE3 and SSE2 blends, against
-   the reference. */
-static void region_fused_edges(void)
+/* The sub-voxel blend at brick boundaries and run ends (a fractional
+   column's copied runs from several bricks; the end voxel past the
+   column's run): on bricks 8, 7 and 32 high (the tiny and np2 databases,
+   and region_sub_voxel's 150 voxels thick), boxes whose z range starts
+   and ends at z = 0, at the top of the block, inside the cloth, just
+   below, at and above brick boundaries, runs of odd lengths below and
+   above 16 and runs across two, three and all bricks; density alone, with
+   orientation and with every channel, both layouts, SSSE3 and SSE2
+   blends, against the reference.  (Written for a blend fused into the
+   brick pass, tried in session 28 and dropped: a dropped carry or end
+   voxel there gave thousands of mismatches here.) */
+static void region_blend_edges(void)
 {
 	const uint32_t block[3] = {40, 6, 150}, brick[3] = {16, 2, 32};
 	static const unsigned masks[3] = {1, 3, 31};
@@ -1343,7 +1343,7 @@ static void region_fused_edges(void)
 				continue;
 			for (int m = 0; m < 3; m++)
 				for (int lay = 0; lay < 2; lay++)
-					for (int simd = 2; simd >= 0; simd--) {
+					for (int simd = 1; simd >= 0; simd--) {
 						loom__texture_simd(t, simd);
 						bad += region_vs_ref(t, &r, lo, hi, masks[m], lay);
 						boxes++;
@@ -2037,7 +2037,7 @@ int main(void)
 	RUN(wide_blocks_region);
 	RUN(region_paths);
 	RUN(region_sub_voxel);
-	RUN(region_fused_edges);
+	RUN(region_blend_edges);
 	RUN(labels_above_15);
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
