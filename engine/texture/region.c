@@ -472,8 +472,14 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			F->edge = 0;
 			/* the farther voxel of the run's end voxel, when in the block */
 			F->xz = far_up ? sb[c] : sa[c] - 1;
-			if (F->xz < 0 || F->xz >= b3)
+			if (F->xz >= 0 && F->xz < b3) {
+				if (F->xz < smin)
+					smin = F->xz;
+				if (F->xz + 1 > smax)
+					smax = F->xz + 1;
+			} else {
 				F->xz = -1;
+			}
 		}
 	}
 	if (smin >= smax)
@@ -502,11 +508,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			struct fcol *F = &fc[c];
 			size_t o;
-			if (F->dir && F->xz >= z0 && F->xz < z1) {
-				if (p)
-					F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
-				F->xz = -1; /* read */
-			}
+			if (F->dir && p && F->xz >= z0 && F->xz < z1)
+				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
@@ -517,31 +520,6 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				sink_empty(k, o, (size_t)(b - a));
 		}
 	}
-	/* end voxels in bricks none of the group's runs reached: read only
-	   where they count (the run's end voxel not empty), below, then above */
-	for (int up = 0; nfrac && up < 2; up++)
-		for (uint32_t c = 0; c < n; c++) {
-			struct fcol *F = &fc[c];
-			int64_t kz, z;
-			if (F->dir != (up ? 1 : -1) || F->xz < 0)
-				continue;
-			z = up ? sb[c] - 1 : sa[c];
-			if (!D[off + c * cstride + (size_t)(z + dzs[c] - za)])
-				continue;
-			kz = brick_of(t, 2, (uint32_t)F->xz);
-			if (base + (uint64_t)kz != s->memo_id) {
-				int e2 = loom__memo_switch(t, s, base + (uint64_t)kz);
-				if (e2 != LOOM_OK) {
-					if (rc == LOOM_OK)
-						rc = e2;
-					continue;
-				}
-			} else {
-				bump(&s->cnt.memo_hits, 1);
-			}
-			if (s->memo)
-				F->edge = s->memo[col + (size_t)c * bz + (size_t)(F->xz - kz * bz)];
-		}
 	/* the fractional columns' densities, from the copied ones */
 	if (nfrac)
 		for (uint32_t c = 0; c < n; c++)
