@@ -476,14 +476,30 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	return LOOM_OK;
 }
 
+/* Step 2 for output column (x, y): the crossing entry (the slot's current
+   one when it holds the column), the column's source (sx, sy), and the
+   prefetch of the source voxel at z with the offset still unknown. */
+static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                                     uint32_t z, uint32_t *sx, uint32_t *sy)
+{
+	struct xent *e = s->cur;
+
+	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+		e = loom__xent_enter(t, s, x, y);
+	*sx = e->sx0 + (uint32_t)(x - e->x0);
+	*sy = e->sy0 + (uint32_t)(y - e->y0);
+	src_prefetch(t, s, e, *sx, *sy, z);
+	return e;
+}
+
 /* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
    reading only the planes of channel mask ch: with a fractional offset,
    the two source voxels blended (raw_blend). */
 static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
                             int64_t z, unsigned ch, rawvox *r)
 {
-	struct xent *e = s->cur;
-	uint32_t lx, ly, sx, sy;
+	struct xent *e;
+	uint32_t sx, sy;
 	int64_t w;
 	int f, rc, rc2;
 	rawvox a, b;
@@ -491,14 +507,8 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	*r = raw_empty;
 	if ((uint64_t)z >= t->b3) /* Step 1 */
 		return LOOM_OK;
-	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
-		e = loom__xent_enter(t, s, x, y); /* Step 2 */
-	lx = (uint32_t)(x - e->x0);
-	ly = (uint32_t)(y - e->y0);
-	sx = e->sx0 + lx;
-	sy = e->sy0 + ly;
-	src_prefetch(t, s, e, sx, sy, (uint32_t)z);
-	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
+	e = column_at(t, s, x, y, (uint32_t)z, &sx, &sy);
+	w = dz_split(xent_dz(t, s, e, sx - e->sx0, sy - e->sy0), &f); /* Step 3 */
 	if (!f)
 		return src_raw(t, s, e, sx, sy, z - w, ch, r);
 	if (!(ch & (CH_D | CH_O))) /* the material is the nearer voxel's */
@@ -520,8 +530,8 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
                            int64_t z, unsigned ch, rawvox r[2])
 {
-	struct xent *e = s->cur;
-	uint32_t lx, ly, sx, sy;
+	struct xent *e;
+	uint32_t sx, sy;
 	int in0 = (uint64_t)z < t->b3, in1 = (uint64_t)(z + 1) < t->b3;
 	int64_t w;
 	int f, rc[3] = {LOOM_OK, LOOM_OK, LOOM_OK};
@@ -530,14 +540,8 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 	r[0] = r[1] = raw_empty;
 	if (!in0 && !in1) /* Step 1 */
 		return LOOM_OK;
-	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
-		e = loom__xent_enter(t, s, x, y); /* Step 2 */
-	lx = (uint32_t)(x - e->x0);
-	ly = (uint32_t)(y - e->y0);
-	sx = e->sx0 + lx;
-	sy = e->sy0 + ly;
-	src_prefetch(t, s, e, sx, sy, (uint32_t)(in0 ? z : z + 1));
-	w = dz_split(xent_dz(t, s, e, lx, ly), &f); /* Step 3 */
+	e = column_at(t, s, x, y, (uint32_t)(in0 ? z : z + 1), &sx, &sy);
+	w = dz_split(xent_dz(t, s, e, sx - e->sx0, sy - e->sy0), &f); /* Step 3 */
 	if (!f || !(ch & (CH_D | CH_O))) {
 		/* one source voxel each: the nearer one (the material's) */
 		int64_t d = f && 2 * f > DZ_SUB;
