@@ -29,15 +29,22 @@ kill_run() {
 	rm -f "$out" "$out".tmp.*
 	"$@" >/dev/null 2>&1 &
 	pid=$!
+	# poll until the temporary appears or the command ends; a deadline in
+	# seconds, not in polls (a sanitizer build may work for a long time
+	# before it opens its output: synth under TSan)
 	i=0
-	while [ $i -lt 100000 ] && ! has_tmp "$out" && kill -0 $pid 2>/dev/null; do
+	end=$(($(date +%s) + 300))
+	while ! has_tmp "$out" && kill -0 $pid 2>/dev/null; do
 		i=$((i + 1))
+		if [ $((i % 2000)) -eq 0 ] && [ "$(date +%s)" -ge $end ]; then
+			break
+		fi
 	done
 	kill -9 $pid 2>/dev/null
 	wait $pid 2>/dev/null
 	left=$(tmps "$out")
 	if [ -z "$left" ]; then
-		fail "$n" "no temporary of $out seen before the command ended"
+		fail "$n" "no temporary of $out seen before the command ended (or within 300 s)"
 		return
 	fi
 	if [ -e "$out" ]; then
