@@ -356,10 +356,10 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	d.warn = NULL;
 	d.user = NULL;
 	d.n_warnings = 0;
-	rc = loom__cache_get(s->cth, id == bid ? id : DUNIT_TAG | bid >> 2, &p, &d);
+	rc = loom__cache_get(s->cth, id == bid ? id : dunit_key(bid), &p, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
-	s->memo_off = id == bid ? 0 : (uint32_t)((bid & 3) * t->bv);
+	s->memo_off = id == bid ? 0 : (uint32_t)dunit_off(t, bid);
 	s->memo_id = id;
 	s->memo = (const uint8_t *)p + s->memo_off;
 	s->memo_pinned = 1;
@@ -436,9 +436,9 @@ static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
 		if (!h)
 			return;
 		if (h & HINT_DUNIT) { /* a density unit's frame: the brick's plane in it */
-			p = loom__cache_hint(s->cth, DUNIT_TAG | id >> 2, (h & ~HINT_DUNIT) - 1);
+			p = loom__cache_hint(s->cth, dunit_key(id), (h & ~HINT_DUNIT) - 1);
 			if (p)
-				p += (id & 3) * t->bv;
+				p += dunit_off(t, id);
 		} else {
 			p = loom__cache_hint(s->cth, id, h - 1);
 		}
@@ -631,18 +631,14 @@ LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_
 static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
                                    int64_t z)
 {
-	struct xent *e = s->cur;
-	uint32_t lx, ly;
+	struct xent *e;
+	uint32_t sx, sy;
 
 	if ((uint64_t)z >= t->b3 && (uint64_t)++z >= t->b3)
 		return;
-	if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
-		e = loom__xent_enter(t, s, x, y);
-	lx = (uint32_t)(x - e->x0);
-	ly = (uint32_t)(y - e->y0);
+	e = column_at(t, s, x, y, (uint32_t)z, &sx, &sy);
 	if (e->map != NO_MAP)
-		__builtin_prefetch(&e->w[((size_t)ly * t->b1 + lx) >> 2]);
-	src_prefetch(t, s, e, e->sx0 + lx, e->sy0 + ly, (uint32_t)z);
+		__builtin_prefetch(&e->w[((size_t)(sy - e->sy0) * t->b1 + (sx - e->sx0)) >> 2]);
 }
 
 /* The calling thread's slot is s; p is finite and in range.  Only the

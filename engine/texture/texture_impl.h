@@ -236,6 +236,18 @@ static inline int brick_empty(const loom_texture *t, uint64_t id)
 }
 
 /* Release the slot's current brick (memo). */
+/* The cache key of brick id's density unit, and where its density plane
+   lies in that unit's frame. */
+static inline uint64_t dunit_key(uint64_t id)
+{
+	return DUNIT_TAG | id >> 2;
+}
+
+static inline size_t dunit_off(const loom_texture *t, uint64_t id)
+{
+	return (size_t)(id & 3) * t->bv;
+}
+
 static inline void memo_drop(struct tslot *s)
 {
 	if (s->memo_pinned)
