@@ -344,26 +344,7 @@ static int next_segment(tstate *t, const double o[3], const double d[3],
 		*cur = tmax;
 		return 1;
 	}
-	for (;;) {
-		double th;
-		int exiting;
-		if (!(*cur < tmax))
-			return 0;
-		if (!loom__shell_hit(c->shell, o, d, *cur > 0 ? *cur + loom__shell_eps(c->shell) : 0.0,
-		                     INFINITY, &th, &exiting)) {
-			*cur = tmax;
-			return 0;
-		}
-		if (exiting) {
-			*a = *cur;
-			*b = th < tmax ? th : tmax;
-			*cur = th;
-			if (*a < *b)
-				return 1;
-		} else {
-			*cur = th;
-		}
-	}
+	return loom__shell_segment(c->shell, o, d, tmax, cur, a, b);
 }
 
 /* ---- majorant grid ----------------------------------------------------- */

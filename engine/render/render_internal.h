@@ -131,6 +131,18 @@ int loom__shell_map(const loom_shell *s, const double w[3], uint32_t *hint,
 int loom__shell_hit(const loom_shell *s, const double o[3], const double d[3],
                     double tnear, double tfar, double *t, int *exiting);
 
+/*
+ * Next stretch [*a, *b] of the ray o + t d (d unit) inside the shell,
+ * beyond *cur and cut at tmax.  Returns 1 and advances *cur to the end of
+ * the stretch's last crossing, or 0 (with *cur = tmax) when there is none.
+ * Crossings are counted, not alternated: where the shell overlaps itself
+ * (two panels closer than its thickness, as at a pillow's pinched
+ * corners) an entry while inside deepens the count and the stretch runs
+ * on until the count returns to zero.
+ */
+int loom__shell_segment(const loom_shell *s, const double o[3], const double d[3],
+                        double tmax, double *cur, double *a, double *b);
+
 /* World-length epsilon for restarting rays at shell crossings. */
 double loom__shell_eps(const loom_shell *s);
 

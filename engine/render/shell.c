@@ -489,6 +489,55 @@ int loom__shell_hit(const loom_shell *s, const double o[3], const double d[3],
 	return 1;
 }
 
+int loom__shell_segment(const loom_shell *s, const double o[3], const double d[3],
+                        double tmax, double *cur, double *a, double *b)
+{
+	double start = *cur, last_exit = -1, th;
+	int depth = 0, exiting;
+
+	for (;;) {
+		if (!(*cur < tmax))
+			break;
+		if (!loom__shell_hit(s, o, d, *cur > 0 ? *cur + s->eps : 0.0, INFINITY, &th,
+		                     &exiting)) {
+			*cur = tmax;
+			break;
+		}
+		if (!exiting) {
+			if (depth++ == 0) {
+				start = th;
+				last_exit = -1;
+			}
+			*cur = th;
+			continue;
+		}
+		/* an exit with nothing counted: the ray started inside */
+		if (depth > 0)
+			depth--;
+		*cur = th;
+		last_exit = th;
+		if (depth == 0) {
+			*a = start;
+			*b = th < tmax ? th : tmax;
+			if (*a < *b)
+				return 1;
+			start = th;
+			last_exit = -1;
+		}
+	}
+	/* Crossings ran out with entries still counted: where the shell folds
+	   over itself (a corner's offset surfaces turn inside out) some walls
+	   face the wrong way, so entries outnumber exits.  The stretch ends at
+	   its last exit. */
+	if (depth > 0 && last_exit > start) {
+		*a = start;
+		*b = last_exit < tmax ? last_exit : tmax;
+		if (*a < *b)
+			return 1;
+	}
+	return 0;
+}
+
 double loom__shell_eps(const loom_shell *s)
 {
 	return s->eps;

@@ -303,6 +303,114 @@ static void test_ray_crossings(void)
 	loom_mesh_free(m);
 }
 
+/*
+ * Inside stretches of rays through the pillow against brute force: a point
+ * of the ray is inside the shell when loom__shell_map finds a prism
+ * holding it.  Near the pinched corners the two panels come closer than
+ * the shell's thickness, so the shell overlaps itself and a ray meets two
+ * entries before an exit; the stretches must still cover every inside
+ * point (counting crossings, not alternating them, which left the first
+ * panel's top layer out there and showed the dark inside of the pillow as
+ * a hole).  At the very tips a few rays meet two entries and no exit at
+ * all; their last bit is still lost, bounded here.  Where the corner's
+ * offset surfaces fold over, some walls face the wrong way and a stretch
+ * may hold a little empty space (tracked at no density: a cost, not an
+ * error), also bounded.  Points within a small band of a crossing are not
+ * judged.
+ */
+static void test_segments_overlap(void)
+{
+	loom_mesh *m = load("pillow.obj");
+	loom_shell *s;
+	uint64_t rng = check_seed();
+	long judged = 0, lost = 0, corner_lost = 0, wasted = 0, overlapping = 0;
+	const double th = 0.9, band = 0.02;
+
+	if (!m)
+		return;
+	s = make_shell(m, th, -th / 2, 64.0, 16, 0);
+	if (!s) {
+		loom_mesh_free(m);
+		return;
+	}
+	for (int r = 0; r < 400; r++) {
+		double o[3], d[3], cut[64], seg[32][2], cur = 0, a, b, n;
+		int ns = 0, nc = 0, corner = r < 200, depth = 0, deep = 0;
+		uint32_t hint = LOOM_MESH_NONE;
+		/* half the rays fall steeply onto a corner, half cross anywhere */
+		if (corner) {
+			double sx = loom_rng_uniform(&rng) < 0.5 ? -1 : 1;
+			double sy = loom_rng_uniform(&rng) < 0.5 ? -1 : 1;
+			o[0] = sx * urand(&rng, 17.5, 19.9);
+			o[1] = sy * urand(&rng, 17.5, 19.9);
+			o[2] = 5;
+			d[0] = urand(&rng, -0.2, 0.2);
+			d[1] = urand(&rng, -0.2, 0.2);
+			d[2] = -1;
+		} else {
+			o[0] = urand(&rng, -30, 30);
+			o[1] = urand(&rng, -30, 30);
+			o[2] = 20;
+			d[0] = urand(&rng, -25, 25) - o[0];
+			d[1] = urand(&rng, -25, 25) - o[1];
+			d[2] = urand(&rng, -3, 3) - o[2];
+		}
+		n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+		for (int j = 0; j < 3; j++)
+			d[j] /= n;
+		/* the crossings, for the band, and the stretches */
+		{
+			double t = 0;
+			int ex;
+			while (nc < 64 && loom__shell_hit(s, o, d, t > 0 ? t + loom__shell_eps(s) : 0.0,
+			                                  INFINITY, &t, &ex)) {
+				depth += ex ? -1 : 1;
+				deep |= depth > 1;
+				cut[nc++] = t;
+			}
+			overlapping += deep;
+		}
+		while (ns < 32 && loom__shell_segment(s, o, d, 60.0, &cur, &a, &b)) {
+			CHECK(a < b);
+			CHECK(ns == 0 || a >= seg[ns - 1][1]);
+			seg[ns][0] = a;
+			seg[ns][1] = b;
+			ns++;
+		}
+		for (double t = 0.01; t < 60.0; t += 0.013) {
+			double w[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]}, v[3];
+			int in = 0, near = 0, mapped;
+			for (int i = 0; i < nc; i++)
+				if (fabs(t - cut[i]) < band)
+					near = 1;
+			if (near)
+				continue;
+			for (int i = 0; i < ns; i++)
+				if (t > seg[i][0] && t < seg[i][1])
+					in = 1;
+			mapped = loom__shell_map(s, w, &hint, v, NULL, NULL);
+			judged++;
+			if (mapped && !in) {
+				lost++;
+				corner_lost += corner;
+			}
+			wasted += in && !mapped;
+		}
+	}
+	printf("  %ld points judged: %ld inside the shell but outside every stretch (%ld on "
+	       "corner rays), %ld in a stretch but in no prism; %ld rays met two entries\n",
+	       judged, lost, corner_lost, wasted, overlapping);
+	CHECK(judged > 100000);
+	CHECK(overlapping > 10); /* the corners do overlap at this thickness */
+	/* no cloth is left out but at the tips of the corners, where a few
+	   rays meet two entries and no exit (alternating the crossings lost
+	   2812 points here, 547 of them on the rays at large) */
+	CHECK(lost <= judged / 10000);
+	CHECK(wasted < judged / 500); /* and little empty space is tracked */
+	loom_shell_free(s);
+	loom_mesh_free(m);
+}
+
 typedef struct thr_arg {
 	const loom_shell *s;
 	uint64_t seed;
@@ -533,6 +641,7 @@ int main(void)
 	RUN(test_bump_computed_normals);
 	RUN(test_jacobian);
 	RUN(test_ray_crossings);
+	RUN(test_segments_overlap);
 	RUN(test_concurrent_queries);
 	RUN(test_bad_args);
 	RUN(test_uv_mm);
