@@ -264,6 +264,11 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id,
    pin (checked by arithmetic; data is never read). */
 int loom__cache_release(loom__cache_thread *th, const void *data);
 
+/* The thread's loader scratch (made and charged on first use, as a load
+   would): for a caller that fills part of a pinned frame itself (the
+   texture's density units, filled plane by plane).  LOOM_ENOMEM. */
+int loom__cache_thread_scratch(loom__cache_thread *th, void **scratch, loom_diag *diag);
+
 /* Prefetch hints (the texture's brick table, lookup.c): the frame of a
    pointer returned by get (arithmetic; data is never read), and for a
    frame f that held brick_id when last seen, the prefetch of the hash
