@@ -50,7 +50,9 @@
  *   LOADING  hashed, pins >= 1 (the loading thread and the threads that
  *            joined it, and probes about to let go); only the loading
  *            thread writes its bytes; tag NO_TAG.
- *   VALID    hashed; bytes immutable until evicted; evictable iff pins == 0;
+ *   VALID    hashed; bytes immutable until evicted (except parts the owner
+ *            fills later under its own protocol while pinned: the
+ *            texture's density units); evictable iff pins == 0;
  *            tag = its id (stored with release after the bytes).
  *   FAILED   not hashed, pins >= 1 (waiters that have not yet collected
  *            the error); becomes FREE (CLOSED) when pins reaches 0.

@@ -36,9 +36,10 @@
 #define XENT_MAX 256        /* crossing entries per thread slot, at most */
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
-/* Cache key of a density unit (texture.c): this bit | (brick id / 4), a
-   frame of the density planes of bricks 4g .. 4g+3 (layout-2 databases,
-   density-only lookups; LOD off). */
+/* Cache key of a density unit (texture.c): this bit | g, a frame of the
+   density planes of the stored bricks of ranks 4g .. 4g+3 (dunit_key;
+   layout-2 databases, density-only lookups; LOD off), each filled on its
+   first use (loom__dunit_fill). */
 #define DUNIT_TAG ((uint64_t)1 << 62)
 /* t->hint: the frame holds the brick's density unit, not the brick */
 #define HINT_DUNIT ((uint32_t)1 << 31)
@@ -244,9 +245,6 @@ static inline int brick_empty(const loom_texture *t, uint64_t id)
 	return id < t->n_bricks && (t->empty[id >> 6] >> (id & 63) & 1);
 }
 
-/* Release the slot's current brick (memo). */
-/* The cache key of brick id's density unit, and where its density plane
-   lies in that unit's frame. */
 /* The rank of stored brick id among the stored bricks (ids in order). */
 static inline uint32_t stored_rank(const loom_texture *t, uint64_t id)
 {
