@@ -946,10 +946,13 @@ static int vdb_child(char **argv)
 			loom_texture_stats ts;
 			loom_texture_get_stats(t, &ts);
 			printf("stats after %s: lookups %llu crossings %llu dz %llu hits %llu misses "
-			       "%llu rate %.0f/s\n", k ? "rays" : "random",
+			       "%llu rate %.0f/s; frames %u fixed %.1f MiB empty %llu inflated %.1f MiB "
+			       "in %.2f s\n", k ? "rays" : "random",
 			       (unsigned long long)ts.lookups, (unsigned long long)ts.crossings,
 			       (unsigned long long)ts.dz_columns, (unsigned long long)ts.hits,
-			       (unsigned long long)ts.misses, rate[k]);
+			       (unsigned long long)ts.misses, rate[k], ts.cache_frames,
+			       ts.fixed_bytes / (double)MIB, (unsigned long long)ts.empty_bricks,
+			       ts.bytes_decompressed / (double)MIB, ts.decompress_ns * 1e-9);
 		}
 		if (k == 0 && getenv("BENCH_VDB_CHILD_WARM") && !warmed++)
 			k = -1; /* for profiling: the random pass again, warm */

@@ -947,6 +947,21 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id, const void **data
 	return LOOM_OK;
 }
 
+int loom__cache_thread_scratch(loom__cache_thread *th, void **scratch, loom_diag *diag)
+{
+	loom__cache *c = th->cache;
+
+	if (c->o.scratch_new && !th->scratch) {
+		th->scratch = c->o.scratch_new(c->o.ctx);
+		if (!th->scratch)
+			return loom__fail(diag, LOOM_ENOMEM,
+			                  "cache: cannot create the loader's thread scratch");
+		charge(c, c->o.scratch_bytes);
+	}
+	*scratch = th->scratch;
+	return LOOM_OK;
+}
+
 uint32_t loom__cache_frame_of(const loom__cache_thread *th, const void *data)
 {
 	const loom__cache *c = th->cache;

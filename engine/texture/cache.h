@@ -50,7 +50,9 @@
  *   LOADING  hashed, pins >= 1 (the loading thread and the threads that
  *            joined it, and probes about to let go); only the loading
  *            thread writes its bytes; tag NO_TAG.
- *   VALID    hashed; bytes immutable until evicted; evictable iff pins == 0;
+ *   VALID    hashed; bytes immutable until evicted (except parts the owner
+ *            fills later under its own protocol while pinned: the
+ *            texture's density units); evictable iff pins == 0;
  *            tag = its id (stored with release after the bytes).
  *   FAILED   not hashed, pins >= 1 (waiters that have not yet collected
  *            the error); becomes FREE (CLOSED) when pins reaches 0.
@@ -263,6 +265,11 @@ int loom__cache_get(loom__cache_thread *th, uint64_t brick_id,
    LOOM_EINVAL if data is not a frame of this cache or the thread holds no
    pin (checked by arithmetic; data is never read). */
 int loom__cache_release(loom__cache_thread *th, const void *data);
+
+/* The thread's loader scratch (made and charged on first use, as a load
+   would): for a caller that fills part of a pinned frame itself (the
+   texture's density units, filled plane by plane).  LOOM_ENOMEM. */
+int loom__cache_thread_scratch(loom__cache_thread *th, void **scratch, loom_diag *diag);
 
 /* Prefetch hints (the texture's brick table, lookup.c): the frame of a
    pointer returned by get (arithmetic; data is never read), and for a

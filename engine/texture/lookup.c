@@ -356,9 +356,13 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	d.warn = NULL;
 	d.user = NULL;
 	d.n_warnings = 0;
-	rc = loom__cache_get(s->cth, id == bid ? id : dunit_key(bid), &p, &d);
+	rc = loom__cache_get(s->cth, id == bid ? id : dunit_key(t, bid), &p, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
+	if (id != bid && (rc = loom__dunit_fill(t, s, bid, p, &d)) != LOOM_OK) {
+		loom__cache_release(s->cth, p);
+		return loom__slot_error(t, s, rc, d.message);
+	}
 	s->memo_off = id == bid ? 0 : (uint32_t)dunit_off(t, bid);
 	s->memo_id = id;
 	s->memo = (const uint8_t *)p + s->memo_off;
@@ -436,7 +440,7 @@ static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
 		if (!h)
 			return;
 		if (h & HINT_DUNIT) { /* a density unit's frame: the brick's plane in it */
-			p = loom__cache_hint(s->cth, dunit_key(id), (h & ~HINT_DUNIT) - 1);
+			p = loom__cache_hint(s->cth, dunit_key(t, id), (h & ~HINT_DUNIT) - 1);
 			if (p)
 				p += dunit_off(t, id);
 		} else {
@@ -460,7 +464,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 		return LOOM_OK;
 	sz = (uint32_t)zs;
 	id = src_brick(t, e, sx, sy, sz);
-	if (ch == CH_D && t->dunits) /* only the density plane: its unit */
+	if (ch == CH_D && t->dunits && id < t->n_bricks) /* only the density plane: its unit */
 		id |= DUNIT_TAG;
 	if (id != s->memo_id) { /* Step 5 */
 		int rc = loom__memo_switch(t, s, id);

@@ -62,31 +62,65 @@
 #include "texture_impl.h"
 
 #include <inttypes.h>
+#include <sched.h>
+#include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
 
 /* ------------------------------------------------------------ open/close */
 
-/* A density unit (DUNIT_TAG | g): the density planes of bricks 4g .. 4g+3,
-   read as their layout-2 units alone (empty or past the end: zeros).  It
-   takes one frame, as a whole brick does, so a density-only working set
-   holds four times the bricks in the same budget. */
-static int dunit_load(loom_texture *t, uint64_t g, uint8_t *dst, void *scratch,
-                      loom_diag *diag)
+/* A density unit (DUNIT_TAG | g): one frame for the density planes of the
+   stored bricks of ranks 4g .. 4g+3 (dunit_key), each inflated from its
+   layout-2 unit only when a lookup first needs it (loom__dunit_fill): a
+   random voxel needs one plane, and inflating all four on a miss cost
+   more than the hits they brought when the budget is below the working
+   set.  The load itself only marks the four planes absent. */
+static int dunit_load(loom_texture *t, uint64_t g)
 {
-	for (uint64_t j = 0; j < 4; j++) {
-		uint64_t id = 4 * g + j;
-		size_t n = 0;
-		int rc;
-		if (id >= t->n_bricks || brick_empty(t, id)) {
-			memset(dst + j * t->bv, 0, t->bv);
+	atomic_store_explicit(&t->dstate[g], 0, memory_order_release);
+	atomic_fetch_add_explicit(&t->dunit_loads, 1, memory_order_relaxed);
+	return LOOM_OK;
+}
+
+int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, const uint8_t *frame,
+                     loom_diag *diag)
+{
+	uint32_t r = stored_rank(t, id);
+	_Atomic uint8_t *st = &t->dstate[r >> 2];
+	uint8_t have = (uint8_t)(1u << (r & 3)), busy = (uint8_t)(have << 4);
+	uint8_t v = atomic_load_explicit(st, memory_order_acquire);
+	void *scratch;
+	size_t n = 0;
+	int rc;
+
+	while (!(v & have)) {
+		if (v & busy) { /* another thread inflates it: wait (it holds a pin) */
+			sched_yield();
+			v = atomic_load_explicit(st, memory_order_acquire);
 			continue;
 		}
-		rc = loom__db_reader_read_unit(scratch, (uint32_t)id, 0, dst + j * t->bv,
-		                               &n, diag);
+		if (!atomic_compare_exchange_weak_explicit(st, &v, (uint8_t)(v | busy),
+		                                           memory_order_acquire,
+		                                           memory_order_acquire))
+			continue;
+		/* claimed: the plane's bytes are this thread's until published */
+		struct timespec t0, t1;
+		clock_gettime(CLOCK_MONOTONIC, &t0);
+		rc = loom__cache_thread_scratch(s->cth, &scratch, diag);
+		if (rc == LOOM_OK)
+			rc = loom__db_reader_read_unit(scratch, (uint32_t)id, 0,
+			                               (uint8_t *)frame + dunit_off(t, id), &n, diag);
 		atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
-		if (rc)
+		if (rc != LOOM_OK) {
+			atomic_fetch_and_explicit(st, (uint8_t)~busy, memory_order_release);
 			return rc;
+		}
+		clock_gettime(CLOCK_MONOTONIC, &t1);
+		bump(&s->cnt.dfills, 1);
+		bump(&s->cnt.dfill_ns, (uint64_t)((t1.tv_sec - t0.tv_sec) * 1000000000LL +
+		                                  (t1.tv_nsec - t0.tv_nsec)));
+		atomic_fetch_xor_explicit(st, (uint8_t)(busy | have), memory_order_release);
+		return LOOM_OK;
 	}
 	return LOOM_OK;
 }
@@ -98,7 +132,7 @@ static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag 
 	int rc;
 
 	if (id & DUNIT_TAG)
-		return dunit_load(t, id & ~DUNIT_TAG, dst, scratch, diag);
+		return dunit_load(t, id & ~DUNIT_TAG);
 	rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
 	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
 	return rc;
@@ -337,6 +371,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	            round_up(sizeof(float) * 2 * (tb.rank_h + tb.rank_v), ALIGN);
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN) +
+	           round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN) + /* t->ne_rank */
+	           round_up(((size_t)g.n_bricks + 3) / 4, ALIGN) + /* t->dstate */
 	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN); /* t->hint */
 	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
 	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
@@ -430,12 +466,22 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->n_ex = g.n_exemplars;
 	t->ex = (struct exm *)t->mem;
 	t->empty = (uint64_t *)(t->mem + round_up(sizeof(struct exm) * g.n_exemplars, ALIGN));
-	t->hint = (_Atomic uint32_t *)((uint8_t *)t->empty +
-	                               round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN));
+	t->ne_rank = (uint32_t *)((uint8_t *)t->empty +
+	                          round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN));
+	t->dstate = (_Atomic uint8_t *)((uint8_t *)t->ne_rank +
+	                                round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN));
+	t->hint = (_Atomic uint32_t *)((uint8_t *)t->dstate +
+	                               round_up(((size_t)g.n_bricks + 3) / 4, ALIGN));
 	t->n_bricks = g.n_bricks;
 	for (uint32_t id = 0; id < g.n_bricks; id++)
 		if (loom__db_brick_empty(db, id))
 			t->empty[id >> 6] |= (uint64_t)1 << (id & 63);
+	if (g.n_bricks & 63) /* ids past the end count as empty (never stored) */
+		t->empty[g.n_bricks >> 6] |= ~(uint64_t)0 << (g.n_bricks & 63);
+	for (uint32_t w = 0; w < (g.n_bricks + 63) / 64; w++) {
+		t->ne_rank[w] = t->n_stored;
+		t->n_stored += (uint32_t)__builtin_popcountll(~t->empty[w]);
+	}
 	t->n_maps = n_maps;
 	t->map_words = map_words;
 	t->maps = (struct dzmap *)(t->mem + ex_bytes);
@@ -511,7 +557,7 @@ LOOM_API void loom_texture_close(loom_texture *t)
 LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *st)
 {
 	loom__cache_stats cs;
-	uint64_t memo = 0, empty = 0;
+	uint64_t memo = 0, empty = 0, fills = 0, fill_ns = 0, uloads;
 
 	if (!st)
 		return LOOM_EINVAL;
@@ -527,16 +573,21 @@ LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *s
 		st->crossings += rd(&k->xings);
 		st->dz_columns += rd(&k->dz);
 		st->errors += rd(&k->errors);
+		fills += rd(&k->dfills);
+		fill_ns += rd(&k->dfill_ns);
 	}
+	/* a density unit's frame reads nothing when loaded; its planes are
+	   read by the fills: those are the misses that read */
+	uloads = atomic_load_explicit(&((loom_texture *)t)->dunit_loads, memory_order_relaxed);
 	st->brick_requests = memo + empty + cs.lookups;
-	st->hits = memo + cs.hits;
-	st->misses = cs.misses;
+	st->misses = cs.misses - (uloads < cs.misses ? uloads : cs.misses) + fills;
+	st->hits = memo + cs.lookups > st->misses ? memo + cs.lookups - st->misses : 0;
 	st->empty_bricks = empty;
 	st->evictions = cs.evictions;
 	st->bytes_read = atomic_load_explicit(&((loom_texture *)t)->bytes_read,
 	                                      memory_order_relaxed);
-	st->bytes_decompressed = cs.bytes_loaded;
-	st->decompress_ns = cs.load_ns;
+	st->bytes_decompressed = cs.bytes_loaded - uloads * cs.brick_bytes + fills * t->bv;
+	st->decompress_ns = cs.load_ns + fill_ns;
 	st->bytes_in_use = t->fixed_bytes + cs.bytes_in_use;
 	st->peak_bytes = t->fixed_bytes + cs.peak_bytes;
 	st->fixed_bytes = t->fixed_bytes;

@@ -36,9 +36,10 @@
 #define XENT_MAX 256        /* crossing entries per thread slot, at most */
 #define TL_BINDINGS 8       /* textures one thread keeps bound at once */
 #define NO_BRICK UINT64_MAX
-/* Cache key of a density unit (texture.c): this bit | (brick id / 4), a
-   frame of the density planes of bricks 4g .. 4g+3 (layout-2 databases,
-   density-only lookups; LOD off). */
+/* Cache key of a density unit (texture.c): this bit | g, a frame of the
+   density planes of the stored bricks of ranks 4g .. 4g+3 (dunit_key;
+   layout-2 databases, density-only lookups; LOD off), each filled on its
+   first use (loom__dunit_fill). */
 #define DUNIT_TAG ((uint64_t)1 << 62)
 /* t->hint: the frame holds the brick's density unit, not the brick */
 #define HINT_DUNIT ((uint32_t)1 << 31)
@@ -120,6 +121,7 @@ struct dzmap {
    load + store), summed by loom_texture_get_stats. */
 struct counters {
 	_Atomic uint64_t lookups, memo_hits, empty, xings, dz, errors;
+	_Atomic uint64_t dfills, dfill_ns; /* density planes inflated into units */
 };
 
 struct tslot {
@@ -160,6 +162,14 @@ struct loom_texture {
 	struct exm *ex;          /* n_ex entries (in mem) */
 	uint32_t n_ex;
 	uint64_t *empty;         /* bit per brick: stored as nothing (in mem) */
+	uint32_t *ne_rank;       /* per word of empty: the stored (non-empty)
+	                            bricks before it (in mem); density units
+	                            group stored bricks by this rank */
+	uint32_t n_stored;       /* bricks not empty */
+	_Atomic uint64_t dunit_loads; /* unit frames claimed (they read nothing) */
+	_Atomic uint8_t *dstate; /* per density unit (in mem): bits 0-3 plane j
+	                            filled, bits 4-7 plane j being filled;
+	                            reset by the unit's load (loom__dunit_fill) */
 	_Atomic uint32_t *hint;  /* per brick: 1 + the cache frame it was last
 	                            got from, 0 = none, | HINT_DUNIT when that
 	                            frame is its density unit (a prefetch hint
@@ -235,17 +245,26 @@ static inline int brick_empty(const loom_texture *t, uint64_t id)
 	return id < t->n_bricks && (t->empty[id >> 6] >> (id & 63) & 1);
 }
 
-/* Release the slot's current brick (memo). */
-/* The cache key of brick id's density unit, and where its density plane
-   lies in that unit's frame. */
-static inline uint64_t dunit_key(uint64_t id)
+/* The rank of stored brick id among the stored bricks (ids in order). */
+static inline uint32_t stored_rank(const loom_texture *t, uint64_t id)
 {
-	return DUNIT_TAG | id >> 2;
+	uint64_t below = ((uint64_t)1 << (id & 63)) - 1;
+	return t->ne_rank[id >> 6] + (uint32_t)__builtin_popcountll(~t->empty[id >> 6] & below);
+}
+
+/* The cache key of stored brick id's density unit, and where its density
+   plane lies in that unit's frame.  A unit holds the stored bricks of
+   ranks 4g .. 4g+3: empty bricks take no place (most brick columns of an
+   exemplar have empty bricks above and below the cloth, so units of
+   consecutive ids held 1.4 used planes of 4 on the paper database). */
+static inline uint64_t dunit_key(const loom_texture *t, uint64_t id)
+{
+	return DUNIT_TAG | stored_rank(t, id) >> 2;
 }
 
 static inline size_t dunit_off(const loom_texture *t, uint64_t id)
 {
-	return (size_t)(id & 3) * t->bv;
+	return (size_t)(stored_rank(t, id) & 3) * t->bv;
 }
 
 static inline void memo_drop(struct tslot *s)
@@ -308,6 +327,11 @@ static inline void slot_leave(loom_texture *t, struct tslot *s)
 struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y);
 /* Step 5: make brick id the slot's current brick. */
 int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id);
+/* Inflate stored brick id's density plane into its unit's pinned frame
+   unless it is there already (texture.c; waits while another thread
+   fills it). */
+int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, const uint8_t *frame,
+                     loom_diag *diag);
 
 /* Step 3: dz of column (x, y) of an entry, in the edge-fix module's
    order of operations (so equal to loom_edgefix_block bit for bit). */

@@ -143,6 +143,15 @@ struct job {
 	atomic_ulong *bad, *errors, *lookups;
 };
 
+/* The channel mask of an operation: random, or g_mask when set (set
+   before the threads start). */
+static unsigned g_mask;
+
+static unsigned op_mask(uint64_t h)
+{
+	return g_mask ? g_mask : (unsigned)(h >> 8) & 7;
+}
+
 /* Voxel (x, y, z) through loom_texture_voxel_ch with mask ch (7: all):
    the channels asked for equal the reference, the others are zero. */
 static int check_voxel(loom_texture *t, int64_t x, int64_t y, int64_t z, unsigned ch)
@@ -184,7 +193,7 @@ static void *worker(void *arg)
 			int64_t x = W0[0] + (int64_t)(mix(s++) % Wn[0]);
 			int64_t y = W0[1] + (int64_t)(mix(s++) % Wn[1]);
 			int64_t z = W0[2] + (int64_t)(mix(s++) % Wn[2]);
-			int r = check_voxel(t, x, y, z, (unsigned)(h >> 8) & 7);
+			int r = check_voxel(t, x, y, z, op_mask(h));
 			bad += r > 0;
 			errors += r < 0;
 			looked++;
@@ -206,7 +215,7 @@ static void *worker(void *arg)
 				if (!in)
 					break;
 				{
-					int r = check_voxel(t, q[0], q[1], q[2], (unsigned)(h >> 8) & 7);
+					int r = check_voxel(t, q[0], q[1], q[2], op_mask(h));
 					bad += r > 0;
 					errors += r < 0;
 					looked++;
@@ -243,7 +252,7 @@ static void *worker(void *arg)
 			loom_texel a;
 			if (x == W1[0] - 1 || y == W1[1] - 1)
 				continue;
-			unsigned ch = (unsigned)(h >> 8) & 7; /* 0: nothing asked */
+			unsigned ch = op_mask(h); /* 0: nothing asked */
 			if (loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a) != LOOM_OK)
 				errors++;
 			bad += a.density != ((ch & LOOM_CHANNEL_DENSITY) ? (float)R_d[widx(x, y, z)] / 255.0f
@@ -336,6 +345,31 @@ static void hammer_budgets(void)
 			loom_texture_close(t);
 		}
 	}
+}
+
+/* Every point lookup density-only: the threads share density units
+   (database version 2) and race to fill the same planes at the smallest
+   budget (units evicted while others fill theirs); values equal the
+   reference and planes were filled (misses that read). */
+static void density_only_fills(void)
+{
+	static const unsigned threads[] = {2, 4, 8};
+	if (!g_ok)
+		return;
+	g_mask = LOOM_CHANNEL_DENSITY;
+	for (int k = 0; k < 3; k++) {
+		unsigned n = threads[k];
+		loom_texture *t = open_tex(min_budget(n), n);
+		loom_texture_stats st;
+		if (!t)
+			continue;
+		CHECK_EQ_INT(run_threads(t, NULL, n, 0, NULL, NULL), 0);
+		loom_texture_get_stats(t, &st);
+		CHECK(st.misses > 0 && st.bytes_decompressed > 0);
+		report("density only", t);
+		loom_texture_close(t);
+	}
+	g_mask = 0;
 }
 
 /* More threads than private states: the rest share the overflow state. */
@@ -470,6 +504,7 @@ int main(void)
 	g_seed = check_seed();
 	RUN(setup);
 	RUN(hammer_budgets);
+	RUN(density_only_fills);
 	RUN(overflow_threads);
 	RUN(threads_come_and_go);
 	RUN(close_before_thread_exit);
