@@ -648,12 +648,25 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 		return rc[0] != LOOM_OK ? rc[0] : rc[1];
 	}
 	/* v[k] = source voxel z - w - 1 + k */
-	v[0] = v[2] = raw_empty;
-	if (in0)
+	v[0] = v[1] = v[2] = raw_empty;
+	if (in0 && in1 && (uint64_t)(z - w - 1) < t->b3 - 2 &&
+	    brick_of(t, 2, (uint32_t)(z - w - 1)) == brick_of(t, 2, (uint32_t)(z - w + 1))) {
+		/* all three in one brick column: one switch, three bytes */
 		rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
-	rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
-	if (in1)
-		rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+		rc[1] = rc[2] = rc[0];
+		if (s->memo && rc[0] == LOOM_OK) {
+			size_t i = src_index(t, sx, sy, (uint32_t)(z - w - 1));
+			planes_read(t, e, s->memo, i + 1, ch, &v[1]);
+			planes_read(t, e, s->memo, i + 2, ch, &v[2]);
+			bump(&s->cnt.memo_hits, 2);
+		}
+	} else {
+		if (in0)
+			rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
+		rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
+		if (in1)
+			rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+	}
 	if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK)
 		raw_blend(&v[0], &v[1], f, &r[0]);
 	if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK)
