@@ -38,7 +38,10 @@
  *            exemplar's yarn table; kind -> the crossing's warp or weft
  *            type; the type's albedo and alignment from the design.
  *   Lookups in the same crossing skip step 2, in the same column the offset
- *   evaluation, in the same brick the cache.
+ *   evaluation, in the same brick the cache.  A point lookup next to the
+ *   last one (a walk) prefetches the next columns' lanes and lines
+ *   (walk_next); a trilinear sample reuses the corner columns of the last
+ *   one (pair_raw, the slot's column memo).
  *
  * PINS AND THE CACHE'S DEADLOCK RULE
  *   A thread holds at most one caller pin: its current brick, kept across
