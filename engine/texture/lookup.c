@@ -38,7 +38,10 @@
  *            exemplar's yarn table; kind -> the crossing's warp or weft
  *            type; the type's albedo and alignment from the design.
  *   Lookups in the same crossing skip step 2, in the same column the offset
- *   evaluation, in the same brick the cache.
+ *   evaluation, in the same brick the cache.  A point lookup next to the
+ *   last one (a walk) prefetches the next columns' lanes and lines
+ *   (walk_next); a trilinear sample reuses the corner columns of the last
+ *   one (pair_raw, the slot's column memo).
  *
  * PINS AND THE CACHE'S DEADLOCK RULE
  *   A thread holds at most one caller pin: its current brick, kept across
@@ -168,6 +171,8 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 			e = q;
 	}
 	loom__fabric_crossing(t->fab, I, J, &xg);
+	for (int k = 0; k < 4; k++) /* the column memo may hold e */
+		s->cm[k].e = NULL;
 	e->I = I;
 	e->J = J;
 	e->x0 = J * (int64_t)t->b1;
@@ -425,13 +430,16 @@ static inline size_t src_index(const loom_texture *t, uint32_t sx, uint32_t sy, 
    hint, nothing is read through it; a stale or wrong guess costs a
    prefetch. */
 static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
-                                const struct xent *e, uint32_t sx, uint32_t sy, uint32_t z)
+                                const struct xent *e, uint32_t sx, uint32_t sy, uint32_t z,
+                                unsigned ch)
 {
 	uint64_t id = src_brick(t, e, sx, sy, z);
 	const uint8_t *p;
+	int whole; /* p is a whole brick (not a density unit's plane) */
 
 	if (id == (s->memo_id & ~DUNIT_TAG)) {
 		p = s->memo;
+		whole = !(s->memo_id & DUNIT_TAG);
 	} else {
 		uint32_t h;
 		if (id >= t->n_bricks || brick_empty(t, id))
@@ -439,6 +447,7 @@ static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
 		h = atomic_load_explicit(&t->hint[id], memory_order_relaxed);
 		if (!h)
 			return;
+		whole = !(h & HINT_DUNIT);
 		if (h & HINT_DUNIT) { /* a density unit's frame: the brick's plane in it */
 			p = loom__cache_hint(s->cth, dunit_key(t, id), (h & ~HINT_DUNIT) - 1);
 			if (p)
@@ -447,8 +456,16 @@ static inline void src_prefetch(const loom_texture *t, const struct tslot *s,
 			p = loom__cache_hint(s->cth, id, h - 1);
 		}
 	}
-	if (p)
-		__builtin_prefetch(p + src_index(t, sx, sy, z));
+	if (p) {
+		size_t i = src_index(t, sx, sy, z);
+		__builtin_prefetch(p + i);
+		if ((ch & CH_O) && whole) {
+			/* the orientation bytes too: read only once the density is
+			   known not to be 0, they would otherwise miss after it */
+			__builtin_prefetch(p + t->bv + i);
+			__builtin_prefetch(p + 2 * t->bv + i);
+		}
+	}
 }
 
 /* Steps 4-6 for source voxel (sx, sy, zs) of crossing e. */
@@ -463,6 +480,9 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	if ((uint64_t)zs >= t->b3) /* Step 4 */
 		return LOOM_OK;
 	sz = (uint32_t)zs;
+	s->wsx = sx; /* walk_next's last source voxel */
+	s->wsy = sy;
+	s->wsz = sz;
 	id = src_brick(t, e, sx, sy, sz);
 	if (ch == CH_D && t->dunits && id < t->n_bricks) /* only the density plane: its unit */
 		id |= DUNIT_TAG;
@@ -484,7 +504,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
    one when it holds the column), the column's source (sx, sy), and the
    prefetch of the source voxel at z with the offset still unknown. */
 static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                                     uint32_t z, uint32_t *sx, uint32_t *sy)
+                                     uint32_t z, unsigned ch, uint32_t *sx, uint32_t *sy)
 {
 	struct xent *e = s->cur;
 
@@ -492,8 +512,67 @@ static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x
 		e = loom__xent_enter(t, s, x, y);
 	*sx = e->sx0 + (uint32_t)(x - e->x0);
 	*sy = e->sy0 + (uint32_t)(y - e->y0);
-	src_prefetch(t, s, e, *sx, *sy, z);
+	src_prefetch(t, s, e, *sx, *sy, z, ch);
 	return e;
+}
+
+/* A walk's next columns (ray marches: unit steps, a point lookup each).
+   When column (x, y) is the last point lookup's or next to it, the
+   columns one step further along the walk's last x and y directions,
+   (x + dx, y), (x, y + dy) and (x + dx, y + dy), are where the next call
+   most likely lands: their offset lanes, and their source lines at the
+   height just read when they are in the same brick (neighbouring columns'
+   offsets differ by a voxel or so: the same 64-voxel brick column), are
+   prefetched now, so that the next call finds them on their way instead
+   of waiting for the lane and then the line.  (x, y)'s source column and
+   height are the last source voxel read (s->wsx, wsy, wsz: in the slot's
+   current brick, of the slot's current crossing).  A jump (random
+   lookups) only records the column.  Columns of another crossing or brick
+   are left alone (nothing is set up or looked up for a guess), and
+   nothing is read through these addresses.  Two steps ahead (8 columns)
+   and the 2 x 2 trilinear footprint were slower (docs/performance.md). */
+static inline void walk_next(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                             unsigned ch)
+{
+	const struct xent *e = s->cur;
+	int64_t ddx = x - s->wx, ddy = y - s->wy;
+	uint64_t lx, ly;
+	uint32_t bx, by;
+	size_t c, i;
+
+	s->wx = x;
+	s->wy = y;
+	if ((uint64_t)(ddx + 1) > 2 || (uint64_t)(ddy + 1) > 2)
+		return; /* a jump: not a walk */
+	if (ddx)
+		s->wdx = (int8_t)ddx;
+	if (ddy)
+		s->wdy = (int8_t)ddy;
+	if (!e)
+		return;
+	lx = (uint64_t)s->wsx - e->sx0;
+	ly = (uint64_t)s->wsy - e->sy0;
+	bx = in_brick(t, 0, s->wsx);
+	by = in_brick(t, 1, s->wsy);
+	c = (size_t)(ly * t->b1 + lx);
+	i = src_index(t, s->wsx, s->wsy, s->wsz);
+	for (int k = 1; k < 4; k++) {
+		int ox = k & 1 ? s->wdx : 0, oy = k & 2 ? s->wdy : 0;
+		if ((k & 1 && !ox) || (k & 2 && !oy))
+			continue;
+		if (lx + (uint64_t)(int64_t)ox < t->b1 && ly + (uint64_t)(int64_t)oy < t->b2 &&
+		    e->map != NO_MAP)
+			__builtin_prefetch(&e->w[(c + (size_t)((int64_t)oy * t->b1 + ox)) >> 2]);
+		if (s->memo && bx + (uint32_t)ox < t->bs[0] && by + (uint32_t)oy < t->bs[1]) {
+			const uint8_t *p = s->memo + i + (ptrdiff_t)(oy * (int)t->bs[0] + ox) *
+			                                      (ptrdiff_t)t->bs[2];
+			__builtin_prefetch(p);
+			if ((ch & CH_O) && !(s->memo_id & DUNIT_TAG)) { /* orientation */
+				__builtin_prefetch(p + t->bv);
+				__builtin_prefetch(p + 2 * t->bv);
+			}
+		}
+	}
 }
 
 /* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
@@ -511,18 +590,22 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 	*r = raw_empty;
 	if ((uint64_t)z >= t->b3) /* Step 1 */
 		return LOOM_OK;
-	e = column_at(t, s, x, y, (uint32_t)z, &sx, &sy);
+	e = column_at(t, s, x, y, (uint32_t)z, ch, &sx, &sy);
 	w = dz_split(xent_dz(t, s, e, sx - e->sx0, sy - e->sy0), &f); /* Step 3 */
-	if (!f)
-		return src_raw(t, s, e, sx, sy, z - w, ch, r);
-	if (!(ch & (CH_D | CH_O))) /* the material is the nearer voxel's */
-		return src_raw(t, s, e, sx, sy, z - w - (2 * f > DZ_SUB), ch, r);
-	rc = src_raw(t, s, e, sx, sy, z - w - 1, ch, &a);
-	rc2 = src_raw(t, s, e, sx, sy, z - w, ch, &b);
-	if (rc != LOOM_OK || rc2 != LOOM_OK) /* a failed voxel stays empty */
-		return rc != LOOM_OK ? rc : rc2;
-	raw_blend(&a, &b, f, r);
-	return LOOM_OK;
+	if (!f) {
+		rc = src_raw(t, s, e, sx, sy, z - w, ch, r);
+	} else if (!(ch & (CH_D | CH_O))) { /* the material is the nearer voxel's */
+		rc = src_raw(t, s, e, sx, sy, z - w - (2 * f > DZ_SUB), ch, r);
+	} else {
+		rc = src_raw(t, s, e, sx, sy, z - w - 1, ch, &a);
+		rc2 = src_raw(t, s, e, sx, sy, z - w, ch, &b);
+		if (rc == LOOM_OK && rc2 == LOOM_OK) /* a failed voxel stays empty */
+			raw_blend(&a, &b, f, r);
+		else if (rc == LOOM_OK)
+			rc = rc2;
+	}
+	walk_next(t, s, x, y, ch);
+	return rc;
 }
 
 /* Steps 1-6 for voxels (x, y, z) and (x, y, z + 1), a trilinear corner
@@ -537,15 +620,31 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 	struct xent *e;
 	uint32_t sx, sy;
 	int in0 = (uint64_t)z < t->b3, in1 = (uint64_t)(z + 1) < t->b3;
+	struct colmemo *m;
 	int64_t w;
-	int f, rc[3] = {LOOM_OK, LOOM_OK, LOOM_OK};
+	int f, q, rc[3] = {LOOM_OK, LOOM_OK, LOOM_OK};
 	rawvox v[3];
 
 	r[0] = r[1] = raw_empty;
 	if (!in0 && !in1) /* Step 1 */
 		return LOOM_OK;
-	e = column_at(t, s, x, y, (uint32_t)(in0 ? z : z + 1), &sx, &sy);
-	w = dz_split(xent_dz(t, s, e, sx - e->sx0, sy - e->sy0), &f); /* Step 3 */
+	m = &s->cm[(x & 1) | (y & 1) << 1];
+	if (m->e && m->x == x && m->y == y) { /* steps 2-3 done */
+		e = m->e;
+		sx = m->sx;
+		sy = m->sy;
+		q = m->q;
+	} else {
+		e = column_at(t, s, x, y, (uint32_t)(in0 ? z : z + 1), ch, &sx, &sy);
+		q = xent_dz(t, s, e, sx - e->sx0, sy - e->sy0); /* Step 3 */
+		m->x = x;
+		m->y = y;
+		m->e = e;
+		m->sx = sx;
+		m->sy = sy;
+		m->q = q;
+	}
+	w = dz_split(q, &f);
 	if (!f || !(ch & (CH_D | CH_O))) {
 		/* one source voxel each: the nearer one (the material's) */
 		int64_t d = f && 2 * f > DZ_SUB;
@@ -556,12 +655,25 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 		return rc[0] != LOOM_OK ? rc[0] : rc[1];
 	}
 	/* v[k] = source voxel z - w - 1 + k */
-	v[0] = v[2] = raw_empty;
-	if (in0)
+	v[0] = v[1] = v[2] = raw_empty;
+	if (in0 && in1 && (uint64_t)(z - w - 1) < t->b3 - 2 &&
+	    brick_of(t, 2, (uint32_t)(z - w - 1)) == brick_of(t, 2, (uint32_t)(z - w + 1))) {
+		/* all three in one brick column: one switch, three bytes */
 		rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
-	rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
-	if (in1)
-		rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+		rc[1] = rc[2] = rc[0];
+		if (s->memo && rc[0] == LOOM_OK) {
+			size_t i = src_index(t, sx, sy, (uint32_t)(z - w - 1));
+			planes_read(t, e, s->memo, i + 1, ch, &v[1]);
+			planes_read(t, e, s->memo, i + 2, ch, &v[2]);
+			bump(&s->cnt.memo_hits, 2);
+		}
+	} else {
+		if (in0)
+			rc[0] = src_raw(t, s, e, sx, sy, z - w - 1, ch, &v[0]);
+		rc[1] = src_raw(t, s, e, sx, sy, z - w, ch, &v[1]);
+		if (in1)
+			rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
+	}
 	if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK)
 		raw_blend(&v[0], &v[1], f, &r[0]);
 	if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK)
@@ -633,14 +745,18 @@ LOOM_API int loom_texture_voxel_ch(loom_texture *t, int64_t x, int64_t y, int64_
    offset lane and its voxel line prefetched, so that the 4 columns'
    misses overlap before pair_raw resolves them one after the other. */
 static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                                   int64_t z)
+                                   int64_t z, unsigned ch)
 {
 	struct xent *e;
 	uint32_t sx, sy;
 
+	const struct colmemo *m = &s->cm[(x & 1) | (y & 1) << 1];
+
 	if ((uint64_t)z >= t->b3 && (uint64_t)++z >= t->b3)
 		return;
-	e = column_at(t, s, x, y, (uint32_t)z, &sx, &sy);
+	if (m->e && m->x == x && m->y == y)
+		return; /* its lane was just read */
+	e = column_at(t, s, x, y, (uint32_t)z, ch, &sx, &sy);
 	if (e->map != NO_MAP)
 		__builtin_prefetch(&e->w[((size_t)(sy - e->sy0) * t->b1 + (sx - e->sx0)) >> 2]);
 }
@@ -674,9 +790,11 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
-	if (ch)
+	if (ch) {
 		for (int c = 0; c < 8; c += 2)
-			column_prefetch(t, s, i0[0] + (c >> 1 & 1), i0[1] + (c >> 2 & 1), i0[2]);
+			column_prefetch(t, s, i0[0] + (c >> 1 & 1), i0[1] + (c >> 2 & 1), i0[2],
+			                ch & (CH_D | CH_O));
+	}
 	for (int c = 0; c < 8; c += 2) {
 		int dx = c >> 1 & 1, dy = c >> 2 & 1;
 		unsigned cch = (ch & (CH_D | CH_O)) | ((near & 6) == c ? ch & CH_M : 0);
@@ -780,7 +898,7 @@ LOOM_API int loom_texture_sample_batch(loom_texture *t, size_t n, const double *
 			double q[3] = {x[i + BATCH_AHEAD], y[i + BATCH_AHEAD], z[i + BATCH_AHEAD]};
 			if (pos_check(q) == LOOM_OK)
 				column_prefetch(t, s, (int64_t)floor(q[0]), (int64_t)floor(q[1]),
-				                (int64_t)floor(q[2]));
+				                (int64_t)floor(q[2]), ch);
 		}
 		if (e == LOOM_OK)
 			e = sample_one(t, s, p, filter, ch, &tx);

@@ -124,6 +124,15 @@ struct counters {
 	_Atomic uint64_t dfills, dfill_ns; /* density planes inflated into units */
 };
 
+/* A trilinear corner column's steps 2-3 (lookup.c pair_raw): output
+   column (x, y), its crossing entry, source column and offset. */
+struct colmemo {
+	int64_t x, y;
+	struct xent *e;          /* NULL: empty (cleared when an entry is set up) */
+	uint32_t sx, sy;
+	int q;
+};
+
 struct tslot {
 	loom__cache_thread *cth; /* attached at open, for the slot's life */
 	struct xent *cur;        /* the entry of the last lookup (or NULL) */
@@ -131,6 +140,12 @@ struct tslot {
 	const uint8_t *memo;     /* its bytes; NULL for an empty brick */
 	int memo_pinned;         /* memo holds a caller pin */
 	uint32_t memo_off;       /* memo - its frame (a density unit's plane) */
+	int64_t wx, wy;          /* footprint of the last lookup (lookup.c
+	                            walk_next: hints only) */
+	uint32_t wsx, wsy, wsz;  /* the last source voxel read (in memo) */
+	int8_t wdx, wdy;         /* the last unit steps' signs along x, y */
+	struct colmemo cm[4];    /* by the parity of x and y: the last
+	                            trilinear footprint's 2 x 2 columns */
 	int shared;              /* the overflow slot */
 	uint32_t clock;          /* stamps for the entries' LRU */
 	uint32_t next_free;      /* pool free list */

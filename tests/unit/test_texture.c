@@ -1734,6 +1734,117 @@ static void channel_masks(void)
 	CHECK(nonempty > 500);
 }
 
+/* The trilinear density and orientation at p from the 8 reference voxels
+   (the documented blend, as filtered_lookups_at writes it out). */
+static void ref_trilinear(const double p[3], float *dens, float ori[3])
+{
+	double u[3], f[3];
+	int64_t i0[3];
+	float w[8], wd[8], v[8][3], s[3] = {0, 0, 0}, len;
+	int r = -1;
+
+	*dens = 0;
+	ori[0] = ori[1] = ori[2] = 0;
+	for (int k = 0; k < 3; k++) {
+		u[k] = p[k] - 0.5;
+		i0[k] = (int64_t)floor(u[k]);
+		f[k] = u[k] - (double)i0[k];
+	}
+	for (int c = 0; c < 8; c++) {
+		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+		loom_texel q = ref_texel(&g_ref, i0[0] + dx, i0[1] + dy, i0[2] + dz);
+		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+		               (dz ? f[2] : 1 - f[2]));
+		*dens += w[c] * q.density;
+		wd[c] = w[c] * q.density;
+		memcpy(v[c], q.orientation, sizeof v[c]);
+	}
+	for (int c = 0; c < 8; c++)
+		if (wd[c] > 0 && (r < 0 || wd[c] > wd[r]))
+			r = c;
+	if (r < 0)
+		return;
+	for (int c = 0; c < 8; c++) {
+		float d = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
+		float sg = d < 0 ? -wd[c] : wd[c];
+		if (!(wd[c] > 0))
+			continue;
+		for (int k = 0; k < 3; k++)
+			s[k] += sg * v[c][k];
+	}
+	len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+	if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
+		len = -len;
+	if (len != 0)
+		for (int k = 0; k < 3; k++)
+			ori[k] = s[k] / len;
+}
+
+/* Ray walks (unit steps, random directions; lookup.c walk_next prefetches
+   the columns ahead of point lookups, trilinear corner columns are
+   reused from the last sample's footprint), with a jump to a far
+   crossing now and then (five: at the smallest budget a thread state
+   holds only 4 crossing entries, so the jumps evict the entries that the
+   kept corner columns point to): every point lookup, each mask, equals the brute-force
+   reference, every trilinear sample the reference's trilinear blend. */
+static void walks_equal_reference(void)
+{
+	uint64_t bad = 0, steps = 0, nonempty = 0;
+
+	for (int b = 0; b < 2; b++) {
+		size_t budget = b ? 8u << 20 : min_budget(g_fab, g_db, 1);
+		loom_texture *t = open_tex(g_fab, g_db, budget, 1);
+		if (!t)
+			continue;
+		for (int w = 0; w < 300; w++) {
+			double p[3], d[3], len = 0;
+			p[0] = (double)rnd_range(-300, 300) + (double)(rnd() % 1000) / 1000.0;
+			p[1] = (double)rnd_range(-200, 200) + (double)(rnd() % 1000) / 1000.0;
+			p[2] = (double)rnd_range(0, g_ref.b3) + (double)(rnd() % 1000) / 1000.0;
+			for (int k = 0; k < 3; k++) {
+				d[k] = (double)rnd_range(-1000, 1001) / (k == 2 ? 8000.0 : 1000.0);
+				len += d[k] * d[k]; /* mostly across: the fabric is thin */
+			}
+			len = len > 0 ? sqrt(len) : 1;
+			for (int k = 0; k < 3; k++)
+				d[k] /= len;
+			if (w % 5 == 0) /* along z only: the same column again */
+				d[0] = d[1] = 0, d[2] = 1;
+			for (int st = 0; st < 80; st++, steps++) {
+				unsigned ch = (unsigned)(st + w) % 8;
+				int64_t q[3] = {(int64_t)floor(p[0]), (int64_t)floor(p[1]),
+				                (int64_t)floor(p[2])};
+				loom_texel a, e = masked(ref_texel(&g_ref, q[0], q[1], q[2]), ch);
+				float dens, ori[3];
+				CHECK_EQ_INT(loom_texture_voxel_ch(t, q[0], q[1], q[2], ch, &a), LOOM_OK);
+				bad += !texel_eq(&a, &e);
+				nonempty += e.density > 0;
+				ch = st % 3 ? LOOM_CHANNEL_DENSITY | LOOM_CHANNEL_ORIENTATION
+				            : LOOM_CHANNEL_DENSITY;
+				CHECK_EQ_INT(loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a),
+				             LOOM_OK);
+				ref_trilinear(p, &dens, ori);
+				bad += fabsf(a.density - dens) > 1e-6f;
+				for (int k = 0; k < 3 && (ch & LOOM_CHANNEL_ORIENTATION); k++)
+					bad += fabsf(a.orientation[k] - ori[k]) > 1e-5f;
+				for (int j = 0; st % 13 == 12 && j < 5; j++) { /* jumps, and back */
+					int64_t x = rnd_range(-3000, 3000), y = rnd_range(-2000, 2000);
+					e = ref_texel(&g_ref, x, y, q[2]);
+					CHECK_EQ_INT(loom_texture_voxel(t, x, y, q[2], &a), LOOM_OK);
+					bad += !texel_eq(&a, &e);
+				}
+				for (int k = 0; k < 3; k++)
+					p[k] += d[k];
+			}
+		}
+		loom_texture_close(t);
+	}
+	printf("  %llu steps, %llu non-empty\n", (unsigned long long)steps,
+	       (unsigned long long)nonempty);
+	CHECK_EQ_INT(bad, 0);
+	CHECK(nonempty > 1000);
+}
+
 /* Flip a byte of a stored brick in a copy of the database: the lookups
    that need that brick fail with LOOM_ECORRUPT naming it; all other voxels
    stay right; the failure repeats (retry) and the texture stays usable. */
@@ -2086,6 +2197,7 @@ int main(void)
 	RUN(filtered_lookups);
 	RUN(batch_lookups);
 	RUN(channel_masks);
+	RUN(walks_equal_reference);
 	RUN(old_format_same_lookups);
 	RUN(corrupt_brick);
 	RUN(warp_on_top_real_designs);

@@ -4,7 +4,8 @@
  * one thread at a large budget (test_texture.c checks region reads against
  * a brute-force materialisation); every thread compares everything it
  * looks up: random voxels, ray-march walks, small region reads, trilinear
- * samples at voxel centres.  Budgets from the minimum (a few bricks) up;
+ * samples at voxel centres (short walks of them).  Budgets from the
+ * minimum (a few bricks) up;
  * more threads than max_threads (the shared overflow state); threads that
  * come and go (their state returns to the pool when they exit); a texture
  * closed while threads that used it are still alive.
@@ -244,21 +245,26 @@ static void *worker(void *arg)
 						bad += d[i] != R_d[w] || o[i] != R_o[w] || kd[i] != R_k[w];
 					}
 			looked += 210;
-		} else { /* trilinear at a voxel centre = the voxel */
+		} else { /* trilinear at voxel centres = the voxels: a walk of up
+			    to 6 unit steps (the corner columns kept from step to step) */
 			int64_t x = W0[0] + (int64_t)(mix(s++) % Wn[0]);
 			int64_t y = W0[1] + (int64_t)(mix(s++) % Wn[1]);
 			int64_t z = W0[2] + 1 + (int64_t)(mix(s++) % (Wn[2] - 2));
-			double p[3] = {x + 0.5, y + 0.5, z + 0.5};
-			loom_texel a;
-			if (x == W1[0] - 1 || y == W1[1] - 1)
-				continue;
+			int dx = (int)(h >> 12 & 1), dy = (int)(h >> 13 & 1);
 			unsigned ch = op_mask(h); /* 0: nothing asked */
-			if (loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a) != LOOM_OK)
-				errors++;
-			bad += a.density != ((ch & LOOM_CHANNEL_DENSITY) ? (float)R_d[widx(x, y, z)] / 255.0f
-			                                                 : 0.0f) ||
-			       a.kind != ((ch & LOOM_CHANNEL_MATERIAL) ? R_k[widx(x, y, z)] : 0);
-			looked++;
+			for (int k = 0; k < 6; k++, x += dx, y += dy) {
+				double p[3] = {x + 0.5, y + 0.5, z + 0.5};
+				loom_texel a;
+				if (x >= W1[0] - 1 || y >= W1[1] - 1)
+					break;
+				if (loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a) != LOOM_OK)
+					errors++;
+				bad += a.density != ((ch & LOOM_CHANNEL_DENSITY)
+				                             ? (float)R_d[widx(x, y, z)] / 255.0f
+				                             : 0.0f) ||
+				       a.kind != ((ch & LOOM_CHANNEL_MATERIAL) ? R_k[widx(x, y, z)] : 0);
+				looked++;
+			}
 		}
 	}
 	atomic_fetch_add(j->bad, bad);
