@@ -1018,98 +1018,14 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 }
 
 /* Chunk extents (chunk_extent) region_xfast keeps per crossing piece for
-   its slabs, at most (4 KiB of stack each). */
+   its slabs, at most (4 KiB of stack). */
 #define XEXT 256
 
-/* Crossing pieces of a band (one crossing row) that region_xfast writes
-   slab by slab together, at most. */
-#define XPIECES 4
-
-/* A crossing piece of the x-fastest output: columns [xb, xe) of rows
-   [yb, ye) (one crossing), the z range [zs, ze) its slabs cover (outside
-   it the piece is surely empty and zeroed first), its chunks' extents. */
-struct xpiece {
-	int64_t xb, xe, zs, ze;
-	int keep;
-	int64_t ext[2 * XEXT];
-};
-
-/* The sink's label, kind and type planes and tables for crossing e: kind
-   and type from the transposed labels (PSHUFB), or gathered and
-   transposed like the other planes.  Returns kt_after. */
-static int xsink_crossing(const loom_texture *t, const loom_texture_region *out,
-                          struct sink *k, struct xent *e, uint8_t *rl, uint8_t *rk,
-                          uint8_t *rt)
-{
-	int kt_after = 0;
-
-	k->kl = e->ex->kind;
-	k->ngrp = e->ex->ngrp;
-	k->tl = out->type ? xent_tlut(e) : NULL;
-#ifdef HAVE_TR_KT
-	kt_after = t->ssse3 && k->ngrp && (out->kind || out->type);
-#else
-	(void)t;
-#endif
-	k->rl = out->label || kt_after ? rl : NULL;
-	k->rk = out->kind && !kt_after ? rk : NULL;
-	k->rt = out->type && !kt_after ? rt : NULL;
-	return kt_after;
-}
-
-/* Piece P of crossing e, rows [yb, ye), within z [za0, zb0): its chunks'
-   extents, the z range its slabs cover; the z rows where the whole piece
-   is surely empty zeroed plane by plane, row after row (sequential). */
-static void xpiece_open(loom_texture *t, struct tslot *s, struct xent *e,
-                        const struct region *g, struct xpiece *P, int64_t yb, int64_t ye,
-                        int64_t za0, int64_t zb0)
-{
-	int64_t pa = INT64_MAX, pb = INT64_MIN;
-	size_t ne = 0;
-
-	P->zs = za0, P->ze = zb0;
-	P->keep = (ye - yb) * ((P->xe - P->xb + RCOLS - 1) / RCOLS) <= XEXT;
-	for (int64_t y = yb; y < ye; y++)
-		for (int64_t x = P->xb; x < P->xe; x += RCOLS) {
-			int64_t xc = P->xe - x > RCOLS ? x + RCOLS : P->xe, a, b;
-			chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
-			             (uint32_t)(xc - x), &a, &b);
-			if (P->keep) {
-				P->ext[ne++] = a;
-				P->ext[ne++] = b;
-			}
-			if (a < b && a < pa)
-				pa = a;
-			if (a < b && b > pb)
-				pb = b;
-		}
-	if (pa < za0)
-		pa = za0;
-	if (pb > zb0)
-		pb = zb0;
-	if (pa >= pb) {
-		P->zs = P->ze = za0;
-	} else {
-		if (pa > za0)
-			P->zs = za0 + (pa - za0) / 16 * 16;
-		if (pb < zb0)
-			P->ze = za0 + (pb - za0 + 15) / 16 * 16 < zb0 ? za0 + (pb - za0 + 15) / 16 * 16
-			                                             : zb0;
-	}
-	zero_rect(g->out, g, P->xb, P->xe, yb, ye, za0, P->zs);
-	zero_rect(g->out, g, P->xb, P->xe, yb, ye, P->ze, zb0);
-}
-
-/* x-fastest: band by band (crossing rows); in a band, up to XPIECES
-   crossing pieces at a time (xpiece_open), then slabs of RZ z values
-   (aligned from the cloth's bottom) across those pieces, rows, chunks of
-   up to RCOLS columns (xchunk; each chunk's extent computed once per
-   piece, not per slab).  Slabs outermost across neighbouring pieces so
-   that a cache line two pieces share (a row's end and the next piece's
-   start) is completed while it is still cached: one piece after the other
-   over the whole z range wrote 7 MiB in between (a 64 x 64 x 300 tile),
-   and the line was fetched for ownership twice.  z planes outside
-   [0, b3) are zeroed whole. */
+/* x-fastest: crossing by crossing; per crossing, slabs of RZ z values
+   (outermost, so the rows written meanwhile stay few whatever the plane
+   size), rows, chunks of up to RCOLS columns (xchunk; each chunk's
+   extent computed once per crossing piece, not per slab).  z planes
+   outside [0, b3) are zeroed whole. */
 static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g)
 {
 	const loom_texture_region *out = g->out;
@@ -1119,7 +1035,7 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 	int64_t za0 = g->lo[2] > 0 ? g->lo[2] : 0, zb0 = g->hi[2] < b3 ? g->hi[2] : b3;
 	int rc = LOOM_OK;
 	struct sink k = {0};
-	struct xpiece pc[XPIECES];
+	int64_t ext[2 * XEXT];
 
 	for (int64_t z = g->lo[2]; z < g->hi[2]; z++) {
 		size_t o = (size_t)(z - g->lo[2]) * g->plane;
@@ -1149,44 +1065,69 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 		if (ye > g->hi[1])
 			ye = g->hi[1];
 		for (int64_t xb = g->lo[0]; xb < g->hi[0];) {
-			int np = 0;
-			int64_t zs = zb0, ze = za0;
-			for (; np < XPIECES && xb < g->hi[0]; np++) {
-				struct xent *e = loom__xent_enter(t, s, xb, yb);
-				struct xpiece *P = &pc[np];
-				P->xb = xb;
-				P->xe = e->x0 + t->b1 < g->hi[0] ? e->x0 + t->b1 : g->hi[0];
-				xpiece_open(t, s, e, g, P, yb, ye, za0, zb0);
-				if (P->zs < P->ze && P->zs < zs)
-					zs = P->zs;
-				if (P->zs < P->ze && P->ze > ze)
-					ze = P->ze;
-				xb = P->xe;
-			}
-			/* slabs from za0 in RZ steps, each piece within its range */
-			for (int64_t zc = za0 + (zs > za0 ? (zs - za0) / RZ * RZ : 0); zc < ze; zc += RZ)
-				for (int i = 0; i < np; i++) {
-					struct xpiece *P = &pc[i];
-					int64_t a = zc > P->zs ? zc : P->zs;
-					int64_t b = zc + RZ < P->ze ? zc + RZ : P->ze;
-					struct xent *e;
-					int kt_after;
-					size_t ne = 0;
-					if (a >= b)
-						continue;
-					/* re-entered per slab: a hit costs a set probe, and a
-					   piece's entry may have been replaced meanwhile */
-					e = loom__xent_enter(t, s, P->xb, yb);
-					kt_after = xsink_crossing(t, out, &k, e, rl, rk, rt);
-					for (int64_t y = yb; y < ye; y++)
-						for (int64_t x = P->xb; x < P->xe; x += RCOLS, ne += 2) {
-							int64_t xc = P->xe - x > RCOLS ? x + RCOLS : P->xe;
-							int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, a,
-							                (size_t)(b - a), P->keep ? P->ext + ne : NULL);
-							if (e2 != LOOM_OK && rc == LOOM_OK)
-								rc = e2;
-						}
+			struct xent *e = loom__xent_enter(t, s, xb, yb);
+			int64_t xe = e->x0 + t->b1 < g->hi[0] ? e->x0 + t->b1 : g->hi[0];
+			/* kind and type: from the transposed labels (PSHUFB), or
+			   gathered and transposed like the other planes */
+			int kt_after = 0;
+			k.kl = e->ex->kind;
+			k.ngrp = e->ex->ngrp;
+			k.tl = out->type ? xent_tlut(e) : NULL;
+#ifdef HAVE_TR_KT
+			kt_after = t->ssse3 && k.ngrp && (out->kind || out->type);
+#endif
+			k.rl = out->label || kt_after ? rl : NULL;
+			k.rk = out->kind && !kt_after ? rk : NULL;
+			k.rt = out->type && !kt_after ? rt : NULL;
+			/* z rows where the whole piece of the crossing is surely
+			   empty: zeroed plane by plane, row after row (sequential);
+			   the slabs cover the rest */
+			int64_t pa = INT64_MAX, pb = INT64_MIN, zs = za0, ze = zb0;
+			/* the chunks' extents, kept for the slabs when they fit */
+			int keep = (ye - yb) * ((xe - xb + RCOLS - 1) / RCOLS) <= XEXT;
+			size_t ne = 0;
+			for (int64_t y = yb; y < ye; y++)
+				for (int64_t x = xb; x < xe; x += RCOLS) {
+					int64_t xc = xe - x > RCOLS ? x + RCOLS : xe, a, b;
+					chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
+					             (uint32_t)(xc - x), &a, &b);
+					if (keep) {
+						ext[ne++] = a;
+						ext[ne++] = b;
+					}
+					if (a < b && a < pa)
+						pa = a;
+					if (a < b && b > pb)
+						pb = b;
 				}
+			if (pa < za0)
+				pa = za0;
+			if (pb > zb0)
+				pb = zb0;
+			if (pa >= pb) {
+				zs = ze = za0;
+			} else {
+				if (pa > za0)
+					zs = za0 + (pa - za0) / 16 * 16;
+				if (pb < zb0)
+					ze = za0 + (pb - za0 + 15) / 16 * 16 < zb0 ? za0 + (pb - za0 + 15) / 16 * 16
+					                                           : zb0;
+			}
+			zero_rect(out, g, xb, xe, yb, ye, za0, zs);
+			zero_rect(out, g, xb, xe, yb, ye, ze, zb0);
+			for (int64_t zc = zs; zc < ze; zc += RZ) {
+				size_t zn = ze - zc < RZ ? (size_t)(ze - zc) : RZ;
+				ne = 0;
+				for (int64_t y = yb; y < ye; y++)
+					for (int64_t x = xb; x < xe; x += RCOLS, ne += 2) {
+						int64_t xc = xe - x > RCOLS ? x + RCOLS : xe;
+						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn,
+						                keep ? ext + ne : NULL);
+						if (e2 != LOOM_OK && rc == LOOM_OK)
+							rc = e2;
+					}
+			}
+			xb = xe;
 		}
 		yb = ye;
 	}
