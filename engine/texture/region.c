@@ -13,7 +13,9 @@
  *   whole offset (the other planes are then final), the one source voxel
  *   past its run read in the same brick pass; after the pass its copied
  *   densities are blended in place (blend_col: 16 voxels at a time, SSE2
- *   or SSSE3 PMADDUBSW, raw_blend's density rule in one place).
+ *   or SSSE3 PMADDUBSW, runs under 16 through a 32-byte line; raw_blend's
+ *   density rule in one place), only between the first and last stored
+ *   brick the pass read (an empty nearer voxel stays empty).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -56,8 +58,9 @@ struct sink {
 };
 
 /* n < 16 bytes from s to d as two overlapping moves of 8, 4 or 1 bytes
-   (inline: the x-fastest gather copies many runs shorter than 16, and a
-   memcpy call for each was 11 % of the read's samples). */
+   (inline: the x-fastest gather copies many runs shorter than 16, and the
+   memcpy calls for them and for partial output rows were ~10 % of the
+   samples of the all-channel x-fastest read). */
 static inline void copy_small(uint8_t *restrict d, const uint8_t *restrict s, size_t n)
 {
 	if (n >= 8) {
@@ -385,9 +388,9 @@ static void blend_col_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned e
 /* blend_col of L < 16 densities: the run and the edge voxel put into a
    zeroed 32-byte line (the run at 1 .. L, the edge at 0 or L + 1, where
    its farther voxel is), blended 16 at once and the L bytes stored back
-   (a zero nearer voxel past the run stays zero).  The scalar loop this
-   replaced was most of the cost of the sub-voxel x-fastest read: its
-   64-row slabs cut runs short. */
+   (a zero nearer voxel past the run stays zero).  It replaced a scalar
+   loop, which ran for most runs of the x-fastest read: its 64-row slabs,
+   cut at brick boundaries, make runs short. */
 static void blend_short_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
 {
 	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
