@@ -13,7 +13,9 @@
  *   whole offset (the other planes are then final), the one source voxel
  *   past its run read in the same brick pass; after the pass its copied
  *   densities are blended in place (blend_col: 16 voxels at a time, SSE2
- *   or SSSE3 PMADDUBSW, raw_blend's density rule in one place).
+ *   or SSSE3 PMADDUBSW, runs under 16 through a 32-byte line; raw_blend's
+ *   density rule in one place), only between the first and last stored
+ *   brick the pass read (an empty nearer voxel stays empty).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -55,6 +57,32 @@ struct sink {
 	uint8_t *rd, *rlo, *rhi, *rl, *rk, *rt; /* gathered planes */
 };
 
+/* n < 16 bytes from s to d as two overlapping moves of 8, 4 or 1 bytes
+   (inline: the x-fastest gather copies many runs shorter than 16, and the
+   memcpy calls for them and for partial output rows were ~10 % of the
+   samples of the all-channel x-fastest read). */
+static inline void copy_small(uint8_t *restrict d, const uint8_t *restrict s, size_t n)
+{
+	if (n >= 8) {
+		uint64_t a, b;
+		memcpy(&a, s, 8);
+		memcpy(&b, s + n - 8, 8);
+		memcpy(d, &a, 8);
+		memcpy(d + n - 8, &b, 8);
+	} else if (n >= 4) {
+		uint32_t a, b;
+		memcpy(&a, s, 4);
+		memcpy(&b, s + n - 4, 4);
+		memcpy(d, &a, 4);
+		memcpy(d + n - 4, &b, 4);
+	} else if (n) {
+		uint8_t a = s[0], b = s[n / 2], c = s[n - 1];
+		d[0] = a;
+		d[n / 2] = b;
+		d[n - 1] = c;
+	}
+}
+
 /* Byte copies and fills of runs of a few dozen bytes: inline 16-byte moves
    (a libc call per run costs as much as the run). */
 static inline void copy_run(uint8_t *restrict d, const uint8_t *restrict s, size_t n)
@@ -69,12 +97,16 @@ static inline void copy_run(uint8_t *restrict d, const uint8_t *restrict s, size
 		return;
 	}
 #endif
-	memcpy(d, s, n);
+	copy_small(d, s, n);
 }
 
 static inline void zero_run(uint8_t *d, size_t n)
 {
-	memset(d, 0, n); /* measured: faster here than inline stores */
+	static const uint8_t z16[16];
+	if (n < 16)
+		copy_small(d, z16, n); /* inline, like copy_run's short runs */
+	else
+		memset(d, 0, n); /* measured: faster here than inline stores */
 }
 
 static void sink_empty(const struct sink *k, size_t off, size_t n)
@@ -352,6 +384,31 @@ static void blend_col_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned e
 }
 #endif
 
+#ifdef __SSE2__
+/* blend_col of L < 16 densities: the run and the edge voxel put into a
+   zeroed 32-byte line (the run at 1 .. L, the edge at 0 or L + 1, where
+   its farther voxel is), blended 16 at once and the L bytes stored back
+   (a zero nearer voxel past the run stays zero).  It replaced a scalar
+   loop, which ran for most runs of the x-fastest read: its 64-row slabs,
+   cut at brick boundaries, make runs short. */
+static void blend_short_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
+{
+	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
+	uint8_t tmp[32] = {0};
+	__m128i v;
+	int any;
+
+	copy_small(tmp + 1, d, L);
+	tmp[dir > 0 ? L + 1 : 0] = (uint8_t)edge;
+	v = blend16_sse2(_mm_loadu_si128((const __m128i *)(tmp + 1)),
+	                 _mm_loadu_si128((const __m128i *)(tmp + 1 + dir)), w, w2, &any);
+	if (any) {
+		_mm_storeu_si128((__m128i *)tmp, v);
+		copy_small(d, tmp, L);
+	}
+}
+#endif
+
 #ifdef HAVE_KT_SSSE3
 __attribute__((target("ssse3"))) static void blend_col_ssse3(uint8_t *d, size_t L, int dir,
                                                               unsigned g, unsigned edge)
@@ -380,6 +437,10 @@ static void blend_col(const loom_texture *t, uint8_t *d, size_t L, int dir, unsi
 		blend_col_sse2(d, L, dir, g, edge);
 		return;
 	}
+	if (L) {
+		blend_short_sse2(d, L, dir, g, edge);
+		return;
+	}
 #endif
 	(void)t;
 	if (dir > 0) /* ascending: d[i + 1] not yet blended */
@@ -401,6 +462,7 @@ struct fcol {
 	                  the run; 0 outside the block or its brick failed) */
 	int64_t xz;    /* source z of the end voxel, below the run for dir -1,
 	                  above it for dir +1 (-1: outside the block) */
+	int64_t xk;    /* the brick (z index) holding it; -1: none */
 };
 
 /*
@@ -428,6 +490,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	int64_t sa[GMAX], sb[GMAX], dzs[GMAX]; /* source z range, offset */
 	struct fcol fc[GMAX];
 	int64_t smin = INT64_MAX, smax = INT64_MIN;
+	int64_t slo = INT64_MAX, shi = INT64_MIN; /* the stored bricks read */
 	int64_t va0 = za > 0 ? za : 0, vb0 = zb < b3 ? zb : b3;
 	uint32_t sx = e->sx0 + lx0, sy = e->sy0 + ly;
 	uint64_t base;
@@ -445,6 +508,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		if (t->region_whole)
 			f = 0; /* the bench's whole-voxel peer: the nearer copy only */
 		F->dir = 0;
+		F->xk = -1;
 		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
@@ -473,6 +537,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			/* the farther voxel of the run's end voxel, when in the block */
 			F->xz = far_up ? sb[c] : sa[c] - 1;
 			if (F->xz >= 0 && F->xz < b3) {
+				F->xk = brick_of(t, 2, (uint32_t)F->xz);
 				if (F->xz < smin)
 					smin = F->xz;
 				if (F->xz + 1 > smax)
@@ -504,11 +569,16 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			bump(&s->cnt.memo_hits, 1);
 		}
 		p = ok ? s->memo : NULL;
+		if (p && !brick_empty(t, id)) {
+			if (z0 < slo)
+				slo = z0;
+			shi = z1;
+		}
 		for (uint32_t c = 0; c < n; c++) {
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			struct fcol *F = &fc[c];
 			size_t o;
-			if (F->dir && p && F->xz >= z0 && F->xz < z1)
+			if (F->xk == kz && p) /* the end voxel is in this brick */
 				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
 			if (a >= b)
 				continue;
@@ -520,12 +590,30 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				sink_empty(k, o, (size_t)(b - a));
 		}
 	}
-	/* the fractional columns' densities, from the copied ones */
-	if (nfrac)
-		for (uint32_t c = 0; c < n; c++)
-			if (fc[c].dir)
-				blend_col(t, D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za),
-				          (size_t)(sb[c] - sa[c]), fc[c].dir, fc[c].g, fc[c].edge);
+	/* the fractional columns' densities, from the copied ones, only
+	   between the first and last stored brick read: bricks stored as
+	   nothing (or failed) gave empty voxels, and an empty nearer voxel
+	   stays empty; the voxel past that part, when inside the run, is
+	   such a voxel, the farther voxel at that end */
+	if (nfrac && slo < shi)
+		for (uint32_t c = 0; c < n; c++) {
+			const struct fcol *F = &fc[c];
+			int64_t bl = sa[c] > slo ? sa[c] : slo, bh = sb[c] < shi ? sb[c] : shi;
+			uint8_t *d;
+			size_t i0, i1, L;
+			unsigned edge;
+			if (!F->dir || bl >= bh)
+				continue;
+			d = D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za);
+			L = (size_t)(sb[c] - sa[c]);
+			i0 = (size_t)(bl - sa[c]);
+			i1 = (size_t)(bh - sa[c]);
+			if (F->dir > 0)
+				edge = i1 < L ? d[i1] : F->edge;
+			else
+				edge = i0 > 0 ? d[i0 - 1] : F->edge;
+			blend_col(t, d + i0, i1 - i0, F->dir, F->g, edge);
+		}
 	return rc;
 }
 
@@ -627,7 +715,7 @@ static inline void store_part(uint8_t *d, __m128i v, size_t n)
 	} else {
 		uint8_t tmp[16];
 		_mm_storeu_si128((__m128i *)tmp, v);
-		memcpy(d, tmp, n);
+		copy_small(d, tmp, n);
 	}
 }
 #endif
@@ -684,10 +772,12 @@ static void tr_orient(uint16_t *restrict out, size_t o, size_t plane,
 					_mm_storeu_si128((__m128i *)(d + 32 * k), p0);
 					_mm_storeu_si128((__m128i *)(d + 32 * k + 16), p1);
 				} else {
-					uint8_t tmp[32];
-					_mm_storeu_si128((__m128i *)tmp, p0);
-					_mm_storeu_si128((__m128i *)(tmp + 16), p1);
-					memcpy(d + 32 * k, tmp, 2 * last);
+					if (last >= 8) {
+						_mm_storeu_si128((__m128i *)(d + 32 * k), p0);
+						store_part(d + 32 * k + 16, p1, 2 * last - 16);
+					} else {
+						store_part(d + 32 * k, p0, 2 * last);
+					}
 				}
 			}
 		}
