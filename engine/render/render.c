@@ -389,22 +389,6 @@ void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
 	g->t1 = t1;
 }
 
-int loom__dda_next(loom__dda *g)
-{
-	int a = g->tnext[0] <= g->tnext[1] ? 0 : 1;
-	if (g->tnext[2] < g->tnext[a])
-		a = 2;
-	if (!(g->tnext[a] < g->t1)) {
-		g->t = g->t1;
-		return 0;
-	}
-	g->t = g->tnext[a];
-	g->c[a] += g->step[a];
-	g->tnext[a] = ((double)(g->c[a] + (g->step[a] > 0)) * g->cell[a] - g->o[a]) /
-	              g->d[a];
-	return 1;
-}
-
 /* Majorant (per scene length) of the DDA's current cell. */
 static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 {
