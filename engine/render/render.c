@@ -122,6 +122,8 @@ typedef struct tstate {
 	double fp_o[3], fp0, fp_rate; /* ray footprint (voxels) at x: fp0 +
 	                             fp_rate |x - fp_o| (level of detail) */
 	uint32_t row_last, row_next; /* area rows: last used, next to refill */
+	int zs_ok;                /* zs_* hold cell column zs_c's z span */
+	int64_t zs_c[2], zs_lo, zs_hi;
 	loom__mf_row rows[AREA_ROWS];/* A(s, .) of the last roughnesses met */
 } tstate;
 
@@ -397,6 +399,21 @@ static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 	int rc;
 
 	t->st.cells++;
+	if (c->src->cell_zspan) {
+		/* the empty layers above and below the cloth: no bound query */
+		if (!t->zs_ok || g->c[0] != t->zs_c[0] || g->c[1] != t->zs_c[1]) {
+			t->zs_ok = 0;
+			if ((rc = c->src->cell_zspan(t->lctx, g->c, &t->zs_lo, &t->zs_hi)))
+				return rc;
+			t->zs_c[0] = g->c[0];
+			t->zs_c[1] = g->c[1];
+			t->zs_ok = 1;
+		}
+		if (g->c[2] < t->zs_lo || g->c[2] > t->zs_hi) {
+			*mu = 0.0;
+			return 0;
+		}
+	}
 	if ((rc = c->src->cell_max(t->lctx, g->c, &bound)))
 		return rc;
 	*mu = bound > 0 ? fmin((double)bound, c->dmax) * c->mu_cell : 0.0;
