@@ -122,6 +122,8 @@ typedef struct tstate {
 	double fp_o[3], fp0, fp_rate; /* ray footprint (voxels) at x: fp0 +
 	                             fp_rate |x - fp_o| (level of detail) */
 	uint32_t row_last, row_next; /* area rows: last used, next to refill */
+	int zs_ok;                /* zs_* hold cell column zs_c's z span */
+	int64_t zs_c[2], zs_lo, zs_hi;
 	loom__mf_row rows[AREA_ROWS];/* A(s, .) of the last roughnesses met */
 } tstate;
 
@@ -370,22 +372,6 @@ void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
 	g->t1 = t1;
 }
 
-int loom__dda_next(loom__dda *g)
-{
-	int a = g->tnext[0] <= g->tnext[1] ? 0 : 1;
-	if (g->tnext[2] < g->tnext[a])
-		a = 2;
-	if (!(g->tnext[a] < g->t1)) {
-		g->t = g->t1;
-		return 0;
-	}
-	g->t = g->tnext[a];
-	g->c[a] += g->step[a];
-	g->tnext[a] = ((double)(g->c[a] + (g->step[a] > 0)) * g->cell[a] - g->o[a]) /
-	              g->d[a];
-	return 1;
-}
-
 /* Majorant (per scene length) of the DDA's current cell. */
 static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 {
@@ -394,6 +380,21 @@ static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 	int rc;
 
 	t->st.cells++;
+	if (c->src->cell_zspan) {
+		/* the empty layers above and below the cloth: no bound query */
+		if (!t->zs_ok || g->c[0] != t->zs_c[0] || g->c[1] != t->zs_c[1]) {
+			t->zs_ok = 0;
+			if ((rc = c->src->cell_zspan(t->lctx, g->c, &t->zs_lo, &t->zs_hi)))
+				return rc;
+			t->zs_c[0] = g->c[0];
+			t->zs_c[1] = g->c[1];
+			t->zs_ok = 1;
+		}
+		if (g->c[2] < t->zs_lo || g->c[2] > t->zs_hi) {
+			*mu = 0.0;
+			return 0;
+		}
+	}
 	if ((rc = c->src->cell_max(t->lctx, g->c, &bound)))
 		return rc;
 	*mu = bound > 0 ? fmin((double)bound, c->dmax) * c->mu_cell : 0.0;

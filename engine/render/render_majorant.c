@@ -70,6 +70,9 @@ struct loom_majorant {
 	uint64_t n_blocks;
 	uint8_t *layer;           /* n_blocks * nsub * b3: largest raw density
 	                             of each block's cell column per layer */
+	uint32_t *span;           /* n_blocks * nsub * 2: first and last
+	                             non-zero layer of each cell column (1, 0:
+	                             none) */
 	loom_edgefix_tables ef;   /* the fabric's edge fix (ef.coef NULL:
 	                             none) */
 	float *frange;            /* min, max of each field: 2 rh, then 2 rv */
@@ -87,8 +90,31 @@ typedef struct mj_thread {
 	loom_majorant *m;
 	float a[4 * LOOM_EDGEFIX_MAX_RANK]; /* a crossing's coefficients */
 	mj_entry *last;           /* the entry of the last query */
+	int64_t cx0, cy0;         /* its crossing's first cell in x, y */
 	mj_entry cache[CACHE_ENTRIES];
 } mj_thread;
+
+/* Each cell column's first and last non-zero source layer, so a tracker
+   can pass the empty layers above and below the cloth without a bound
+   query per cell (mj_cell_zspan). */
+static int fill_spans(loom_majorant *m)
+{
+	uint64_t n = m->n_blocks * m->nsub;
+
+	if (!(m->span = malloc((2u * n + 1u) * sizeof *m->span)))
+		return LOOM_ENOMEM;
+	for (uint64_t k = 0; k < n; k++) {
+		const uint8_t *col = m->layer + k * m->b3;
+		uint32_t lo = 0, hi = m->b3;
+		while (lo < m->b3 && !col[lo])
+			lo++;
+		while (hi > lo && !col[hi - 1])
+			hi--;
+		m->span[2 * k] = lo < m->b3 ? lo : 1;
+		m->span[2 * k + 1] = lo < m->b3 ? hi - 1 : 0;
+	}
+	return LOOM_OK;
+}
 
 LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
                                  loom_diag *diag)
@@ -199,6 +225,11 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 		}
 	}
 	free(buf);
+	buf = NULL;
+	if ((rc = fill_spans(m))) {
+		rc = loom__fail(diag, rc, "majorant: out of memory");
+		goto fail;
+	}
 	*out = m;
 	return LOOM_OK;
 fail:
@@ -214,6 +245,7 @@ LOOM_API void loom_majorant_free(loom_majorant *m)
 	free(m->off);
 	free(m->bcols);
 	free(m->layer);
+	free(m->span);
 	free(m->frange);
 	free(m);
 }
@@ -227,7 +259,7 @@ LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads)
 	per_thread = sizeof(mj_thread);
 	return sizeof *m + 2u * (m->n_exemplars + 1u) * sizeof(uint32_t) +
 	       (m->frange ? 2u * (m->ef.rank_h + m->ef.rank_v + 1u) * sizeof(float) : 0) +
-	       (size_t)m->n_blocks * m->nsub * m->b3 + (size_t)threads * per_thread;
+	       (size_t)m->n_blocks * m->nsub * (m->b3 + 2u * sizeof *m->span) + (size_t)threads * per_thread;
 }
 
 LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3])
@@ -404,22 +436,31 @@ static uint8_t entry_bound(const loom_majorant *m, int filter, const mj_entry *e
 	                    z0 + m->zcell - 1, e->dlo, e->dhi);
 }
 
-static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
+/* A raw bound byte as a density: raw / 255 as the texture computes it,
+   widened a little so that no rounding of a blend can exceed it. */
+static inline float raw_bound(uint8_t v)
 {
-	mj_thread *th = thread_ctx;
+	return v ? (float)v / 255.0f * 1.0001f : 0.0f;
+}
+
+/* The filled entry of the crossing holding cell column (c0, c1); th->cx0,
+   cy0 become its first cell. */
+static int entry_of(mj_thread *th, int64_t c0, int64_t c1, mj_entry **out)
+{
 	loom_majorant *m = th->m;
+	mj_entry *e = th->last;
 	uint64_t h;
 	int64_t I, J;
-	mj_entry *e;
-	uint8_t v;
 	int rc;
 
-	*bound = 0.0f;
-	if (c[2] < 0 || c[2] >= (int64_t)m->nzc)
+	/* most queries fall in the last query's crossing (a DDA walks 4 x 4
+	   cells of a 24 x 16 crossing): no 64-bit divisions then */
+	if (e && (uint64_t)(c0 - th->cx0) < m->nsx && (uint64_t)(c1 - th->cy0) < m->nsy) {
+		*out = e;
 		return LOOM_OK;
-	I = loom_synth_floordiv(c[1], m->nsy);
-	J = loom_synth_floordiv(c[0], m->nsx);
-	e = th->last;
+	}
+	I = loom_synth_floordiv(c1, m->nsy);
+	J = loom_synth_floordiv(c0, m->nsx);
 	if (!e || e->I != I || e->J != J) {
 		h = (uint64_t)I * 0x9e3779b97f4a7c15ull ^ (uint64_t)J * 0xc2b2ae3d27d4eb4full;
 		e = &th->cache[(h >> 40) % CACHE_ENTRIES];
@@ -431,11 +472,61 @@ static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
 		}
 		th->last = e;
 	}
-	v = entry_bound(m, m->filter, e, (uint32_t)(c[0] - J * m->nsx),
-	                (uint32_t)(c[1] - I * m->nsy), (uint32_t)c[2]);
-	/* raw / 255 as the texture computes it, widened a little so that no
-	   rounding of a blend can exceed it */
-	*bound = v ? (float)v / 255.0f * 1.0001f : 0.0f;
+	th->cx0 = J * m->nsx;
+	th->cy0 = I * m->nsy;
+	*out = e;
+	return LOOM_OK;
+}
+
+static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
+{
+	mj_thread *th = thread_ctx;
+	loom_majorant *m = th->m;
+	mj_entry *e;
+	int rc;
+
+	*bound = 0.0f;
+	if (c[2] < 0 || c[2] >= (int64_t)m->nzc)
+		return LOOM_OK;
+	if ((rc = entry_of(th, c[0], c[1], &e)))
+		return rc;
+	*bound = raw_bound(entry_bound(m, m->filter, e, (uint32_t)(c[0] - th->cx0),
+	                               (uint32_t)(c[1] - th->cy0), (uint32_t)c[2]));
+	return LOOM_OK;
+}
+
+/* z cells [*zlo, *zhi] of cell column (c[0], c[1]) outside which every
+   cell's bound is 0: the column's non-zero source layers shifted by the
+   crossing's edge-fix offsets (output layer z reads source z - dz).
+   Trilinear: every z cell (its bounds blend neighbouring columns). */
+static int mj_cell_zspan(void *thread_ctx, const int64_t c[3], int64_t *zlo, int64_t *zhi)
+{
+	mj_thread *th = thread_ctx;
+	loom_majorant *m = th->m;
+	const uint32_t *sp;
+	mj_entry *e;
+	int64_t lo, hi;
+	int rc;
+
+	*zlo = 0;
+	*zhi = (int64_t)m->nzc - 1;
+	if (m->filter == LOOM_FILTER_TRILINEAR)
+		return LOOM_OK;
+	if ((rc = entry_of(th, c[0], c[1], &e)))
+		return rc;
+	sp = m->span + ((size_t)(e->blk - m->layer) / m->b3 +
+	                (size_t)(c[1] - th->cy0) * m->nsx + (size_t)(c[0] - th->cx0)) * 2u;
+	if (sp[0] > sp[1]) { /* an empty column */
+		*zlo = 1;
+		*zhi = 0;
+		return LOOM_OK;
+	}
+	lo = (int64_t)sp[0] + e->dlo;
+	hi = (int64_t)sp[1] + e->dhi;
+	lo = lo < 0 ? 0 : lo;
+	hi = hi > (int64_t)m->b3 - 1 ? (int64_t)m->b3 - 1 : hi;
+	*zlo = lo / m->zcell;
+	*zhi = hi < lo ? -1 : hi / m->zcell;
 	return LOOM_OK;
 }
 
@@ -561,6 +652,7 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	src->thread_done = grid_thread_done;
 	loom_majorant_cell_size(m, src->cell);
 	src->cell_max = mj_cell_max;
+	src->cell_zspan = mj_cell_zspan;
 	if (loom_texture_lod_levels(t))
 		src->lookup_lod = grid_lookup_lod;
 	src->density = grid_density;

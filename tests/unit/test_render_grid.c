@@ -280,6 +280,65 @@ static void test_majorant_bounds(void)
 	loom_majorant_free(m);
 }
 
+/* The grid source's z span of a cell column never hides a non-zero cell:
+   every z cell outside it has bound 0 (against cell_max of every cell of
+   10 x 10 crossings, nearest), and it is tighter than the slab somewhere.
+   Trilinear gives the whole slab. */
+static void test_majorant_zspan(void)
+{
+	loom_majorant *m = NULL;
+	loom_volume_source src;
+	loom_diag d = {0};
+	void *th;
+	int64_t cell[3], nzc, c[3], lo, hi;
+	long hidden = 0, columns = 0, tight = 0, skipped = 0;
+
+	if (!g_tex)
+		return;
+	CHECK_EQ_INT(loom_majorant_build(g_fab, &m, &d), LOOM_OK);
+	if (!m)
+		return;
+	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, m,
+	                                             &src), LOOM_OK);
+	CHECK(src.cell_zspan != NULL);
+	loom_majorant_cell_size(m, cell);
+	nzc = ((int64_t)B[2] + cell[2] - 1) / cell[2];
+	th = src.thread_init(src.ctx);
+	CHECK(th != NULL);
+	for (c[1] = -3 * (B[1] / cell[1]); th && c[1] < 7 * (B[1] / cell[1]); c[1]++)
+		for (c[0] = -3 * (B[0] / cell[0]); c[0] < 7 * (B[0] / cell[0]); c[0]++) {
+			c[2] = 0;
+			CHECK_EQ_INT(src.cell_zspan(th, c, &lo, &hi), LOOM_OK);
+			columns++;
+			tight += lo > 0 || hi < nzc - 1;
+			for (c[2] = 0; c[2] < nzc; c[2]++) {
+				float bound = 0;
+				if (c[2] >= lo && c[2] <= hi)
+					continue;
+				skipped++;
+				CHECK_EQ_INT(src.cell_max(th, c, &bound), LOOM_OK);
+				if (bound > 0 && hidden++ < 3)
+					printf("  cell (%lld %lld %lld) bound %g outside span [%lld %lld]\n",
+					       (long long)c[0], (long long)c[1], (long long)c[2], bound,
+					       (long long)lo, (long long)hi);
+			}
+		}
+	printf("  z spans: %ld columns, %ld tighter than the slab, %ld cells outside\n",
+	       columns, tight, skipped);
+	CHECK_EQ_INT((int)hidden, 0);
+	CHECK(tight > columns / 2);
+	if (th)
+		src.thread_done(src.ctx, th);
+	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_TRILINEAR, m,
+	                                             &src), LOOM_OK);
+	th = src.thread_init(src.ctx);
+	c[0] = c[1] = c[2] = 0;
+	CHECK(th && src.cell_zspan(th, c, &lo, &hi) == LOOM_OK && lo == 0 && hi == nzc - 1);
+	if (th)
+		src.thread_done(src.ctx, th);
+	loom_majorant_free(m);
+}
+
 /* ---- renders ------------------------------------------------------------- */
 
 static void init_opt(loom_render_options *o, uint32_t w, uint32_t h, uint32_t spp)
@@ -357,6 +416,19 @@ static void test_grid_renders(void)
 		CHECK(memcmp(a, b, W * H * 3 * sizeof *a) == 0);
 		CHECK(sn.lookups == sg.lookups);
 		CHECK(sn.scatterings == sg.scatterings);
+	}
+	/* passing a column's empty layers without cell_max calls (the z
+	   span) changes nothing either: the same bytes, lookups and cells */
+	CHECK(grid.cell_zspan != NULL);
+	{
+		loom_volume_source nos = grid;
+		loom_render_stats sn;
+		nos.cell_zspan = NULL;
+		o.threads = 2;
+		CHECK_EQ_INT(loom_render(&nos, &o, b, &sn, &d), LOOM_OK);
+		CHECK(memcmp(a, b, W * H * 3 * sizeof *a) == 0);
+		CHECK(sn.lookups == sg.lookups);
+		CHECK(sn.cells == sg.cells);
 	}
 	/* the same image, and fewer lookups, than the global majorant */
 	o.flags = LOOM_RENDER_GLOBAL_MAJORANT;
@@ -492,6 +564,7 @@ int main(void)
 	RUN(test_area_rows);
 	RUN(setup);
 	RUN(test_majorant_bounds);
+	RUN(test_majorant_zspan);
 	RUN(test_grid_renders);
 	RUN(test_grid_errors);
 	loom_texture_close(g_tex);

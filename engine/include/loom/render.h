@@ -160,11 +160,20 @@ typedef struct loom_volume_source {
 	                         real.  Same ctx and rules as lookup.  A
 	                         wrapper that replaces lookup must replace or
 	                         clear this too.  Not used with lookup_lod */
+	int (*cell_zspan)(void *thread_ctx, const int64_t c[3], int64_t *zlo,
+	                  int64_t *zhi);
+	                      /* optional, with cell_max: z cells [*zlo, *zhi]
+	                         of the cell column (c[0], c[1]) outside which
+	                         cell_max gives 0 for every z (zlo > zhi: the
+	                         whole column is empty), so the tracker passes
+	                         the empty layers above and below the cloth
+	                         without a cell_max call each.  Same ctx and
+	                         rules as cell_max */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
 	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
-	 {0, 0, 0}, NULL, NULL, NULL}
+	 {0, 0, 0}, NULL, NULL, NULL, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)
