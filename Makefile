@@ -244,7 +244,7 @@ $(VDB_PLUGIN): io/volume/vdb_shim.cpp io/volume/vdb.h | $(DEPS_OK)
 	    $(CXX) $(CXX_CFLAGS) -DLOOM_VDB_PLUGIN -shared -Wl,-soname,libloom-vdb.so.0 \
 	    -o $@ $< $(VDB_LIBS); else echo "  SKIP    $@ (OpenVDB not installed)"; fi
 
-test check: all $(UNIT_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(BUILD)/tests/childrun $(TESTDEPS_OK) $(VDB_CHECK) $(if $(SAN),,$(VDB_BIN))
+test check: all $(UNIT_BIN) $(BENCH_BIN) $(FUZZ_BIN) $(SEED_DIRS) $(BUILD)/tests/childrun $(TESTDEPS_OK) $(VDB_CHECK) $(if $(SAN),,$(VDB_BIN))
 	$(Q)BUILD=$(BUILD) LOOM_SAN="$(SAN)" sh tests/run.sh
 
 # tools/slurm/ on a real single-node Slurm that the script starts and stops

@@ -29,6 +29,15 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_cache\n"
+	"The brick cache's get/release rates (1 and 2 threads) and hit rates of\n"
+	"coherent, random and hot streams at budgets 1-40 MiB, each next to the same\n"
+	"reads from a plain array.  Figures, never pass/fail.\n"
+	"Environment: BENCH_CACHE_SCALE=F multiplies every run's length (0.1: short).\n";
+
 #define B 32                        /* brick edge, voxels */
 #define BRICK ((size_t)B * B * B)   /* bytes */
 #define NX 16                       /* bricks along x, y, z */
@@ -325,12 +334,16 @@ static void hit_rate(const char *stream_name, struct access **streams, size_t n,
 	loom__cache_close(c);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
 	const char *sc = getenv("BENCH_CACHE_SCALE");
 	size_t n_rate, n_hit;
 	struct access *coh[2], *rnd[2], *hot[2];
 	static const size_t budgets_mib[] = {1, 2, 4, 8, 16, 24, 40};
+
+	bench_help(argc, argv, USAGE);
+	if (argc > 1)
+		bench_reject("bench_cache", argv[1], USAGE);
 
 	if (sc)
 		g_scale = atof(sc);

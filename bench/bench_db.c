@@ -26,6 +26,16 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_db [--quick] [--fibre F]\n"
+	"Exemplar database figures: brick shapes and deflate levels on a\n"
+	"paper-scale exemplar, generation time of the presets, open time and memory.\n"
+	"  --quick    fewer shapes, no paper-scale database\n"
+	"  --fibre F  fibre-level yarns of preset F (cotton, ...) instead of smooth\n"
+	"Environment: TMPDIR (the databases written, removed after).\n";
+
 static double now_s(void)
 {
 	struct timespec ts;
@@ -383,6 +393,7 @@ int main(int argc, char **argv)
 	double t0;
 	size_t n;
 
+	bench_help(argc, argv, USAGE);
 	if (argc > 2 && strcmp(argv[1], "--open") == 0)
 		return child_open(argv[2]);
 	for (int i = 1; i < argc; i++) {
@@ -390,10 +401,8 @@ int main(int argc, char **argv)
 			quick = 1;
 		else if (strcmp(argv[i], "--fibre") == 0 && i + 1 < argc)
 			fibre = argv[++i];
-		else {
-			fprintf(stderr, "usage: bench_db [--quick] [--fibre F]\n");
-			return 2;
-		}
+		else
+			bench_reject("bench_db", argv[i], USAGE);
 	}
 	printf("yarns: %s\n", fibre ? fibre : "smooth");
 	snprintf(small_path, sizeof small_path, "%s/bench_db_small.%d.ldb", tmp, (int)getpid());

@@ -25,6 +25,17 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_export\n"
+	"`loom export` (.vol, NRRD, EXR) and `loom scan --reduce checksum` on the\n"
+	"paper-scale fabric, against plain sequential writes of the same bytes.\n"
+	"Needs $BUILD/bench/texture-paper.lfab and paper.ldb (run bench_texture\n"
+	"first; skipped without them).\n"
+	"Environment: BUILD (default build), LOOM_BENCH_SCAN_FRACTION (part of the\n"
+	"repeat scanned, default 0.01), TMPDIR.\n";
+
 static double now_s(void)
 {
 	struct timespec ts;
@@ -123,13 +134,17 @@ static double plain_write(const char *dir, double bytes, double files)
 	return now_s() - t0;
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
 	const char *build = getenv("BUILD") ? getenv("BUILD") : "build";
 	const char *frac_s = getenv("LOOM_BENCH_SCAN_FRACTION");
 	const char *tmp = getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp";
 	double frac = frac_s ? atof(frac_s) : 0.01;
 	char loom[1024], fab[1024], dir[1024], cmd[4096];
+
+	bench_help(argc, argv, USAGE);
+	if (argc > 1)
+		bench_reject("bench_export", argv[1], USAGE);
 	static const char *const fmts[] = {"vol", "nrrd", "exr"};
 	struct stat st;
 

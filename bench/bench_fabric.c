@@ -23,6 +23,15 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_fabric [--quick]\n"
+	"Fabric synthesis time and memory, save and open, file size per crossing.\n"
+	"  --quick    skip the 20000 x 20000 design\n"
+	"Environment: LOOM_DB (default $BUILD/share/loom/default.ldb), LOOM_PAPER_DB\n"
+	"(the paper preset; its rows are skipped without it), BUILD, TMPDIR.\n";
+
 static double now(void)
 {
 	struct timespec ts;
@@ -223,6 +232,11 @@ int main(int argc, char **argv)
 	char def[4200];
 	loom_db *db = NULL, *pdb = NULL;
 	loom_diag diag = {0};
+
+	bench_help(argc, argv, USAGE);
+	for (int i = 1; i < argc; i++)
+		if (strcmp(argv[i], "--quick") != 0)
+			bench_reject("bench_fabric", argv[i], USAGE);
 
 	if (getenv("LOOM_DB") && *getenv("LOOM_DB"))
 		snprintf(def, sizeof def, "%s", getenv("LOOM_DB"));

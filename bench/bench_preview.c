@@ -26,6 +26,15 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_preview [PARTS]\n"
+	"The designer's pictures: 1 the whole paper-scale fabric streamed as a\n"
+	"preview at 4096 and 1024 pixels; 2 `loom look` of a 200 x 200 draft.\n"
+	"  PARTS      digits of the parts to run (default 12)\n"
+	"Environment: BUILD (default build), LOOM_PAPER_DB.\n";
+
 #define MIB ((size_t)1 << 20)
 
 static double now_s(void)
@@ -241,6 +250,9 @@ int main(int argc, char **argv)
 	const char *parts = argc > 1 ? argv[1] : "12";
 	char top[4000];
 
+	bench_help(argc, argv, USAGE);
+	if (argc > 2 || !bench_digits_in(parts, "12"))
+		bench_reject("bench_preview", argv[argc > 2 ? 2 : 1], USAGE);
 	if (!build || !*build)
 		build = "build";
 	if (build[0] != '/' && getcwd(top, sizeof top)) {

@@ -32,6 +32,17 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_render\n"
+	"The path tracer and shell mapper: paths, rays and lookups per second on a\n"
+	"procedural weave (top, perspective, mapped on a cylinder; 1 and 2\n"
+	"threads), closest-point queries, and the engine's texture with the\n"
+	"majorant grid against the global majorant.\n"
+	"Environment: BENCH_RENDER_SCALE=F (0.25: short), BENCH_RENDER_PNG=DIR\n"
+	"(write the pictures), BUILD, LOOM_TOP (the source tree, for the meshes).\n";
+
 static double g_scale = 1.0;
 
 #define PERIOD 16.0
@@ -307,7 +318,7 @@ done:
 	loom_db_close(db);
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
 	loom_volume_source src = LOOM_VOLUME_SOURCE_INIT;
 	loom_render_options o = LOOM_RENDER_OPTIONS_INIT;
@@ -316,6 +327,9 @@ int main(void)
 	char path[1024];
 	loom_mesh *cyl = NULL, *fine;
 
+	bench_help(argc, argv, USAGE);
+	if (argc > 1)
+		bench_reject("bench_render", argv[1], USAGE);
 	if (sc && atof(sc) > 0)
 		g_scale = atof(sc);
 	src.nz = NZ;

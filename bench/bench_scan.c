@@ -39,6 +39,18 @@
 #include <string.h>
 #include <time.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_scan [--quick] [--max N] [--size N] [--estimated-only] [--sweep]\n"
+	"Exemplar creation from scans: time of each step, peak memory and\n"
+	"correctness on N x N x 0.3 N sheets (N = 250, 500, 1000).\n"
+	"  --quick           N = 250 only\n"
+	"  --max N           the largest N\n"
+	"  --size N          only that N\n"
+	"  --estimated-only  skip the runs with the orientation given\n"
+	"  --sweep           also the robustness sweep over noise levels\n";
+
 static const char *const TWILL23[] = {"10001", "11000", "01100", "00110", "00011", NULL};
 
 static double now_s(void)
@@ -269,6 +281,7 @@ int main(int argc, char **argv)
 	uint32_t only = 0;
 	long avail = proc_kb("/proc/meminfo", "MemAvailable:");
 
+	bench_help(argc, argv, USAGE);
 	for (int i = 1; i < argc; i++) {
 		if (strcmp(argv[i], "--quick") == 0)
 			max = 250;
@@ -280,10 +293,8 @@ int main(int argc, char **argv)
 			with_given = 0;
 		else if (strcmp(argv[i], "--size") == 0 && i + 1 < argc)
 			only = (uint32_t)strtoul(argv[++i], NULL, 10);
-		else {
-			fprintf(stderr, "usage: bench_scan [--quick] [--max N] [--sweep] [--estimated-only] [--size N]\n");
-			return 2;
-		}
+		else
+			bench_reject("bench_scan", argv[i], USAGE);
 	}
 	printf("bench_scan: scan pipeline (loom_scan_build), 2 threads; memory "
 	       "available %.1f GB\n", avail / 1048576.0);

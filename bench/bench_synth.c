@@ -19,6 +19,14 @@
 #include <sys/resource.h>
 #include <time.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_synth [--quick]\n"
+	"Yarn-level synthesis and edge-fix figures on generated designs up to\n"
+	"20000 x 20000 crossings.\n"
+	"  --quick    skip 20000 x 20000\n";
+
 static double now(void)
 {
 	struct timespec ts;
@@ -430,8 +438,14 @@ static void bench_target(const loom_synth_set *s)
 int main(int argc, char **argv)
 {
 	int quick = argc > 1 && strcmp(argv[1], "--quick") == 0;
-	loom_synth_set *s = exemplar_set();
+	loom_synth_set *s;
 	double t;
+
+	bench_help(argc, argv, USAGE);
+	for (int i = 1; i < argc; i++)
+		if (strcmp(argv[i], "--quick") != 0)
+			bench_reject("bench_synth", argv[i], USAGE);
+	s = exemplar_set();
 	if (!s)
 		return 1;
 	printf("bench_synth: %u exemplars, %u source blocks\n", loom_synth_set_exemplars(s),

@@ -48,6 +48,17 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_texture [PARTS]\n"
+	"The virtual texture on the paper-scale fabric, each figure next to a\n"
+	"baseline of the same run: 1 warm lookups, 2 region reads, 3 lookups from\n"
+	"cold per budget, 4 peak memory of `loom sample`, 5 streamed regions.\n"
+	"  PARTS      digits of the parts to run (default 12345)\n"
+	"Environment: LOOM_PAPER_DB (default $BUILD/bench/paper.ldb, generated when\n"
+	"missing), BENCH_TEXTURE_SCALE=F (0.2: short), BUILD (default build).\n";
+
 #define MIB ((size_t)1 << 20)
 #define REPS 3
 
@@ -1002,6 +1013,9 @@ int main(int argc, char **argv)
 		return vdb_child(argv);
 	if (argc == 6 && strcmp(argv[1], "--stream") == 0)
 		return stream_child(argv, dbp, fabp);
+	bench_help(argc, argv, USAGE);
+	if (argc > 2 || !bench_digits_in(parts, "12345"))
+		bench_reject("bench_texture", argv[argc > 2 ? 2 : 1], USAGE);
 	if (stat(dbp, &st) != 0) {
 		loom_exgen_params p;
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", dbp);

@@ -75,6 +75,18 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_vdb [--check]\n"
+	"loom's texture against OpenVDB and NanoVDB in one process: random points,\n"
+	"ray walks, trilinear, density + orientation, and below the working set\n"
+	"against OpenVDB delayed loading (budgets 16 and 64 MiB); checksums must\n"
+	"agree (exit 1 otherwise).  The full run takes minutes and ~2 GB of RAM.\n"
+	"  --check    a small run on the default database (a test of the bench)\n"
+	"Environment: BENCH_VDB_CROSSINGS (region side, default 16), BENCH_VDB_SCALE,\n"
+	"LOOM_PAPER_DB, BUILD (default build).\n";
+
 namespace {
 
 const size_t MIB = (size_t)1 << 20;
@@ -857,9 +869,12 @@ int main(int argc, char **argv)
 	int ai = 1;
 
 	setvbuf(stdout, NULL, _IOLBF, 0);
+	bench_help(argc, argv, USAGE);
 	S.build = b && *b ? b : "build";
 	if (ai < argc && strcmp(argv[ai], "--check") == 0)
 		S.check = true, ai++;
+	if (ai < argc && (strcmp(argv[ai], "--child") != 0 || ai + 7 >= argc))
+		bench_reject("bench_vdb", argv[ai], USAGE);
 	if (sc && atof(sc) > 0)
 		S.scale = atof(sc);
 	S.xings = S.check ? 3 : 16;

@@ -26,6 +26,16 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_volio [N [RUNS [DIR]]]\n"
+	"Export write throughput: Mitsuba .vol and OpenEXR z-slices of an N^3\n"
+	"volume against a plain sequential write of the same bytes.\n"
+	"  N          volume side, at least 16 (default 256)\n"
+	"  RUNS       repetitions, medians (default 3)\n"
+	"  DIR        where the files go (default build/bench/volio-tmp)\n";
+
 static double now(void)
 {
 	struct timespec ts;
@@ -259,11 +269,16 @@ int main(int argc, char **argv)
 		{"vol orientation qdir", LOOM_VOL_QDIR, 3, 1},
 		{"vol albedo uint8 x3", LOOM_VOL_UINT8, 3, 2},
 	};
+	bench_help(argc, argv, USAGE);
+	if (argc > 4)
+		bench_reject("bench_volio", argv[4], USAGE);
+	if (argc > 1 && !bench_int_in(argv[1], 16, 4096))
+		bench_reject("bench_volio", argv[1], USAGE);
+	if (argc > 2 && !bench_int_in(argv[2], 1, 1000))
+		bench_reject("bench_volio", argv[2], USAGE);
 	N = argc > 1 ? atoi(argv[1]) : 256;
 	RUNS = argc > 2 ? atoi(argv[2]) : 3;
 	snprintf(DIR_, sizeof DIR_, "%s", argc > 3 ? argv[3] : "build/bench/volio-tmp");
-	if (N < 16 || RUNS < 1)
-		return 2;
 	mkdir(DIR_, 0777);
 	make_volume();
 	printf("bench_volio: %d^3 voxels, %d runs (medians), files in %s\n", N, RUNS, DIR_);

@@ -29,6 +29,13 @@
 #include <time.h>
 #ifdef __GLIBC__
 #include <malloc.h>
+
+#include "bench_usage.h"
+
+static const char USAGE[] =
+	"usage: bench_wif [RUNS]\n"
+	"WIF reader speed on a 1000-end x 8000-pick dobby draft.\n"
+	"  RUNS       parses timed, 1-10000 (default 21)\n";
 #endif
 
 #define ENDS 1000
@@ -191,10 +198,11 @@ int main(int argc, char **argv)
 	sbuf b = {0};
 	double *t, med, mbs, floor_s, warm = -1;
 
-	if (runs < 1 || runs > 10000) {
-		fprintf(stderr, "usage: bench_wif [RUNS]\n");
-		return 2;
-	}
+	bench_help(argc, argv, USAGE);
+	if (argc > 2)
+		bench_reject("bench_wif", argv[2], USAGE);
+	if (argc > 1 && !bench_int_in(argv[1], 1, 10000))
+		bench_reject("bench_wif", argv[1], USAGE);
 	make_wif(&b);
 	t = malloc((size_t)runs * sizeof *t);
 	med = time_parses(&b, runs, t);
