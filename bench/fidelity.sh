@@ -12,7 +12,8 @@
 #   usage: bench/fidelity.sh [LOOM] [DB] [WORKDIR] [WINDOW]
 #   (FIDELITY_DESIGNS="herringbone-8 ..." runs a part of the suite;
 #   FIDELITY_SIZE=N weaves the generated designs at N x N crossings, default
-#   32; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
+#   32; at the paper preset use 24 or more: 12 x 12 is within the noise of
+#   two weavings, docs/fidelity.md "Paper preset"; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
 #   generation: give the fibre the database DB was made with;
 #   FIDELITY_REUSE=1 keeps the references already in WORKDIR, to compare
 #   another database against the same ones)
