@@ -672,19 +672,15 @@ static int load_frame(loom__cache_thread *th, uint32_t f, loom_diag *ld)
 	loom__cache *c = th->cache;
 	struct frame *fr = &c->frames[f];
 	uint64_t t0, t1;
+	void *scratch;
 	int rc;
 
 	if (!fr->touched)
 		charge_first_use(c, f);
-	if (c->o.scratch_new && !th->scratch) {
-		th->scratch = c->o.scratch_new(c->o.ctx);
-		if (!th->scratch)
-			return loom__fail(ld, LOOM_ENOMEM,
-			                  "cache: cannot create the loader's thread scratch");
-		charge(c, c->o.scratch_bytes);
-	}
+	if ((rc = loom__cache_thread_scratch(th, &scratch, ld)) != LOOM_OK)
+		return rc;
 	t0 = now_ns();
-	rc = c->o.load(c->o.ctx, fr->brick_id, frame_data(c, f), th->scratch, ld);
+	rc = c->o.load(c->o.ctx, fr->brick_id, frame_data(c, f), scratch, ld);
 	t1 = now_ns();
 	bump(&th->cnt.load_ns, t1 - t0);
 	if (rc == LOOM_OK)

@@ -1396,6 +1396,55 @@ static void filtered_lookups(void)
 	filtered_lookups_at(min_budget(g_fab, g_db, 2));
 }
 
+/* The trilinear density and orientation at p from the 8 reference voxels
+   (the documented blend: the orientations summed with the signs that
+   align them to the corner of largest w * density).  Returns 1 when an
+   orientation was blended (some corner has density). */
+static int ref_trilinear(const double p[3], float *dens, float ori[3])
+{
+	double u[3], f[3];
+	int64_t i0[3];
+	float w[8], wd[8], v[8][3], s[3] = {0, 0, 0}, len;
+	int r = -1;
+
+	*dens = 0;
+	ori[0] = ori[1] = ori[2] = 0;
+	for (int k = 0; k < 3; k++) {
+		u[k] = p[k] - 0.5;
+		i0[k] = (int64_t)floor(u[k]);
+		f[k] = u[k] - (double)i0[k];
+	}
+	for (int c = 0; c < 8; c++) {
+		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+		loom_texel q = ref_texel(&g_ref, i0[0] + dx, i0[1] + dy, i0[2] + dz);
+		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+		               (dz ? f[2] : 1 - f[2]));
+		*dens += w[c] * q.density;
+		wd[c] = w[c] * q.density;
+		memcpy(v[c], q.orientation, sizeof v[c]);
+	}
+	for (int c = 0; c < 8; c++)
+		if (wd[c] > 0 && (r < 0 || wd[c] > wd[r]))
+			r = c;
+	if (r < 0)
+		return 0;
+	for (int c = 0; c < 8; c++) {
+		float d = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
+		float sg = d < 0 ? -wd[c] : wd[c];
+		if (!(wd[c] > 0))
+			continue;
+		for (int k = 0; k < 3; k++)
+			s[k] += sg * v[c][k];
+	}
+	len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+	if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
+		len = -len;
+	if (len != 0)
+		for (int k = 0; k < 3; k++)
+			ori[k] = s[k] / len;
+	return 1;
+}
+
 static void filtered_lookups_at(size_t budget)
 {
 	loom_texture *t = open_tex(g_fab, g_db, budget, 2);
@@ -1409,7 +1458,7 @@ static void filtered_lookups_at(size_t budget)
 		loom_texel a, e;
 		double u[3], f[3];
 		int64_t i0[3];
-		float w[8], wd[8], v[8][3], dens = 0, ori[3];
+		float dens, ori[3];
 		int near;
 		p[0] = rnd_range(-300, 300) + (double)(rnd() % 1000) / 1000.0;
 		p[1] = rnd_range(-200, 200) + (double)(rnd() % 1000) / 1000.0;
@@ -1426,41 +1475,7 @@ static void filtered_lookups_at(size_t budget)
 			i0[k] = (int64_t)floor(u[k]);
 			f[k] = u[k] - (double)i0[k];
 		}
-		for (int c = 0; c < 8; c++) {
-			int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-			loom_texel q = ref_texel(&g_ref, i0[0] + dx, i0[1] + dy, i0[2] + dz);
-			w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
-			               (dz ? f[2] : 1 - f[2]));
-			dens += w[c] * q.density;
-			wd[c] = w[c] * q.density;
-			memcpy(v[c], q.orientation, sizeof v[c]);
-		}
-		/* the documented blend, written out: reference = largest w*d */
-		{
-			int r = -1;
-			float s[3] = {0, 0, 0}, len;
-			for (int c = 0; c < 8; c++)
-				if (wd[c] > 0 && (r < 0 || wd[c] > wd[r]))
-					r = c;
-			ori[0] = ori[1] = ori[2] = 0;
-			if (r >= 0) {
-				for (int c = 0; c < 8; c++) {
-					float d = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
-					float sg = d < 0 ? -wd[c] : wd[c];
-					if (!(wd[c] > 0))
-						continue;
-					for (int k = 0; k < 3; k++)
-						s[k] += sg * v[c][k];
-				}
-				len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
-				if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
-					len = -len;
-				if (len != 0)
-					for (int k = 0; k < 3; k++)
-						ori[k] = s[k] / len;
-				blended++;
-			}
-		}
+		blended += ref_trilinear(p, &dens, ori);
 		if (fabsf(a.density - dens) > 1e-6f)
 			bad++;
 		for (int k = 0; k < 3; k++)
@@ -1734,51 +1749,6 @@ static void channel_masks(void)
 	CHECK(nonempty > 500);
 }
 
-/* The trilinear density and orientation at p from the 8 reference voxels
-   (the documented blend, as filtered_lookups_at writes it out). */
-static void ref_trilinear(const double p[3], float *dens, float ori[3])
-{
-	double u[3], f[3];
-	int64_t i0[3];
-	float w[8], wd[8], v[8][3], s[3] = {0, 0, 0}, len;
-	int r = -1;
-
-	*dens = 0;
-	ori[0] = ori[1] = ori[2] = 0;
-	for (int k = 0; k < 3; k++) {
-		u[k] = p[k] - 0.5;
-		i0[k] = (int64_t)floor(u[k]);
-		f[k] = u[k] - (double)i0[k];
-	}
-	for (int c = 0; c < 8; c++) {
-		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-		loom_texel q = ref_texel(&g_ref, i0[0] + dx, i0[1] + dy, i0[2] + dz);
-		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
-		               (dz ? f[2] : 1 - f[2]));
-		*dens += w[c] * q.density;
-		wd[c] = w[c] * q.density;
-		memcpy(v[c], q.orientation, sizeof v[c]);
-	}
-	for (int c = 0; c < 8; c++)
-		if (wd[c] > 0 && (r < 0 || wd[c] > wd[r]))
-			r = c;
-	if (r < 0)
-		return;
-	for (int c = 0; c < 8; c++) {
-		float d = v[c][0] * v[r][0] + v[c][1] * v[r][1] + v[c][2] * v[r][2];
-		float sg = d < 0 ? -wd[c] : wd[c];
-		if (!(wd[c] > 0))
-			continue;
-		for (int k = 0; k < 3; k++)
-			s[k] += sg * v[c][k];
-	}
-	len = sqrtf(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
-	if (s[2] < 0 || (s[2] == 0 && (s[1] < 0 || (s[1] == 0 && s[0] < 0))))
-		len = -len;
-	if (len != 0)
-		for (int k = 0; k < 3; k++)
-			ori[k] = s[k] / len;
-}
 
 /* Ray walks (unit steps, random directions; lookup.c walk_next prefetches
    the columns ahead of point lookups, trilinear corner columns are
