@@ -85,7 +85,9 @@ static const char USAGE[] =
 	"agree (exit 1 otherwise).  The full run takes minutes and ~2 GB of RAM.\n"
 	"  --check    a small run on the default database (a test of the bench)\n"
 	"Environment: BENCH_VDB_CROSSINGS (region side, default 16), BENCH_VDB_SCALE,\n"
-	"LOOM_PAPER_DB, BUILD (default build).\n";
+	"BENCH_VDB_BRICK=XxYxZ (the paper database's brick shape, default 16x16x64;\n"
+	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), LOOM_PAPER_DB,\n"
+	"BUILD (default build).\n";
 
 namespace {
 
@@ -214,6 +216,7 @@ struct Setup {
 	loom_fabric *fab = NULL;
 	int64_t lo[3] = {0, 0, 0};     /* region in bolt voxels */
 	int n[3] = {0, 0, 0};          /* its size; local coordinates 0..n-1 */
+	unsigned brick[3] = {0, 0, 0}; /* BENCH_VDB_BRICK, 0: the preset's */
 };
 
 /* Open (making when missing) the database and the fabric. */
@@ -223,10 +226,13 @@ bool setup_open(Setup &S)
 	memset(&diag, 0, sizeof diag);
 	struct stat st;
 	const char *paper = getenv("LOOM_PAPER_DB");
+	const unsigned *brick = S.brick;
 	if (S.check)
 		S.dbp = S.build + "/share/loom/default.ldb";
 	else if (paper && *paper)
 		S.dbp = paper;
+	else if (brick[0])
+		S.dbp = S.build + "/bench/paper-" + getenv("BENCH_VDB_BRICK") + ".ldb";
 	else
 		S.dbp = S.build + "/bench/paper.ldb";
 	if (!S.check && stat(S.dbp.c_str(), &st) != 0) {
@@ -234,6 +240,9 @@ bool setup_open(Setup &S)
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", S.dbp.c_str());
 		fflush(stdout);
 		loom_exgen_preset("paper", &p);
+		if (brick[0])
+			for (int a = 0; a < 3; a++)
+				p.brick[a] = brick[a];
 		if (loom_exgen_write_db(S.dbp.c_str(), &p, NULL, &diag) != LOOM_OK) {
 			printf("bench_vdb: %s\n", diag.message);
 			return false;
@@ -877,6 +886,16 @@ int main(int argc, char **argv)
 		bench_reject("bench_vdb", argv[ai], USAGE);
 	if (sc && atof(sc) > 0)
 		S.scale = atof(sc);
+	const char *bs = getenv("BENCH_VDB_BRICK");
+	if (bs && *bs) {
+		char tail;
+		if (sscanf(bs, "%ux%ux%u%c", &S.brick[0], &S.brick[1], &S.brick[2], &tail) != 3 ||
+		    !S.brick[0] || !S.brick[1] || !S.brick[2]) {
+			fprintf(stderr, "bench_vdb: BENCH_VDB_BRICK='%s': expected XxYxZ, e.g. "
+			        "16x16x16\n", bs);
+			return 2;
+		}
+	}
 	S.xings = S.check ? 3 : 16;
 	if (xs && atoi(xs) > 0)
 		S.xings = atoi(xs);

@@ -54,8 +54,29 @@ struct loom_db {
 	uint64_t data_end;     /* = metadata offset: bricks lie in [128, data_end) */
 	size_t entry_bytes;    /* brick index entry: 24 (version 1) or 56 */
 	db_exm *ex;
-	db_brick *bricks;
+	/* The brick index in memory: only the stored (non-empty) bricks, in id
+	   order, found by rank in a bitmap, so that a database of small
+	   bricks (most of them empty air) does not hold an entry for each
+	   (a 16 x 16 x 16-brick paper database: 47 k stored of 243 k, 2.6 MB
+	   instead of 13.6 MB; brick_at) */
+	db_brick *bricks;      /* n_stored */
+	uint64_t *stored_bits; /* bit id: brick id is stored */
+	uint32_t *stored_rank; /* per word of stored_bits: stored bricks before it */
+	uint32_t n_stored;
 };
+
+static const db_brick empty_brick; /* storage LOOM__DB_STORE_EMPTY, no bytes */
+
+/* Brick id's index entry (id < n_bricks); empty_brick when not stored. */
+static const db_brick *brick_at(const loom_db *db, uint32_t id)
+{
+	uint64_t w = db->stored_bits[id >> 6], bit = 1ull << (id & 63);
+
+	if (!(w & bit))
+		return &empty_brick;
+	return &db->bricks[db->stored_rank[id >> 6] +
+	                   (uint32_t)__builtin_popcountll(w & (bit - 1))];
+}
 
 static int read_at(int fd, void *buf, size_t n, uint64_t off, size_t *got)
 {
@@ -381,10 +402,9 @@ static const char *const unit_names[LOOM__DB_UNITS] = {
    entry).  A unit is 0 bytes (an all-zero plane, CRC 0), V bytes (raw) or
    1..V-1 (DEFLATE); they lie back to back from the brick's offset and
    add up to its stored_bytes; the brick's own CRC field is 0. */
-static int parse_units(loom_db *db, uint32_t i, const uint8_t *x, uint64_t io,
-                       loom_diag *diag)
+static int parse_units(loom_db *db, uint32_t i, db_brick *b, const uint8_t *x,
+                       uint64_t io, loom_diag *diag)
 {
-	db_brick *b = &db->bricks[i];
 	uint64_t sum = 0;
 	char name[192];
 
@@ -425,13 +445,26 @@ static int units_raw(const loom_db *db, const db_brick *b)
 static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
                        uint64_t io, loom_diag *diag)
 {
+	size_t words = ((size_t)db->n_bricks + 63) / 64;
+	uint32_t n = 0, k = 0;
 
+	/* the stored bricks first (the storage byte; checked below), so that
+	   only they get an entry in memory */
+	for (uint32_t i = 0; i < db->n_bricks; i++)
+		n += m[io + (size_t)i * db->entry_bytes + 20] != LOOM__DB_STORE_EMPTY;
+	db->bricks = calloc(n ? n : 1, sizeof *db->bricks);
+	db->stored_bits = calloc(words ? words : 1, sizeof *db->stored_bits);
+	db->stored_rank = calloc(words ? words : 1, sizeof *db->stored_rank);
+	if (!db->bricks || !db->stored_bits || !db->stored_rank)
+		return FAILF(LOOM_ENOMEM, "%s: out of memory (index of %u stored bricks)",
+		             db->path, n);
 	for (uint32_t i = 0; i < db->n_bricks; i++) {
 		const uint8_t *x = m + io + (size_t)i * db->entry_bytes;
-		db_brick *b = &db->bricks[i];
+		db_brick bb, *b = &bb;
 		uint32_t raw = loom__le32(x + 12);
 		char name[192];
 
+		memset(b, 0, sizeof *b);
 		b->offset = loom__le64(x);
 		b->stored = loom__le32(x + 8);
 		b->crc = loom__le32(x + 16);
@@ -445,7 +478,7 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 			             (size_t)(io + (size_t)i * db->entry_bytes), b->storage);
 		}
 		if (db->entry_bytes == LOOM__DB_INDEX2_BYTES) {
-			int rc = parse_units(db, i, x, io, diag);
+			int rc = parse_units(db, i, b, x, io, diag);
 			if (rc)
 				return rc;
 		}
@@ -490,7 +523,13 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 		db->info.stored_bytes += b->stored;
 		if (b->stored > db->max_stored)
 			db->max_stored = b->stored;
+		db->bricks[k++] = *b;
+		db->stored_bits[i >> 6] |= 1ull << (i & 63);
 	}
+	db->n_stored = k;
+	for (size_t w = 1; w < words; w++)
+		db->stored_rank[w] = db->stored_rank[w - 1] +
+		                     (uint32_t)__builtin_popcountll(db->stored_bits[w - 1]);
 	(void)mlen;
 	return LOOM_OK;
 }
@@ -508,7 +547,7 @@ static int check_stored(loom_db *db, loom_diag *diag)
 		const loom_db_exemplar_info *x = &db->ex[k].pub;
 		uint64_t nb = (uint64_t)x->bricks[0] * x->bricks[1] * x->bricks[2], sum = 0;
 		for (uint64_t i = 0; i < nb; i++)
-			sum += db->bricks[x->first_brick + i].stored;
+			sum += brick_at(db, (uint32_t)(x->first_brick + i))->stored;
 		if (sum != x->stored_bytes)
 			return FAILF(LOOM_EFORMAT, "%s: exemplar %u at metadata offset %zu, "
 			             "field 'stored_bytes': %llu, its bricks store %llu",
@@ -517,8 +556,8 @@ static int check_stored(loom_db *db, loom_diag *diag)
 			             (unsigned long long)x->stored_bytes,
 			             (unsigned long long)sum);
 	}
-	for (uint32_t i = 0; i < db->n_bricks; i++)
-		if (db->bricks[i].stored && db->bricks[i].offset + db->bricks[i].stored > end)
+	for (uint32_t i = 0; i < db->n_stored; i++)
+		if (db->bricks[i].offset + db->bricks[i].stored > end)
 			end = db->bricks[i].offset + db->bricks[i].stored;
 	if (db->data_end - end >= 8)
 		return FAILF(LOOM_EFORMAT, "%s: offset %llu: %llu bytes between the brick "
@@ -581,8 +620,7 @@ static int parse_metadata(loom_db *db, const uint8_t *m, uint64_t mlen,
 		             "(%u bricks) outside the %llu-byte metadata", p,
 		             (unsigned long long)io, db->n_bricks, (unsigned long long)mlen);
 	db->ex = calloc(db->info.n_exemplars, sizeof *db->ex);
-	db->bricks = calloc(db->n_bricks ? db->n_bricks : 1, sizeof *db->bricks);
-	if (!db->ex || !db->bricks)
+	if (!db->ex)
 		return FAILF(LOOM_ENOMEM, "%s: out of memory", p);
 	for (uint32_t k = 0; k < db->info.n_exemplars; k++) {
 		rc = parse_exemplar(db, k, m, mlen, &next, diag);
@@ -755,6 +793,8 @@ LOOM_API void loom_db_close(loom_db *db)
 		}
 	free(db->ex);
 	free(db->bricks);
+	free(db->stored_bits);
+	free(db->stored_rank);
 	free(db->path);
 	free(db);
 }
@@ -902,7 +942,7 @@ void loom__db_brick_name(const loom_db *db, uint32_t id, char *buf, size_t n)
 
 int loom__db_brick_empty(const loom_db *db, uint32_t id)
 {
-	return id < db->n_bricks && db->bricks[id].storage == LOOM__DB_STORE_EMPTY;
+	return id < db->n_bricks && brick_at(db, id)->storage == LOOM__DB_STORE_EMPTY;
 }
 
 size_t loom__db_scratch_bytes(const loom_db *db)
@@ -921,7 +961,7 @@ static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
                        struct libdeflate_decompressor *dec, const uint8_t *src,
                        uint64_t off, uint8_t *out, loom_diag *diag)
 {
-	const db_brick *b = &db->bricks[id];
+	const db_brick *b = brick_at(db, id);
 	size_t V = db->brick_voxels;
 	uint32_t crc;
 	enum libdeflate_result r;
@@ -987,7 +1027,7 @@ static int read_units(const loom_db *db, uint32_t id,
                       struct libdeflate_decompressor *dec, uint8_t *scratch,
                       uint8_t *out, size_t *n_read, loom_diag *diag)
 {
-	const db_brick *b = &db->bricks[id];
+	const db_brick *b = brick_at(db, id);
 	uint64_t off = b->offset;
 	int rc = brick_pread(db, id, scratch, b->stored, off, n_read, diag);
 
@@ -1015,7 +1055,7 @@ int loom__db_read_brick(const loom_db *db, uint32_t id,
 	if (id >= db->n_bricks)
 		return loom__fail(diag, LOOM_ERANGE, "%s: brick %u out of range (the "
 		                  "database has %u bricks)", db->path, id, db->n_bricks);
-	b = &db->bricks[id];
+	b = brick_at(db, id);
 	if (b->storage == LOOM__DB_STORE_EMPTY) {
 		memset(out, 0, db->brick_bytes);
 		return LOOM_OK;
@@ -1127,7 +1167,7 @@ int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
 		return loom__fail(diag, LOOM_EUNSUPPORTED, "%s: voxel layout %u stores "
 		                  "whole bricks, not plane units", db->path,
 		                  db->info.voxel_layout);
-	b = &db->bricks[id];
+	b = brick_at(db, id);
 	off = b->offset;
 	for (unsigned k = 0; k < u; k++)
 		off += b->ub[k];

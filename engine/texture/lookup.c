@@ -186,7 +186,7 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	e->tok[3] = 0;
 	e->tlut_ok = 0;
 	xent_coef(t, &xg.nb, e->a);
-	loom__dzmap_attach(t, e);
+	loom__dzmap_attach(t, e, 0); /* evicting waits for a run (loom__dz_slow) */
 	e->valid = 1;
 	bump(&s->cnt.xings, 1);
 found:
@@ -266,7 +266,7 @@ static void map_reclaim(loom_texture *t, uint32_t m, struct xent *e)
 	e->w = w;
 }
 
-void loom__dzmap_attach(loom_texture *t, struct xent *e)
+void loom__dzmap_attach(loom_texture *t, struct xent *e, int evict)
 {
 	uint32_t set = map_set(t, e->I, e->J);
 
@@ -278,7 +278,7 @@ void loom__dzmap_attach(loom_texture *t, struct xent *e)
 		/* CLOCK inside the set: never-used maps first, then one whose
 		   bit is clear (clearing bits on the way); a map with a writer
 		   in flight cannot be closed and is passed over */
-		for (uint32_t k = 0; k < 3 * DZ_WAYS; k++) {
+		for (uint32_t k = 0; k < (evict ? 3 : 1) * DZ_WAYS; k++) {
 			uint32_t m = set + k % DZ_WAYS, zero = 0;
 			int fresh = atomic_load_explicit(&t->mapgen[m], memory_order_relaxed) == 0;
 			if (!fresh && k < DZ_WAYS)
@@ -323,9 +323,21 @@ int loom__dz_slow(const loom_texture *tc, struct tslot *s, struct xent *e, uint3
 	size_t c = (size_t)ly * t->b1 + lx;
 	int q;
 
+	/* Taking a map from another crossing clears its 16-bit lanes (16 KiB
+	   for a paper-scale block) and pays only if this crossing's columns
+	   are looked up again: so only after DZ_RUN offsets evaluated in a
+	   row in this entry (a walk, a region, a footprint), never for
+	   lookups scattered over more crossings than the maps hold (random
+	   points below the working set: they only find maps or free ones). */
+	s->dz_run = s->dz_prev == e ? s->dz_run + 1 : 1;
+	s->dz_prev = e;
+	if (e->map == NO_MAP && s->dz_run < DZ_RUN) {
+		bump(&s->cnt.dz, 1);
+		return loom__dz_fixed(dz_eval(t, e->a, lx, ly));
+	}
 	if (e->map == NO_MAP ||
 	    atomic_load_explicit(&t->mapgen[e->map], memory_order_relaxed) != e->gen) {
-		loom__dzmap_attach(t, e); /* reclaimed meanwhile: find or claim */
+		loom__dzmap_attach(t, e, 1); /* reclaimed meanwhile: find or claim */
 		if (e->map != NO_MAP) {   /* another thread may have computed it */
 			uint64_t w = atomic_load_explicit(&e->w[c >> 2], memory_order_acquire);
 			unsigned v = (unsigned)(w >> (16 * (c & 3))) & 0xffffu;

@@ -53,7 +53,10 @@
  *   writer count first (compare-and-swap 0 -> closed, under map_lock), so
  *   a map never takes another crossing's offset.  When every map of a set
  *   has a writer in flight, the entry goes without (offsets computed on
- *   the spot).  lookup.c has the code.
+ *   the spot).  An entry set up takes only a map never used; it takes one
+ *   from another crossing (clearing its lanes) after DZ_RUN offsets
+ *   evaluated in a row in it, so scattered lookups do not clear a map
+ *   each.  lookup.c has the code.
  *
  * DETERMINISM
  *   Every value is a pure function of the fabric, the database and the

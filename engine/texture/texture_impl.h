@@ -51,6 +51,8 @@
 #define RCOLS 64            /* columns gathered at once (x-fastest regions) */
 #define RZ 64               /* z values gathered at once */
 #define DZ_WAYS 4           /* shared offset maps per set */
+#define DZ_RUN 4            /* offsets in a row in one entry before it may
+                               take a map from another crossing */
 #define DZ_BIAS 32768       /* a map lane holds q + DZ_BIAS (never 0); 0: not
                                computed yet */
 #define NO_MAP UINT32_MAX
@@ -147,6 +149,10 @@ struct tslot {
 	struct colmemo cm[4];    /* by the parity of x and y: the last
 	                            trilinear footprint's 2 x 2 columns */
 	int shared;              /* the overflow slot */
+	const struct xent *dz_prev; /* the entry of the last offset evaluated */
+	uint32_t dz_run;         /* offsets evaluated in a row in dz_prev
+	                            (lookup.c, loom__dz_slow: when a map may
+	                            be taken from another crossing) */
 	uint32_t clock;          /* stamps for the entries' LRU */
 	uint32_t next_free;      /* pool free list */
 	struct xent *ent;        /* n_ent crossing entries: n_ent / XENT_WAYS
@@ -386,8 +392,9 @@ static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
 int loom__dz_slow(const loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx,
                   uint32_t ly);
 /* Step 2's part: attach entry e (I, J set) to the shared map of its
-   crossing, claiming one if none holds it (lookup.c). */
-void loom__dzmap_attach(loom_texture *t, struct xent *e);
+   crossing, claiming one if none holds it; with evict 0 only a map no
+   crossing has used yet (lookup.c). */
+void loom__dzmap_attach(loom_texture *t, struct xent *e, int evict);
 
 /* Step 3, from the shared offset map of the entry's crossing: the offset
    of column (lx, ly) in 1/DZ_SUB voxel (loom__dz_fixed).  One load of the

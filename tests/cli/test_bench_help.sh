@@ -43,4 +43,11 @@ expect_exit texture_parts 2 "$LOOM_BUILD/bench/bench_texture" 9
 expect_err_contains texture_parts_named "unexpected argument '9'"
 expect_exit wif_runs 2 "$LOOM_BUILD/bench/bench_wif" 0
 expect_exit volio_size 2 "$LOOM_BUILD/bench/bench_volio" 8
+# a malformed brick shape for bench_vdb's database: refused before any work
+if [ -x "$LOOM_BUILD/bench/bench_vdb" ]; then
+	BENCH_VDB_BRICK=16x16 expect_exit vdb_brick 2 "$LOOM_BUILD/bench/bench_vdb"
+	expect_err_contains vdb_brick_named "BENCH_VDB_BRICK='16x16': expected XxYxZ"
+	if [ -z "$(ls -A "$BUILD")" ]; then pass vdb_brick_nothing_ran; else
+		fail vdb_brick_nothing_ran "files made under BUILD: $(ls "$BUILD")"; fi
+fi
 rm -rf "$T"
