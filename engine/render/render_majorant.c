@@ -46,15 +46,18 @@
 #define MAX_ZCELLS 64u     /* z cells per crossing (Z grows to fit) */
 #define CELL_XY 4u         /* target cell size in x and y (voxels) */
 
-/* The largest divisor of b at most CELL_XY (cells tile a crossing). */
+/* The divisor of b nearest CELL_XY, at most 2 CELL_XY, the smaller on a
+   tie (cells tile a crossing).  The largest divisor at most CELL_XY gave
+   1 for the paper's b1 = 115 (5 x 23) and 2 for b2 = 70: 4025 cells a
+   block, a 0.5 GB grid at the paper's scale; 5 x 5 gives 322. */
 static uint32_t cell_side(uint32_t b)
 {
-	uint32_t s = CELL_XY;
-	if (s > b)
-		s = b;
-	while (b % s)
-		s--;
-	return s;
+	uint32_t best = 1;
+	for (uint32_t s = 1; s <= 2 * CELL_XY && s <= b; s++)
+		if (b % s == 0 && (s > CELL_XY ? s - CELL_XY : CELL_XY - s) <
+		                          (best > CELL_XY ? best - CELL_XY : CELL_XY - best))
+			best = s;
+	return best;
 }
 
 struct loom_majorant {
@@ -116,17 +119,16 @@ static int fill_spans(loom_majorant *m)
 	return LOOM_OK;
 }
 
-LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
-                                 loom_diag *diag)
+/* The grid's header: cell geometry, block offsets and edge-fix ranges,
+   everything but the layer bounds (so its size is known before they are
+   read: loom_majorant_size). */
+static int mj_geometry(const loom_fabric *f, loom_majorant **out, loom_diag *diag)
 {
 	const loom_db *db;
 	loom_db_info info;
 	loom_majorant *m;
-	uint8_t *buf = NULL;
 	int rc;
 
-	if (!out)
-		return loom__fail(diag, LOOM_EINVAL, "majorant: NULL argument");
 	*out = NULL;
 	if (!f || !loom_fabric_attached(f) || !(db = loom_fabric_db(f)))
 		return loom__fail(diag, LOOM_EINVAL,
@@ -189,40 +191,80 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 	} else {
 		memset(&m->ef, 0, sizeof m->ef);
 	}
+	*out = m;
+	return LOOM_OK;
+fail:
+	loom_majorant_free(m);
+	return rc;
+}
+
+LOOM_API int loom_majorant_size(const loom_fabric *f, uint32_t threads, size_t *bytes,
+                                loom_diag *diag)
+{
+	loom_majorant *m;
+	int rc;
+
+	if (!bytes)
+		return loom__fail(diag, LOOM_EINVAL, "majorant: NULL argument");
+	*bytes = 0;
+	if ((rc = mj_geometry(f, &m, diag)) != LOOM_OK)
+		return rc;
+	*bytes = loom_majorant_bytes(m, threads);
+	loom_majorant_free(m);
+	return LOOM_OK;
+}
+
+LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
+                                 loom_diag *diag)
+{
+	const loom_db *db;
+	loom_db_info info;
+	loom_majorant *m;
+	uint8_t *buf = NULL;
+	int rc;
+
+	if (!out)
+		return loom__fail(diag, LOOM_EINVAL, "majorant: NULL argument");
+	if ((rc = mj_geometry(f, out, diag)) != LOOM_OK)
+		return rc;
+	m = *out;
+	*out = NULL;
+	db = loom_fabric_db(f);
+	loom_db_get_info(db, &info);
 	m->layer = calloc(m->n_blocks * m->nsub * m->b3 + 1u, 1);
 	if (!m->layer) {
 		rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
 		goto fail;
 	}
-	/* One row of blocks at a time: cols*b1 x b2 x b3 bytes of scratch. */
+	/* One block at a time: b1 x b2 x b3 bytes of scratch (2.4 MB at the
+	   paper's scale; a row of blocks was up to 19 MB, outside --budget) */
+	buf = malloc((size_t)m->b1 * m->b2 * m->b3);
+	if (!buf) {
+		rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+		goto fail;
+	}
 	for (uint32_t u = 0; u < info.n_exemplars; u++) {
 		loom_db_exemplar_info ei;
 		loom_db_exemplar(db, u, &ei);
-		free(buf);
-		buf = malloc((size_t)ei.size[0] * m->b2 * m->b3);
-		if (!buf) {
-			rc = loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
-			goto fail;
-		}
-		for (uint32_t r = 0; r < ei.rows; r++) {
-			uint32_t org[3] = {0, r * m->b2, 0};
-			uint32_t size[3] = {ei.size[0], m->b2, m->b3};
-			if ((rc = loom_db_read_box(db, u, org, size, buf, NULL, NULL, diag)))
-				goto fail;
-			for (uint32_t z = 0; z < m->b3; z++)
-				for (uint32_t y = 0; y < m->b2; y++) {
-					const uint8_t *row = buf + ((size_t)z * m->b2 + y) * ei.size[0];
-					for (uint32_t c = 0; c < ei.cols; c++) {
-						uint8_t *blk = m->layer +
-						    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->nsub * m->b3;
+		for (uint32_t r = 0; r < ei.rows; r++)
+			for (uint32_t c = 0; c < ei.cols; c++) {
+				uint32_t org[3] = {c * m->b1, r * m->b2, 0};
+				uint32_t size[3] = {m->b1, m->b2, m->b3};
+				uint8_t *blk = m->layer +
+				    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->nsub * m->b3;
+				if ((rc = loom_db_read_box(db, u, org, size, buf, NULL, NULL, diag)))
+					goto fail;
+				for (uint32_t z = 0; z < m->b3; z++)
+					for (uint32_t y = 0; y < m->b2; y++) {
+						const uint8_t *row = buf + ((size_t)z * m->b2 + y) * m->b1;
 						for (uint32_t x = 0; x < m->b1; x++) {
-							uint8_t *dst = blk + ((size_t)(y / m->sy) * m->nsx + x / m->sx) * m->b3 + z;
-							if (row[c * m->b1 + x] > *dst)
-								*dst = row[c * m->b1 + x];
+							uint8_t *dst = blk + ((size_t)(y / m->sy) * m->nsx +
+							                      x / m->sx) * m->b3 + z;
+							if (row[x] > *dst)
+								*dst = row[x];
 						}
 					}
-				}
-		}
+			}
 	}
 	free(buf);
 	buf = NULL;

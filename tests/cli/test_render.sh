@@ -63,6 +63,11 @@ if cmp -s "$T/a.png" "$T/d.png"; then fail seed_matters "seeds 7 and 8 gave the 
 expect_ok json "$LOOM" render "$F" $R --json -o "$T/e.exr"
 json_check json_fields "j['width'] == 64 and j['height'] == 48 and j['paths'] == 64*48*2 and j['scene'] == 'flat' and j['lookups'] > 0"
 json_check json_grid "j['majorant'] == 'grid' and j['cells'] > 0 and j['majorant_bytes'] > 0"
+# a budget below the grid is refused before it is built (nothing written)
+expect_exit grid_budget 1 "$LOOM" render "$F" $R --budget 2 -o "$T/nogrid.png"
+expect_err_contains grid_budget_msg "cannot hold the majorant grid"
+if [ -e "$T/nogrid.png" ]; then fail grid_budget_nothing "$T/nogrid.png written"; else
+	pass grid_budget_nothing; fi
 # the majorant grid (default) against one global bound: same picture (EXR
 # means within Monte Carlo error), fewer lookups.  Measured 2026-12-02 on
 # this scene: cotton fibre-level exemplars (the default) 5.28 M lookups

@@ -215,9 +215,15 @@ static void test_majorant_bounds(void)
 	if (!m)
 		return;
 	loom_majorant_cell_size(m, cell);
-	/* cells tile a crossing: at most 4 voxels across (docs/rendering.md) */
-	CHECK(cell[0] >= 1 && cell[0] <= 4 && B[0] % cell[0] == 0);
-	CHECK(cell[1] >= 1 && cell[1] <= 4 && B[1] % cell[1] == 0);
+	/* cells tile a crossing: at most 8 voxels across (docs/rendering.md) */
+	CHECK(cell[0] >= 1 && cell[0] <= 8 && B[0] % cell[0] == 0);
+	CHECK(cell[1] >= 1 && cell[1] <= 8 && B[1] % cell[1] == 0);
+	/* the size known before the build is the built grid's */
+	for (uint32_t th = 1; th <= 2; th++) {
+		size_t pre = 0;
+		CHECK_EQ_INT(loom_majorant_size(g_fab, th, &pre, &d), LOOM_OK);
+		CHECK_EQ_INT(pre, loom_majorant_bytes(m, th));
+	}
 	CHECK(cell[2] >= 1 && (B[2] + cell[2] - 1) / cell[2] <= 64);
 	nsx = B[0] / cell[0];
 	nsy = B[1] / cell[1];

@@ -684,6 +684,20 @@ int cmd_render(int argc, char **argv)
 	/* The majorant grid (flat patches) is counted in --budget: the texture
 	   gets what it leaves. */
 	if (!mesh_path && !global_mj && !paint) {
+		/* refused before the build reads every block of the database */
+		if (loom_majorant_size(f, to.max_threads, &mj_bytes, &diag) != LOOM_OK) {
+			loom_fabric_free(f);
+			loom_db_close(db);
+			cli_fail(prog, "%s", diag.message);
+		}
+		if (mj_bytes + env_bytes >= budget) {
+			cli_error(prog, "--budget %g MiB cannot hold the majorant grid (%zu "
+			          "bytes) and the texture (or --majorant global)", budget_mb,
+			          mj_bytes);
+			loom_fabric_free(f);
+			loom_db_close(db);
+			return EXIT_BAD_INPUT;
+		}
 		if (loom_majorant_build(f, &mj, &diag) != LOOM_OK) {
 			loom_fabric_free(f);
 			loom_db_close(db);

@@ -196,8 +196,8 @@ LOOM_API int loom_texture_volume_source(loom_texture *t, const loom_fabric *f,
  * Majorant grid of a fabric (docs/rendering.md, "Majorant grid"): per
  * source block of the database and per z layer the largest density, built
  * by reading every block once (n_blocks * b3 bytes; never proportional to
- * the bolt).  Cells are at most 4 x 4 voxels of a crossing (the largest
- * divisors of b1, b2) by Z voxels (1, more when b3 > 64).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
+ * the bolt).  Cells are about 4 x 4 voxels of a crossing (the divisors
+ * of b1, b2 nearest 4, at most 8) by Z voxels (1, more when b3 > 64).  f is borrowed.  Returns LOOM_OK; LOOM_EINVAL (NULL,
  * detached fabric); read errors of loom_db_read_box; LOOM_ENOMEM.
  */
 typedef struct loom_majorant loom_majorant;
@@ -206,6 +206,12 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 LOOM_API void loom_majorant_free(loom_majorant *m);
 /* Bytes the grid takes, with `threads` render threads' caches. */
 LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads);
+/* What loom_majorant_bytes will say of f's grid, from the database's
+   geometry alone (nothing read, nothing large allocated): to refuse a
+   budget before building.  LOOM_OK; LOOM_EINVAL (NULL, detached fabric);
+   LOOM_ENOMEM. */
+LOOM_API int loom_majorant_size(const loom_fabric *f, uint32_t threads, size_t *bytes,
+                                loom_diag *diag);
 /* Cell size in voxels (x, y, z). */
 LOOM_API void loom_majorant_cell_size(const loom_majorant *m, int64_t cell[3]);
 /* Raw density bounds (0..255) of the cells of crossing (I, J) for lookups
