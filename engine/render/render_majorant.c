@@ -809,6 +809,10 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	src->cell_zspan = mj_cell_zspan;
 	if (loom_texture_lod_levels(t))
 		src->lookup_lod = grid_lookup_lod;
-	src->density = grid_density;
+	/* the density-first test of tentative collisions pays only against
+	   loose bounds: with exact cells three in four tentative collisions
+	   (Cycles bench scene) have a density above 0 and would be looked up
+	   twice */
+	src->density = x_ok(m) ? NULL : grid_density;
 	return LOOM_OK;
 }
