@@ -261,6 +261,9 @@ static void perpendicular(const double a[3], double out[3])
 	loom__normalize3(out);
 }
 
+/* loom_microflake_sample's constants of the last roughness (per thread) */
+static _Thread_local double mf_last_s = -1.0, mf_last_k1, mf_last_c1;
+
 LOOM_API void loom_microflake_sample(double s, const double w[3],
                                      const double wi[3], uint64_t *rng,
                                      double wo[3])
@@ -287,13 +290,20 @@ LOOM_API void loom_microflake_sample(double s, const double w[3],
 	}
 	loom__cross3(axis, e1, e2);
 	a = fabs(c);
-	/* c1 = int |t| D(m) dm;  the |cos phi| component has mass 2/pi. */
-	k1 = -expm1(-1.0 / (2.0 * s * s));
-	c1 = s * sqrt(2.0 / M_PI) * k1 / erf(1.0 / (s * M_SQRT2));
+	/* c1 = int |t| D(m) dm;  the |cos phi| component has mass 2/pi.
+	   Both depend on s alone: the thread keeps the last s's (a path
+	   meets a few yarn types' roughnesses) */
+	if (s != mf_last_s) {
+		mf_last_k1 = -expm1(-1.0 / (2.0 * s * s));
+		mf_last_c1 = s * sqrt(2.0 / M_PI) * mf_last_k1 / erf(1.0 / (s * M_SQRT2));
+		mf_last_s = s;
+	}
+	k1 = mf_last_k1;
+	c1 = mf_last_c1;
 	p1 = a * c1 / (a * c1 + b * (2.0 / M_PI));
 
 	for (;;) {
-		double t, phi, st, bound, target;
+		double t, cp, sp, st, bound, target;
 		if (loom__rand01(rng) < p1) {
 			double u = loom__rand01(rng);
 			t = s * sqrt(-2.0 * log1p(-u * k1));
@@ -301,19 +311,26 @@ LOOM_API void loom_microflake_sample(double s, const double w[3],
 				t = 1.0;
 			if (loom__rand01(rng) < 0.5)
 				t = -t;
-			phi = 2.0 * M_PI * loom__rand01(rng);
+			u = 2.0 * M_PI * loom__rand01(rng);
+			cp = cos(u);
+			sp = sin(u);
 		} else {
+			/* phi = asin(v) (+ pi): sin phi = v, cos phi = sqrt(1 - v^2)
+			   (the signs of both flipped by the pi) without the trig */
 			t = truncated_normal(s, rng);
-			phi = asin(2.0 * loom__rand01(rng) - 1.0);
-			if (loom__rand01(rng) < 0.5)
-				phi += M_PI;
+			sp = 2.0 * loom__rand01(rng) - 1.0;
+			cp = sqrt(fmax(0.0, 1.0 - sp * sp));
+			if (loom__rand01(rng) < 0.5) {
+				sp = -sp;
+				cp = -cp;
+			}
 		}
 		st = sqrt(fmax(0.0, 1.0 - t * t));
-		bound = a * fabs(t) + b * fabs(cos(phi));
-		target = fabs(c * t + b * st * cos(phi));
+		bound = a * fabs(t) + b * fabs(cp);
+		target = fabs(c * t + b * st * cp);
 		if (loom__rand01(rng) * bound < target) {
 			for (int j = 0; j < 3; j++)
-				m[j] = t * axis[j] + st * (cos(phi) * e1[j] + sin(phi) * e2[j]);
+				m[j] = t * axis[j] + st * (cp * e1[j] + sp * e2[j]);
 			break;
 		}
 	}

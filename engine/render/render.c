@@ -361,10 +361,11 @@ void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
 		g->d[j] = d[j];
 		g->c[j] = (int64_t)floor(p / g->cell[j]);
 		g->step[j] = d[j] > 0 ? 1 : d[j] < 0 ? -1 : 0;
+		g->inv[j] = d[j] != 0 ? 1.0 / d[j] : 0.0;
 		if (d[j] > 0)
-			g->tnext[j] = ((double)(g->c[j] + 1) * g->cell[j] - o[j]) / d[j];
+			g->tnext[j] = ((double)(g->c[j] + 1) * g->cell[j] - o[j]) * g->inv[j];
 		else if (d[j] < 0)
-			g->tnext[j] = ((double)g->c[j] * g->cell[j] - o[j]) / d[j];
+			g->tnext[j] = ((double)g->c[j] * g->cell[j] - o[j]) * g->inv[j];
 		else
 			g->tnext[j] = INFINITY;
 	}

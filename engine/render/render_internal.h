@@ -59,7 +59,8 @@ static inline double loom__normalize3(double v[3])
  * per axis, along o + t d for t in [t0, t1].  After init, cell c is the one
  * holding o + t0 d and the ray stays in it until loom__dda_exit(); next
  * moves to the following cell and returns 0 once t1 is reached.  Cell
- * boundaries are recomputed from o at every step (no accumulated error);
+ * boundaries are recomputed from o at every step (no accumulated error;
+ * times by a multiplication with 1 / d, within an ulp of the quotient);
  * where two planes are crossed at the same t the ray visits a cell for a
  * zero length, which trackers skip for free.
  */
@@ -68,6 +69,7 @@ typedef struct loom__dda {
 	int step[3];
 	double cell[3];
 	double o[3], d[3];
+	double inv[3];           /* 1 / d (0 where d is 0) */
 	double tnext[3];
 	double t, t1;
 } loom__dda;
@@ -86,8 +88,8 @@ static inline int loom__dda_next(loom__dda *g)
 	}
 	g->t = g->tnext[a];
 	g->c[a] += g->step[a];
-	g->tnext[a] = ((double)(g->c[a] + (g->step[a] > 0)) * g->cell[a] - g->o[a]) /
-	              g->d[a];
+	g->tnext[a] = ((double)(g->c[a] + (g->step[a] > 0)) * g->cell[a] - g->o[a]) *
+	              g->inv[a];
 	return 1;
 }
 static inline double loom__dda_exit(const loom__dda *g)

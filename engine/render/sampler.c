@@ -12,6 +12,9 @@
 /* Direction numbers of the first four Sobol dimensions, top bits of a
    32-bit fraction: v[d][b] is what index bit b XORs in. */
 static uint32_t sobol_v[4][LOOM__LD_BITS];
+/* sobol_t[d][k][b]: the XOR of the direction numbers of the set bits of
+   byte b of the index at byte position k (bits 8k..8k+7) */
+static uint32_t sobol_t[4][3][256];
 static pthread_once_t sobol_once = PTHREAD_ONCE_INIT;
 
 /*
@@ -47,20 +50,25 @@ static void sobol_init(void)
 					v[i] ^= v[i - k];
 		}
 	}
+	for (int d = 0; d < 4; d++)
+		for (int k = 0; k < 3; k++)
+			for (uint32_t b = 0; b < 256; b++) {
+				uint32_t x = 0;
+				for (int j = 0; j < 8 && 8 * k + j < LOOM__LD_BITS; j++)
+					if (b >> j & 1u)
+						x ^= sobol_v[d][8 * k + j];
+				sobol_t[d][k][b] = x;
+			}
 }
 
 uint32_t loom__sobol32(uint32_t i, uint32_t dim)
 {
-	uint32_t x = 0;
-	const uint32_t *v;
+	const uint32_t (*t)[256];
 
 	pthread_once(&sobol_once, sobol_init);
-	v = sobol_v[dim & 3u];
+	t = sobol_t[dim & 3u];
 	i &= LD_MASK;
-	for (int b = 0; i; b++, i >>= 1)
-		if (i & 1u)
-			x ^= v[b];
-	return x;
+	return t[0][i & 255u] ^ t[1][(i >> 8) & 255u] ^ t[2][i >> 16];
 }
 
 static inline uint64_t fmix64(uint64_t x)
@@ -73,42 +81,42 @@ static inline uint64_t fmix64(uint64_t x)
 	return x;
 }
 
-/* A hash of seed s, nesting level `level` and the digits `prefix` that
-   decide it (distinct (level, prefix) give distinct values for one s). */
-static inline uint64_t node_hash(uint64_t s, uint32_t level, uint32_t prefix)
+static inline uint32_t rev32(uint32_t x)
 {
-	uint64_t key = ((uint64_t)level << 32) | prefix;
-	return fmix64(s ^ (key * 0x9e3779b97f4a7c15ull));
+	x = __builtin_bswap32(x);
+	x = (x & 0x0f0f0f0fu) << 4 | (x >> 4 & 0x0f0f0f0fu);
+	x = (x & 0x33333333u) << 2 | (x >> 2 & 0x33333333u);
+	return (x & 0x55555555u) << 1 | (x >> 1 & 0x55555555u);
+}
+
+/*
+ * A nested scramble of bit-reversed digits (Laine and Karras's
+ * construction): adding, multiplying by an odd number and x ^= x * even
+ * change bit k of r only as a function of bits 0..k, so on the reversed
+ * value each digit is flipped by a function of the seed and the digits
+ * above it.  Two operations take the seed, three fixed even multipliers
+ * (the fractional parts of sqrt 2, 3, 5, made even) mix the lower digits
+ * into the higher ones.
+ */
+static inline uint32_t nest(uint32_t r, uint64_t s)
+{
+	r ^= r * 0x6a09e666u;
+	r += (uint32_t)s;
+	r *= (uint32_t)(s >> 32) | 1u;
+	r ^= r * 0xbb67ae84u;
+	r ^= r * 0x3c6ef372u;
+	return r;
 }
 
 double loom__owen01(uint32_t x, uint64_t s)
 {
-	uint32_t hi = x >> (32 - LOOM__LD_BITS), y = 0;
-	uint64_t tail;
-
-	for (uint32_t b = 0; b < LOOM__LD_BITS; b++) {
-		uint32_t bit = (hi >> (LOOM__LD_BITS - 1 - b)) & 1u;
-		uint32_t prefix = b ? hi >> (LOOM__LD_BITS - b) : 0u;
-		bit ^= (uint32_t)(node_hash(s, b, prefix) >> 63);
-		y = (y << 1) | bit;
-	}
-	/* the digits below the nesting: uniform, one draw per cell */
-	tail = node_hash(s, LOOM__LD_BITS, hi) >> (64 - (53 - LOOM__LD_BITS));
-	return (double)(((uint64_t)y << (53 - LOOM__LD_BITS)) | tail) *
-	       (1.0 / 9007199254740992.0);
+	return (double)rev32(nest(rev32(x), s)) * (1.0 / 4294967296.0);
 }
 
 uint32_t loom__ld_shuffle(uint32_t i, uint64_t s)
 {
-	uint32_t low = i & LD_MASK, out = 0;
-
-	for (uint32_t j = 0; j < LOOM__LD_BITS; j++) {
-		uint32_t above = j + 1 < LOOM__LD_BITS ? low >> (j + 1) : 0u;
-		uint32_t bit = ((low >> j) & 1u) ^
-		               (uint32_t)(node_hash(s, 32 + j, above) >> 63);
-		out |= bit << j;
-	}
-	return (i & ~LD_MASK) | out;
+	/* bit j of the index is the top bit j of its reversal */
+	return (i & ~LD_MASK) | (rev32(nest(rev32(i & LD_MASK), s)) & LD_MASK);
 }
 
 void loom__ld_start(loom__ld *s, uint64_t pixel_seed, uint32_t index)
@@ -117,17 +125,18 @@ void loom__ld_start(loom__ld *s, uint64_t pixel_seed, uint32_t index)
 	s->index = index;
 	s->group = ~0u;
 	s->shuffled = 0;
+	s->gseed = 0;
 }
 
 double loom__ld_get(loom__ld *s, uint32_t dim)
 {
 	uint32_t g = dim >> 2, j = dim & 3u;
-	uint64_t gs = fmix64(s->seed + (uint64_t)(g + 1) * 0xd1b54a32d192ed03ull);
 
 	if (s->group != g) {
 		s->group = g;
-		s->shuffled = loom__ld_shuffle(s->index, gs);
+		s->gseed = fmix64(s->seed + (uint64_t)(g + 1) * 0xd1b54a32d192ed03ull);
+		s->shuffled = loom__ld_shuffle(s->index, s->gseed);
 	}
 	return loom__owen01(loom__sobol32(s->shuffled, j),
-	                    fmix64(gs ^ ((uint64_t)(j + 1) * 0x8cb92ba72f3d8dd7ull)));
+	                    fmix64(s->gseed ^ ((uint64_t)(j + 1) * 0x8cb92ba72f3d8dd7ull)));
 }

@@ -5,14 +5,20 @@
  * Sample k of a pixel gets, for each dimension d, a number in [0, 1):
  * dimensions come in groups of four (g = d / 4), each group the first
  * four Sobol dimensions (Joe and Kuo's direction numbers) at a per-pixel,
- * per-group shuffled index (a nested uniform scramble of k's bits), each coordinate Owen-scrambled (nested uniform scramble,
- * high bits first) with a per-pixel, per-group, per-dimension seed.  The
- * nesting is LOOM__LD_BITS deep; the digits below get uniform random
- * bits (hashed from the seed and the digits above, which is what a full
- * Owen scramble gives them).  So for every pixel the first 2^m samples of
- * dimensions (4g, 4g+1) form a (0, m, 2)-net and each single dimension is
- * stratified into 2^m equal intervals (m <= LOOM__LD_BITS), while every
- * point on its own is uniform in [0,1)^4 and groups are independent.
+ * per-group shuffled index (a nested scramble of k's low LOOM__LD_BITS
+ * bits), each coordinate Owen-scrambled with a per-pixel, per-group,
+ * per-dimension seed.  Both scrambles are hash-based nested scrambles
+ * (Laine and Karras; Burley 2020): the digits are bit-reversed and run
+ * through a few operations each of which changes a digit only as a
+ * function of the seed and the digits above it, so every digit is
+ * flipped by a pseudo-random function of those (a full Owen scramble
+ * draws that function uniformly; this one is a hash of it, a few
+ * multiplies instead of a hash per digit).  The 32 bits of a coordinate
+ * are all scrambled; the Sobol points have LOOM__LD_BITS.  So for every
+ * pixel the first 2^m samples of dimensions (4g, 4g+1) form a (0, m,
+ * 2)-net and each single dimension is stratified into 2^m equal
+ * intervals (m <= LOOM__LD_BITS), while every point on its own is uniform
+ * in [0,1)^4 (to 32 bits) and groups are independent (all tested).
  * Everything is a pure function of (seed, pixel, k, d): no state, no
  * dependence on the thread or the order of evaluation.
  */
@@ -27,14 +33,13 @@
    bits of a 32-bit fraction (the lower bits zero). */
 uint32_t loom__sobol32(uint32_t i, uint32_t dim);
 
-/* Nested uniform (Owen) scramble of the 32-bit fraction x, seed s: bit b
-   (from the top) is flipped by a hash of s, b and the bits above it, for
-   the top LOOM__LD_BITS bits; the bits below are replaced by a hash of s
-   and the scrambled bits above.  Returns a double in [0, 1). */
+/* Hash-based nested (Owen) scramble of the 32-bit fraction x, seed s:
+   bit b (from the top) is flipped by a function of s and the bits above
+   it.  Returns a double in [0, 1) (multiples of 2^-32). */
 double loom__owen01(uint32_t x, uint64_t s);
 
 /* The index shuffle: a nested scramble of the low LOOM__LD_BITS bits of
-   i, each flipped by a hash of s, its position and the bits above it.  It
+   i, each flipped by a function of s and the bits above it.  It
    maps every aligned block of 2^m indices onto an aligned block of 2^m
    (m <= LOOM__LD_BITS), and any aligned block of 2^m Sobol points is a
    net as the first 2^m are. */
@@ -45,8 +50,10 @@ uint32_t loom__ld_shuffle(uint32_t i, uint64_t s);
 typedef struct loom__ld {
 	uint64_t seed;
 	uint32_t index;
-	uint32_t group;   /* group whose shuffled index is cached; ~0 = none */
+	uint32_t group;   /* group whose seed and shuffled index are cached;
+	                     ~0 = none */
 	uint32_t shuffled;
+	uint64_t gseed;
 } loom__ld;
 
 /* Start sample `index` of the pixel whose seed is pixel_seed. */

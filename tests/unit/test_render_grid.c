@@ -10,7 +10,9 @@
  *    every voxel of 10 x 10 crossings (negative indices included) is at or
  *    below its cell's nearest bound, and trilinear samples at random points
  *    below the trilinear bound; some cells are empty (the grid skips
- *    space).
+ *    space).  Through the grid source (nearest), every cell's bound is
+ *    its largest voxel density and a queried column's z span its exact
+ *    non-empty layers.
  *  - Renders through the grid: identical bytes on 1, 2 and 3 threads; far
  *    fewer lookups than the global majorant; the same image as the global
  *    majorant within the Monte Carlo error (8 seeds each, per-pixel
@@ -345,6 +347,74 @@ static void test_majorant_zspan(void)
 	loom_majorant_free(m);
 }
 
+/* The grid source's cells (nearest) are exact: every cell's bound is its
+   largest voxel density (as raw_bound widens a byte), never below it, and
+   once a cell column has been queried its z span is exactly its first and
+   last non-empty layer (every voxel of 8 x 8 crossings, negative indices
+   included, against loom_texture_voxel). */
+static void test_majorant_exact(void)
+{
+	loom_majorant *m = NULL;
+	loom_volume_source src;
+	loom_diag d = {0};
+	void *th;
+	int64_t cell[3], nzc, c[3], lo, hi;
+	long wrong = 0, cells = 0, nonzero = 0, spans = 0;
+
+	if (!g_tex)
+		return;
+	CHECK_EQ_INT(loom_majorant_build(g_fab, &m, &d), LOOM_OK);
+	if (!m)
+		return;
+	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, m,
+	                                             &src), LOOM_OK);
+	loom_majorant_cell_size(m, cell);
+	CHECK_EQ_INT((int)cell[2], 1);
+	nzc = B[2];
+	th = src.thread_init(src.ctx);
+	CHECK(th != NULL);
+	for (c[1] = -2 * (B[1] / cell[1]); th && c[1] < 6 * (B[1] / cell[1]); c[1]++)
+		for (c[0] = -2 * (B[0] / cell[0]); c[0] < 6 * (B[0] / cell[0]); c[0]++) {
+			int64_t first = -1, last = -1;
+			for (c[2] = 0; c[2] < nzc; c[2]++) {
+				float bound = -1, dmax = 0, want;
+				CHECK_EQ_INT(src.cell_max(th, c, &bound), LOOM_OK);
+				for (int64_t y = c[1] * cell[1]; y < (c[1] + 1) * cell[1]; y++)
+					for (int64_t x = c[0] * cell[0]; x < (c[0] + 1) * cell[0]; x++) {
+						loom_texel tx;
+						CHECK_EQ_INT(loom_texture_voxel(g_tex, x, y, c[2], &tx), LOOM_OK);
+						dmax = tx.density > dmax ? tx.density : dmax;
+					}
+				want = dmax > 0 ? (float)lroundf(dmax * 255.0f) / 255.0f * 1.0001f : 0.0f;
+				cells++;
+				nonzero += dmax > 0;
+				if (dmax > 0 && first < 0)
+					first = c[2];
+				if (dmax > 0)
+					last = c[2];
+				if ((bound != want || bound < dmax) && wrong++ < 3)
+					printf("  cell (%lld %lld %lld) bound %g, largest density %g\n",
+					       (long long)c[0], (long long)c[1], (long long)c[2], bound, dmax);
+			}
+			c[2] = 0;
+			CHECK_EQ_INT(src.cell_zspan(th, c, &lo, &hi), LOOM_OK);
+			if (first < 0 ? lo <= hi : (lo != first || hi != last)) {
+				if (wrong++ < 3)
+					printf("  column (%lld %lld) span [%lld %lld], non-empty [%lld %lld]\n",
+					       (long long)c[0], (long long)c[1], (long long)lo, (long long)hi,
+					       (long long)first, (long long)last);
+			}
+			spans++;
+		}
+	printf("  exact bounds: %ld cells (%ld non-empty), %ld column spans\n", cells,
+	       nonzero, spans);
+	CHECK_EQ_INT((int)wrong, 0);
+	CHECK(nonzero > 0 && nonzero < cells);
+	if (th)
+		src.thread_done(src.ctx, th);
+	loom_majorant_free(m);
+}
+
 /* ---- renders ------------------------------------------------------------- */
 
 static void init_opt(loom_render_options *o, uint32_t w, uint32_t h, uint32_t spp)
@@ -410,25 +480,35 @@ static void test_grid_renders(void)
 	CHECK(memcmp(a, c, W * H * 3 * sizeof *a) == 0);
 	CHECK(sg.cells > 0);
 	/* the optional hooks change nothing but the cost: without the
-	   density-first test of tentative collisions (camera, scattered and
-	   shadow rays; h = 0) or without the column z spans that pass a
-	   column's empty layers with no cell_max calls (h = 1), the same
-	   bytes, lookups, tentative collisions and cells */
-	CHECK(grid.density != NULL && grid.cell_zspan != NULL);
+	   column z spans that pass a column's empty layers with no cell_max
+	   calls (h = 0), or without the density-first test of tentative
+	   collisions (camera, scattered and shadow rays; h = 1, on a
+	   trilinear grid: a nearest grid's exact cells do not offer it), the
+	   same bytes, lookups, tentative collisions and cells */
+	CHECK(grid.density == NULL && grid.cell_zspan != NULL);
 	for (int h = 0; h < 2; h++) {
-		loom_volume_source s = grid;
-		loom_render_stats sn;
-		if (h)
-			s.cell_zspan = NULL;
-		else
-			s.density = NULL;
+		loom_volume_source s = grid, r = grid;
+		loom_render_stats sn, sr = sg;
 		o.threads = 2;
+		if (h) {
+			CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_TRILINEAR,
+			                                             m, &r), LOOM_OK);
+			CHECK(r.density != NULL);
+			CHECK_EQ_INT(loom_render(&r, &o, a, &sr, &d), LOOM_OK);
+			s = r;
+			s.density = NULL;
+		} else {
+			s.cell_zspan = NULL;
+		}
 		CHECK_EQ_INT(loom_render(&s, &o, b, &sn, &d), LOOM_OK);
 		CHECK(memcmp(a, b, W * H * 3 * sizeof *a) == 0);
-		CHECK(sn.lookups == sg.lookups);
-		CHECK(sn.scatterings == sg.scatterings);
-		CHECK(sn.cells == sg.cells);
+		CHECK(sn.lookups == sr.lookups);
+		CHECK(sn.scatterings == sr.scatterings);
+		CHECK(sn.cells == sr.cells);
 	}
+	/* back to nearest (the grid serves one filter at a time) */
+	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, m,
+	                                             &grid), LOOM_OK);
 	/* the same image, and fewer lookups, than the global majorant */
 	o.flags = LOOM_RENDER_GLOBAL_MAJORANT;
 	CHECK_EQ_INT(loom_render(&grid, &o, b, &sl, &d), LOOM_OK);
@@ -564,6 +644,7 @@ int main(void)
 	RUN(setup);
 	RUN(test_majorant_bounds);
 	RUN(test_majorant_zspan);
+	RUN(test_majorant_exact);
 	RUN(test_grid_renders);
 	RUN(test_grid_errors);
 	loom_texture_close(g_tex);
