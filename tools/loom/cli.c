@@ -11,6 +11,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+uint32_t cli_cpus(void)
+{
+	long n = sysconf(_SC_NPROCESSORS_ONLN);
+	return n < 1 ? 1 : n > 256 ? 256 : (uint32_t)n;
+}
+
 void cli_error(const char *prog, const char *fmt, ...)
 {
 	va_list ap;

@@ -30,6 +30,9 @@ void cli_error(const char *prog, const char *fmt, ...)
 _Noreturn void cli_fail(const char *prog, const char *fmt, ...)
 	__attribute__((format(printf, 2, 3)));
 
+/* The CPUs online, 1..256: what "--threads 0" (all CPUs) means. */
+uint32_t cli_cpus(void);
+
 /* Parsers of values (opts.c and callbacks); 0 on success, -1 on bad text. */
 int cli_parse_u32(const char *s, uint32_t *v);
 int cli_parse_u64(const char *s, uint64_t *v);

@@ -680,7 +680,10 @@ int cmd_render(int argc, char **argv)
 	}
 	loom_fabric_get_db_identity(f, &id);
 	loom_fabric_repeat_voxels(f, rep);
-	to.max_threads = threads ? threads : 64;
+	if (!threads) /* all CPUs, resolved here so that the budget counts the
+	                 majorant caches of the threads that run, not 64 */
+		threads = cli_cpus();
+	to.max_threads = threads;
 	/* The majorant grid (flat patches) is counted in --budget: the texture
 	   gets what it leaves. */
 	if (!mesh_path && !global_mj && !paint) {
