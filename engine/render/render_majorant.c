@@ -267,14 +267,19 @@ LOOM_API int loom_majorant_build(const loom_fabric *f, loom_majorant **out,
 				    ((uint64_t)m->off[u] + (uint64_t)r * ei.cols + c) * m->nsub * m->b3;
 				if ((rc = loom_db_read_box(db, u, org, size, buf, NULL, NULL, diag)))
 					goto fail;
+				/* per row, the largest byte of each cell's sx voxels,
+				   then one compare with the cell's layer bound */
 				for (uint32_t z = 0; z < m->b3; z++)
 					for (uint32_t y = 0; y < m->b2; y++) {
 						const uint8_t *row = buf + ((size_t)z * m->b2 + y) * m->b1;
-						for (uint32_t x = 0; x < m->b1; x++) {
-							uint8_t *dst = blk + ((size_t)(y / m->sy) * m->nsx +
-							                      x / m->sx) * m->b3 + z;
-							if (row[x] > *dst)
-								*dst = row[x];
+						uint8_t *dst = blk + (size_t)(y / m->sy) * m->nsx * m->b3 + z;
+						for (uint32_t cx = 0; cx < m->nsx; cx++, row += m->sx,
+						              dst += m->b3) {
+							uint8_t v = 0;
+							for (uint32_t x = 0; x < m->sx; x++)
+								v = row[x] > v ? row[x] : v;
+							if (v > *dst)
+								*dst = v;
 						}
 					}
 			}
