@@ -288,6 +288,24 @@ static void test_majorant_bounds(void)
 	loom_majorant_free(m);
 }
 
+/* The fabric's majorant grid and the nearest-filter grid source over the
+   shared texture; 0 (nothing to free) when there is no texture or a call
+   failed (checked). */
+static int nearest_grid(loom_majorant **m, loom_volume_source *src)
+{
+	loom_diag d = {0};
+
+	*m = NULL;
+	if (!g_tex)
+		return 0;
+	CHECK_EQ_INT(loom_majorant_build(g_fab, m, &d), LOOM_OK);
+	if (!*m)
+		return 0;
+	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, *m, src),
+	             LOOM_OK);
+	return 1;
+}
+
 /* The grid source's z span of a cell column never hides a non-zero cell:
    every z cell outside it has bound 0 (against cell_max of every cell of
    10 x 10 crossings, nearest), and it is tighter than the slab somewhere.
@@ -296,18 +314,12 @@ static void test_majorant_zspan(void)
 {
 	loom_majorant *m = NULL;
 	loom_volume_source src;
-	loom_diag d = {0};
 	void *th;
 	int64_t cell[3], nzc, c[3], lo, hi;
 	long hidden = 0, columns = 0, tight = 0, skipped = 0;
 
-	if (!g_tex)
+	if (!nearest_grid(&m, &src))
 		return;
-	CHECK_EQ_INT(loom_majorant_build(g_fab, &m, &d), LOOM_OK);
-	if (!m)
-		return;
-	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, m,
-	                                             &src), LOOM_OK);
 	CHECK(src.cell_zspan != NULL);
 	loom_majorant_cell_size(m, cell);
 	nzc = ((int64_t)B[2] + cell[2] - 1) / cell[2];
@@ -356,18 +368,12 @@ static void test_majorant_exact(void)
 {
 	loom_majorant *m = NULL;
 	loom_volume_source src;
-	loom_diag d = {0};
 	void *th;
 	int64_t cell[3], nzc, c[3], lo, hi;
 	long wrong = 0, cells = 0, nonzero = 0, spans = 0;
 
-	if (!g_tex)
+	if (!nearest_grid(&m, &src))
 		return;
-	CHECK_EQ_INT(loom_majorant_build(g_fab, &m, &d), LOOM_OK);
-	if (!m)
-		return;
-	CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, LOOM_FILTER_NEAREST, m,
-	                                             &src), LOOM_OK);
 	loom_majorant_cell_size(m, cell);
 	CHECK_EQ_INT((int)cell[2], 1);
 	nzc = B[2];
