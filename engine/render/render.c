@@ -373,7 +373,9 @@ void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
 	g->t1 = t1;
 }
 
-/* Majorant (per scene length) of the DDA's current cell. */
+/* Majorant (per scene length) of the DDA's current cell: 0 for an empty
+   cell, -1 for one outside its column's z span (empty too, and the tracker
+   may skip the column's cells up to the span with loom__dda_skip_z). */
 static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 {
 	rctx *c = t->c;
@@ -392,7 +394,7 @@ static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 			t->zs_ok = 1;
 		}
 		if (g->c[2] < t->zs_lo || g->c[2] > t->zs_hi) {
-			*mu = 0.0;
+			*mu = -1.0; /* empty, and so is the column beyond zs_* */
 			return 0;
 		}
 	}
@@ -463,6 +465,9 @@ static int track_grid(tstate *t, const double o[3], const double d[3], double a,
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
+		} else if (mu < 0) {
+			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
+			te = loom__dda_exit(&g);
 		}
 		tt = te;
 		if (!loom__dda_next(&g))
@@ -524,6 +529,9 @@ static int transmit_grid(tstate *t, const double o[3], const double d[3],
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
+		} else if (mu < 0) {
+			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
+			te = loom__dda_exit(&g);
 		}
 		tt = te;
 		if (!loom__dda_next(&g))

@@ -92,6 +92,40 @@ static inline int loom__dda_next(loom__dda *g)
 	              g->inv[a];
 	return 1;
 }
+/*
+ * The current cell lies outside [lo, hi], the z cells of its column that can
+ * hold density (lo > hi: none).  Move the DDA to the last cell it would visit
+ * before it either enters [lo, hi] or leaves the column (or reaches t1),
+ * the very state (cell, next crossing times) that loom__dda_next would
+ * reach step by step, so trackers skip the empty cells between without
+ * visiting them: they hold no optical depth and draw no random numbers, so
+ * the image is the same.  The z crossing times depend only on the cell
+ * index (recomputed from o), which makes the jump exact.
+ */
+static inline double loom__dda_zt(const loom__dda *g, int64_t c)
+{
+	/* time the ray leaves z cell c in its direction of travel */
+	return ((double)(c + (g->step[2] > 0)) * g->cell[2] - g->o[2]) * g->inv[2];
+}
+static inline void loom__dda_skip_z(loom__dda *g, int64_t lo, int64_t hi)
+{
+	int a = g->tnext[0] <= g->tnext[1] ? 0 : 1, s = g->step[2];
+	double tx = g->tnext[a] < g->t1 ? g->tnext[a] : g->t1;
+	int64_t c = g->c[2];
+	double tn = g->tnext[2], t = g->t;
+
+	/* z steps while its crossing time is below tx (what loom__dda_next
+	   would choose), into cells outside [lo, hi]; a few cells a call */
+	while (tn < tx && ((c + s) < lo || (c + s) > hi)) {
+		c += s;
+		t = tn;
+		tn = loom__dda_zt(g, c);
+	}
+	g->c[2] = c;
+	g->tnext[2] = tn;
+	g->t = t;
+}
+
 static inline double loom__dda_exit(const loom__dda *g)
 {
 	double e = g->tnext[0] < g->tnext[1] ? g->tnext[0] : g->tnext[1];
