@@ -37,6 +37,7 @@
 #include "render_internal.h"
 #include "loom/preview.h"
 #include "synth/fabric_internal.h"
+#include "texture/texture_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -107,6 +108,11 @@ typedef struct mj_thread {
 	int64_t cx0, cy0;         /* its crossing's first cell in x, y */
 	uint8_t *xpool;           /* exact: EXACT_ENTRIES records of x_bytes */
 	uint8_t *scratch;         /* exact: a cell column's density bytes */
+	const uint8_t *lcmax;     /* exact: the filled cell column (lc0, lc1)
+	                             last queried, its nzc maxima (NULL: none);
+	                             a DDA visits 2-4 z cells of a column in a
+	                             row, each then a byte read */
+	int64_t lc0, lc1;
 	mj_entry cache[CACHE_ENTRIES];
 } mj_thread;
 
@@ -505,6 +511,7 @@ static inline mj_exact *x_of(mj_thread *th, const mj_entry *e)
 	mj_exact *x = x_rec(th, e);
 
 	if (!x->valid || x->I != e->I || x->J != e->J) {
+		th->lcmax = NULL; /* it may point into this record */
 		x->I = e->I;
 		x->J = e->J;
 		x->valid = 1;
@@ -649,6 +656,12 @@ static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
 	*bound = 0.0f;
 	if (c[2] < 0 || c[2] >= (int64_t)m->nzc)
 		return LOOM_OK;
+	if (th->lcmax && c[0] == th->lc0 && c[1] == th->lc1) {
+		/* the exact maxima of the last filled column: the same value as
+		   below (where the database bound v is 0 the maximum is 0) */
+		*bound = raw_bound(th->lcmax[c[2]]);
+		return LOOM_OK;
+	}
 	if ((rc = entry_of(th, c[0], c[1], &e)))
 		return rc;
 	cx = (uint32_t)(c[0] - th->cx0);
@@ -659,7 +672,10 @@ static int mj_cell_max(void *thread_ctx, const int64_t c[3], float *bound)
 		uint32_t u = cy * m->nsx + cx;
 		if (!x_filled(m, x)[u] && (rc = x_fill(th, x, cx, cy)))
 			return rc;
-		v = x_cmax(m, x)[(size_t)u * m->nzc + (size_t)c[2]];
+		th->lcmax = x_cmax(m, x) + (size_t)u * m->nzc;
+		th->lc0 = c[0];
+		th->lc1 = c[1];
+		v = th->lcmax[c[2]];
 	}
 	*bound = raw_bound(v);
 	return LOOM_OK;
@@ -689,6 +705,9 @@ static int mj_cell_zspan(void *thread_ctx, const int64_t c[3], int64_t *zlo, int
 		uint32_t u = (uint32_t)(c[1] - th->cy0) * m->nsx + (uint32_t)(c[0] - th->cx0);
 		if (x_filled(m, x)[u]) {
 			uint64_t b = x_zmask(x)[u];
+			th->lcmax = x_cmax(m, x) + (size_t)u * m->nzc;
+			th->lc0 = c[0];
+			th->lc1 = c[1];
 			if (b) {
 				*zlo = __builtin_ctzll(b);
 				*zhi = 63 - __builtin_clzll(b);
@@ -772,13 +791,8 @@ LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I, int64_
 static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 {
 	mj_thread *th = ctx;
-	loom_texel tx;
-	int rc = loom_texture_sample(th->m->t, p, th->m->filter, &tx);
 
-	if (rc != LOOM_OK)
-		return rc;
-	loom__texel_medium(&tx, out);
-	return LOOM_OK;
+	return loom__texture_medium(th->m->t, p, th->m->filter, out);
 }
 
 /* Level of detail through the grid: the coarse density is clamped to the

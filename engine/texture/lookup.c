@@ -51,6 +51,7 @@
  *   frame per thread for that (cache.h, the deadlock rule).
  */
 #include "texture_impl.h"
+#include "loom/render.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -590,8 +591,8 @@ static inline void walk_next(loom_texture *t, struct tslot *s, int64_t x, int64_
 /* Steps 1-6 for voxel (x, y, z) (coordinates already range-checked),
    reading only the planes of channel mask ch: with a fractional offset,
    the two source voxels blended (raw_blend). */
-static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                            int64_t z, unsigned ch, rawvox *r)
+static inline int voxel_raw_w(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                              int64_t z, unsigned ch, rawvox *r, int walk)
 {
 	struct xent *e;
 	uint32_t sx, sy;
@@ -616,8 +617,15 @@ static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t
 		else if (rc == LOOM_OK)
 			rc = rc2;
 	}
-	walk_next(t, s, x, y, ch);
+	if (walk)
+		walk_next(t, s, x, y, ch);
 	return rc;
+}
+
+static inline int voxel_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                            int64_t z, unsigned ch, rawvox *r)
+{
+	return voxel_raw_w(t, s, x, y, z, ch, r, 1);
 }
 
 /* Steps 1-6 for voxels (x, y, z) and (x, y, z + 1), a trilinear corner
@@ -851,6 +859,46 @@ static int pos_check(const double p[3])
 			return LOOM_ERANGE;
 	}
 	return LOOM_OK;
+}
+
+/* The renderer's lookup (render_majorant.c's grid source): what
+   loom_texture_sample gives, all channels, written straight into a medium
+   sample (spread 0) without a texel in between: a nearest lookup's
+   texel would be cleared and copied twice per tentative collision. */
+int loom__texture_medium(loom_texture *t, const double p[3], int filter,
+                         loom_medium_sample *out)
+{
+	struct tslot *s;
+	loom_texel tx;
+	rawvox r;
+	int rc;
+
+	memset(out, 0, sizeof *out);
+	if ((rc = pos_check(p)) != LOOM_OK)
+		return rc;
+	s = slot_enter(t);
+	if (filter != LOOM_FILTER_NEAREST) {
+		rc = sample_one(t, s, p, filter, CH_ALL, &tx);
+		slot_leave(t, s);
+		out->density = tx.density;
+		memcpy(out->orient, tx.orientation, sizeof out->orient);
+		memcpy(out->albedo, tx.albedo, sizeof out->albedo);
+		out->alignment = tx.alignment;
+		return rc;
+	}
+	rc = voxel_raw_w(t, s, (int64_t)floor(p[0]), (int64_t)floor(p[1]), (int64_t)floor(p[2]),
+	                 CH_ALL, &r, 0);
+	bump(&s->cnt.lookups, 1);
+	slot_leave(t, s);
+	if (r.d) {
+		out->density = t->dens[r.d];
+		loom__orient_decode(r.o, out->orient);
+	}
+	if (r.k) {
+		memcpy(out->albedo, t->albedo[r.ty], sizeof out->albedo);
+		out->alignment = t->align[r.ty];
+	}
+	return rc;
 }
 
 static int sample_ch(loom_texture *t, const double p[3], int filter, unsigned ch,

@@ -399,6 +399,48 @@ static int nearest_grid(loom_majorant **m, loom_volume_source *src)
 	return 1;
 }
 
+/* The grid source's lookups (loom__texture_medium, which writes the
+   medium sample without a texel between) equal loom_texture_sample's
+   texel as a medium sample, at random points of 6 x 6 crossings
+   (negative ones too), nearest and trilinear, bit for bit. */
+static void test_grid_lookup(void)
+{
+	uint64_t rng = 99;
+	long differ = 0, dense = 0;
+
+	for (int filter = LOOM_FILTER_NEAREST; filter <= LOOM_FILTER_TRILINEAR; filter++) {
+		loom_majorant *m = NULL;
+		loom_volume_source src;
+		void *th;
+		if (!nearest_grid(&m, &src))
+			return;
+		if (filter != LOOM_FILTER_NEAREST)
+			CHECK_EQ_INT(loom_texture_volume_source_grid(g_tex, g_fab, filter, m, &src),
+			             LOOM_OK);
+		th = src.thread_init(src.ctx);
+		CHECK(th != NULL);
+		for (int k = 0; th && k < 20000; k++) {
+			double p[3] = {(urand(&rng) * 6 - 2) * B[0], (urand(&rng) * 6 - 2) * B[1],
+			               urand(&rng) * B[2]};
+			loom_medium_sample got, want;
+			loom_texel tx;
+			memset(&got, 0x55, sizeof got);
+			memset(&want, 0, sizeof want);
+			CHECK_EQ_INT(src.lookup(th, p, &got), LOOM_OK);
+			CHECK_EQ_INT(loom_texture_sample(g_tex, p, filter, &tx), LOOM_OK);
+			loom__texel_medium(&tx, &want);
+			dense += want.density > 0;
+			differ += memcmp(&got, &want, sizeof got) != 0;
+		}
+		if (th)
+			src.thread_done(src.ctx, th);
+		loom_majorant_free(m);
+	}
+	printf("  %ld of 40000 lookups differ (%ld dense)\n", differ, dense);
+	CHECK_EQ_INT((int)differ, 0);
+	CHECK(dense > 4000);
+}
+
 /* The grid source's z span of a cell column never hides a non-zero cell:
    every z cell outside it has bound 0 (against cell_max of every cell of
    10 x 10 crossings, nearest), and it is tighter than the slab somewhere.
@@ -746,6 +788,7 @@ int main(void)
 	RUN(setup);
 	RUN(test_majorant_bounds);
 	RUN(test_majorant_zspan);
+	RUN(test_grid_lookup);
 	RUN(test_majorant_exact);
 	RUN(test_grid_renders);
 	RUN(test_grid_errors);
