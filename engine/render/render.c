@@ -45,6 +45,7 @@
 
 #include <pthread.h>
 #include <stdatomic.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -94,6 +95,9 @@ typedef struct rctx {
 	   pass_end[p]) over the whole image, a barrier between them; acc
 	   holds each pixel's sums across passes (more than one pass only) */
 	int sobol;               /* Owen-scrambled Sobol dimensions */
+	int (*zbox)(void *, const int64_t *, int64_t *, int64_t *, int64_t *);
+	                         /* the source's cell_zbox, where it has one
+	                            (and cell_zspan) */
 	int dens_first;          /* the source's density hook tests tentative
 	                            collisions first: not with a level of
 	                            detail, whose density is not level 0's */
@@ -122,6 +126,9 @@ typedef struct tstate {
 	double fp_o[3], fp0, fp_rate; /* ray footprint (voxels) at x: fp0 +
 	                             fp_rate |x - fp_o| (level of detail) */
 	uint32_t row_last, row_next; /* area rows: last used, next to refill */
+	int zb_ok;                /* zb* hold the box of columns zb and its
+	                             z span (cell_zbox) */
+	int64_t zb[4], zb_lo, zb_hi;
 	int zs_ok;                /* zs_* hold cell column zs_c's z span */
 	int64_t zs_c[2], zs_lo, zs_hi;
 	loom__mf_row rows[AREA_ROWS];/* A(s, .) of the last roughnesses met */
@@ -375,7 +382,8 @@ void loom__dda_init(loom__dda *g, const double o[3], const double d[3],
 
 /* Majorant (per scene length) of the DDA's current cell: 0 for an empty
    cell, -1 for one outside its column's z span (empty too, and the tracker
-   may skip the column's cells up to the span with loom__dda_skip_z). */
+   may skip the column's cells up to the span with loom__dda_skip_z), -2
+   for one outside its box's z span (loom__dda_skip_box). */
 static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 {
 	rctx *c = t->c;
@@ -383,6 +391,21 @@ static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 	int rc;
 
 	t->st.cells++;
+	if (c->zbox) {
+		/* above or below everything in the box of columns: no query */
+		if (!t->zb_ok || g->c[0] < t->zb[0] || g->c[0] >= t->zb[1] ||
+		    g->c[1] < t->zb[2] || g->c[1] >= t->zb[3]) {
+			t->zb_ok = 0;
+			if ((rc = c->zbox(t->lctx, g->c, t->zb, &t->zb_lo, &t->zb_hi)))
+				return rc;
+			t->zb_ok = g->c[0] >= t->zb[0] && g->c[0] < t->zb[1] &&
+			           g->c[1] >= t->zb[2] && g->c[1] < t->zb[3];
+		}
+		if (t->zb_ok && (g->c[2] < t->zb_lo || g->c[2] > t->zb_hi)) {
+			*mu = -2.0;
+			return 0;
+		}
+	}
 	if (c->src->cell_zspan) {
 		/* the empty layers above and below the cloth: no bound query */
 		if (!t->zs_ok || g->c[0] != t->zs_c[0] || g->c[1] != t->zs_c[1]) {
@@ -465,6 +488,9 @@ static int track_grid(tstate *t, const double o[3], const double d[3], double a,
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
+		} else if (mu < -1.5) {
+			loom__dda_skip_box(&g, t->zb, t->zb_lo, t->zb_hi);
+			te = loom__dda_exit(&g);
 		} else if (mu < 0) {
 			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
 			te = loom__dda_exit(&g);
@@ -529,6 +555,9 @@ static int transmit_grid(tstate *t, const double o[3], const double d[3],
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
+		} else if (mu < -1.5) {
+			loom__dda_skip_box(&g, t->zb, t->zb_lo, t->zb_hi);
+			te = loom__dda_exit(&g);
 		} else if (mu < 0) {
 			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
 			te = loom__dda_exit(&g);
@@ -1213,7 +1242,7 @@ static int setup_camera(rctx *c, loom_diag *diag)
 static int check_options(const loom_volume_source *src, const loom_render_options *o,
                          loom_diag *diag)
 {
-	if (src->size < sizeof(loom_volume_source))
+	if (src->size < offsetof(loom_volume_source, cell_zbox))
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "render: source size %zu, expected %zu (use "
 		                  "LOOM_VOLUME_SOURCE_INIT)", src->size,
@@ -1362,6 +1391,9 @@ LOOM_API int loom_render(const loom_volume_source *src,
 	c.amax = loom_microflake_area_max();
 	c.grid = !c.shell && src->cell_max && !(o->flags & LOOM_RENDER_GLOBAL_MAJORANT);
 	c.dens_first = src->density && !(src->lookup_lod && !c.shell);
+	if (src->size >= offsetof(loom_volume_source, cell_zbox) + sizeof src->cell_zbox &&
+	    src->cell_zspan)
+		c.zbox = src->cell_zbox;
 	if (c.grid && !(src->cell[0] > 0 && src->cell[1] > 0 && src->cell[2] > 0))
 		return loom__fail(diag, LOOM_EINVAL,
 		                  "render: the source's majorant cell is %lld x %lld x %lld; "

@@ -126,6 +126,34 @@ static inline void loom__dda_skip_z(loom__dda *g, int64_t lo, int64_t hi)
 	g->t = t;
 }
 
+/*
+ * The current cell's column lies in the box of columns [box[0], box[1]) x
+ * [box[2], box[3]) and the cell outside [lo, hi], the z cells that can hold
+ * density anywhere in the box.  Take loom__dda_next's steps, with no
+ * query, while the next cell stays in the box and outside [lo, hi]: the
+ * cells passed are empty (no optical depth, no random numbers), and the
+ * state is the one stepping reaches, bit for bit.  The next
+ * loom__dda_next then leaves the box, enters [lo, hi] or ends the walk.
+ */
+static inline void loom__dda_skip_box(loom__dda *g, const int64_t box[4], int64_t lo,
+                                      int64_t hi)
+{
+	for (;;) {
+		int a = g->tnext[0] <= g->tnext[1] ? 0 : 1;
+		int64_t n;
+		if (g->tnext[2] < g->tnext[a])
+			a = 2;
+		if (!(g->tnext[a] < g->t1))
+			return;
+		n = g->c[a] + g->step[a];
+		if (a == 2 ? n >= lo && n <= hi : n < box[2 * a] || n >= box[2 * a + 1])
+			return;
+		g->t = g->tnext[a];
+		g->c[a] = n;
+		g->tnext[a] = ((double)(n + (g->step[a] > 0)) * g->cell[a] - g->o[a]) * g->inv[a];
+	}
+}
+
 static inline double loom__dda_exit(const loom__dda *g)
 {
 	double e = g->tnext[0] < g->tnext[1] ? g->tnext[0] : g->tnext[1];

@@ -90,6 +90,8 @@ typedef struct mj_entry {
 	int64_t dlo, dhi;         /* range of the crossing's edge-fix offsets */
 	uint8_t tri[MAX_ZCELLS];  /* trilinear: bound of each z cell */
 	uint32_t xslot;           /* exact: the crossing's record (x_rec) */
+	int64_t zlo, zhi;         /* nearest: z cells outside which every cell
+	                             of the crossing is empty (mj_cell_zbox) */
 } mj_entry;
 
 /* Exact cell columns of one crossing (see x_fill). */
@@ -581,6 +583,21 @@ static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry 
 			}
 		}
 	}
+	e->zlo = 0;
+	e->zhi = (int64_t)m->nzc - 1;
+	if (filter == LOOM_FILTER_NEAREST) { /* the union of the column spans */
+		const uint32_t *sp = m->span + (size_t)(e->blk - m->layer) / m->b3 * 2u;
+		int64_t lo = INT64_MAX, hi = -1;
+		for (uint32_t u = 0; u < m->nsub; u++, sp += 2)
+			if (sp[0] <= sp[1]) {
+				lo = (int64_t)sp[0] + e->dlo < lo ? (int64_t)sp[0] + e->dlo : lo;
+				hi = (int64_t)sp[1] + e->dhi > hi ? (int64_t)sp[1] + e->dhi : hi;
+			}
+		lo = lo < 0 ? 0 : lo;
+		hi = hi > (int64_t)m->b3 - 1 ? (int64_t)m->b3 - 1 : hi;
+		e->zlo = hi < lo ? 1 : lo / m->zcell;
+		e->zhi = hi < lo ? 0 : hi / m->zcell;
+	}
 	e->I = I;
 	e->J = J;
 	e->xslot = (uint32_t)(((uint64_t)I * 0x9e3779b97f4a7c15ull ^
@@ -734,6 +751,31 @@ static int mj_cell_zspan(void *thread_ctx, const int64_t c[3], int64_t *zlo, int
 	return LOOM_OK;
 }
 
+/* The crossing holding cell column (c[0], c[1]) as a box of cell columns,
+   and the z cells outside which all its cells are empty: the union of its
+   columns' spans as mj_cell_zspan gives them from the database (kept in
+   the entry).  The read columns' exact spans would be tighter, but on the
+   Cycles bench scene they cut only 36 -> 34 cells per path and cost more
+   than that in the query.  Trilinear: the whole slab. */
+static int mj_cell_zbox(void *thread_ctx, const int64_t c[3], int64_t box[4], int64_t *zlo,
+                        int64_t *zhi)
+{
+	mj_thread *th = thread_ctx;
+	loom_majorant *m = th->m;
+	mj_entry *e;
+	int rc;
+
+	if ((rc = entry_of(th, c[0], c[1], &e)))
+		return rc;
+	box[0] = th->cx0;
+	box[1] = th->cx0 + m->nsx;
+	box[2] = th->cy0;
+	box[3] = th->cy0 + m->nsy;
+	*zlo = e->zlo;
+	*zhi = e->zhi;
+	return LOOM_OK;
+}
+
 static mj_thread *thread_new(loom_majorant *m, int exact)
 {
 	mj_thread *th = calloc(1, sizeof *th);
@@ -868,6 +910,7 @@ LOOM_API int loom_texture_volume_source_grid(loom_texture *t, const loom_fabric 
 	loom_majorant_cell_size(m, src->cell);
 	src->cell_max = mj_cell_max;
 	src->cell_zspan = mj_cell_zspan;
+	src->cell_zbox = mj_cell_zbox;
 	if (loom_texture_lod_levels(t))
 		src->lookup_lod = grid_lookup_lod;
 	/* the density-first test of tentative collisions pays only against

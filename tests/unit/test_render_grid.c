@@ -6,8 +6,9 @@
  *  - DDA: on random rays and cell sizes the cells visited, and where each
  *    is entered and left, equal a brute-force walk (every plane crossing
  *    of the ray, sorted; the cell of each interval's midpoint); skipping
- *    the cells outside random column z spans (loom__dda_skip_z) visits the
- *    in-span cells of the plain walk with the same bits, and fewer cells.
+ *    the cells outside random column and box z spans (loom__dda_skip_z,
+ *    loom__dda_skip_box) visits the in-span cells of the plain walk with
+ *    the same bits, and fewer cells.
  *  - Majorant: on a synthesized fabric (randomisation and edge fix on),
  *    every voxel of 10 x 10 crossings (negative indices included) is at or
  *    below its cell's nearest bound, and trilinear samples at random points
@@ -153,11 +154,13 @@ static void test_dda_brute_force(void)
 	CHECK_EQ_INT(bad, 0);
 }
 
-/* A cell column's z span for test_dda_skip_z: a hash of the column, empty
-   (lo > hi) one time in five. */
-static void test_span(const int64_t c[3], int64_t *lo, int64_t *hi)
+/* Spans for test_dda_skip: columns are grouped in boxes of 3 x 2 (as the
+   grid's crossings group cell columns); each column's z span is a hash
+   of the column (empty one time in five) and each box's the union of its
+   columns' spans. */
+static void col_span(int64_t c0, int64_t c1, int64_t *lo, int64_t *hi)
 {
-	uint64_t h = (uint64_t)c[0] * 0x9e3779b97f4a7c15ull ^ (uint64_t)c[1] * 0xc2b2ae3d27d4eb4full;
+	uint64_t h = (uint64_t)c0 * 0x9e3779b97f4a7c15ull ^ (uint64_t)c1 * 0xc2b2ae3d27d4eb4full;
 	h ^= h >> 29;
 	h *= 0xbf58476d1ce4e5b9ull;
 	h ^= h >> 32;
@@ -170,22 +173,46 @@ static void test_span(const int64_t c[3], int64_t *lo, int64_t *hi)
 	*hi = *lo + (int64_t)(h >> 16 & 7);
 }
 
-/* loom__dda_skip_z against stepping: on random rays through columns with
-   random z spans, a walk that skips from every cell outside its column's
-   span visits exactly the in-span cells of the plain walk, with the same
-   bits (cell, entry and exit times), and ends at the same time; and it
-   visits fewer cells. */
-static void test_dda_skip_z(void)
+static void box_span(const int64_t c[3], int64_t box[4], int64_t *lo, int64_t *hi)
+{
+	box[0] = (int64_t)floor(c[0] / 3.0) * 3;
+	box[1] = box[0] + 3;
+	box[2] = (int64_t)floor(c[1] / 2.0) * 2;
+	box[3] = box[2] + 2;
+	*lo = 1000;
+	*hi = -1000;
+	for (int64_t y = box[2]; y < box[3]; y++)
+		for (int64_t x = box[0]; x < box[1]; x++) {
+			int64_t a, b;
+			col_span(x, y, &a, &b);
+			if (a <= b) {
+				*lo = a < *lo ? a : *lo;
+				*hi = b > *hi ? b : *hi;
+			}
+		}
+	if (*lo > *hi) {
+		*lo = 1;
+		*hi = 0;
+	}
+}
+
+/* loom__dda_skip_z and loom__dda_skip_box against stepping: on random rays
+   through columns and boxes of columns with random z spans, a walk that
+   skips from every cell outside its box's span (skip_box) or its column's
+   (skip_z) visits exactly the in-span cells of the plain walk, with the
+   same bits (cell, entry and exit times), and ends at the same time; and
+   it visits fewer cells, fewer still with the boxes. */
+static void test_dda_skip(void)
 {
 	uint64_t rng = 7;
 	int bad = 0;
-	long plain_cells = 0, skip_cells = 0;
+	long cells[3] = {0, 0, 0};
 
 	for (int trial = 0; trial < 4000; trial++) {
 		double o[3], d[3], t0, t1;
-		int64_t cell[3], lo, hi;
-		visit a[1025], b[1025];
-		int na = 0, nb = 0;
+		int64_t cell[3];
+		visit ref[1025];
+		int nref = 0;
 		loom__dda g;
 
 		for (int j = 0; j < 3; j++) {
@@ -201,47 +228,49 @@ static void test_dda_skip_z(void)
 			continue;
 		t0 = urand(&rng) * 5;
 		t1 = t0 + urand(&rng) * 80;
-		loom__dda_init(&g, o, d, cell, t0, t1);
-		do {
-			plain_cells++;
-			test_span(g.c, &lo, &hi);
-			if (g.c[2] >= lo && g.c[2] <= hi && na < 1024) {
-				memcpy(a[na].c, g.c, sizeof g.c);
-				a[na].t0 = g.t;
-				a[na].t1 = loom__dda_exit(&g);
-				na++;
-			}
-		} while (loom__dda_next(&g));
-		a[na].t0 = g.t;
-		loom__dda_init(&g, o, d, cell, t0, t1);
-		do {
-			skip_cells++;
-			test_span(g.c, &lo, &hi);
-			if (g.c[2] >= lo && g.c[2] <= hi) {
-				if (nb < 1024) {
-					memcpy(b[nb].c, g.c, sizeof g.c);
-					b[nb].t0 = g.t;
-					b[nb].t1 = loom__dda_exit(&g);
-					nb++;
+		/* mode 0 steps, 1 skips columns, 2 skips boxes and columns */
+		for (int mode = 0; mode < 3; mode++) {
+			visit v[1025];
+			int nv = 0, same;
+			loom__dda_init(&g, o, d, cell, t0, t1);
+			do {
+				int64_t lo, hi, box[4], blo, bhi;
+				cells[mode]++;
+				box_span(g.c, box, &blo, &bhi);
+				col_span(g.c[0], g.c[1], &lo, &hi);
+				if (mode == 2 && (g.c[2] < blo || g.c[2] > bhi)) {
+					loom__dda_skip_box(&g, box, blo, bhi);
+				} else if (g.c[2] >= lo && g.c[2] <= hi) {
+					if (nv < 1024) {
+						memcpy(v[nv].c, g.c, sizeof g.c);
+						v[nv].t0 = g.t;
+						v[nv].t1 = loom__dda_exit(&g);
+						nv++;
+					}
+				} else if (mode) {
+					loom__dda_skip_z(&g, lo, hi);
 				}
-			} else {
-				loom__dda_skip_z(&g, lo, hi);
+			} while (loom__dda_next(&g));
+			v[nv].t0 = g.t;
+			if (mode == 0) {
+				memcpy(ref, v, sizeof v);
+				nref = nv;
+				continue;
 			}
-		} while (loom__dda_next(&g));
-		b[nb].t0 = g.t;
-		int same = na == nb && a[na].t0 == b[nb].t0;
-		for (int k = 0; same && k < na; k++)
-			same = !memcmp(a[k].c, b[k].c, sizeof a[k].c) && a[k].t0 == b[k].t0 &&
-			       a[k].t1 == b[k].t1;
-		if (!same) {
-			if (bad++ < 3)
-				printf("  trial %d: %d in-span cells stepping, %d skipping\n",
-				       trial, na, nb);
+			same = nv == nref && v[nv].t0 == ref[nref].t0;
+			for (int k = 0; same && k < nv; k++)
+				same = !memcmp(v[k].c, ref[k].c, sizeof v[k].c) &&
+				       v[k].t0 == ref[k].t0 && v[k].t1 == ref[k].t1;
+			if (!same && bad++ < 3)
+				printf("  trial %d mode %d: %d in-span cells, stepping %d\n", trial,
+				       mode, nv, nref);
 		}
 	}
+	printf("  cells visited: %ld stepping, %ld skipping columns, %ld boxes too\n",
+	       cells[0], cells[1], cells[2]);
 	CHECK_EQ_INT(bad, 0);
-	printf("  cells visited: %ld stepping, %ld skipping\n", plain_cells, skip_cells);
-	CHECK(skip_cells < plain_cells * 85 / 100);
+	CHECK(cells[1] < cells[0] * 85 / 100);
+	CHECK(cells[2] < cells[1]);
 }
 
 /* ---- a synthesized fabric ------------------------------------------------ */
@@ -642,6 +671,21 @@ static void test_grid_renders(void)
 			s.cell_zspan = NULL;
 		}
 		CHECK_EQ_INT(loom_render(&s, &o, b, &sn, &d), LOOM_OK);
+		if (!h) { /* the box hook alone off: the same again, more cells */
+			loom_render_stats sb;
+			loom_volume_source nb = grid;
+			CHECK(grid.cell_zbox != NULL);
+			nb.cell_zbox = NULL;
+			CHECK_EQ_INT(loom_render(&nb, &o, c, &sb, &d), LOOM_OK);
+			CHECK(memcmp(a, c, W * H * 3 * sizeof *a) == 0);
+			CHECK(sb.lookups == sr.lookups);
+			CHECK(sb.cells > sr.cells && sb.cells < sn.cells);
+			/* a source built before cell_zbox (its size ends there) */
+			nb = grid;
+			nb.size = offsetof(loom_volume_source, cell_zbox);
+			CHECK_EQ_INT(loom_render(&nb, &o, c, &sb, &d), LOOM_OK);
+			CHECK(memcmp(a, c, W * H * 3 * sizeof *a) == 0);
+		}
 		CHECK(memcmp(a, b, W * H * 3 * sizeof *a) == 0);
 		CHECK(sn.lookups == sr.lookups);
 		CHECK(sn.scatterings == sr.scatterings);
@@ -783,7 +827,7 @@ int main(void)
 {
 	CHECK_MAIN_BEGIN("test_render_grid");
 	RUN(test_dda_brute_force);
-	RUN(test_dda_skip_z);
+	RUN(test_dda_skip);
 	RUN(test_area_rows);
 	RUN(setup);
 	RUN(test_majorant_bounds);

@@ -169,11 +169,24 @@ typedef struct loom_volume_source {
 	                         the empty layers above and below the cloth
 	                         without a cell_max call each.  Same ctx and
 	                         rules as cell_max */
+	int (*cell_zbox)(void *thread_ctx, const int64_t c[3], int64_t box[4],
+	                 int64_t *zlo, int64_t *zhi);
+	                      /* optional, with cell_zspan: a box of cell
+	                         columns [box[0], box[1]) x [box[2], box[3])
+	                         holding column (c[0], c[1]), and z cells
+	                         [*zlo, *zhi] outside which cell_max gives 0 in
+	                         every column of the box (zlo > zhi: the box is
+	                         empty), so the tracker passes a ray above or
+	                         below the cloth over the whole box in plain
+	                         DDA steps, with no query per column.  Same ctx
+	                         and rules as cell_max.  (Added after the rest:
+	                         a source whose size ends before it is used
+	                         without it.) */
 } loom_volume_source;
 
 #define LOOM_VOLUME_SOURCE_INIT \
 	{sizeof(loom_volume_source), 0, 0, 0, 0.0, 0.0f, NULL, NULL, NULL, NULL, \
-	 {0, 0, 0}, NULL, NULL, NULL, NULL}
+	 {0, 0, 0}, NULL, NULL, NULL, NULL, NULL}
 
 /* ======================================================================
  * Meshes (Wavefront OBJ)
