@@ -14,7 +14,7 @@
 # rendered by tools/blender/render_tile.py with the same camera (computed
 # here as cmd_render.c places it, in mm), sun, world, density scale (80
 # per mm), path depth (32) and samples, Cycles on the CPU; both at 2
-# threads.  Each renderer runs at S1 and S2 samples per pixel; the time per
+# threads (BENCH_CYCLES_THREADS, below).  Each renderer runs at S1 and S2 samples per pixel; the time per
 # pixel-sample is (t(S2) - t(S1)) / ((S2 - S1) * pixels), so neither's
 # fixed costs (Cycles' scene sync and VDB load, loom's majorant grid)
 # count.  loom runs with both samplers (sobol, the default, and random);
@@ -25,6 +25,9 @@
 # reports its ratios too (the ratio moves +-30 % with the machine's load,
 # so compare builds only within one run).  BENCH_CYCLES_REPS=N (default 1)
 # repeats every case N times, interleaved, and takes each one's fastest.
+# BENCH_CYCLES_THREADS=N (default 2) renders with N threads in both; 1
+# keeps each renderer on one core, which a loaded 2-core machine still
+# gives it, so the ratio moves less with the load.
 set -u
 BUILD=${BUILD:-build}
 LOOM=$BUILD/loom
@@ -39,6 +42,10 @@ if [ ! -f "$BUILD/libloom-vdb.so.0" ]; then
 	exit 0
 fi
 REGION=${BENCH_CYCLES_REGION:-0,0:256,160}
+NT=${BENCH_CYCLES_THREADS:-2}
+case $NT in
+''|*[!0-9]*|0) echo "cycles: BENCH_CYCLES_THREADS must be a positive integer, got '$NT'" >&2; exit 2 ;;
+esac
 WIDTH=240 HEIGHT=150 EL=40 AZ=0 FOV=30 S1=${BENCH_CYCLES_S1:-4} S2=${BENCH_CYCLES_S2:-16}
 SUN="150,35,2.6,0.53"
 BL="blender -b --factory-startup --python-exit-code 1"
@@ -102,7 +109,7 @@ for S in $S1 $S2; do
 				BIN=$LOOM_BASE
 			fi
 			"$BIN" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
-				--width $WIDTH --height $HEIGHT --spp "$S" --threads 2 --sun "$SUN" --sky grey --quiet --json \
+				--width $WIDTH --height $HEIGHT --spp "$S" --threads "$NT" --sun "$SUN" --sky grey --quiet --json \
 				--sampler $SMP -o "$W/$WHO-$SMP-$S.png" >"$W/$WHO-$SMP-$S$X.json" || exit 1
 		done
 	done
@@ -110,18 +117,18 @@ for S in $S1 $S2; do
 	# shellcheck disable=SC2086
 	$BL -P tools/blender/render_tile.py -- "$W"/vdb/tile-*.vdb -o "$W/cycles-$S.png" \
 		--camera persp --eye "$EYE" --target "$TARGET" --fov $FOV --size $WIDTH,$HEIGHT \
-		--samples "$S" --threads 2 --sun "$SUN" --density 80 --background 0.18 --bounces 32 \
+		--samples "$S" --threads "$NT" --sun "$SUN" --density 80 --background 0.18 --bounces 32 \
 		--json "$W/cycles-$S$X.json" >"$W/cycles-$S.log" 2>&1 || { tail -20 "$W/cycles-$S.log"; exit 1; }
 done
 done
 load1=$(cut -d' ' -f1-3 /proc/loadavg)
 $BL -P bench/side_by_side.py -- "$W/loom-$S2.png" "$W/cycles-$S2.png" "$W/side-by-side.png" \
 	>"$W/side.log" 2>&1 || tail -5 "$W/side.log"
-python3 - "$W" "$S1" "$S2" "$WIDTH" "$HEIGHT" "$BOX" "$load0" "$load1" "$LOOM_BASE" <<'EOF'
+python3 - "$W" "$S1" "$S2" "$WIDTH" "$HEIGHT" "$BOX" "$load0" "$load1" "$LOOM_BASE" "$NT" <<'EOF'
 import glob, json, sys
 d, s1, s2, w, h, box, l0, l1 = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), \
     int(sys.argv[5]), sys.argv[6], sys.argv[7], sys.argv[8]
-base = sys.argv[9]
+base, nt = sys.argv[9], int(sys.argv[10])
 t, lk = {}, {}
 whos = ("loom-sobol", "loom-random", "cycles") + (("base-sobol", "base-random") if base else ())
 for who in whos:
@@ -139,8 +146,8 @@ for who in whos:
 t["loom"] = t["loom-sobol"]
 ex = json.load(open(d + "/export.json"))
 ratio = t["loom"][2] / t["cycles"][2]
-print("cycles: %dx%d, %d and %d spp, 2 threads; exported %s (%d tiles, %.1f MiB) in %.2f s" %
-      (w, h, s1, s2, box, ex["tiles"], ex["bytes_written"] / 1048576, ex["seconds"]))
+print("cycles: %dx%d, %d and %d spp, %d thread%s; exported %s (%d tiles, %.1f MiB) in %.2f s" %
+      (w, h, s1, s2, nt, "" if nt == 1 else "s", box, ex["tiles"], ex["bytes_written"] / 1048576, ex["seconds"]))
 for who in whos:
     print("  %-11s %6.2f s at %d spp, %6.2f s at %d spp: %7.2f us per pixel-sample%s" %
           (who, t[who][0], s1, t[who][1], s2, t[who][2],
@@ -155,7 +162,7 @@ if base:
     res = {"base": base, "base_over_cycles": round(t["base-sobol"][2] / t["cycles"][2], 3),
            "base_random_over_cycles": round(t["base-random"][2] / t["cycles"][2], 3),
            "base_lookups_per_path": round(lk["base-sobol"], 2)}
-print(json.dumps(dict({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "threads": 2,
+print(json.dumps(dict({"bench": "cycles", "width": w, "height": h, "spp": [s1, s2], "threads": nt,
                   "export_box": box, "export_seconds": ex["seconds"], "export_tiles": ex["tiles"],
                   "export_bytes": ex["bytes_written"],
                   "loom_us_per_pixel_sample": round(t["loom"][2], 3),
