@@ -25,6 +25,8 @@
 # reports its ratios too (the ratio moves +-30 % with the machine's load,
 # so compare builds only within one run).  BENCH_CYCLES_REPS=N (default 1)
 # repeats every case N times, interleaved, and takes each one's fastest.
+# Wall time and CPU time (user + system, of the process and its
+# children) are both reported, each per pixel-sample as above.
 # BENCH_CYCLES_THREADS=N (default 2) renders with N threads in both; 1
 # keeps each renderer on one core, which a loaded 2-core machine still
 # gives it, so the ratio moves less with the load.
@@ -94,6 +96,15 @@ EYE=$1 TARGET=$2 BOX=$3
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
 "$LOOM" export "$W/h8.loomf" --region "$BOX" --format vdb --channels density,albedo \
 	--tile 256,256 --threads 2 --budget 400 --quiet --json -o "$W/vdb" >"$W/export.json" || exit 1
+# cpu FILE CMD...: run CMD (its exit status kept) and write the CPU seconds
+# (user + system) it and its children used to FILE
+cpu() {
+	python3 -c 'import resource, subprocess, sys
+rc = subprocess.call(sys.argv[2:])
+r = resource.getrusage(resource.RUSAGE_CHILDREN)
+open(sys.argv[1], "w").write("%.4f\n" % (r.ru_utime + r.ru_stime))
+sys.exit(rc)' "$@"
+}
 REPS=${BENCH_CYCLES_REPS:-1}
 R=0
 while [ $R -lt "$REPS" ]; do
@@ -108,14 +119,14 @@ for S in $S1 $S2; do
 				[ -n "$LOOM_BASE" ] || continue
 				BIN=$LOOM_BASE
 			fi
-			"$BIN" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
+			cpu "$W/$WHO-$SMP-$S$X.cpu" "$BIN" render "$W/h8.loomf" --region "$REGION" --elevation $EL --azimuth $AZ --fov $FOV \
 				--width $WIDTH --height $HEIGHT --spp "$S" --threads "$NT" --sun "$SUN" --sky grey --quiet --json \
 				--sampler $SMP -o "$W/$WHO-$SMP-$S.png" >"$W/$WHO-$SMP-$S$X.json" || exit 1
 		done
 	done
 	cp "$W/loom-sobol-$S.png" "$W/loom-$S.png"
 	# shellcheck disable=SC2086
-	$BL -P tools/blender/render_tile.py -- "$W"/vdb/tile-*.vdb -o "$W/cycles-$S.png" \
+	cpu "$W/cycles-$S$X.cpu" $BL -P tools/blender/render_tile.py -- "$W"/vdb/tile-*.vdb -o "$W/cycles-$S.png" \
 		--camera persp --eye "$EYE" --target "$TARGET" --fov $FOV --size $WIDTH,$HEIGHT \
 		--samples "$S" --threads "$NT" --sun "$SUN" --density 80 --background 0.18 --bounces 32 \
 		--json "$W/cycles-$S$X.json" >"$W/cycles-$S.log" 2>&1 || { tail -20 "$W/cycles-$S.log"; exit 1; }
@@ -129,7 +140,7 @@ import glob, json, sys
 d, s1, s2, w, h, box, l0, l1 = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]), \
     int(sys.argv[5]), sys.argv[6], sys.argv[7], sys.argv[8]
 base, nt = sys.argv[9], int(sys.argv[10])
-t, lk = {}, {}
+t, lk, cpu = {}, {}, {}
 whos = ("loom-sobol", "loom-random", "cycles") + (("base-sobol", "base-random") if base else ())
 for who in whos:
     # the fastest of the BENCH_CYCLES_REPS runs of each case (a load
@@ -141,6 +152,12 @@ for who in whos:
     b = min(json.load(open(f))["seconds"] for f in glob.glob("%s/%s-%d.json" % (d, who, s2)) +
             glob.glob("%s/%s-%d.r*.json" % (d, who, s2)))
     t[who] = (a, b, (b - a) / ((s2 - s1) * w * h) * 1e6)
+    # CPU seconds (user + system) likewise: what a busy machine moves less
+    ca = min(float(open(f).read()) for f in glob.glob("%s/%s-%d.cpu" % (d, who, s1)) +
+             glob.glob("%s/%s-%d.r*.cpu" % (d, who, s1)))
+    cb = min(float(open(f).read()) for f in glob.glob("%s/%s-%d.cpu" % (d, who, s2)) +
+             glob.glob("%s/%s-%d.r*.cpu" % (d, who, s2)))
+    cpu[who] = (cb - ca) / ((s2 - s1) * w * h) * 1e6
     if who != "cycles":
         lk[who] = jb["lookups"] / jb["paths"]
 t["loom"] = t["loom-sobol"]
@@ -154,6 +171,9 @@ for who in whos:
            ", %.1f lookups per path" % lk[who] if who in lk else ""))
 print("  loom (sobol) / Cycles per pixel-sample: %.2f; random sampler: %.2f (load average %s before, %s after)" %
       (ratio, t["loom-random"][2] / t["cycles"][2], l0, l1))
+print("  CPU time (user + system) per pixel-sample: %s; loom (sobol) / Cycles %.2f, random %.2f" %
+      (", ".join("%s %.2f us" % (who, cpu[who]) for who in whos),
+       cpu["loom-sobol"] / cpu["cycles"], cpu["loom-random"] / cpu["cycles"]))
 res = {}
 if base:
     print("  baseline %s (same run): sobol / Cycles %.2f; random %.2f; this build / baseline %.3f (sobol), %.3f (random)" %
@@ -168,6 +188,9 @@ print(json.dumps(dict({"bench": "cycles", "width": w, "height": h, "spp": [s1, s
                   "loom_us_per_pixel_sample": round(t["loom"][2], 3),
                   "cycles_us_per_pixel_sample": round(t["cycles"][2], 3),
                   "loom_over_cycles": round(ratio, 3),
+                  "cpu_us_per_pixel_sample": {k: round(v, 3) for k, v in cpu.items()},
+                  "cpu_loom_over_cycles": round(cpu["loom-sobol"] / cpu["cycles"], 3),
+                  "cpu_loom_random_over_cycles": round(cpu["loom-random"] / cpu["cycles"], 3),
                   "loom_random_us_per_pixel_sample": round(t["loom-random"][2], 3),
                   "loom_random_over_cycles": round(t["loom-random"][2] / t["cycles"][2], 3),
                   "loom_lookups_per_path": round(lk["loom-sobol"], 2),
