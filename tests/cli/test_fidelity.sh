@@ -123,11 +123,12 @@ j = json.load(open(sys.argv[1]))
 keys = ["top_agreement_centres", "top_agreement_columns", "height_rmse",
         "height_rmse_debiased", "height_rmse_diameters", "block_offset_sd",
         "histogram_l1", "coverage_a", "coverage_b", "seam_ratio_a", "seam_ratio_b",
-        "voxels", "seconds"]
+        "corner_seam_ratio_a", "corner_seam_ratio_b", "voxels", "seconds"]
 assert sorted(j) == sorted(keys), sorted(j)
 assert j["top_agreement_centres"] == 1 and j["top_agreement_columns"] == 1, j
 assert j["height_rmse"] == 0 and j["block_offset_sd"] == 0 and j["histogram_l1"] == 0, j
 assert j["coverage_a"] == j["coverage_b"] > 0.5 and j["seam_ratio_a"] == j["seam_ratio_b"] > 0, j
+assert j["corner_seam_ratio_a"] == j["corner_seam_ratio_b"] > 0, j
 assert j["voxels"] == 128 * 72 * 12, j
 PY
 	then pass "$1"; else fail "$1" "$(head -c 600 "$T/py")"; fi
@@ -215,13 +216,28 @@ def seam(H):
                 s[k] += abs(H[u, v] - h)
                 s[k + 1] += 1
     return (s[0] / s[1]) / (s[2] / s[3])
+def corner(H):  # the seam pairs next to a point where four blocks meet
+    s = [0, 0, 0, 0]
+    for (x, y), h in H.items():
+        for (u, v, edge, rim) in ((x + 1, y, (x + 1) % b1 == 0, y % b2 in (0, b2 - 1)),
+                                  (x, y + 1, (y + 1) % b2 == 0, x % b1 in (0, b1 - 1))):
+            if (u, v) in H:
+                if edge and rim:
+                    s[0] += abs(H[u, v] - h)
+                    s[1] += 1
+                elif not edge:
+                    s[2] += abs(H[u, v] - h)
+                    s[3] += 1
+    return (s[0] / s[1]) / (s[2] / s[3])
 want = {"top_agreement_columns": agree, "top_agreement_centres": agc, "height_rmse": rmse,
         "height_rmse_debiased": deb, "height_rmse_diameters": deb / thick,
         "block_offset_sd": bosd, "histogram_l1": hl1, "coverage_a": len(Ha) / (nx * ny),
-        "coverage_b": len(Hb) / (nx * ny), "seam_ratio_a": seam(Ha), "seam_ratio_b": seam(Hb)}
+        "coverage_b": len(Hb) / (nx * ny), "seam_ratio_a": seam(Ha), "seam_ratio_b": seam(Hb),
+        "corner_seam_ratio_a": corner(Ha), "corner_seam_ratio_b": corner(Hb)}
 for k, v in want.items():
     assert abs(j[k] - v) < 1e-6 * max(1, abs(v)), (k, j[k], v)
 assert 0 < agree < 1 and rmse > 0 and bosd > 0, want
+assert want["corner_seam_ratio_a"] != want["seam_ratio_a"], want
 # pictures: PNGs of the right sizes (an independent reader)
 sys.path.insert(0, sys.argv[4].rsplit("/", 1)[0])
 import pngread

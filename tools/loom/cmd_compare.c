@@ -30,7 +30,8 @@ static const char about[] =
 	"yarn, the height of the top surface (RMSE raw and with the mean\n"
 	"difference removed, per-block mean offsets), density histograms per\n"
 	"yarn kind, coverage, and each input's seam ratio (mean height jump\n"
-	"across block edges over the same inside blocks).  A and B are fabrics\n"
+	"across block edges over the same inside blocks; also at the block\n"
+	"corners alone).  A and B are fabrics\n"
 	"(.loomf), exemplars (DB.ldb#K, K an index or a name) or volumes\n"
 	"(NAME.density.vol or .nrrd, with NAME.kind.vol or .nrrd beside it, as\n"
 	"`loom export` writes the density and kind channels, placed by their\n"
@@ -82,8 +83,9 @@ typedef struct src {
 	uint64_t surf, cols;
 	double thick_sum;
 	uint64_t thick_n;
-	double seam_sum, in_sum;
-	uint64_t seam_n, in_n;
+	double seam_sum, in_sum, corner_sum;
+	uint64_t seam_n, in_n, corner_n; /* corner: the seam pairs next to a
+	                                   point where four blocks meet */
 } src;
 
 static double now_s(void)
@@ -534,6 +536,13 @@ static int is_edge(int64_t v, uint32_t b) /* v and v+1 in different blocks */
 	return (v + 1) % b == 0;
 }
 
+static int is_rim(int64_t v, uint32_t b) /* v is a block's first or last */
+{
+	int64_t m = v % (int64_t)b;
+	m = m < 0 ? m + b : m;
+	return m == 0 || m == (int64_t)b - 1;
+}
+
 /* Seam statistics of one input over a finished band of rows [0, ny) (and the
    pair with the previous band's last row when have_prev). */
 static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
@@ -546,9 +555,11 @@ static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
 			if (isnan(h0))
 				continue;
 			if (x + 1 < W && !isnan(h1 = s->h[(size_t)y * W + x + 1])) {
-				if (is_edge(gx, s->b1))
+				if (is_edge(gx, s->b1)) {
 					s->seam_sum += fabsf(h1 - h0), s->seam_n++;
-				else
+					if (is_rim(gy, s->b2))
+						s->corner_sum += fabsf(h1 - h0), s->corner_n++;
+				} else
 					s->in_sum += fabsf(h1 - h0), s->in_n++;
 			}
 			if (y == 0 && !have_prev)
@@ -556,9 +567,11 @@ static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
 			h1 = y ? s->h[(size_t)(y - 1) * W + x] : s->hprev[x];
 			if (isnan(h1))
 				continue;
-			if (is_edge(gy - 1, s->b2))
+			if (is_edge(gy - 1, s->b2)) {
 				s->seam_sum += fabsf(h1 - h0), s->seam_n++;
-			else
+				if (is_rim(gx, s->b1))
+					s->corner_sum += fabsf(h1 - h0), s->corner_n++;
+			} else
 				s->in_sum += fabsf(h1 - h0), s->in_n++;
 		}
 	memcpy(s->hprev, s->h + (size_t)(ny - 1) * W, W * sizeof *s->h);
@@ -949,6 +962,10 @@ int cmd_compare(int argc, char **argv)
 		             ? (A.seam_sum / A.seam_n) / (A.in_sum / A.in_n) : 0;
 		double srb = B.seam_n && B.in_n && B.in_sum > 0
 		             ? (B.seam_sum / B.seam_n) / (B.in_sum / B.in_n) : 0;
+		double cra = A.corner_n && A.in_n && A.in_sum > 0
+		             ? (A.corner_sum / A.corner_n) / (A.in_sum / A.in_n) : 0;
+		double crb = B.corner_n && B.in_n && B.in_sum > 0
+		             ? (B.corner_sum / B.corner_n) / (B.in_sum / B.in_n) : 0;
 		double range = 0, secs;
 		if (picdir)
 			pic_write(prog, &pic, picdir, -mean, deb, &range, &diag);
@@ -967,6 +984,8 @@ int cmd_compare(int argc, char **argv)
 			jw_num(&w, "coverage_b", covb);
 			jw_num(&w, "seam_ratio_a", sra);
 			jw_num(&w, "seam_ratio_b", srb);
+			jw_num(&w, "corner_seam_ratio_a", cra);
+			jw_num(&w, "corner_seam_ratio_b", crb);
 			jw_uint(&w, "voxels", ac.voxels);
 			jw_num(&w, "seconds", secs);
 			jw_end(&w);
@@ -990,6 +1009,9 @@ int cmd_compare(int argc, char **argv)
 			       hf);
 			printf("  %-28s %10.4f / %.4f\n", "coverage A / B", cova, covb);
 			printf("  %-28s %10.4f / %.4f\n", "seam ratio A / B", sra, srb);
+			printf("  %-28s %10.4f / %.4f  (%llu / %llu pairs)\n",
+			       "  at block corners A / B", cra, crb,
+			       (unsigned long long)A.corner_n, (unsigned long long)B.corner_n);
 			printf("  %.2f s\n", secs);
 			if (picdir)
 				printf("  pictures %s/side-by-side.png, %s/height-difference.png "
