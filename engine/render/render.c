@@ -427,6 +427,18 @@ static int cell_majorant(tstate *t, const loom__dda *g, double *mu)
 	return 0;
 }
 
+/* After cell_majorant's mu < 0: pass the empty cells beyond the current
+   one (its box's, mu = -2, or its column's, mu = -1) and return the exit
+   time of the last one passed. */
+static inline double skip_empty(const tstate *t, loom__dda *g, double mu)
+{
+	if (mu < -1.5)
+		loom__dda_skip_box(g, t->zb, t->zb_lo, t->zb_hi);
+	else
+		loom__dda_skip_z(g, t->zs_lo, t->zs_hi);
+	return loom__dda_exit(g);
+}
+
 /* Exponential optical depth at unit majorant (distance to the next
    tentative collision times the majorant). */
 static inline double free_depth(uint64_t *rng)
@@ -488,12 +500,8 @@ static int track_grid(tstate *t, const double o[3], const double d[3], double a,
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
-		} else if (mu < -1.5) {
-			loom__dda_skip_box(&g, t->zb, t->zb_lo, t->zb_hi);
-			te = loom__dda_exit(&g);
 		} else if (mu < 0) {
-			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
-			te = loom__dda_exit(&g);
+			te = skip_empty(t, &g, mu);
 		}
 		tt = te;
 		if (!loom__dda_next(&g))
@@ -555,12 +563,8 @@ static int transmit_grid(tstate *t, const double o[3], const double d[3],
 			tau -= mu * (te - tt);
 			if (tau < 0)
 				tau = 0;
-		} else if (mu < -1.5) {
-			loom__dda_skip_box(&g, t->zb, t->zb_lo, t->zb_hi);
-			te = loom__dda_exit(&g);
 		} else if (mu < 0) {
-			loom__dda_skip_z(&g, t->zs_lo, t->zs_hi);
-			te = loom__dda_exit(&g);
+			te = skip_empty(t, &g, mu);
 		}
 		tt = te;
 		if (!loom__dda_next(&g))
