@@ -20,12 +20,14 @@
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
  *   (kind_type), else through 256-entry tables.  z-fastest output: the
- *   runs go straight out (region_zfast).  x-fastest output: per crossing,
- *   the z planes where the whole piece is surely empty (outside the block,
- *   or in bricks stored as nothing: chunk_extent) are zeroed plane by
- *   plane (zero_rect, sequential writes); then slabs of RZ z-values, rows,
- *   chunks of up to RCOLS columns (xchunk): the z rows where the chunk is
- *   surely empty are zeroed directly; the rest is gathered
+ *   runs go straight out (region_zfast).  x-fastest output: per band of
+ *   crossing rows, chunk columns of up to RCOLS output columns, whatever
+ *   crossing pieces they span (so output rows are written whole); per
+ *   chunk column, the z planes where all of it is surely empty (outside
+ *   the block, or in bricks stored as nothing: chunk_extent) are zeroed
+ *   plane by plane (zero_rect, sequential writes); then slabs of RZ
+ *   z-values, rows (xchunk): the z rows where the chunk is
+ *   surely empty are zeroed directly; the rest is gathered piece by piece
  *   into the slot's buffer and transposed 16 x 16 at a time (SSE2; with
  *   SSSE3 kind and type come from the transposed labels instead of being
  *   gathered and transposed), each output row of the chunk written whole
