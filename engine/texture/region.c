@@ -20,12 +20,14 @@
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
  *   (kind_type), else through 256-entry tables.  z-fastest output: the
- *   runs go straight out (region_zfast).  x-fastest output: per crossing,
- *   the z planes where the whole piece is surely empty (outside the block,
- *   or in bricks stored as nothing: chunk_extent) are zeroed plane by
- *   plane (zero_rect, sequential writes); then slabs of RZ z-values, rows,
- *   chunks of up to RCOLS columns (xchunk): the z rows where the chunk is
- *   surely empty are zeroed directly; the rest is gathered
+ *   runs go straight out (region_zfast).  x-fastest output: per band of
+ *   crossing rows, chunk columns of up to RCOLS output columns, whatever
+ *   crossing pieces they span (so output rows are written whole); per
+ *   chunk column, the z planes where all of it is surely empty (outside
+ *   the block, or in bricks stored as nothing: chunk_extent) are zeroed
+ *   plane by plane (zero_rect, sequential writes); then slabs of RZ
+ *   z-values, rows (xchunk): the z rows where the chunk is
+ *   surely empty are zeroed directly; the rest is gathered piece by piece
  *   into the slot's buffer and transposed 16 x 16 at a time (SSE2; with
  *   SSSE3 kind and type come from the transposed labels instead of being
  *   gathered and transposed), each output row of the chunk written whole
@@ -955,13 +957,29 @@ static void zero_rect(const loom_texture_region *out, const struct region *g, in
 		}
 }
 
-/* One chunk of the x-fastest output: columns [x, xc) of row y (crossing
-   e), z values [zc, zc + zn) within [0, b3): the rows where the chunk is
-   surely empty (chunk_extent, in whole 16-row steps) are zeroed; the rest
-   is gathered group by group into the thread's buffer and transposed. */
-static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct region *g,
-                  const struct sink *k, int kt_after, int64_t x, int64_t xc, int64_t y,
-                  int64_t zc, size_t zn, const int64_t *ext)
+/* The label -> kind and label -> type tables of an x-fastest chunk column
+   (a local copy: the crossing entries of its pieces may be recycled while
+   it is read), shared by all its pieces when same is set. */
+struct xtabs {
+	int same;                /* every piece has the same exemplar and types */
+	const struct exm *ex;    /* the first piece's exemplar */
+	uint8_t tok[4];          /* and its yarn types by kind */
+	uint8_t tlut[256];       /* label -> type of the first piece */
+};
+
+/* One chunk of the x-fastest output: columns [x, xc) of row y, which may
+   span several crossing pieces, z values [zc, zc + zn) within [0, b3):
+   the rows where the whole chunk is surely empty (ext, in whole 16-row
+   steps) are zeroed; the rest is gathered piece by piece and group by
+   group into the thread's buffer and transposed once for the chunk, so
+   that every output row of the chunk is written whole (a chunk is a whole
+   64-byte line of each byte plane when the output is aligned; a piece at
+   a time wrote parts of lines that were evicted before the neighbouring
+   piece wrote the rest, and paid partial 16-column transposes at each
+   piece's edges). */
+static int xchunk(loom_texture *t, struct tslot *s, const struct region *g,
+                  const struct sink *k0, const struct xtabs *tb, int kt_after, int64_t x,
+                  int64_t xc, int64_t y, int64_t zc, size_t zn, const int64_t *ext)
 {
 	const loom_texture_region *out = g->out;
 	const uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
@@ -969,15 +987,10 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	size_t cn = (size_t)(xc - x), za, zb;
 	size_t o = (size_t)(zc - g->lo[2]) * g->plane + (size_t)(y - g->lo[1]) * g->nx +
 	           (size_t)(x - g->lo[0]);
-	int64_t ea, eb;
+	int64_t ea = ext[0], eb = ext[1];
 	int rc = LOOM_OK;
+	struct sink k = *k0;
 
-	if (ext) {
-		ea = ext[0], eb = ext[1];
-	} else {
-		chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0), (uint32_t)cn,
-		             &ea, &eb);
-	}
 	if (ea >= eb || eb <= zc || ea >= zc + (int64_t)zn) {
 		zero_rows(out, o, g->plane, 0, zn, cn);
 		return LOOM_OK;
@@ -989,13 +1002,22 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	zero_rows(out, o, g->plane, 0, za, cn);
 	zero_rows(out, o, g->plane, zb, zn, cn);
 	for (int64_t q = x; q < xc;) {
-		uint32_t lx = (uint32_t)(q - e->x0);
-		uint32_t n = group_len(t, e, lx, xc - q);
-		int e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, zc + (int64_t)za,
-		                    zc + (int64_t)zb, k, (size_t)(q - x) * RZ + za, RZ);
-		if (e2 != LOOM_OK && rc == LOOM_OK)
-			rc = e2;
-		q += n;
+		struct xent *e = loom__xent_enter(t, s, q, y);
+		int64_t qe = e->x0 + t->b1 < xc ? e->x0 + t->b1 : xc;
+		if (!kt_after) { /* kind and type gathered with this piece's tables */
+			k.kl = e->ex->kind;
+			k.ngrp = e->ex->ngrp;
+			k.tl = out->type ? xent_tlut(e) : NULL;
+		}
+		while (q < qe) {
+			uint32_t lx = (uint32_t)(q - e->x0);
+			uint32_t n = group_len(t, e, lx, qe - q);
+			int e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, zc + (int64_t)za,
+			                    zc + (int64_t)zb, &k, (size_t)(q - x) * RZ + za, RZ);
+			if (e2 != LOOM_OK && rc == LOOM_OK)
+				rc = e2;
+			q += n;
+		}
 	}
 	o += za * g->plane;
 	rd += za, rlo += za, rhi += za, rl += za, rk += za, rt += za;
@@ -1006,10 +1028,12 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 		tr_orient(out->orientation, o, g->plane, rlo, rhi, cn, zn);
 #ifdef HAVE_TR_KT
 	if (kt_after) {
-		tr_label_kt(out->label, out->kind, out->type, o, g->plane, rl, cn, zn, k->kl, k->tl,
-		            k->ngrp);
+		tr_label_kt(out->label, out->kind, out->type, o, g->plane, rl, cn, zn,
+		            tb->ex->kind, out->type ? tb->tlut : NULL, tb->ex->ngrp);
 		return rc;
 	}
+#else
+	(void)tb;
 #endif
 	if (out->label)
 		tr_plane(out->label, o, g->plane, rl, cn, zn);
@@ -1020,15 +1044,55 @@ static int xchunk(loom_texture *t, struct tslot *s, struct xent *e, const struct
 	return rc;
 }
 
-/* Chunk extents (chunk_extent) region_xfast keeps per crossing piece for
-   its slabs, at most (4 KiB of stack). */
+/* Rows of a crossing band whose chunk extents region_xfast keeps, at most
+   (4 KiB of stack); past it they are computed again for every slab. */
 #define XEXT 256
 
-/* x-fastest: crossing by crossing; per crossing, slabs of RZ z values
-   (outermost, so the rows written meanwhile stay few whatever the plane
-   size), rows, chunks of up to RCOLS columns (xchunk; each chunk's
-   extent computed once per crossing piece, not per slab).  z planes
-   outside [0, b3) are zeroed whole. */
+/* The extent (chunk_extent) of columns [x, xc) of row y over the crossing
+   pieces they span: the union of the pieces'. */
+static void xchunk_extent(loom_texture *t, struct tslot *s, int64_t x, int64_t xc,
+                          int64_t y, int64_t *ea, int64_t *eb)
+{
+	*ea = INT64_MAX, *eb = INT64_MIN;
+	for (int64_t q = x; q < xc;) {
+		struct xent *e = loom__xent_enter(t, s, q, y);
+		int64_t qe = e->x0 + t->b1 < xc ? e->x0 + t->b1 : xc, a, b;
+		chunk_extent(t, s, e, (uint32_t)(q - e->x0), (uint32_t)(y - e->y0),
+		             (uint32_t)(qe - q), &a, &b);
+		if (a < b && a < *ea)
+			*ea = a;
+		if (a < b && b > *eb)
+			*eb = b;
+		q = qe;
+	}
+}
+
+/* Whether the pieces spanning columns [x, xc) of band row y share their
+   kind and type tables (tb keeps the first piece's). */
+static void xchunk_tabs(loom_texture *t, struct tslot *s, int64_t x, int64_t xc, int64_t y,
+                        struct xtabs *tb)
+{
+	tb->same = 1;
+	tb->ex = NULL;
+	for (int64_t q = x; q < xc;) {
+		struct xent *e = loom__xent_enter(t, s, q, y);
+		if (!tb->ex) {
+			tb->ex = e->ex;
+			memcpy(tb->tok, e->tok, 4);
+			memcpy(tb->tlut, xent_tlut(e), 256);
+		} else if (e->ex != tb->ex || memcmp(e->tok, tb->tok, 4)) {
+			tb->same = 0;
+		}
+		q = e->x0 + t->b1;
+	}
+}
+
+/* x-fastest: band of crossing rows by band; per band, chunk columns of up
+   to RCOLS output columns (each may span several crossing pieces: xchunk);
+   per chunk column, slabs of RZ z values (outermost, so the rows written
+   meanwhile stay few whatever the plane size), rows (each row's extent
+   computed once per chunk column, not per slab).  z planes outside
+   [0, b3) are zeroed whole. */
 static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g)
 {
 	const loom_texture_region *out = g->out;
@@ -1038,6 +1102,7 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 	int64_t za0 = g->lo[2] > 0 ? g->lo[2] : 0, zb0 = g->hi[2] < b3 ? g->hi[2] : b3;
 	int rc = LOOM_OK;
 	struct sink k = {0};
+	struct xtabs tb;
 	int64_t ext[2 * XEXT];
 
 	for (int64_t z = g->lo[2]; z < g->hi[2]; z++) {
@@ -1065,44 +1130,39 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 	k.rhi = out->orientation ? rhi : NULL;
 	for (int64_t yb = g->lo[1]; yb < g->hi[1];) {
 		int64_t ye = (loom_synth_floordiv(yb, t->b2) + 1) * (int64_t)t->b2;
+		int keep;
 		if (ye > g->hi[1])
 			ye = g->hi[1];
-		for (int64_t xb = g->lo[0]; xb < g->hi[0];) {
-			struct xent *e = loom__xent_enter(t, s, xb, yb);
-			int64_t xe = e->x0 + t->b1 < g->hi[0] ? e->x0 + t->b1 : g->hi[0];
-			/* kind and type: from the transposed labels (PSHUFB), or
+		keep = ye - yb <= XEXT;
+		for (int64_t x = g->lo[0]; x < g->hi[0]; x += RCOLS) {
+			int64_t xc = g->hi[0] - x > RCOLS ? x + RCOLS : g->hi[0];
+			/* kind and type: from the transposed labels (PSHUFB) when
+			   every piece of the chunk column has the same tables, else
 			   gathered and transposed like the other planes */
 			int kt_after = 0;
-			k.kl = e->ex->kind;
-			k.ngrp = e->ex->ngrp;
-			k.tl = out->type ? xent_tlut(e) : NULL;
+			xchunk_tabs(t, s, x, xc, yb, &tb);
 #ifdef HAVE_TR_KT
-			kt_after = t->ssse3 && k.ngrp && (out->kind || out->type);
+			kt_after = tb.same && t->ssse3 && tb.ex->ngrp && (out->kind || out->type);
 #endif
 			k.rl = out->label || kt_after ? rl : NULL;
 			k.rk = out->kind && !kt_after ? rk : NULL;
 			k.rt = out->type && !kt_after ? rt : NULL;
-			/* z rows where the whole piece of the crossing is surely
-			   empty: zeroed plane by plane, row after row (sequential);
-			   the slabs cover the rest */
+			/* z rows where the whole chunk column is surely empty:
+			   zeroed plane by plane, row after row (sequential); the
+			   slabs cover the rest */
 			int64_t pa = INT64_MAX, pb = INT64_MIN, zs = za0, ze = zb0;
-			/* the chunks' extents, kept for the slabs when they fit */
-			int keep = (ye - yb) * ((xe - xb + RCOLS - 1) / RCOLS) <= XEXT;
-			size_t ne = 0;
-			for (int64_t y = yb; y < ye; y++)
-				for (int64_t x = xb; x < xe; x += RCOLS) {
-					int64_t xc = xe - x > RCOLS ? x + RCOLS : xe, a, b;
-					chunk_extent(t, s, e, (uint32_t)(x - e->x0), (uint32_t)(y - e->y0),
-					             (uint32_t)(xc - x), &a, &b);
-					if (keep) {
-						ext[ne++] = a;
-						ext[ne++] = b;
-					}
-					if (a < b && a < pa)
-						pa = a;
-					if (a < b && b > pb)
-						pb = b;
+			for (int64_t y = yb; y < ye; y++) {
+				int64_t a, b;
+				xchunk_extent(t, s, x, xc, y, &a, &b);
+				if (keep) {
+					ext[2 * (y - yb)] = a;
+					ext[2 * (y - yb) + 1] = b;
 				}
+				if (a < b && a < pa)
+					pa = a;
+				if (a < b && b > pb)
+					pb = b;
+			}
 			if (pa < za0)
 				pa = za0;
 			if (pb > zb0)
@@ -1116,21 +1176,24 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 					ze = za0 + (pb - za0 + 15) / 16 * 16 < zb0 ? za0 + (pb - za0 + 15) / 16 * 16
 					                                           : zb0;
 			}
-			zero_rect(out, g, xb, xe, yb, ye, za0, zs);
-			zero_rect(out, g, xb, xe, yb, ye, ze, zb0);
+			zero_rect(out, g, x, xc, yb, ye, za0, zs);
+			zero_rect(out, g, x, xc, yb, ye, ze, zb0);
 			for (int64_t zc = zs; zc < ze; zc += RZ) {
 				size_t zn = ze - zc < RZ ? (size_t)(ze - zc) : RZ;
-				ne = 0;
-				for (int64_t y = yb; y < ye; y++)
-					for (int64_t x = xb; x < xe; x += RCOLS, ne += 2) {
-						int64_t xc = xe - x > RCOLS ? x + RCOLS : xe;
-						int e2 = xchunk(t, s, e, g, &k, kt_after, x, xc, y, zc, zn,
-						                keep ? ext + ne : NULL);
-						if (e2 != LOOM_OK && rc == LOOM_OK)
-							rc = e2;
+				for (int64_t y = yb; y < ye; y++) {
+					int64_t e1[2];
+					int e2;
+					if (!keep) {
+						xchunk_extent(t, s, x, xc, y, &e1[0], &e1[1]);
+					} else {
+						e1[0] = ext[2 * (y - yb)];
+						e1[1] = ext[2 * (y - yb) + 1];
 					}
+					e2 = xchunk(t, s, g, &k, &tb, kt_after, x, xc, y, zc, zn, e1);
+					if (e2 != LOOM_OK && rc == LOOM_OK)
+						rc = e2;
+				}
 			}
-			xb = xe;
 		}
 		yb = ye;
 	}
