@@ -268,6 +268,7 @@ static inline void loom__texel_medium(const loom_texel *tx, loom_medium_sample *
 	memcpy(out->orient, tx->orientation, sizeof out->orient);
 	memcpy(out->albedo, tx->albedo, sizeof out->albedo);
 	out->alignment = tx->alignment;
+	out->spread = 0; /* full resolution (the level-of-detail lookups set it) */
 }
 
 /* Level of detail for a ray footprint of fp voxels with `levels` coarse

@@ -553,6 +553,18 @@ static int x_fill(mj_thread *th, mj_exact *x, uint32_t cx, uint32_t cy)
 	return LOOM_OK;
 }
 
+/* Output layers [lo, hi] (source layers shifted by edge-fix offsets, so
+   possibly outside the slab) as the z cells [*zlo, *zhi] that hold them,
+   clamped to the slab; (1, 0) when none does. */
+static void layer_cells(const loom_majorant *m, int64_t lo, int64_t hi, int64_t *zlo,
+                        int64_t *zhi)
+{
+	lo = lo < 0 ? 0 : lo;
+	hi = hi > (int64_t)m->b3 - 1 ? (int64_t)m->b3 - 1 : hi;
+	*zlo = hi < lo ? 1 : lo / m->zcell;
+	*zhi = hi < lo ? 0 : hi / m->zcell;
+}
+
 /* Fill entry e for crossing (I, J).  Nearest: the source block and offset
    range (cell bounds are read from them per query, a few bytes each).
    Trilinear: the 8 voxels around a point may lie in any neighbouring
@@ -593,10 +605,7 @@ static int fill_entry(mj_thread *th, int filter, int64_t I, int64_t J, mj_entry 
 				lo = (int64_t)sp[0] + e->dlo < lo ? (int64_t)sp[0] + e->dlo : lo;
 				hi = (int64_t)sp[1] + e->dhi > hi ? (int64_t)sp[1] + e->dhi : hi;
 			}
-		lo = lo < 0 ? 0 : lo;
-		hi = hi > (int64_t)m->b3 - 1 ? (int64_t)m->b3 - 1 : hi;
-		e->zlo = hi < lo ? 1 : lo / m->zcell;
-		e->zhi = hi < lo ? 0 : hi / m->zcell;
+		layer_cells(m, lo, hi, &e->zlo, &e->zhi);
 	}
 	e->I = I;
 	e->J = J;
@@ -708,7 +717,6 @@ static int mj_cell_zspan(void *thread_ctx, const int64_t c[3], int64_t *zlo, int
 	loom_majorant *m = th->m;
 	const uint32_t *sp;
 	mj_entry *e;
-	int64_t lo, hi;
 	int rc;
 
 	*zlo = 0;
@@ -742,12 +750,7 @@ static int mj_cell_zspan(void *thread_ctx, const int64_t c[3], int64_t *zlo, int
 		*zhi = 0;
 		return LOOM_OK;
 	}
-	lo = (int64_t)sp[0] + e->dlo;
-	hi = (int64_t)sp[1] + e->dhi;
-	lo = lo < 0 ? 0 : lo;
-	hi = hi > (int64_t)m->b3 - 1 ? (int64_t)m->b3 - 1 : hi;
-	*zlo = lo / m->zcell;
-	*zhi = hi < lo ? -1 : hi / m->zcell;
+	layer_cells(m, (int64_t)sp[0] + e->dlo, (int64_t)sp[1] + e->dhi, zlo, zhi);
 	return LOOM_OK;
 }
 
@@ -833,8 +836,15 @@ LOOM_API int loom_majorant_bound(loom_majorant *m, int filter, int64_t I, int64_
 static int grid_lookup(void *ctx, const double p[3], loom_medium_sample *out)
 {
 	mj_thread *th = ctx;
+	loom_texel tx;
+	int rc;
 
-	return loom__texture_medium(th->m->t, p, th->m->filter, out);
+	if (th->m->filter == LOOM_FILTER_NEAREST) /* no texel in between */
+		return loom__texture_medium(th->m->t, p, out);
+	if ((rc = loom_texture_sample(th->m->t, p, th->m->filter, &tx)) != LOOM_OK)
+		return rc;
+	loom__texel_medium(&tx, out);
+	return LOOM_OK;
 }
 
 /* Level of detail through the grid: the coarse density is clamped to the

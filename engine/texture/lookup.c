@@ -861,15 +861,15 @@ static int pos_check(const double p[3])
 	return LOOM_OK;
 }
 
-/* The renderer's lookup (render_majorant.c's grid source): what
-   loom_texture_sample gives, all channels, written straight into a medium
-   sample (spread 0) without a texel in between: a nearest lookup's
-   texel would be cleared and copied twice per tentative collision. */
-int loom__texture_medium(loom_texture *t, const double p[3], int filter,
-                         loom_medium_sample *out)
+/* The renderer's nearest lookup (render_majorant.c's grid source): what
+   loom_texture_sample gives with the nearest filter, all channels, written
+   straight into a medium sample (spread 0) without a texel in between
+   (a texel would be cleared and copied twice per tentative collision),
+   and without the ray-march prefetch (walk_next): tentative collisions
+   are a free path apart, not unit steps. */
+int loom__texture_medium(loom_texture *t, const double p[3], loom_medium_sample *out)
 {
 	struct tslot *s;
-	loom_texel tx;
 	rawvox r;
 	int rc;
 
@@ -877,15 +877,6 @@ int loom__texture_medium(loom_texture *t, const double p[3], int filter,
 	if ((rc = pos_check(p)) != LOOM_OK)
 		return rc;
 	s = slot_enter(t);
-	if (filter != LOOM_FILTER_NEAREST) {
-		rc = sample_one(t, s, p, filter, CH_ALL, &tx);
-		slot_leave(t, s);
-		out->density = tx.density;
-		memcpy(out->orient, tx.orientation, sizeof out->orient);
-		memcpy(out->albedo, tx.albedo, sizeof out->albedo);
-		out->alignment = tx.alignment;
-		return rc;
-	}
 	rc = voxel_raw_w(t, s, (int64_t)floor(p[0]), (int64_t)floor(p[1]), (int64_t)floor(p[2]),
 	                 CH_ALL, &r, 0);
 	bump(&s->cnt.lookups, 1);

@@ -20,10 +20,11 @@
 void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
                         float out[3]);
 
-/* loom_texture_sample (all channels) into a medium sample (spread 0),
-   with no texel in between: the renderer's grid source (lookup.c). */
+/* loom_texture_sample (nearest, all channels) into a medium sample
+   (spread 0), with no texel in between: the renderer's grid source
+   (lookup.c). */
 struct loom_medium_sample;
-int loom__texture_medium(loom_texture *t, const double p[3], int filter,
+int loom__texture_medium(loom_texture *t, const double p[3],
                          struct loom_medium_sample *out);
 
 /* An edge-fix offset in fixed point, 1/16 voxel: dz * 16 rounded to the

@@ -428,10 +428,11 @@ static int nearest_grid(loom_majorant **m, loom_volume_source *src)
 	return 1;
 }
 
-/* The grid source's lookups (loom__texture_medium, which writes the
-   medium sample without a texel between) equal loom_texture_sample's
-   texel as a medium sample, at random points of 6 x 6 crossings
-   (negative ones too), nearest and trilinear, bit for bit. */
+/* The grid source's lookups (nearest: loom__texture_medium, which writes
+   the medium sample without a texel between; trilinear: through a texel)
+   equal loom_texture_sample's texel as a medium sample, every field
+   written, at random points of 6 x 6 crossings (negative ones too), bit
+   for bit. */
 static void test_grid_lookup(void)
 {
 	uint64_t rng = 99;

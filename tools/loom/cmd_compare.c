@@ -577,6 +577,13 @@ static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
 	memcpy(s->hprev, s->h + (size_t)(ny - 1) * W, W * sizeof *s->h);
 }
 
+/* Mean jump of n seam pairs summing to sum over the mean jump inside
+   blocks (0 when either is undefined). */
+static double seam_ratio(const src *s, double sum, uint64_t n)
+{
+	return n && s->in_n && s->in_sum > 0 ? (sum / n) / (s->in_sum / s->in_n) : 0;
+}
+
 /* ---- pictures ---------------------------------------------------------------- */
 
 typedef struct pics {
@@ -958,14 +965,10 @@ int cmd_compare(int argc, char **argv)
 		double aga = n > 0 ? (double)ac.agree / n : 0;
 		double cova = A.cols ? (double)A.surf / (double)A.cols : 0;
 		double covb = B.cols ? (double)B.surf / (double)B.cols : 0;
-		double sra = A.seam_n && A.in_n && A.in_sum > 0
-		             ? (A.seam_sum / A.seam_n) / (A.in_sum / A.in_n) : 0;
-		double srb = B.seam_n && B.in_n && B.in_sum > 0
-		             ? (B.seam_sum / B.seam_n) / (B.in_sum / B.in_n) : 0;
-		double cra = A.corner_n && A.in_n && A.in_sum > 0
-		             ? (A.corner_sum / A.corner_n) / (A.in_sum / A.in_n) : 0;
-		double crb = B.corner_n && B.in_n && B.in_sum > 0
-		             ? (B.corner_sum / B.corner_n) / (B.in_sum / B.in_n) : 0;
+		double sra = seam_ratio(&A, A.seam_sum, A.seam_n);
+		double srb = seam_ratio(&B, B.seam_sum, B.seam_n);
+		double cra = seam_ratio(&A, A.corner_sum, A.corner_n);
+		double crb = seam_ratio(&B, B.corner_sum, B.corner_n);
 		double range = 0, secs;
 		if (picdir)
 			pic_write(prog, &pic, picdir, -mean, deb, &range, &diag);
