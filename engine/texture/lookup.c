@@ -781,6 +781,125 @@ static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, 
 		__builtin_prefetch(&e->w[((size_t)(sy - e->sy0) * t->b1 + (sx - e->sx0)) >> 2]);
 }
 
+/* Density of one output voxel whose source voxels below and at its offset
+   are a and b (raw_blend's rule, the density byte alone). */
+static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f)
+{
+	uint8_t n = 2 * f > DZ_SUB ? a : b, o = 2 * f > DZ_SUB ? b : a;
+	uint8_t d = (uint8_t)(((unsigned)a * (unsigned)f + (unsigned)b * (unsigned)(DZ_SUB - f) +
+	                       DZ_SUB / 2) / DZ_SUB);
+	return n && !o ? d : n;
+}
+
+/* The columns a ray's next footprint most likely adds, after footprint
+   i0 (in crossing e, its corner's source column sx, sy; the slot's
+   current brick holds source voxel (sx, sy + 1, sz), the last column
+   read): the column pair beyond it along the last move in
+   x, the row pair along the last move in y, and the corner between them.
+   Their offset lanes, and their voxel lines at sz when they are in the
+   same crossing and brick column (neighbouring columns' offsets differ by
+   about a voxel: the same 64-voxel line), are prefetched, so that the
+   next footprint's misses overlap with this one's work.  Hints only:
+   nothing is read through these addresses. */
+static inline void tri_next(const loom_texture *t, struct tslot *s, const struct xent *e,
+                            const int64_t i0[3], uint32_t sx, uint32_t sy, uint32_t sz)
+{
+	int64_t ddx = i0[0] - s->tx, ddy = i0[1] - s->ty;
+	int cx, cy;
+
+	s->tx = i0[0];
+	s->ty = i0[1];
+	if ((uint64_t)(ddx + 1) > 2 || (uint64_t)(ddy + 1) > 2)
+		return; /* a jump: not a ray */
+	if (ddx)
+		s->tdx = (int8_t)ddx;
+	if (ddy)
+		s->tdy = (int8_t)ddy;
+	/* the new columns' offsets from the footprint's corner: -1 or 2 */
+	cx = s->tdx > 0 ? 2 : -1;
+	cy = s->tdy > 0 ? 2 : -1;
+	for (int k = 0; k < 5; k++) {
+		/* (cx, 0) (cx, 1) (0, cy) (1, cy) (cx, cy) */
+		int ox = k < 2 ? cx : k < 4 ? k - 2 : cx, oy = k < 2 ? k : cy;
+		uint64_t lx = (uint64_t)(i0[0] + ox - e->x0), ly = (uint64_t)(i0[1] + oy - e->y0);
+		uint32_t nx = sx + (uint32_t)ox, ny = sy + (uint32_t)oy;
+		if ((!s->tdx && (k < 2 || k == 4)) || (!s->tdy && k >= 2) || lx >= t->b1 ||
+		    ly >= t->b2)
+			continue;
+		if (e->map != NO_MAP)
+			__builtin_prefetch(&e->w[((size_t)ly * t->b1 + lx) >> 2]);
+		if (s->memo && brick_of(t, 0, nx) == brick_of(t, 0, sx) &&
+		    brick_of(t, 1, ny) == brick_of(t, 1, sy + 1))
+			__builtin_prefetch(s->memo + src_index(t, nx, ny, sz));
+	}
+}
+
+/* A density-only trilinear footprint the common way: its four columns in
+   the slot's current crossing, each column's source voxels (the two or
+   three its two corners blend from) in one brick and inside the
+   exemplar, both z corners inside the slab.  Then each column costs its
+   offset lane, a brick check and two or three byte reads, instead of
+   pair_raw's column set-up and up to three src_raw calls; the columns go
+   in the order 0, 1, 3, 2, so a footprint across a brick edge in x or y
+   switches bricks at most twice.  The density bytes of the eight corners
+   go to d[8] (sample_one's corner order) exactly as pair_raw would give
+   them.  Returns 0 (nothing done, or a partial d) when the footprint is
+   not of that kind or a brick cannot be had; sample_one then takes the
+   general path, which also reports any error. */
+static inline int tri_dens_fast(loom_texture *t, struct tslot *s, const int64_t i0[3],
+                                uint8_t d[8])
+{
+	static const int order[4] = {0, 1, 3, 2};
+	struct xent *e = s->cur;
+	uint64_t lx, ly;
+	uint32_t sx, sy, sz = 0;
+	int64_t z = i0[2];
+
+	if (!e || (uint64_t)(z + 1) >= t->b3)
+		return 0;
+	lx = (uint64_t)(i0[0] - e->x0);
+	ly = (uint64_t)(i0[1] - e->y0);
+	if (lx >= t->b1 - 1 || ly >= t->b2 - 1)
+		return 0;
+	sx = e->sx0 + (uint32_t)lx;
+	sy = e->sy0 + (uint32_t)ly;
+	for (int j = 0; j < 4; j++) {
+		int k = order[j], dx = k & 1, dy = k >> 1, f;
+		int q = xent_dz(t, s, e, (uint32_t)lx + dx, (uint32_t)ly + dy);
+		int64_t w = dz_split(q, &f), zl = z - w - (f != 0), zh = z + 1 - w;
+		uint64_t id;
+		const uint8_t *c;
+
+		if (zl < 0 || (uint64_t)zh >= t->b3 ||
+		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh))
+			return 0;
+		id = src_brick(t, e, sx + dx, sy + dy, (uint32_t)zl);
+		if (t->dunits && id < t->n_bricks)
+			id |= DUNIT_TAG;
+		if (id != s->memo_id) {
+			if (loom__memo_switch(t, s, id) != LOOM_OK)
+				return 0;
+		} else {
+			bump(&s->cnt.memo_hits, 1);
+		}
+		sz = (uint32_t)(z - w);
+		if (!s->memo) {
+			d[2 * k] = d[2 * k + 1] = 0;
+			continue;
+		}
+		c = s->memo + src_index(t, sx + dx, sy + dy, sz);
+		if (!f) {
+			d[2 * k] = c[0];
+			d[2 * k + 1] = c[1];
+		} else {
+			d[2 * k] = dens_blend(c[-1], c[0], f);
+			d[2 * k + 1] = dens_blend(c[0], c[1], f);
+		}
+	}
+	tri_next(t, s, e, i0, sx, sy, sz);
+	return 1;
+}
+
 /* The calling thread's slot is s; p is finite and in range.  Only the
    planes of channel mask ch are read: the 8 corners for density and
    orientation, the label of the voxel containing p for the material. */
@@ -810,6 +929,22 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	if (ch == CH_D) {
+		uint8_t db[8];
+		if (tri_dens_fast(t, s, i0, db)) {
+			for (int c = 0; c < 8; c++) {
+				int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+				float wc = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+				                   (dz ? f[2] : 1 - f[2]));
+				if (db[c])
+					dens += wc * t->dens[db[c]];
+			}
+			bump(&s->cnt.lookups, 8);
+			memset(out, 0, sizeof *out);
+			out->density = dens;
+			return LOOM_OK;
+		}
+	}
 	if (ch) {
 		for (int c = 0; c < 8; c += 2)
 			column_prefetch(t, s, i0[0] + (c >> 1 & 1), i0[1] + (c >> 2 & 1), i0[2],

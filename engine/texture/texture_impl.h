@@ -146,6 +146,10 @@ struct tslot {
 	                            walk_next: hints only) */
 	uint32_t wsx, wsy, wsz;  /* the last source voxel read (in memo) */
 	int8_t wdx, wdy;         /* the last unit steps' signs along x, y */
+	int64_t tx, ty;          /* the last density-only trilinear footprint's
+	                            corner, and the signs of its last moves
+	                            along x, y (lookup.c tri_next: hints only) */
+	int8_t tdx, tdy;
 	struct colmemo cm[4];    /* by the parity of x and y: the last
 	                            trilinear footprint's 2 x 2 columns */
 	int shared;              /* the overflow slot */

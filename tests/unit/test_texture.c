@@ -1759,7 +1759,7 @@ static void channel_masks(void)
    reference, every trilinear sample the reference's trilinear blend. */
 static void walks_equal_reference(void)
 {
-	uint64_t bad = 0, steps = 0, nonempty = 0;
+	uint64_t bad = 0, steps = 0, nonempty = 0, tri_fast_checked = 0;
 
 	for (int b = 0; b < 2; b++) {
 		size_t budget = b ? 8u << 20 : min_budget(g_fab, g_db, 1);
@@ -1797,6 +1797,16 @@ static void walks_equal_reference(void)
 				bad += fabsf(a.density - dens) > 1e-6f;
 				for (int k = 0; k < 3 && (ch & LOOM_CHANNEL_ORIENTATION); k++)
 					bad += fabsf(a.orientation[k] - ori[k]) > 1e-5f;
+				if (ch == LOOM_CHANNEL_DENSITY) {
+					/* density alone (tri_dens_fast) is bit for bit the
+					   density of the general path */
+					loom_texel g;
+					CHECK_EQ_INT(loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR,
+					                                    LOOM_CHANNEL_ALL, &g),
+					             LOOM_OK);
+					bad += memcmp(&a.density, &g.density, sizeof a.density) != 0;
+					tri_fast_checked++;
+				}
 				for (int j = 0; st % 13 == 12 && j < 5; j++) { /* jumps, and back */
 					int64_t x = rnd_range(-3000, 3000), y = rnd_range(-2000, 2000);
 					e = ref_texel(&g_ref, x, y, q[2]);
@@ -1809,10 +1819,12 @@ static void walks_equal_reference(void)
 		}
 		loom_texture_close(t);
 	}
-	printf("  %llu steps, %llu non-empty\n", (unsigned long long)steps,
-	       (unsigned long long)nonempty);
+	printf("  %llu steps, %llu non-empty, %llu density-only trilinear samples\n",
+	       (unsigned long long)steps, (unsigned long long)nonempty,
+	       (unsigned long long)tri_fast_checked);
 	CHECK_EQ_INT(bad, 0);
 	CHECK(nonempty > 1000);
+	CHECK(tri_fast_checked > 5000);
 }
 
 /* Flip a byte of a stored brick in a copy of the database: the lookups
