@@ -834,60 +834,72 @@ static inline void tri_next(const loom_texture *t, struct tslot *s, const struct
 	}
 }
 
-/* A density-only trilinear footprint the common way: its four columns in
-   the slot's current crossing, each column's source voxels (the two or
-   three its two corners blend from) in one brick and inside the
-   exemplar, both z corners inside the slab.  Then each column costs its
-   offset lane, a brick check and two or three byte reads, instead of
-   pair_raw's column set-up and up to three src_raw calls; the columns go
-   in the order 0, 1, 3, 2, so a footprint across a brick edge in x or y
-   switches bricks at most twice.  The density bytes of the eight corners
-   go to d[8] (sample_one's corner order) exactly as pair_raw would give
-   them.  Returns 0 (nothing done, or a partial d) when the footprint is
-   not of that kind or a brick cannot be had; sample_one then takes the
-   general path, which also reports any error. */
-static inline int tri_dens_fast(loom_texture *t, struct tslot *s, const int64_t i0[3],
-                                uint8_t d[8])
+/* The density bytes of a density-only trilinear footprint (corner i0) into
+   d[8] (sample_one's corner order), exactly as pair_raw gives them, column
+   by column in the order 0, 1, 3, 2 (a footprint across a brick edge in x
+   or y switches bricks at most twice).  A column whose source voxels (the
+   two or three its two corners blend from) lie in one brick and inside
+   the exemplar, with both z corners in the slab (98 % of the columns of
+   bench_vdb's rays), costs its crossing check, its offset lane, a brick
+   check and two or three byte reads; any other column goes through
+   pair_raw.  A failed brick leaves its column's two corners empty;
+   returns the first error, as the general path does. */
+static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3],
+                           uint8_t d[8])
 {
 	static const int order[4] = {0, 1, 3, 2};
-	struct xent *e = s->cur;
-	uint64_t lx, ly;
-	uint32_t sx, sy, sz = 0;
+	struct xent *e = NULL, *e0 = NULL;
+	uint32_t sx = 0, sy = 0, sz = 0;
 	int64_t z = i0[2];
+	int rc = LOOM_OK, one = 1; /* one: every column fast, in one entry */
 
-	if (!e || (uint64_t)(z + 1) >= t->b3)
-		return 0;
-	lx = (uint64_t)(i0[0] - e->x0);
-	ly = (uint64_t)(i0[1] - e->y0);
-	if (lx >= t->b1 - 1 || ly >= t->b2 - 1)
-		return 0;
-	sx = e->sx0 + (uint32_t)lx;
-	sy = e->sy0 + (uint32_t)ly;
 	for (int j = 0; j < 4; j++) {
-		int k = order[j], dx = k & 1, dy = k >> 1, f;
-		int q = xent_dz(t, s, e, (uint32_t)lx + dx, (uint32_t)ly + dy);
-		int64_t w = dz_split(q, &f), zl = z - w - (f != 0), zh = z + 1 - w;
+		int k = order[j], dx = k & 1, dy = k >> 1, f, q;
+		int64_t x = i0[0] + dx, y = i0[1] + dy, w, zl, zh;
 		uint64_t id;
 		const uint8_t *c;
 
-		if (zl < 0 || (uint64_t)zh >= t->b3 ||
-		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh))
-			return 0;
-		id = src_brick(t, e, sx + dx, sy + dy, (uint32_t)zl);
+		e = s->cur;
+		if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
+			e = loom__xent_enter(t, s, x, y);
+		sx = e->sx0 + (uint32_t)(x - e->x0);
+		sy = e->sy0 + (uint32_t)(y - e->y0);
+		q = xent_dz(t, s, e, sx - e->sx0, sy - e->sy0);
+		w = dz_split(q, &f);
+		zl = z - w - (f != 0);
+		zh = z + 1 - w;
+		one &= !j || e == e0;
+		e0 = e;
+		if (z < 0 || (uint64_t)(z + 1) >= t->b3 || zl < 0 || (uint64_t)zh >= t->b3 ||
+		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh)) {
+			rawvox r[2];
+			int e2 = pair_raw(t, s, x, y, z, CH_D, r);
+			d[2 * k] = r[0].d;
+			d[2 * k + 1] = r[1].d;
+			if (e2 != LOOM_OK && rc == LOOM_OK)
+				rc = e2;
+			one = 0;
+			continue;
+		}
+		id = src_brick(t, e, sx, sy, (uint32_t)zl);
 		if (t->dunits && id < t->n_bricks)
 			id |= DUNIT_TAG;
+		d[2 * k] = d[2 * k + 1] = 0;
 		if (id != s->memo_id) {
-			if (loom__memo_switch(t, s, id) != LOOM_OK)
-				return 0;
+			int e2 = loom__memo_switch(t, s, id);
+			if (e2 != LOOM_OK) {
+				if (rc == LOOM_OK)
+					rc = e2;
+				one = 0;
+				continue;
+			}
 		} else {
 			bump(&s->cnt.memo_hits, 1);
 		}
 		sz = (uint32_t)(z - w);
-		if (!s->memo) {
-			d[2 * k] = d[2 * k + 1] = 0;
+		if (!s->memo)
 			continue;
-		}
-		c = s->memo + src_index(t, sx + dx, sy + dy, sz);
+		c = s->memo + src_index(t, sx, sy, sz);
 		if (!f) {
 			d[2 * k] = c[0];
 			d[2 * k + 1] = c[1];
@@ -896,8 +908,9 @@ static inline int tri_dens_fast(loom_texture *t, struct tslot *s, const int64_t 
 			d[2 * k + 1] = dens_blend(c[0], c[1], f);
 		}
 	}
-	tri_next(t, s, e, i0, sx, sy, sz);
-	return 1;
+	if (one) /* the last column read was column 2: (sx, sy) = corner + (0, 1) */
+		tri_next(t, s, e, i0, sx, sy - 1, sz);
+	return rc;
 }
 
 /* The calling thread's slot is s; p is finite and in range.  Only the
@@ -929,21 +942,20 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
-	if (ch == CH_D) {
+	if (ch == CH_D) { /* density alone: tri_dens */
 		uint8_t db[8];
-		if (tri_dens_fast(t, s, i0, db)) {
-			for (int c = 0; c < 8; c++) {
-				int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-				float wc = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
-				                   (dz ? f[2] : 1 - f[2]));
-				if (db[c])
-					dens += wc * t->dens[db[c]];
-			}
-			bump(&s->cnt.lookups, 8);
-			memset(out, 0, sizeof *out);
-			out->density = dens;
-			return LOOM_OK;
+		rc = tri_dens(t, s, i0, db);
+		for (int c = 0; c < 8; c++) {
+			int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+			float wc = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+			                   (dz ? f[2] : 1 - f[2]));
+			if (db[c])
+				dens += wc * t->dens[db[c]];
 		}
+		bump(&s->cnt.lookups, 8);
+		memset(out, 0, sizeof *out);
+		out->density = dens;
+		return rc;
 	}
 	if (ch) {
 		for (int c = 0; c < 8; c += 2)
