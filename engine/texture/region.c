@@ -25,13 +25,16 @@
  *   crossing pieces they span (so output rows are written whole); per
  *   chunk column, the z planes where all of it is surely empty (outside
  *   the block, or in bricks stored as nothing: chunk_extent) are zeroed
- *   plane by plane (zero_rect, sequential writes); then slabs of RZ
+ *   plane by plane (zero_rect, sequential writes; one span a plane when
+ *   the chunk is whole output rows; outputs of NT_MIN bytes and more
+ *   with non-temporal stores, no read for ownership); then slabs of RZ
  *   z-values, rows (xchunk): the z rows where the chunk is
  *   surely empty are zeroed directly; the rest is gathered piece by piece
  *   into the slot's buffer and transposed 16 x 16 at a time (SSE2; with
  *   SSSE3 kind and type come from the transposed labels instead of being
  *   gathered and transposed), each output row of the chunk written whole
- *   (region_xfast).
+ *   and the next chunk's rows prefetched meanwhile (they are a plane
+ *   apart, where the hardware prefetchers do not go) (region_xfast).
  */
 #include "texture_impl.h"
 
