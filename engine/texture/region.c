@@ -25,13 +25,16 @@
  *   crossing pieces they span (so output rows are written whole); per
  *   chunk column, the z planes where all of it is surely empty (outside
  *   the block, or in bricks stored as nothing: chunk_extent) are zeroed
- *   plane by plane (zero_rect, sequential writes); then slabs of RZ
+ *   plane by plane (zero_rect, sequential writes; one span a plane when
+ *   the chunk is whole output rows; outputs of NT_MIN bytes and more
+ *   with non-temporal stores, no read for ownership); then slabs of RZ
  *   z-values, rows (xchunk): the z rows where the chunk is
  *   surely empty are zeroed directly; the rest is gathered piece by piece
  *   into the slot's buffer and transposed 16 x 16 at a time (SSE2; with
  *   SSSE3 kind and type come from the transposed labels instead of being
  *   gathered and transposed), each output row of the chunk written whole
- *   (region_xfast).
+ *   and the next chunk's rows prefetched meanwhile (they are a plane
+ *   apart, where the hardware prefetchers do not go) (region_xfast).
  */
 #include "texture_impl.h"
 
@@ -634,7 +637,18 @@ struct region {
 	const loom_texture_region *out;
 	int64_t lo[3], hi[3];
 	size_t nx, ny, nz, plane;
+	int stream;   /* x-fastest, output of NT_MIN bytes or more: the surely
+	                 empty rows zeroed with non-temporal stores (zero_span) */
 };
+
+/* Output bytes (all requested channels) from which region_xfast zeroes
+   the surely empty part with non-temporal stores: past the per-core L2
+   (0.5-2 MiB on current x86) and about a core's share of the L3 on common
+   parts (the size class of glibc's memcpy threshold, 3/4 of the L3 per
+   thread), such an output is not in the caches when the read returns
+   anyway, so storing past them costs a reader nothing; smaller outputs
+   (loom scan's tiles, ~1 MiB) stay cached for the reader that follows. */
+#define NT_MIN ((size_t)4 << 20)
 
 /* Columns from lx of a row of crossing e (source column e->sx0 + lx) up to
    the end of their source brick column, at most max and GMAX. */
@@ -726,9 +740,14 @@ static inline void store_part(uint8_t *d, __m128i v, size_t n)
    buffer holds RCOLS columns of RZ bytes: 16 x 16 blocks are read whole
    (stale bytes past cn or zn are read, never stored).  All column blocks of
    a z block are transposed first so that each output row is then written
-   in one go (whole cache lines, whatever the row stride). */
+   in one go (whole cache lines, whatever the row stride).  pf (voxels, 0:
+   none): where the next chunk's rows are from these; each row written
+   prefetches its lines there (for writing), so that their reads for
+   ownership overlap this chunk and the next one's gather (the rows are a
+   plane apart, 4 KiB and more: the hardware prefetchers, which stay in a
+   page, never see them coming; ~10 % of the read, hot and fresh). */
 static void tr_plane(uint8_t *restrict out, size_t o, size_t plane,
-                     const uint8_t *restrict buf, size_t cn, size_t zn)
+                     const uint8_t *restrict buf, size_t cn, size_t zn, ptrdiff_t pf)
 {
 #ifdef __SSE2__
 	size_t nb = (cn + 15) / 16, last = cn - (nb - 1) * 16;
@@ -739,6 +758,10 @@ static void tr_plane(uint8_t *restrict out, size_t o, size_t plane,
 			tr16(buf + b * 16 * RZ + z, RZ, v[b]);
 		for (size_t j = 0; j < h; j++) {
 			uint8_t *d = out + o + (z + j) * plane;
+			if (pf) {
+				__builtin_prefetch(d + pf, 1);
+				__builtin_prefetch(d + pf + cn - 1, 1);
+			}
 			for (size_t b = 0; b + 1 < nb; b++)
 				_mm_storeu_si128((__m128i *)(d + 16 * b), v[b][j]);
 			store_part(d + 16 * (nb - 1), v[nb - 1][j], last);
@@ -751,10 +774,10 @@ static void tr_plane(uint8_t *restrict out, size_t o, size_t plane,
 #endif
 }
 
-/* The same for orientation codes from their byte planes. */
+/* The same for orientation codes from their byte planes (pf in codes). */
 static void tr_orient(uint16_t *restrict out, size_t o, size_t plane,
                       const uint8_t *restrict lo, const uint8_t *restrict hi, size_t cn,
-                      size_t zn)
+                      size_t zn, ptrdiff_t pf)
 {
 #ifdef __SSE2__
 	size_t nb = (cn + 15) / 16, last = cn - (nb - 1) * 16;
@@ -767,6 +790,11 @@ static void tr_orient(uint16_t *restrict out, size_t o, size_t plane,
 		}
 		for (size_t j = 0; j < h; j++) {
 			uint8_t *d = (uint8_t *)(out + o + (z + j) * plane);
+			if (pf) {
+				__builtin_prefetch(d + 2 * pf, 1);
+				__builtin_prefetch(d + 2 * pf + 64, 1);
+				__builtin_prefetch(d + 2 * pf + 2 * cn - 1, 1);
+			}
 			for (size_t k = 0; k < nb; k++) {
 				__m128i p0 = _mm_unpacklo_epi8(a[k][j], b[k][j]);
 				__m128i p1 = _mm_unpackhi_epi8(a[k][j], b[k][j]);
@@ -796,11 +824,11 @@ static void tr_orient(uint16_t *restrict out, size_t o, size_t plane,
 /* tr_plane of the gathered labels, and from the transposed labels the
    kind and type rows through kind_type's PSHUFB groups (so kind and type
    are neither gathered nor transposed).  lab_out, kind, type may be NULL;
-   ng as in kt_ssse3. */
+   ng as in kt_ssse3; pf as in tr_plane. */
 __attribute__((target("ssse3"))) static void
 tr_label_kt(uint8_t *lab_out, uint8_t *kind, uint8_t *type, size_t o, size_t plane,
             const uint8_t *restrict buf, size_t cn, size_t zn, const uint8_t *kl,
-            const uint8_t *tl, unsigned ng)
+            const uint8_t *tl, unsigned ng, ptrdiff_t pf)
 {
 	const __m128i bias = _mm_set1_epi8(0x70), g16 = _mm_set1_epi8(16);
 	/* up to two groups (labels below 32, the usual case) in registers */
@@ -820,6 +848,20 @@ tr_label_kt(uint8_t *lab_out, uint8_t *kind, uint8_t *type, size_t o, size_t pla
 			tr16(buf + b * 16 * RZ + z, RZ, v[b]);
 		for (size_t j = 0; j < h; j++) {
 			size_t r = o + (z + j) * plane;
+			if (pf) {
+				if (lab_out) {
+					__builtin_prefetch(lab_out + r + pf, 1);
+					__builtin_prefetch(lab_out + r + pf + cn - 1, 1);
+				}
+				if (kind) {
+					__builtin_prefetch(kind + r + pf, 1);
+					__builtin_prefetch(kind + r + pf + cn - 1, 1);
+				}
+				if (type) {
+					__builtin_prefetch(type + r + pf, 1);
+					__builtin_prefetch(type + r + pf + cn - 1, 1);
+				}
+			}
 			for (size_t b = 0; b < nb; b++) {
 				size_t w = b + 1 < nb ? 16 : last;
 				__m128i l = v[b][j];
@@ -933,29 +975,60 @@ static void zero_rows(const loom_texture_region *out, size_t o, size_t plane, si
 	}
 }
 
+/* n zero bytes at d; with stream, the whole 64-byte lines inside through
+   non-temporal stores (no read for ownership of lines about to be
+   overwritten whole; region_xfast fences), the partial lines at either
+   end as zero_row does. */
+static inline void zero_span(uint8_t *d, size_t n, int stream)
+{
+#ifdef __SSE2__
+	size_t h = (size_t)(-(uintptr_t)d & 63);
+	if (stream && n >= h + 64) {
+		const __m128i z = _mm_setzero_si128();
+		uint8_t *e = d + h + (n - h) / 64 * 64;
+		zero_row(d, h);
+		for (uint8_t *p = d + h; p < e; p += 64) {
+			_mm_stream_si128((__m128i *)p, z);
+			_mm_stream_si128((__m128i *)(p + 16), z);
+			_mm_stream_si128((__m128i *)(p + 32), z);
+			_mm_stream_si128((__m128i *)(p + 48), z);
+		}
+		zero_row(e, (size_t)(d + n - e));
+		return;
+	}
+#else
+	(void)stream;
+#endif
+	zero_row(d, n);
+}
+
 /* Zero the x-fastest output over [xa, xb) x [ya, yb) x [za, zb) (every
-   requested channel), plane by plane and row after row. */
+   requested channel), plane by plane; rows after row, or one span per
+   plane when the rows are the output's whole rows (adjacent). */
 static void zero_rect(const loom_texture_region *out, const struct region *g, int64_t xa,
                       int64_t xb, int64_t ya, int64_t yb, int64_t za, int64_t zb)
 {
-	size_t cn = (size_t)(xb - xa);
+	size_t cn = (size_t)(xb - xa), ny = (size_t)(yb - ya);
 
+	if (cn == g->nx) { /* whole rows: the ny rows of a plane are adjacent */
+		cn *= ny;
+		ny = 1;
+	}
 	for (int64_t z = za; z < zb; z++)
-		for (int64_t y = ya; y < yb; y++) {
-			size_t r = (size_t)(z - g->lo[2]) * g->plane + (size_t)(y - g->lo[1]) * g->nx +
-			           (size_t)(xa - g->lo[0]);
+		for (size_t y = 0; y < ny; y++) {
+			size_t r = (size_t)(z - g->lo[2]) * g->plane +
+			           ((size_t)(ya - g->lo[1]) + y) * g->nx + (size_t)(xa - g->lo[0]);
 			if (out->density)
-				zero_row(out->density + r, cn);
+				zero_span(out->density + r, cn, g->stream);
 			if (out->orientation)
-				zero_row((uint8_t *)(out->orientation + r), 2 * cn);
+				zero_span((uint8_t *)(out->orientation + r), 2 * cn, g->stream);
 			if (out->label)
-				zero_row(out->label + r, cn);
+				zero_span(out->label + r, cn, g->stream);
 			if (out->kind)
-				zero_row(out->kind + r, cn);
+				zero_span(out->kind + r, cn, g->stream);
 			if (out->type)
-				zero_row(out->type + r, cn);
-		}
-}
+				zero_span(out->type + r, cn, g->stream);
+		}}
 
 /* The label -> kind and label -> type tables of an x-fastest chunk column
    (a local copy: the crossing entries of its pieces may be recycled while
@@ -976,10 +1049,12 @@ struct xtabs {
    64-byte line of each byte plane when the output is aligned; a piece at
    a time wrote parts of lines that were evicted before the neighbouring
    piece wrote the rest, and paid partial 16-column transposes at each
-   piece's edges). */
+   piece's edges).  pf: the next chunk's rows from this one's (voxels, 0:
+   none; tr_plane). */
 static int xchunk(loom_texture *t, struct tslot *s, const struct region *g,
                   const struct sink *k0, const struct xtabs *tb, int kt_after, int64_t x,
-                  int64_t xc, int64_t y, int64_t zc, size_t zn, const int64_t *ext)
+                  int64_t xc, int64_t y, int64_t zc, size_t zn, const int64_t *ext,
+                  ptrdiff_t pf)
 {
 	const loom_texture_region *out = g->out;
 	const uint8_t *rd = s->rbuf, *rlo = rd + RCOLS * RZ, *rhi = rlo + RCOLS * RZ;
@@ -1023,24 +1098,24 @@ static int xchunk(loom_texture *t, struct tslot *s, const struct region *g,
 	rd += za, rlo += za, rhi += za, rl += za, rk += za, rt += za;
 	zn = zb - za;
 	if (out->density)
-		tr_plane(out->density, o, g->plane, rd, cn, zn);
+		tr_plane(out->density, o, g->plane, rd, cn, zn, pf);
 	if (out->orientation)
-		tr_orient(out->orientation, o, g->plane, rlo, rhi, cn, zn);
+		tr_orient(out->orientation, o, g->plane, rlo, rhi, cn, zn, pf);
 #ifdef HAVE_TR_KT
 	if (kt_after) {
 		tr_label_kt(out->label, out->kind, out->type, o, g->plane, rl, cn, zn,
-		            tb->ex->kind, out->type ? tb->tlut : NULL, tb->ex->ngrp);
+		            tb->ex->kind, out->type ? tb->tlut : NULL, tb->ex->ngrp, pf);
 		return rc;
 	}
 #else
 	(void)tb;
 #endif
 	if (out->label)
-		tr_plane(out->label, o, g->plane, rl, cn, zn);
+		tr_plane(out->label, o, g->plane, rl, cn, zn, pf);
 	if (out->kind)
-		tr_plane(out->kind, o, g->plane, rk, cn, zn);
+		tr_plane(out->kind, o, g->plane, rk, cn, zn, pf);
 	if (out->type)
-		tr_plane(out->type, o, g->plane, rt, cn, zn);
+		tr_plane(out->type, o, g->plane, rt, cn, zn, pf);
 	return rc;
 }
 
@@ -1189,7 +1264,15 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 						e1[0] = ext[2 * (y - yb)];
 						e1[1] = ext[2 * (y - yb) + 1];
 					}
-					e2 = xchunk(t, s, g, &k, &tb, kt_after, x, xc, y, zc, zn, e1);
+					/* the next chunk's rows, from this one's (voxels):
+					   the next band row's, or the next slab's first */
+					ptrdiff_t pf = 0;
+					if (y + 1 < ye)
+						pf = (ptrdiff_t)g->nx;
+					else if (zc + 2 * RZ <= ze) /* a whole slab */
+						pf = (ptrdiff_t)(RZ * g->plane) -
+						     (ptrdiff_t)(ye - 1 - yb) * (ptrdiff_t)g->nx;
+					e2 = xchunk(t, s, g, &k, &tb, kt_after, x, xc, y, zc, zn, e1, pf);
 					if (e2 != LOOM_OK && rc == LOOM_OK)
 						rc = e2;
 				}
@@ -1197,6 +1280,10 @@ static int region_xfast(loom_texture *t, struct tslot *s, const struct region *g
 		}
 		yb = ye;
 	}
+#ifdef __SSE2__
+	if (g->stream)
+		_mm_sfence(); /* the non-temporal stores visible before we return */
+#endif
 	return rc;
 }
 
@@ -1206,7 +1293,7 @@ LOOM_API int loom_texture_read_region(loom_texture *t, const int64_t lo[3],
 {
 	struct region g;
 	struct tslot *s;
-	size_t total;
+	size_t total, bpv;
 	int rc;
 
 	if (!t || !lo || !hi || !out ||
@@ -1228,6 +1315,9 @@ LOOM_API int loom_texture_read_region(loom_texture *t, const int64_t lo[3],
 		return LOOM_ERANGE;
 	if (total == 0)
 		return LOOM_OK;
+	bpv = (size_t)!!out->density + 2 * (size_t)!!out->orientation + (size_t)!!out->label +
+	      (size_t)!!out->kind + (size_t)!!out->type;
+	g.stream = bpv && total >= (NT_MIN + bpv - 1) / bpv;
 	s = slot_enter(t);
 	rc = out->layout == LOOM_REGION_Z_FASTEST ? region_zfast(t, s, &g) :
 	                                            region_xfast(t, s, &g);

@@ -1201,8 +1201,9 @@ static void region_paths(void)
    cloth (the end voxel past a run, blended columns of every length), both
    layouts, every channel subset with density, the SSSE3 and SSE2 blends,
    against the reference voxel for voxel.  A guard that columns of both
-   blend directions and whole columns are there; and the bench's
-   whole-voxel peer (loom__texture_region_whole) changes densities only. */
+   blend directions and whole columns are there; two x-fastest boxes of
+   4 MiB and more (non-temporal zeroing); and the bench's whole-voxel peer
+   (loom__texture_region_whole) changes densities only. */
 static void region_sub_voxel(void)
 {
 	const uint32_t block[3] = {40, 6, 150}, brick[3] = {16, 2, 32};
@@ -1248,6 +1249,22 @@ static void region_sub_voxel(void)
 			boxes++;
 		}
 		loom__texture_simd(t, 1);
+	}
+	/* x-fastest outputs of 4 MiB and more (NT_MIN in region.c): the surely
+	   empty rows are zeroed with non-temporal stores; whole rows (one span
+	   per plane, nx < 64) and 64-column chunks of wider rows, through
+	   both faces, misaligned heads and tails */
+	for (int it = 0; t && it < 2; it++) {
+		int64_t lo[3] = {-37, -50, -3}, hi[3] = {13, 46, 0};
+		if (it) {
+			lo[0] = -101, lo[1] = -11;
+			hi[0] = 49, hi[1] = 19;
+		}
+		hi[2] = (int64_t)r.b3 + 3;
+		CHECK((size_t)(hi[0] - lo[0]) * (size_t)(hi[1] - lo[1]) * (size_t)(hi[2] - lo[2]) * 6 >=
+		      (size_t)4 << 20);
+		bad += region_vs_ref(t, &r, lo, hi, 31, LOOM_REGION_X_FASTEST);
+		boxes++;
 	}
 	/* the whole-voxel peer: other planes identical, some density not */
 	if (t) {
