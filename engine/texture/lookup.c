@@ -848,10 +848,10 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
                            uint8_t d[8])
 {
 	static const int order[4] = {0, 1, 3, 2};
-	struct xent *e = NULL, *e0 = NULL;
+	struct xent *e = NULL;
 	uint32_t sx = 0, sy = 0, sz = 0;
-	int64_t z = i0[2];
-	int rc = LOOM_OK, one = 1; /* one: every column fast, in one entry */
+	int64_t z = i0[2], x0 = 0, y0 = 0;
+	int rc = LOOM_OK, one = 1; /* one: every column fast, in one crossing */
 
 	for (int j = 0; j < 4; j++) {
 		int k = order[j], dx = k & 1, dy = k >> 1, f, q;
@@ -868,8 +868,9 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		w = dz_split(q, &f);
 		zl = z - w - (f != 0);
 		zh = z + 1 - w;
-		one &= !j || e == e0;
-		e0 = e;
+		if (!j)
+			x0 = e->x0, y0 = e->y0;
+		one &= e->x0 == x0 && e->y0 == y0; /* (an entry may be recycled) */
 		if (z < 0 || (uint64_t)(z + 1) >= t->b3 || zl < 0 || (uint64_t)zh >= t->b3 ||
 		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh)) {
 			rawvox r[2];

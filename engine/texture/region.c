@@ -1028,7 +1028,8 @@ static void zero_rect(const loom_texture_region *out, const struct region *g, in
 				zero_span(out->kind + r, cn, g->stream);
 			if (out->type)
 				zero_span(out->type + r, cn, g->stream);
-		}}
+		}
+}
 
 /* The label -> kind and label -> type tables of an x-fastest chunk column
    (a local copy: the crossing entries of its pieces may be recycled while
