@@ -899,8 +899,11 @@ int main(int argc, char **argv)
 	S.xings = S.check ? 3 : 16;
 	if (xs && atoi(xs) > 0)
 		S.xings = atoi(xs);
-	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper.loomf");
-	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper.vdb");
+	/* per brick shape, so that runs with another BENCH_VDB_BRICK do not
+	   leave the default's fabric naming the other database */
+	std::string shape = S.brick[0] && !S.check ? std::string("-") + bs : std::string();
+	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper" + shape + ".loomf");
+	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper" + shape + ".vdb");
 	mkdir((S.build + "/bench").c_str(), 0777);
 	openvdb::initialize();
 	if (ai + 7 < argc && strcmp(argv[ai], "--child") == 0) {
