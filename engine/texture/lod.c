@@ -400,6 +400,7 @@ static int lod_read(loom_texture *t, struct tslot *s, const struct exm *e, unsig
 {
 	uint64_t id;
 	size_t i;
+	int rc;
 
 	memset(v, 0, LOD_PLANES);
 	if (X < 0 || Y < 0 || Z < 0 || X >= e->lsize[k][0] || Y >= e->lsize[k][1] ||
@@ -409,13 +410,8 @@ static int lod_read(loom_texture *t, struct tslot *s, const struct exm *e, unsig
 	     ((uint64_t)(Y / t->cbs[1]) * e->lnb[k][0] + (uint64_t)(X / t->cbs[0])) *
 	             e->lnb[k][2] +
 	     (uint64_t)(Z / t->cbs[2]);
-	if (id != s->memo_id) {
-		int rc = loom__memo_switch(t, s, id);
-		if (rc != LOOM_OK)
-			return rc;
-	} else {
-		bump(&s->cnt.memo_hits, 1);
-	}
+	if ((rc = memo_use(t, s, id)) != LOOM_OK)
+		return rc;
 	if (!s->memo)
 		return LOOM_OK;
 	i = ((size_t)(Y % t->cbs[1]) * t->cbs[0] + (size_t)(X % t->cbs[0])) * t->cbs[2] +

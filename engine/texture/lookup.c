@@ -488,6 +488,7 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	uint64_t id;
 	size_t i;
 	uint32_t sz;
+	int rc;
 
 	*r = raw_empty;
 	if ((uint64_t)zs >= t->b3) /* Step 4 */
@@ -499,13 +500,8 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	id = src_brick(t, e, sx, sy, sz);
 	if (ch == CH_D && t->dunits && id < t->n_bricks) /* only the density plane: its unit */
 		id |= DUNIT_TAG;
-	if (id != s->memo_id) { /* Step 5 */
-		int rc = loom__memo_switch(t, s, id);
-		if (rc != LOOM_OK)
-			return rc;
-	} else {
-		bump(&s->cnt.memo_hits, 1);
-	}
+	if ((rc = memo_use(t, s, id)) != LOOM_OK) /* Step 5 */
+		return rc;
 	if (!s->memo)
 		return LOOM_OK;
 	i = src_index(t, sx, sy, sz); /* Step 6 */
@@ -514,10 +510,9 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 }
 
 /* Step 2 for output column (x, y): the crossing entry (the slot's current
-   one when it holds the column), the column's source (sx, sy), and the
-   prefetch of the source voxel at z with the offset still unknown. */
-static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                                     uint32_t z, unsigned ch, uint32_t *sx, uint32_t *sy)
+   one when it holds the column) and the column's source (sx, sy). */
+static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                                   uint32_t *sx, uint32_t *sy)
 {
 	struct xent *e = s->cur;
 
@@ -525,8 +520,38 @@ static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x
 		e = loom__xent_enter(t, s, x, y);
 	*sx = e->sx0 + (uint32_t)(x - e->x0);
 	*sy = e->sy0 + (uint32_t)(y - e->y0);
+	return e;
+}
+
+/* xent_at, and the prefetch of the source voxel at z with the offset
+   still unknown. */
+static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
+                                     uint32_t z, unsigned ch, uint32_t *sx, uint32_t *sy)
+{
+	struct xent *e = xent_at(t, s, x, y, sx, sy);
+
 	src_prefetch(t, s, e, *sx, *sy, z, ch);
 	return e;
+}
+
+/* A walk's or ray's new position (x, y) after the last one (*px, *py):
+   both recorded, and the signs of its moves along x and y kept in *dx,
+   *dy (a zero move keeps the last sign).  0 for a jump (more than one
+   voxel along x or y): not a walk. */
+static inline int walk_step(int64_t *px, int64_t *py, int8_t *dx, int8_t *dy, int64_t x,
+                            int64_t y)
+{
+	int64_t ddx = x - *px, ddy = y - *py;
+
+	*px = x;
+	*py = y;
+	if ((uint64_t)(ddx + 1) > 2 || (uint64_t)(ddy + 1) > 2)
+		return 0;
+	if (ddx)
+		*dx = (int8_t)ddx;
+	if (ddy)
+		*dy = (int8_t)ddy;
+	return 1;
 }
 
 /* A walk's next columns (ray marches: unit steps, a point lookup each).
@@ -548,21 +573,12 @@ static inline void walk_next(loom_texture *t, struct tslot *s, int64_t x, int64_
                              unsigned ch)
 {
 	const struct xent *e = s->cur;
-	int64_t ddx = x - s->wx, ddy = y - s->wy;
 	uint64_t lx, ly;
 	uint32_t bx, by;
 	size_t c, i;
 
-	s->wx = x;
-	s->wy = y;
-	if ((uint64_t)(ddx + 1) > 2 || (uint64_t)(ddy + 1) > 2)
+	if (!walk_step(&s->wx, &s->wy, &s->wdx, &s->wdy, x, y) || !e)
 		return; /* a jump: not a walk */
-	if (ddx)
-		s->wdx = (int8_t)ddx;
-	if (ddy)
-		s->wdy = (int8_t)ddy;
-	if (!e)
-		return;
 	lx = (uint64_t)s->wsx - e->sx0;
 	ly = (uint64_t)s->wsy - e->sy0;
 	bx = in_brick(t, 0, s->wsx);
@@ -781,16 +797,6 @@ static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, 
 		__builtin_prefetch(&e->w[((size_t)(sy - e->sy0) * t->b1 + (sx - e->sx0)) >> 2]);
 }
 
-/* Density of one output voxel whose source voxels below and at its offset
-   are a and b (raw_blend's rule, the density byte alone). */
-static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f)
-{
-	uint8_t n = 2 * f > DZ_SUB ? a : b, o = 2 * f > DZ_SUB ? b : a;
-	uint8_t d = (uint8_t)(((unsigned)a * (unsigned)f + (unsigned)b * (unsigned)(DZ_SUB - f) +
-	                       DZ_SUB / 2) / DZ_SUB);
-	return n && !o ? d : n;
-}
-
 /* The columns a ray's next footprint most likely adds, after footprint
    i0 (in crossing e, its corner's source column sx, sy; the slot's
    current brick holds source voxel (sx, sy + 1, sz), the last column
@@ -804,17 +810,10 @@ static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f)
 static inline void tri_next(const loom_texture *t, struct tslot *s, const struct xent *e,
                             const int64_t i0[3], uint32_t sx, uint32_t sy, uint32_t sz)
 {
-	int64_t ddx = i0[0] - s->tx, ddy = i0[1] - s->ty;
 	int cx, cy;
 
-	s->tx = i0[0];
-	s->ty = i0[1];
-	if ((uint64_t)(ddx + 1) > 2 || (uint64_t)(ddy + 1) > 2)
+	if (!walk_step(&s->tx, &s->ty, &s->tdx, &s->tdy, i0[0], i0[1]))
 		return; /* a jump: not a ray */
-	if (ddx)
-		s->tdx = (int8_t)ddx;
-	if (ddy)
-		s->tdy = (int8_t)ddy;
 	/* the new columns' offsets from the footprint's corner: -1 or 2 */
 	cx = s->tdx > 0 ? 2 : -1;
 	cy = s->tdy > 0 ? 2 : -1;
@@ -854,16 +853,12 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 	int rc = LOOM_OK, one = 1; /* one: every column fast, in one crossing */
 
 	for (int j = 0; j < 4; j++) {
-		int k = order[j], dx = k & 1, dy = k >> 1, f, q;
+		int k = order[j], dx = k & 1, dy = k >> 1, f, q, e2;
 		int64_t x = i0[0] + dx, y = i0[1] + dy, w, zl, zh;
 		uint64_t id;
 		const uint8_t *c;
 
-		e = s->cur;
-		if (!e || (uint64_t)(x - e->x0) >= t->b1 || (uint64_t)(y - e->y0) >= t->b2)
-			e = loom__xent_enter(t, s, x, y);
-		sx = e->sx0 + (uint32_t)(x - e->x0);
-		sy = e->sy0 + (uint32_t)(y - e->y0);
+		e = xent_at(t, s, x, y, &sx, &sy);
 		q = xent_dz(t, s, e, sx - e->sx0, sy - e->sy0);
 		w = dz_split(q, &f);
 		zl = z - w - (f != 0);
@@ -874,7 +869,7 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		if (z < 0 || (uint64_t)(z + 1) >= t->b3 || zl < 0 || (uint64_t)zh >= t->b3 ||
 		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh)) {
 			rawvox r[2];
-			int e2 = pair_raw(t, s, x, y, z, CH_D, r);
+			e2 = pair_raw(t, s, x, y, z, CH_D, r);
 			d[2 * k] = r[0].d;
 			d[2 * k + 1] = r[1].d;
 			if (e2 != LOOM_OK && rc == LOOM_OK)
@@ -886,16 +881,11 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		if (t->dunits && id < t->n_bricks)
 			id |= DUNIT_TAG;
 		d[2 * k] = d[2 * k + 1] = 0;
-		if (id != s->memo_id) {
-			int e2 = loom__memo_switch(t, s, id);
-			if (e2 != LOOM_OK) {
-				if (rc == LOOM_OK)
-					rc = e2;
-				one = 0;
-				continue;
-			}
-		} else {
-			bump(&s->cnt.memo_hits, 1);
+		if ((e2 = memo_use(t, s, id)) != LOOM_OK) {
+			if (rc == LOOM_OK)
+				rc = e2;
+			one = 0;
+			continue;
 		}
 		sz = (uint32_t)(z - w);
 		if (!s->memo)
@@ -943,16 +933,17 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 	/* corners: bit 0 = z (fastest in a brick), bit 1 = x, bit 2 = y; the
 	   voxel containing p is corner near */
 	near = (f[2] >= 0.5) | (f[0] >= 0.5) << 1 | (f[1] >= 0.5) << 2;
+	for (int c = 0; c < 8; c++) {
+		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
+		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
+		               (dz ? f[2] : 1 - f[2]));
+	}
 	if (ch == CH_D) { /* density alone: tri_dens */
 		uint8_t db[8];
 		rc = tri_dens(t, s, i0, db);
-		for (int c = 0; c < 8; c++) {
-			int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-			float wc = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
-			                   (dz ? f[2] : 1 - f[2]));
+		for (int c = 0; c < 8; c++)
 			if (db[c])
-				dens += wc * t->dens[db[c]];
-		}
+				dens += w[c] * t->dens[db[c]];
 		bump(&s->cnt.lookups, 8);
 		memset(out, 0, sizeof *out);
 		out->density = dens;
@@ -974,9 +965,6 @@ static int sample_one(loom_texture *t, struct tslot *s, const double p[3], int f
 			rc = e;
 	}
 	for (int c = 0; c < 8; c++) {
-		int dz = c & 1, dx = c >> 1 & 1, dy = c >> 2 & 1;
-		w[c] = (float)((dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) *
-		               (dz ? f[2] : 1 - f[2]));
 		wd[c] = 0;
 		v[c][0] = v[c][1] = v[c][2] = 0;
 		if (r[c].d) {

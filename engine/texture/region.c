@@ -562,18 +562,10 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		int64_t z0 = kz * bz, z1 = z0 + bz;
 		uint64_t id = base + (uint64_t)kz;
 		const uint8_t *p;
-		int ok = 1;
-		if (id != s->memo_id) {
-			int e2 = loom__memo_switch(t, s, id);
-			if (e2 != LOOM_OK) {
-				if (rc == LOOM_OK)
-					rc = e2;
-				ok = 0;
-			}
-		} else {
-			bump(&s->cnt.memo_hits, 1);
-		}
-		p = ok ? s->memo : NULL;
+		int e2 = memo_use(t, s, id);
+		if (e2 != LOOM_OK && rc == LOOM_OK)
+			rc = e2;
+		p = e2 == LOOM_OK ? s->memo : NULL;
 		if (p && !brick_empty(t, id)) {
 			if (z0 < slo)
 				slo = z0;

@@ -352,6 +352,16 @@ static inline void slot_leave(loom_texture *t, struct tslot *s)
 struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y);
 /* Step 5: make brick id the slot's current brick. */
 int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id);
+/* Step 5 when the slot's current brick may already be id: switch to id
+   only if it is not (a hit is counted). */
+static inline int memo_use(loom_texture *t, struct tslot *s, uint64_t id)
+{
+	if (id != s->memo_id)
+		return loom__memo_switch(t, s, id);
+	bump(&s->cnt.memo_hits, 1);
+	return LOOM_OK;
+}
+
 /* Inflate stored brick id's density plane into its unit's pinned frame
    unless it is there already (texture.c; waits while another thread
    fills it). */
@@ -455,14 +465,20 @@ typedef struct rawvox {
    with f (a surface voxel's density falls as its farther weight grows; a
    voxel appears, at half density or more, where it becomes the nearer).
    Only the density plane needs both source voxels. */
+static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f)
+{
+	uint8_t n = 2 * f > DZ_SUB ? a : b, o = 2 * f > DZ_SUB ? b : a;
+	uint8_t d = (uint8_t)(((unsigned)a * (unsigned)f + (unsigned)b * (unsigned)(DZ_SUB - f) +
+	                       DZ_SUB / 2) / DZ_SUB);
+	return n && !o ? d : n;
+}
+
+/* The whole voxel: every plane the nearer source voxel's, the density
+   by dens_blend. */
 static inline void raw_blend(const rawvox *a, const rawvox *b, int f, rawvox *r)
 {
-	const rawvox *n = 2 * f > DZ_SUB ? a : b, *o = 2 * f > DZ_SUB ? b : a;
-	uint8_t d = (uint8_t)(((unsigned)a->d * (unsigned)f +
-	                       (unsigned)b->d * (unsigned)(DZ_SUB - f) + DZ_SUB / 2) /
-	                      DZ_SUB);
-	*r = *n;
-	r->d = n->d && !o->d ? d : n->d;
+	*r = *(2 * f > DZ_SUB ? a : b);
+	r->d = dens_blend(a->d, b->d, f);
 }
 
 /* Brick coordinates: split v along axis a into brick index and offset. */
