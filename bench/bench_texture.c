@@ -1016,6 +1016,17 @@ int main(int argc, char **argv)
 	bench_help(argc, argv, USAGE);
 	if (argc > 2 || !bench_digits_in(parts, "12345"))
 		bench_reject("bench_texture", argv[argc > 2 ? 2 : 1], USAGE);
+	if (!(paper && *paper) && stat(dbp, &st) == 0 &&
+	    loom_db_open(dbp, &db, &diag) == LOOM_OK) { /* older format: again */
+		loom_db_get_info(db, &info);
+		loom_db_close(db);
+		db = NULL;
+		if (info.voxel_layout < 3) {
+			printf("%s is of format version %u: generated again in the current "
+			       "one\n", dbp, info.version);
+			unlink(dbp);
+		}
+	}
 	if (stat(dbp, &st) != 0) {
 		loom_exgen_params p;
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", dbp);

@@ -235,7 +235,20 @@ bool setup_open(Setup &S)
 		S.dbp = S.build + "/bench/paper-" + getenv("BENCH_VDB_BRICK") + ".ldb";
 	else
 		S.dbp = S.build + "/bench/paper.ldb";
-	if (!S.check && stat(S.dbp.c_str(), &st) != 0) {
+	bool stale = false; /* a generated database of an older format version */
+	if (!S.check && !(paper && *paper) && stat(S.dbp.c_str(), &st) == 0) {
+		loom_db *old = NULL;
+		loom_db_info oi;
+		if (loom_db_open(S.dbp.c_str(), &old, &diag) == LOOM_OK) {
+			loom_db_get_info(old, &oi);
+			stale = oi.voxel_layout < 3;
+			loom_db_close(old);
+		}
+		if (stale)
+			printf("%s is of format version %u: generated again in the current one\n",
+			       S.dbp.c_str(), oi.version);
+	}
+	if (!S.check && (stale || stat(S.dbp.c_str(), &st) != 0)) {
 		loom_exgen_params p;
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", S.dbp.c_str());
 		fflush(stdout);

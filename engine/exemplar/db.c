@@ -128,9 +128,9 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 		             "an exemplar database)", p, h[0], h[1], h[2], h[3], h[4], h[5],
 		             h[6], h[7]);
 	v = loom__le32(h + 8);
-	if (v != LOOM__DB_VERSION && v != LOOM__DB_VERSION_PLANES1)
+	if (v < LOOM__DB_VERSION_PLANES1 || v > LOOM__DB_VERSION)
 		return FAILF(LOOM_EVERSION, "%s: offset 8: format version %u, this loom "
-		             "reads versions 1 and %u", p, v, LOOM__DB_VERSION);
+		             "reads versions 1 to %u", p, v, LOOM__DB_VERSION);
 	if (loom__le32(h + 124) != libdeflate_crc32(0, h, 124))
 		return FAILF(LOOM_ECORRUPT, "%s: offset 124: header CRC32 0x%08x does not "
 		             "match the header (0x%08x)", p, loom__le32(h + 124),
@@ -162,8 +162,9 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 		             "%u bytes", p, db->info.brick[0], db->info.brick[1],
 		             db->info.brick[2], LOOM__DB_MAX_BRICK_BYTES);
 	/* version 1 stores a brick as one stream (layout 1), version 2 each
-	   plane as a unit of its own (layout 2) */
-	db->info.voxel_layout = v == 1 ? LOOM__DB_LAYOUT_PLANES : LOOM__DB_LAYOUT_UNITS;
+	   plane as a unit of its own (layout 2), version 3 the density unit in
+	   segments (layout 3): the layout is the version */
+	db->info.voxel_layout = v;
 	db->entry_bytes = v == 1 ? LOOM__DB_INDEX_BYTES : LOOM__DB_INDEX2_BYTES;
 	if (loom__le32(h + 44) != db->info.voxel_layout)
 		return FAILF(LOOM_EUNSUPPORTED, "%s: offset 44: voxel layout %u, expected "
@@ -955,20 +956,87 @@ const loom_db_yarn *loom__db_yarn_lut(const loom_db *db, uint32_t k)
 	return k < db->info.n_exemplars ? db->ex[k].yarns : NULL;
 }
 
-/* Unit u of brick id (layout 2), its stored bytes src (already read):
-   CRC, then zero, copy or inflate to exactly V bytes at out. */
-static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
+static const char *inflate_error(enum libdeflate_result r)
+{
+	return r == LIBDEFLATE_SHORT_OUTPUT ? "decompressed size mismatch: fewer bytes" :
+	       r == LIBDEFLATE_INSUFFICIENT_SPACE ? "decompressed size mismatch: more bytes" :
+	                                            "invalid deflate data";
+}
+
+/* A segmented density unit (layout 3) of brick id, its n stored bytes src
+   (CRC checked) at file offset off: check the segment header, then
+   inflate segments q0 .. q1-1 into their rows of plane. */
+static int segs_decode(const loom_db *db, uint32_t id,
                        struct libdeflate_decompressor *dec, const uint8_t *src,
-                       uint64_t off, uint8_t *out, loom_diag *diag)
+                       size_t n, uint64_t off, uint8_t *plane, unsigned q0, unsigned q1,
+                       loom_diag *diag)
+{
+	size_t at = LOOM__DB_SEG_HEADER, lo[LOOM__DB_SEGS], len[LOOM__DB_SEGS];
+	uint32_t c[LOOM__DB_SEGS];
+	enum libdeflate_result r;
+	char name[192];
+
+	for (unsigned q = 0; q < LOOM__DB_SEGS; q++) {
+		loom__db_seg_range(db->info.brick, LOOM__DB_SEGS, q, &lo[q], &len[q]);
+		c[q] = loom__le32(src + 4 * q);
+		if (c[q] > len[q] || c[q] > n - at) {
+			loom__db_brick_name(db, id, name, sizeof name);
+			return loom__fail(diag, LOOM_ECORRUPT, "%s, unit 0 (density) at offset "
+			                  "%llu: segment %u of %u bytes, expected 0..%zu within "
+			                  "the unit's %zu bytes", name, (unsigned long long)off,
+			                  q, c[q], len[q], n);
+		}
+		at += c[q];
+	}
+	if (at != n) {
+		loom__db_brick_name(db, id, name, sizeof name);
+		return loom__fail(diag, LOOM_ECORRUPT, "%s, unit 0 (density) at offset %llu: "
+		                  "segments of %zu bytes with their header, the unit has %zu",
+		                  name, (unsigned long long)off, at, n);
+	}
+	at = LOOM__DB_SEG_HEADER;
+	for (unsigned q = 0; q < q1; at += c[q], q++) {
+		if (q < q0)
+			continue;
+		if (c[q] == 0) {
+			memset(plane + lo[q], 0, len[q]);
+		} else if (c[q] == len[q]) {
+			memcpy(plane + lo[q], src + at, len[q]);
+		} else {
+			r = libdeflate_deflate_decompress(dec, src + at, c[q], plane + lo[q],
+			                                  len[q], NULL);
+			if (r != LIBDEFLATE_SUCCESS) {
+				loom__db_brick_name(db, id, name, sizeof name);
+				return loom__fail(diag, LOOM_ECORRUPT, "%s, unit 0 (density), "
+				                  "segment %u at offset %llu: %s (expected %zu "
+				                  "bytes)", name, q,
+				                  (unsigned long long)(off + at), inflate_error(r),
+				                  len[q]);
+			}
+		}
+	}
+	return LOOM_OK;
+}
+
+/* Unit u of brick id (layouts 2 and 3), its stored bytes src (already
+   read): CRC, then zero, copy or inflate the rows of segments q0 .. q1-1
+   (all: 0 .. LOOM__DB_SEGS; a layout-2 unit or one stored raw has one
+   segment, the plane) at out, which holds the whole plane. */
+static int unit_decode_segs(const loom_db *db, uint32_t id, unsigned u,
+                            struct libdeflate_decompressor *dec, const uint8_t *src,
+                            uint64_t off, uint8_t *out, unsigned q0, unsigned q1,
+                            loom_diag *diag)
 {
 	const db_brick *b = brick_at(db, id);
-	size_t V = db->brick_voxels;
+	size_t V = db->brick_voxels, lo = 0, len = V;
 	uint32_t crc;
 	enum libdeflate_result r;
 	char name[192];
 
+	if (q1 - q0 < LOOM__DB_SEGS) /* one segment: its rows */
+		loom__db_seg_range(db->info.brick, LOOM__DB_SEGS, q0, &lo, &len);
 	if (b->ub[u] == 0) {
-		memset(out, 0, V);
+		memset(out + lo, 0, len);
 		return LOOM_OK;
 	}
 	crc = libdeflate_crc32(0, src, b->ub[u]);
@@ -981,22 +1049,35 @@ static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
 	}
 	if (b->ub[u] == V) {
 		if (src != out)
-			memcpy(out, src, V);
+			memcpy(out + lo, src + lo, len);
 		return LOOM_OK;
+	}
+	if (u == 0 && db->info.voxel_layout == LOOM__DB_LAYOUT_SEGS) {
+		if (b->ub[u] < LOOM__DB_SEG_HEADER) {
+			loom__db_brick_name(db, id, name, sizeof name);
+			return loom__fail(diag, LOOM_ECORRUPT, "%s, unit 0 (density) at offset "
+			                  "%llu: %u bytes, shorter than its %u-byte segment "
+			                  "header", name, (unsigned long long)off, b->ub[u],
+			                  LOOM__DB_SEG_HEADER);
+		}
+		return segs_decode(db, id, dec, src, b->ub[u], off, out, q0, q1, diag);
 	}
 	r = libdeflate_deflate_decompress(dec, src, b->ub[u], out, V, NULL);
 	if (r != LIBDEFLATE_SUCCESS) {
 		loom__db_brick_name(db, id, name, sizeof name);
 		return loom__fail(diag, LOOM_ECORRUPT, "%s, unit %u (%s) at offset %llu: %s "
 		                  "(expected %zu bytes)", name, u, unit_names[u],
-		                  (unsigned long long)off,
-		                  r == LIBDEFLATE_SHORT_OUTPUT ?
-		                          "decompressed size mismatch: fewer bytes" :
-		                  r == LIBDEFLATE_INSUFFICIENT_SPACE ?
-		                          "decompressed size mismatch: more bytes" :
-		                          "invalid deflate data", V);
+		                  (unsigned long long)off, inflate_error(r), V);
 	}
 	return LOOM_OK;
+}
+
+/* The whole unit u of brick id at out (V bytes). */
+static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
+                       struct libdeflate_decompressor *dec, const uint8_t *src,
+                       uint64_t off, uint8_t *out, loom_diag *diag)
+{
+	return unit_decode_segs(db, id, u, dec, src, off, out, 0, LOOM__DB_SEGS, diag);
 }
 
 /* pread n bytes of brick id at off; the error names the brick. */
@@ -1090,12 +1171,7 @@ int loom__db_read_brick(const loom_db *db, uint32_t id,
 	if (r != LIBDEFLATE_SUCCESS) {
 		loom__db_brick_name(db, id, name, sizeof name);
 		return loom__fail(diag, LOOM_ECORRUPT, "%s: %s (expected %zu bytes)", name,
-		                  r == LIBDEFLATE_SHORT_OUTPUT ?
-		                          "decompressed size mismatch: fewer bytes" :
-		                  r == LIBDEFLATE_INSUFFICIENT_SPACE ?
-		                          "decompressed size mismatch: more bytes" :
-		                          "invalid deflate data",
-		                  db->brick_bytes);
+		                  inflate_error(r), db->brick_bytes);
 	}
 	return LOOM_OK;
 }
@@ -1178,6 +1254,42 @@ int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
 	src = b->ub[u] == db->brick_voxels ? out : r->scratch;
 	rc = brick_pread(db, id, src, b->ub[u], off, n_read, diag);
 	return rc ? rc : unit_decode(db, id, u, r->dec, src, off, out, diag);
+}
+
+unsigned loom__db_dsegs(const loom_db *db)
+{
+	return db->info.voxel_layout == LOOM__DB_LAYOUT_SEGS ? LOOM__DB_SEGS :
+	       db->info.voxel_layout == LOOM__DB_LAYOUT_UNITS ? 1u : 0u;
+}
+
+int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q, uint8_t *plane,
+                             size_t *n_read, loom_diag *diag)
+{
+	const loom_db *db = r->db;
+	unsigned ns = loom__db_dsegs(db);
+	const db_brick *b;
+	size_t lo, len;
+	int rc;
+
+	if (n_read)
+		*n_read = 0;
+	if (id >= db->n_bricks || q >= ns)
+		return loom__fail(diag, ns ? LOOM_ERANGE : LOOM_EUNSUPPORTED, "%s: brick %u "
+		                  "density segment %u out of range (the database has %u "
+		                  "bricks, %u segments a density plane)", db->path, id, q,
+		                  db->n_bricks, ns);
+	if (ns == 1)
+		return loom__db_reader_read_unit(r, id, 0, plane, n_read, diag);
+	b = brick_at(db, id);
+	if (b->ub[0] == 0) {
+		loom__db_seg_range(db->info.brick, ns, q, &lo, &len);
+		memset(plane + lo, 0, len);
+		return LOOM_OK;
+	}
+	/* into scratch even when raw: only the segment's rows are written */
+	rc = brick_pread(db, id, r->scratch, b->ub[0], b->offset, n_read, diag);
+	return rc ? rc : unit_decode_segs(db, id, 0, r->dec, r->scratch, b->offset, plane,
+	                                  q, q + 1, diag);
 }
 
 /* ---- whole-exemplar helpers -------------------------------------------------- */

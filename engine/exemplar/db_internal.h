@@ -40,7 +40,8 @@ struct libdeflate_decompressor;
 #define LOOM__DB_MAGIC "\x89LDB\r\n\x1a\n"   /* 8 bytes */
 #define LOOM__DB_META_MAGIC "LDBMETA1"        /* 8 bytes */
 #define LOOM__DB_TRAILER_MAGIC "LDBTRAIL"     /* 8 bytes */
-#define LOOM__DB_VERSION 2u                   /* written; 1 is still read */
+#define LOOM__DB_VERSION 3u                   /* written; 1 and 2 still read */
+#define LOOM__DB_VERSION_UNITS2 2u            /* plane units, density whole */
 #define LOOM__DB_VERSION_PLANES1 1u           /* whole-brick streams */
 #define LOOM__DB_HEADER_BYTES 128u
 #define LOOM__DB_TRAILER_BYTES 64u
@@ -50,7 +51,12 @@ struct libdeflate_decompressor;
 #define LOOM__DB_INDEX2_BYTES 56u             /* version 2: + 4 unit entries */
 #define LOOM__DB_LAYOUT_PLANES 1u             /* voxel_layout: 4 byte planes */
 #define LOOM__DB_LAYOUT_UNITS 2u              /* the planes stored apart */
-#define LOOM__DB_UNITS 4u                     /* units of a layout-2 brick */
+#define LOOM__DB_LAYOUT_SEGS 3u               /* units, the density one in
+                                                 segments (version 3) */
+#define LOOM__DB_UNITS 4u                     /* units of a layout-2/3 brick */
+#define LOOM__DB_SEGS 8u                      /* segments of a layout-3
+                                                 density unit */
+#define LOOM__DB_SEG_HEADER (4u * LOOM__DB_SEGS) /* their sizes, u32 each */
 #define LOOM__DB_TOP_THRESHOLD 64u            /* density of the surface rule */
 
 /* Brick storage kinds (index entry byte 20). */
@@ -204,8 +210,50 @@ int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
  */
 int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
                               uint8_t *out, size_t *n_read, loom_diag *diag);
-/* voxel_layout of the database: LOOM__DB_LAYOUT_PLANES or _UNITS. */
+/* voxel_layout of the database: LOOM__DB_LAYOUT_PLANES, _UNITS or _SEGS. */
 unsigned loom__db_layout(const loom_db *db);
+
+/*
+ * Segments of the density plane a reader can inflate one by one: 8 in
+ * layout 3, 1 (the whole plane) in layout 2, 0 in layout 1.
+ */
+unsigned loom__db_dsegs(const loom_db *db);
+
+/*
+ * Read segment q (0 .. loom__db_dsegs - 1) of brick id's density plane
+ * into its place in plane (brick_voxels bytes): only the bytes of the
+ * segment's rows are written (loom__db_seg_range), so threads may fill
+ * different segments of one plane at once.  The whole unit is read and
+ * its CRC checked; only segment q is inflated.  Errors as read_unit's,
+ * naming the segment.
+ */
+int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q,
+                             uint8_t *plane, size_t *n_read, loom_diag *diag);
+
+/*
+ * Rows per density segment when a plane of brick (bx, by, bz) is cut into
+ * nseg segments (docs/formats.md, "Segmented density units"): segment q
+ * holds rows [q R, min((q+1) R, by)), R = ceil(by / nseg).
+ */
+static inline uint32_t loom__db_seg_rows(const uint32_t brick[3], unsigned nseg)
+{
+	return (brick[1] + nseg - 1) / nseg;
+}
+
+/* Segment q's bytes [*lo, *lo + *len) in the plane (len 0 past by). */
+static inline void loom__db_seg_range(const uint32_t brick[3], unsigned nseg, unsigned q,
+                                      size_t *lo, size_t *len)
+{
+	uint32_t R = loom__db_seg_rows(brick, nseg), y0 = q * R, y1 = y0 + R;
+	size_t row = (size_t)brick[0] * brick[2];
+
+	if (y0 > brick[1])
+		y0 = brick[1];
+	if (y1 > brick[1])
+		y1 = brick[1];
+	*lo = y0 * row;
+	*len = (y1 - y0) * row;
+}
 
 /* Yarn table of exemplar k for label lookups: 256 entries, labels beyond
    n_yarns are kind 0.  NULL if k is out of range. */

@@ -1270,7 +1270,7 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 		                  p->size, sizeof *p);
 	if (p->db_version > LOOM__DB_VERSION)
 		return loom__fail(diag, LOOM_EINVAL, "exemplar generator: database version "
-		                  "%u, expected 0 (current), 1 or %u", p->db_version,
+		                  "%u, expected 0 (current), 1, 2 or %u", p->db_version,
 		                  LOOM__DB_VERSION);
 	if (p->block[0] < 2 || p->block[1] < 2 || p->block[2] < 4 ||
 	    p->block[0] > LOOM__DB_MAX_BLOCK || p->block[1] > LOOM__DB_MAX_BLOCK ||

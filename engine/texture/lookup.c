@@ -377,10 +377,9 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 	rc = loom__cache_get(s->cth, id == bid ? id : dunit_key(t, bid), &p, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
-	if (id != bid && (rc = loom__dunit_fill(t, s, bid, p, &d)) != LOOM_OK) {
-		loom__cache_release(s->cth, p);
-		return loom__slot_error(t, s, rc, d.message);
-	}
+	/* a density unit's segments are filled as lookups need them
+	   (memo_seg_use) */
+	s->memo_seg = id == bid ? 0xff : loom__dunit_segs(t, bid);
 	s->memo_off = id == bid ? 0 : (uint32_t)dunit_off(t, bid);
 	s->memo_id = id;
 	s->memo = (const uint8_t *)p + s->memo_off;
@@ -390,6 +389,27 @@ int loom__memo_switch(loom_texture *t, struct tslot *s, uint64_t id)
 		if (atomic_load_explicit(&t->hint[bid], memory_order_relaxed) != h)
 			atomic_store_explicit(&t->hint[bid], h, memory_order_relaxed);
 	}
+	return LOOM_OK;
+}
+
+/* memo_seg_use's slow path: fill the segment of source row sy of the
+   density unit's plane in memo. */
+int loom__memo_seg_fill(loom_texture *t, struct tslot *s, uint32_t sy)
+{
+	unsigned q = in_brick(t, 1, sy) / t->dseg_rows;
+	loom_diag d;
+	int rc;
+
+	if (s->memo_seg >> q & 1)
+		return LOOM_OK;
+	d.message[0] = 0;
+	d.warn = NULL;
+	d.user = NULL;
+	d.n_warnings = 0;
+	rc = loom__dunit_fill(t, s, s->memo_id & ~DUNIT_TAG, q, s->memo - s->memo_off, &d);
+	if (rc != LOOM_OK)
+		return loom__slot_error(t, s, rc, d.message);
+	s->memo_seg |= (uint8_t)(1u << q);
 	return LOOM_OK;
 }
 
@@ -500,7 +520,8 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	id = src_brick(t, e, sx, sy, sz);
 	if (ch == CH_D && t->dunits && id < t->n_bricks) /* only the density plane: its unit */
 		id |= DUNIT_TAG;
-	if ((rc = memo_use(t, s, id)) != LOOM_OK) /* Step 5 */
+	if ((rc = memo_use(t, s, id)) != LOOM_OK || /* Step 5 */
+	    (rc = memo_seg_use(t, s, sy)) != LOOM_OK)
 		return rc;
 	if (!s->memo)
 		return LOOM_OK;
@@ -881,7 +902,8 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		if (t->dunits && id < t->n_bricks)
 			id |= DUNIT_TAG;
 		d[2 * k] = d[2 * k + 1] = 0;
-		if ((e2 = memo_use(t, s, id)) != LOOM_OK) {
+		if ((e2 = memo_use(t, s, id)) != LOOM_OK ||
+		    (e2 = memo_seg_use(t, s, sy)) != LOOM_OK) {
 			if (rc == LOOM_OK)
 				rc = e2;
 			one = 0;

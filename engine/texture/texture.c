@@ -73,11 +73,12 @@
 /* ------------------------------------------------------------ open/close */
 
 /* A density unit (DUNIT_TAG | g): one frame for the density planes of the
-   stored bricks of ranks 4g .. 4g+3 (dunit_key), each inflated from its
-   layout-2 unit only when a lookup first needs it (loom__dunit_fill): a
-   random voxel needs one plane, and inflating all four on a miss cost
-   more than the hits they brought when the budget is below the working
-   set.  The load itself only marks the four planes absent. */
+   stored bricks of ranks 4g .. 4g+3 (dunit_key), each segment of each
+   plane inflated from its layout-3 unit (layout 2: the whole plane, one
+   segment) only when a lookup first needs it (loom__dunit_fill): a random
+   voxel needs one segment of one plane, and inflating more on a miss cost
+   more than the hits it brought when the budget is below the working
+   set.  The load itself only marks every segment absent. */
 static int dunit_load(loom_texture *t, uint64_t g)
 {
 	atomic_store_explicit(&t->dstate[g], 0, memory_order_release);
@@ -85,15 +86,15 @@ static int dunit_load(loom_texture *t, uint64_t g)
 	return LOOM_OK;
 }
 
-int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, const uint8_t *frame,
-                     loom_diag *diag)
+int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
+                     const uint8_t *frame, loom_diag *diag)
 {
 	uint32_t r = stored_rank(t, id);
-	_Atomic uint8_t *st = &t->dstate[r >> 2];
-	uint8_t have = (uint8_t)(1u << (r & 3)), busy = (uint8_t)(have << 4);
-	uint8_t v = atomic_load_explicit(st, memory_order_acquire);
+	_Atomic uint64_t *st = &t->dstate[r >> 2];
+	uint64_t have = (uint64_t)1 << (8 * (r & 3) + q), busy = have << 32;
+	uint64_t v = atomic_load_explicit(st, memory_order_acquire);
 	void *scratch;
-	size_t n = 0;
+	size_t n = 0, lo, len;
 	int rc;
 
 	while (!(v & have)) {
@@ -102,30 +103,40 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, const uint8_
 			v = atomic_load_explicit(st, memory_order_acquire);
 			continue;
 		}
-		if (!atomic_compare_exchange_weak_explicit(st, &v, (uint8_t)(v | busy),
+		if (!atomic_compare_exchange_weak_explicit(st, &v, v | busy,
 		                                           memory_order_acquire,
 		                                           memory_order_acquire))
 			continue;
-		/* claimed: the plane's bytes are this thread's until published */
+		/* claimed: the segment's bytes are this thread's until published */
 		struct timespec t0, t1;
 		clock_gettime(CLOCK_MONOTONIC, &t0);
 		rc = loom__cache_thread_scratch(s->cth, &scratch, diag);
 		if (rc == LOOM_OK)
-			rc = loom__db_reader_read_unit(scratch, (uint32_t)id, 0,
-			                               (uint8_t *)frame + dunit_off(t, id), &n, diag);
+			rc = loom__db_reader_read_seg(scratch, (uint32_t)id, q,
+			                              (uint8_t *)frame + dunit_off(t, id), &n, diag);
 		atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
 		if (rc != LOOM_OK) {
-			atomic_fetch_and_explicit(st, (uint8_t)~busy, memory_order_release);
+			atomic_fetch_and_explicit(st, ~busy, memory_order_release);
 			return rc;
 		}
 		clock_gettime(CLOCK_MONOTONIC, &t1);
+		loom__db_seg_range(t->bs, t->dsegs, q, &lo, &len);
 		bump(&s->cnt.dfills, 1);
+		bump(&s->cnt.dfill_bytes, len);
 		bump(&s->cnt.dfill_ns, (uint64_t)((t1.tv_sec - t0.tv_sec) * 1000000000LL +
 		                                  (t1.tv_nsec - t0.tv_nsec)));
-		atomic_fetch_xor_explicit(st, (uint8_t)(busy | have), memory_order_release);
+		atomic_fetch_xor_explicit(st, busy | have, memory_order_release);
 		return LOOM_OK;
 	}
 	return LOOM_OK;
+}
+
+uint8_t loom__dunit_segs(const loom_texture *t, uint64_t id)
+{
+	uint32_t r = stored_rank(t, id);
+	uint64_t v = atomic_load_explicit(&t->dstate[r >> 2], memory_order_acquire);
+
+	return (uint8_t)(v >> 8 * (r & 3)) | t->dseg_pad;
 }
 
 static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *diag)
@@ -375,7 +386,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	ex_bytes = round_up(sizeof(struct exm) * g.n_exemplars, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN) + /* t->ne_rank */
-	           round_up(((size_t)g.n_bricks + 3) / 4, ALIGN) + /* t->dstate */
+	           round_up(((size_t)g.n_bricks + 3) / 4 * 8, ALIGN) + /* t->dstate */
 	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN); /* t->hint */
 	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
 	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
@@ -471,10 +482,10 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->empty = (uint64_t *)(t->mem + round_up(sizeof(struct exm) * g.n_exemplars, ALIGN));
 	t->ne_rank = (uint32_t *)((uint8_t *)t->empty +
 	                          round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN));
-	t->dstate = (_Atomic uint8_t *)((uint8_t *)t->ne_rank +
-	                                round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN));
+	t->dstate = (_Atomic uint64_t *)((uint8_t *)t->ne_rank +
+	                                 round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN));
 	t->hint = (_Atomic uint32_t *)((uint8_t *)t->dstate +
-	                               round_up(((size_t)g.n_bricks + 3) / 4, ALIGN));
+	                               round_up(((size_t)g.n_bricks + 3) / 4 * 8, ALIGN));
 	t->n_bricks = g.n_bricks;
 	for (uint32_t id = 0; id < g.n_bricks; id++)
 		if (loom__db_brick_empty(db, id))
@@ -506,12 +517,18 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		goto fail;
 	if (o.lod)
 		loom__lod_setup(t);
-	/* density units need a layout-2 database and the plain loader (the
-	   LOD loader reads whole level-0 bricks); LOOM_DUNITS=0 turns them
-	   off (benchmarks, tests of both paths) */
-	t->dunits = !o.lod && loom__db_layout(db) == LOOM__DB_LAYOUT_UNITS &&
+	/* density units need a layout-2 or -3 database and the plain loader
+	   (the LOD loader reads whole level-0 bricks); LOOM_DUNITS=0 turns
+	   them off (benchmarks, tests of both paths) */
+	t->dunits = !o.lod && loom__db_dsegs(db) > 0 &&
 	            t->bv * LOOM__VOXEL_PLANES == g.brick_bytes &&
 	            !(getenv("LOOM_DUNITS") && !strcmp(getenv("LOOM_DUNITS"), "0"));
+	if (t->dunits) {
+		unsigned ns = loom__db_dsegs(db);
+		t->dsegs = ns;
+		t->dseg_rows = loom__db_seg_rows(t->bs, ns);
+		t->dseg_pad = (uint8_t)(0xffu << ns);
+	}
 
 	co.ctx = t;
 	if ((rc = loom__cache_open(&co, &t->cache, diag)) != LOOM_OK) {
@@ -560,7 +577,7 @@ LOOM_API void loom_texture_close(loom_texture *t)
 LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *st)
 {
 	loom__cache_stats cs;
-	uint64_t memo = 0, empty = 0, fills = 0, fill_ns = 0, uloads;
+	uint64_t memo = 0, empty = 0, fills = 0, fill_ns = 0, fill_bytes = 0, uloads;
 
 	if (!st)
 		return LOOM_EINVAL;
@@ -578,9 +595,10 @@ LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *s
 		st->errors += rd(&k->errors);
 		fills += rd(&k->dfills);
 		fill_ns += rd(&k->dfill_ns);
+		fill_bytes += rd(&k->dfill_bytes);
 	}
-	/* a density unit's frame reads nothing when loaded; its planes are
-	   read by the fills: those are the misses that read */
+	/* a density unit's frame reads nothing when loaded; its planes'
+	   segments are read by the fills: those are the misses that read */
 	uloads = atomic_load_explicit(&((loom_texture *)t)->dunit_loads, memory_order_relaxed);
 	st->brick_requests = memo + empty + cs.lookups;
 	st->misses = cs.misses - (uloads < cs.misses ? uloads : cs.misses) + fills;
@@ -589,7 +607,7 @@ LOOM_API int loom_texture_get_stats(const loom_texture *t, loom_texture_stats *s
 	st->evictions = cs.evictions;
 	st->bytes_read = atomic_load_explicit(&((loom_texture *)t)->bytes_read,
 	                                      memory_order_relaxed);
-	st->bytes_decompressed = cs.bytes_loaded - uloads * cs.brick_bytes + fills * t->bv;
+	st->bytes_decompressed = cs.bytes_loaded - uloads * cs.brick_bytes + fill_bytes;
 	st->decompress_ns = cs.load_ns + fill_ns;
 	st->bytes_in_use = t->fixed_bytes + cs.bytes_in_use;
 	st->peak_bytes = t->fixed_bytes + cs.peak_bytes;

@@ -38,8 +38,9 @@
 #define NO_BRICK UINT64_MAX
 /* Cache key of a density unit (texture.c): this bit | g, a frame of the
    density planes of the stored bricks of ranks 4g .. 4g+3 (dunit_key;
-   layout-2 databases, density-only lookups; LOD off), each filled on its
-   first use (loom__dunit_fill). */
+   layout-2 and -3 databases, density-only lookups; LOD off), each plane
+   filled segment by segment on first use (loom__dunit_fill; a layout-2
+   plane is one segment). */
 #define DUNIT_TAG ((uint64_t)1 << 62)
 /* t->hint: the frame holds the brick's density unit, not the brick */
 #define HINT_DUNIT ((uint32_t)1 << 31)
@@ -123,7 +124,8 @@ struct dzmap {
    load + store), summed by loom_texture_get_stats. */
 struct counters {
 	_Atomic uint64_t lookups, memo_hits, empty, xings, dz, errors;
-	_Atomic uint64_t dfills, dfill_ns; /* density planes inflated into units */
+	_Atomic uint64_t dfills, dfill_ns; /* density segments inflated into units */
+	_Atomic uint64_t dfill_bytes;     /* their bytes */
 };
 
 /* A trilinear corner column's steps 2-3 (lookup.c pair_raw): output
@@ -142,6 +144,9 @@ struct tslot {
 	const uint8_t *memo;     /* its bytes; NULL for an empty brick */
 	int memo_pinned;         /* memo holds a caller pin */
 	uint32_t memo_off;       /* memo - its frame (a density unit's plane) */
+	uint8_t memo_seg;        /* a density unit's plane: bit q set when
+	                            segment q is known filled (0xff: all, and
+	                            for whole bricks) */
 	int64_t wx, wy;          /* footprint of the last lookup (lookup.c
 	                            walk_next: hints only) */
 	uint32_t wsx, wsy, wsz;  /* the last source voxel read (in memo) */
@@ -192,9 +197,10 @@ struct loom_texture {
 	                            group stored bricks by this rank */
 	uint32_t n_stored;       /* bricks not empty */
 	_Atomic uint64_t dunit_loads; /* unit frames claimed (they read nothing) */
-	_Atomic uint8_t *dstate; /* per density unit (in mem): bits 0-3 plane j
-	                            filled, bits 4-7 plane j being filled;
-	                            reset by the unit's load (loom__dunit_fill) */
+	_Atomic uint64_t *dstate; /* per density unit (in mem): bit 8j + q
+	                            segment q of plane j filled, bit 32 + 8j + q
+	                            being filled; reset by the unit's load
+	                            (loom__dunit_fill) */
 	_Atomic uint32_t *hint;  /* per brick: 1 + the cache frame it was last
 	                            got from, 0 = none, | HINT_DUNIT when that
 	                            frame is its density unit (a prefetch hint
@@ -226,6 +232,10 @@ struct loom_texture {
 	_Atomic uint64_t bytes_read;
 	unsigned lod;            /* coarse levels available (0: LOD off; lod.c) */
 	int dunits;              /* density-only lookups use density units */
+	unsigned dsegs;          /* segments of a density plane (8; 1 for a
+	                            layout-2 database) */
+	uint32_t dseg_rows;      /* brick rows per density segment */
+	uint8_t dseg_pad;        /* segment bits past the database's (set) */
 	uint32_t cbs[3];         /* coarse brick shape: bx, by, bz / 2 */
 	size_t cbv;              /* voxels per coarse brick */
 	double lod_sigma;        /* extinction of a density byte over one voxel
@@ -298,6 +308,7 @@ static inline void memo_drop(struct tslot *s)
 		loom__cache_release(s->cth, s->memo - s->memo_off);
 	s->memo_pinned = 0;
 	s->memo_off = 0;
+	s->memo_seg = 0xff;
 	s->memo = NULL;
 	s->memo_id = NO_BRICK;
 }
@@ -362,11 +373,24 @@ static inline int memo_use(loom_texture *t, struct tslot *s, uint64_t id)
 	return LOOM_OK;
 }
 
-/* Inflate stored brick id's density plane into its unit's pinned frame
-   unless it is there already (texture.c; waits while another thread
-   fills it). */
-int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, const uint8_t *frame,
-                     loom_diag *diag);
+/* Inflate segment q of stored brick id's density plane into its unit's
+   pinned frame unless it is there already (texture.c; waits while another
+   thread fills it). */
+int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
+                     const uint8_t *frame, loom_diag *diag);
+/* The segments of stored brick id's density plane filled in its unit
+   (bit q), with the bits past the database's segments set. */
+uint8_t loom__dunit_segs(const loom_texture *t, uint64_t id);
+int loom__memo_seg_fill(loom_texture *t, struct tslot *s, uint32_t sy);
+
+/* After memo_use of a density unit: make sure the segment of source row
+   sy is filled (nothing to do for whole bricks and full planes). */
+static inline int memo_seg_use(loom_texture *t, struct tslot *s, uint32_t sy)
+{
+	if (__builtin_expect(s->memo_seg == 0xff, 1))
+		return LOOM_OK;
+	return loom__memo_seg_fill(t, s, sy);
+}
 
 /* Step 3: dz of column (x, y) of an entry, in the edge-fix module's
    order of operations (so equal to loom_edgefix_block bit for bit). */

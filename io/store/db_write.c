@@ -173,8 +173,8 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	if (!w)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	w->p = *p;
-	if (w->p.layout != LOOM__DB_LAYOUT_PLANES)
-		w->p.layout = LOOM__DB_LAYOUT_UNITS;
+	if (w->p.layout != LOOM__DB_LAYOUT_PLANES && w->p.layout != LOOM__DB_LAYOUT_UNITS)
+		w->p.layout = LOOM__DB_LAYOUT_SEGS;
 	w->entry_bytes = w->p.layout == LOOM__DB_LAYOUT_PLANES ? LOOM__DB_INDEX_BYTES :
 	                                                         LOOM__DB_INDEX2_BYTES;
 	w->brick_voxels = (size_t)p->brick[0] * p->brick[1] * p->brick[2];
@@ -196,8 +196,7 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	}
 	h = w->hdr;
 	memcpy(h, LOOM__DB_MAGIC, 8);
-	loom__put32(h + 8, w->p.layout == LOOM__DB_LAYOUT_PLANES ?
-	                   LOOM__DB_VERSION_PLANES1 : LOOM__DB_VERSION);
+	loom__put32(h + 8, w->p.layout); /* the version is the layout */
 	loom__put32(h + 12, LOOM__DB_HEADER_BYTES);
 	loom__put32(h + 16, p->n_exemplars);
 	loom__put32(h + 20, p->block[0]);
@@ -467,12 +466,44 @@ unsigned loom__dbw_layout(const loom__dbw *w)
 	return w->p.layout;
 }
 
-/* Layout 2: each of the four planes as a unit of its own, back to back in
-   cbuf (4V bytes: every unit is at most V). */
-static void encode_units(const uint8_t *raw, size_t nv,
+/* Layout 3's density unit (docs/formats.md, "Segmented density units"):
+   the segment header and the eight segments at c (room for 32 + V
+   bytes); its size, or 0 when that is not below V (the caller stores the
+   plane raw). */
+static size_t encode_segs(const uint8_t *pl, const uint32_t brick[3], size_t nv,
+                          struct libdeflate_compressor *comp, uint8_t *c)
+{
+	size_t at = LOOM__DB_SEG_HEADER, lo, len, n, i;
+
+	if (nv <= LOOM__DB_SEG_HEADER)
+		return 0;
+	for (unsigned q = 0; q < LOOM__DB_SEGS; q++) {
+		loom__db_seg_range(brick, LOOM__DB_SEGS, q, &lo, &len);
+		for (i = 0; i < len && pl[lo + i] == 0; i++)
+			;
+		n = 0;
+		if (i < len) {
+			n = len > 1 ? libdeflate_deflate_compress(comp, pl + lo, len, c + at,
+			                                          len - 1) : 0;
+			if (n == 0) {
+				memcpy(c + at, pl + lo, len);
+				n = len;
+			}
+		}
+		loom__put32(c + 4 * q, (uint32_t)n);
+		at += n;
+	}
+	return at < nv ? at : 0;
+}
+
+/* Layouts 2 and 3: each of the four planes as a unit of its own, back to
+   back in cbuf (4V bytes: every unit is at most V; the density unit, the
+   first, may use V + 32 while it is encoded). */
+static void encode_units(const uint8_t *raw, const uint32_t brick[3], unsigned layout,
                          struct libdeflate_compressor *comp, uint8_t *cbuf,
                          loom__dbw_brick *out)
 {
+	size_t nv = (size_t)brick[0] * brick[1] * brick[2];
 	size_t at = 0;
 
 	for (unsigned u = 0; u < LOOM__DB_UNITS; u++) {
@@ -480,7 +511,13 @@ static void encode_units(const uint8_t *raw, size_t nv,
 		size_t n = 0, i = 0;
 		while (i < nv && pl[i] == 0)
 			i++;
-		if (i < nv) {
+		if (i < nv && u == 0 && layout == LOOM__DB_LAYOUT_SEGS) {
+			n = encode_segs(pl, brick, nv, comp, cbuf + at);
+			if (n == 0) {
+				memcpy(cbuf + at, pl, nv);
+				n = nv;
+			}
+		} else if (i < nv) {
 			n = nv > 1 ? libdeflate_deflate_compress(comp, pl, nv, cbuf + at,
 			                                         nv - 1) : 0;
 			if (n == 0) {
@@ -537,7 +574,7 @@ void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
 			}
 	}
 	if (layout != LOOM__DB_LAYOUT_PLANES) {
-		encode_units(raw, nv, comp, cbuf, out);
+		encode_units(raw, brick, layout, comp, cbuf, out);
 		return;
 	}
 	csize = libdeflate_deflate_compress(comp, raw, nb, cbuf, nb - 1);

@@ -35,9 +35,10 @@ typedef struct loom__dbw_params {
 	int level;              /* libdeflate level */
 	uint64_t seed;
 	uint32_t flags;         /* header flags (bit 0: procedural) */
-	uint32_t layout;        /* voxel layout: 0 or LOOM__DB_LAYOUT_UNITS
-	                           (version 2), LOOM__DB_LAYOUT_PLANES (version
-	                           1: appending to an old file, tests) */
+	uint32_t layout;        /* voxel layout = format version: 0 or
+	                           LOOM__DB_LAYOUT_SEGS (3), LOOM__DB_LAYOUT_UNITS
+	                           (2) or LOOM__DB_LAYOUT_PLANES (1: appending
+	                           to an old file, tests) */
 } loom__dbw_params;
 
 typedef struct loom__dbw_exemplar {
@@ -57,7 +58,7 @@ typedef struct loom__dbw_brick {
 	uint32_t stored_bytes;
 	uint32_t crc;            /* CRC32 of the stored bytes */
 	const uint8_t *data;     /* stored bytes (cbuf or the raw brick) */
-	uint32_t unit_bytes[4];  /* layout 2: the planes' units in data, */
+	uint32_t unit_bytes[4];  /* layouts 2, 3: the planes' units in data, */
 	uint32_t unit_crc[4];    /* back to back (0 bytes: an all-zero plane) */
 	int16_t *top;            /* per column (ly*bx + lx): local z of the top
 	                            solid voxel, -1 if none */
@@ -74,7 +75,8 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *e,
  * layout 1: deflate at the compressor's level into cbuf (brick_bytes) if it
  * shrinks, else raw (data = raw); layout 2: each plane on its own into
  * cbuf (deflated if that shrinks it, else copied; an all-zero plane is 0
- * bytes), data = cbuf.  Fills the top-surface columns with solid[]
+ * bytes), data = cbuf; layout 3: as 2 with the density plane's unit in
+ * eight segments (docs/formats.md).  Fills the top-surface columns with solid[]
  * (loom__db_solid_lut) and threshold.  Thread-safe given its own
  * compressor and buffers.
  */

@@ -33,10 +33,11 @@ typedef struct slot {
 	uint8_t *top_label;
 } slot;
 
-/* The voxel layout params ask for (db_version 1: layout 1). */
+/* The voxel layout params ask for (db_version 1, 2: that layout; 0: the
+   current one). */
 static unsigned exgen_layout(const loom_exgen_params *p)
 {
-	return p->db_version == 1 ? LOOM__DB_LAYOUT_PLANES : LOOM__DB_LAYOUT_UNITS;
+	return p->db_version ? p->db_version : LOOM__DB_LAYOUT_SEGS;
 }
 
 typedef struct pipe {

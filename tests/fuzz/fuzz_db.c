@@ -65,13 +65,18 @@ static void exercise(loom_db *db)
 		if (rc != LOOM_OK && d.message[0] == 0)
 			abort();
 	}
-	if (loom__db_layout(db) == LOOM__DB_LAYOUT_UNITS) { /* each unit alone */
+	if (loom__db_dsegs(db)) { /* each unit alone, each density segment alone */
 		loom__db_reader *r = loom__db_reader_new(db);
-		for (uint32_t id = 0; r && id < geo.n_bricks; id++)
+		for (uint32_t id = 0; r && id < geo.n_bricks; id++) {
 			for (unsigned u = 0; u < LOOM__DB_UNITS; u++)
 				if (loom__db_reader_read_unit(r, id, u, brick, NULL, &d) != LOOM_OK &&
 				    d.message[0] == 0)
 					abort();
+			for (unsigned q = 0; q < loom__db_dsegs(db); q++)
+				if (loom__db_reader_read_seg(r, id, q, brick, NULL, &d) != LOOM_OK &&
+				    d.message[0] == 0)
+					abort();
+		}
 		loom__db_reader_free(r);
 	}
 	free(brick);

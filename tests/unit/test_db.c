@@ -133,6 +133,9 @@ static void test_roundtrip_generated(void)
 		p1.db_version = 1;
 		CHECK_EQ_INT(loom_exgen_write_db(tpath("gen1.ldb"), &p1, &h1, &d), LOOM_OK);
 		CHECK(h1 != hash);
+		p1.db_version = 2; /* and in version 2 */
+		CHECK_EQ_INT(loom_exgen_write_db(tpath("gen2.ldb"), &p1, &h1, &d), LOOM_OK);
+		CHECK(h1 != hash);
 	}
 	if (rc) {
 		printf("  %s\n", d.message);
@@ -482,16 +485,17 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 }
 
 /* Appending keeps the database's layout: a version-1 file stays version 1
-   (its bricks are copied verbatim), a version-2 file version 2; the
-   appended exemplar reads back equal to the first in both. */
+   (its bricks are copied verbatim), a version-2 file version 2, a
+   version-3 file version 3; the appended exemplar reads back equal to the
+   first in each. */
 static void test_append_layouts(void)
 {
-	for (unsigned lay = 1; lay <= 2; lay++) {
+	for (unsigned lay = 1; lay <= 3; lay++) {
 		loom_diag d = {0};
 		loom_db *db = NULL;
 		loom_db_info info;
 		uint64_t h = 0;
-		const char *p = tpath(lay == 1 ? "app1.ldb" : "app2.ldb");
+		const char *p = tpath(lay == 1 ? "app1.ldb" : lay == 2 ? "app2.ldb" : "app3.ldb");
 		uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
 		uint8_t a[512], b[512], al[512], bl[512];
 		uint16_t ao[512], bo[512];
@@ -763,13 +767,18 @@ static void test_bad_magic_version(void)
 	spit(tpath("text2.ldb"), (const uint8_t *)"hello world, not a db\n", 22);
 	CHECK_EQ_INT(open_code(tpath("text2.ldb"), &d), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(d.message, "bad magic");
-	/* version 3, even with a valid CRC, is a version error */
+	/* version 4 (or 0), even with a valid CRC, is a version error */
 	memcpy(c, b, n);
-	loom__put32(c + 8, 3);
+	loom__put32(c + 8, 4);
 	reseal(c, n);
-	spit(tpath("v3.ldb"), c, n);
-	CHECK_EQ_INT(open_code(tpath("v3.ldb"), &d), LOOM_EVERSION);
-	CHECK_STR_CONTAINS(d.message, "offset 8: format version 3");
+	spit(tpath("v4.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("v4.ldb"), &d), LOOM_EVERSION);
+	CHECK_STR_CONTAINS(d.message, "offset 8: format version 4, this loom reads "
+	                   "versions 1 to 3");
+	loom__put32(c + 8, 0);
+	reseal(c, n);
+	spit(tpath("v4.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("v4.ldb"), &d), LOOM_EVERSION);
 	/* a version whose layout field disagrees */
 	memcpy(c, b, n);
 	loom__put32(c + 44, loom__le32(c + 8) == 1 ? 2 : 1);
@@ -945,8 +954,8 @@ static void test_crc_mismatch(void)
 	loom_db_close(db);
 }
 
-/* Version 2 against version 1 of the same exemplars: every voxel of
-   every channel equal; each unit alone equals its plane of the whole
+/* Version 3 (and 2) against version 1 of the same exemplars: every voxel
+   of every channel equal; each unit alone equals its plane of the whole
    brick; a damaged unit is named, and the brick's other units still read. */
 static void test_units(void)
 {
@@ -968,9 +977,23 @@ static void test_units(void)
 	loom_db_get_info(d2, &i2);
 	CHECK_EQ_INT(i1.version, 1);
 	CHECK_EQ_INT(i1.voxel_layout, 1);
-	CHECK_EQ_INT(i2.version, 2);
-	CHECK_EQ_INT(i2.voxel_layout, 2);
+	CHECK_EQ_INT(i2.version, 3);
+	CHECK_EQ_INT(i2.voxel_layout, 3);
 	CHECK_EQ_INT(i1.n_empty_bricks, i2.n_empty_bricks);
+	{
+		loom_db *dv2 = NULL;
+		loom_db_info iv2;
+		CHECK_EQ_INT(loom_db_open(tpath("gen2.ldb"), &dv2, &d), LOOM_OK);
+		if (dv2) {
+			loom_db_get_info(dv2, &iv2);
+			CHECK_EQ_INT(iv2.version, 2);
+			CHECK_EQ_INT(iv2.voxel_layout, 2);
+			CHECK_EQ_INT(loom__db_dsegs(dv2), 1);
+			loom_db_close(dv2);
+		}
+		CHECK_EQ_INT(loom__db_dsegs(d2), 8);
+		CHECK_EQ_INT(loom__db_dsegs(d1), 0);
+	}
 	for (uint32_t k = 0; k < i1.n_exemplars; k++) {
 		loom_db_exemplar_info e;
 		uint32_t org[3] = {0, 0, 0};
@@ -1069,6 +1092,265 @@ out:
 	loom__db_reader_free(r);
 	loom_db_close(d1);
 	loom_db_close(d2);
+}
+
+/* Version 3's density segments (brick 16 x 12 x 32: R = 2 rows, six
+   segments used, two past the brick's rows): each segment alone equals
+   its rows of the whole plane and writes nothing else; the segment
+   header is checked; a damaged segment is named and the others still
+   read. */
+static void test_segments(void)
+{
+	loom_exgen_params p = gen_params();
+	loom_db *db = NULL, *d1 = NULL, *d2 = NULL, *bd = NULL;
+	loom__db_reader *r = NULL, *br = NULL;
+	loom__db_geom g;
+	loom_diag d = {0};
+	uint8_t *plane = NULL, *seg = NULL, *b = NULL, *c = NULL;
+	size_t n = 0, kinds[3] = {0, 0, 0}; /* segments zero, raw, deflated */
+	long bad = 0, outside = 0;
+	uint32_t id, did = UINT32_MAX, dq = 0;
+
+	p.brick[0] = 16;
+	p.brick[1] = 12;
+	p.brick[2] = 32;
+	CHECK_EQ_INT(loom_exgen_write_db(tpath("seg.ldb"), &p, NULL, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("seg.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		return;
+	loom__db_geometry(db, &g);
+	CHECK_EQ_INT(loom__db_seg_rows(p.brick, 8), 2);
+	r = loom__db_reader_new(db);
+	plane = malloc(g.brick_voxels);
+	seg = malloc(g.brick_voxels);
+	b = slurp(tpath("seg.ldb"), &n);
+	for (id = 0; id < g.n_bricks; id++) {
+		size_t e = index_entry(b, n, id), at = 32;
+		uint32_t u0 = loom__le32(b + e + 24);
+		const uint8_t *unit = b + loom__le64(b + e);
+		CHECK_EQ_INT(loom__db_reader_read_unit(r, id, 0, plane, NULL, &d), LOOM_OK);
+		for (unsigned q = 0; q < 8; q++) {
+			size_t lo, len;
+			loom__db_seg_range(p.brick, 8, q, &lo, &len);
+			CHECK(len == (q < 6 ? 2u * 16 * 32 : 0u) && lo == (q < 6 ? q : 6u) * 1024);
+			if (u0 > 0 && u0 < g.brick_voxels) { /* segmented: count kinds */
+				uint32_t cq = loom__le32(unit + 4 * q);
+				if (len)
+					kinds[cq == 0 ? 0 : cq == len ? 1 : 2]++;
+				if (cq && cq < len && did == UINT32_MAX) {
+					did = id; /* the first deflated segment: damaged below */
+					dq = q;
+				}
+				at += cq;
+			}
+			memset(seg, 0xa5, g.brick_voxels);
+			CHECK_EQ_INT(loom__db_reader_read_seg(r, id, q, seg, NULL, &d), LOOM_OK);
+			bad += memcmp(seg + lo, plane + lo, len) != 0;
+			for (size_t i = 0; i < g.brick_voxels; i++)
+				outside += (i < lo || i >= lo + len) && seg[i] != 0xa5;
+		}
+		if (u0 > 0 && u0 < g.brick_voxels)
+			CHECK_EQ_INT(at, u0);
+	}
+	CHECK_EQ_INT(bad, 0);
+	CHECK_EQ_INT(outside, 0);
+	printf("  segments: %zu zero, %zu raw, %zu deflated\n", kinds[0], kinds[1],
+	       kinds[2]);
+	CHECK(kinds[0] > 0 && kinds[2] > 0);
+	CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, 8, seg, NULL, &d), LOOM_ERANGE);
+	/* version 1 has no segments; version 2 has one, the whole plane */
+	CHECK_EQ_INT(loom_db_open(tpath("gen1.ldb"), &d1, &d), LOOM_OK);
+	if (d1) {
+		loom__db_reader *r1 = loom__db_reader_new(d1);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r1, 0, 0, seg, NULL, &d),
+		             LOOM_EUNSUPPORTED);
+		loom__db_reader_free(r1);
+	}
+	CHECK_EQ_INT(loom_db_open(tpath("gen2.ldb"), &d2, &d), LOOM_OK);
+	if (d2) {
+		loom__db_reader *r2 = loom__db_reader_new(d2);
+		loom__db_geom g2;
+		long bad2 = 0;
+		loom__db_geometry(d2, &g2);
+		for (id = 0; id < g2.n_bricks; id++) {
+			CHECK_EQ_INT(loom__db_reader_read_unit(r2, id, 0, plane, NULL, &d), LOOM_OK);
+			CHECK_EQ_INT(loom__db_reader_read_seg(r2, id, 0, seg, NULL, &d), LOOM_OK);
+			bad2 += memcmp(seg, plane, g2.brick_voxels) != 0;
+		}
+		CHECK_EQ_INT(bad2, 0);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r2, 0, 1, seg, NULL, &d), LOOM_ERANGE);
+		loom__db_reader_free(r2);
+	}
+	CHECK(did != UINT32_MAX);
+	if (did == UINT32_MAX)
+		goto out;
+	c = malloc(n);
+	{
+		size_t e = index_entry(b, n, did), at = 32;
+		uint64_t off = loom__le64(b + e);
+		uint32_t u0 = loom__le32(b + e + 24);
+		char want[96];
+		for (unsigned q = 0; q < dq; q++)
+			at += loom__le32(b + off + 4 * q);
+		/* segment dq's first block given the reserved type 3: invalid, and
+		   the unit's CRC made to match */
+		memcpy(c, b, n);
+		c[off + at] |= 0x06;
+		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
+		reseal(c, n);
+		spit(tpath("segbad.ldb"), c, n);
+		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
+		if (bd) {
+			br = loom__db_reader_new(bd);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, NULL, &d),
+			             LOOM_ECORRUPT);
+			snprintf(want, sizeof want, "segbad.ldb: brick %u (exemplar", did);
+			CHECK_STR_CONTAINS(d.message, want);
+			snprintf(want, sizeof want, "unit 0 (density), segment %u at offset", dq);
+			CHECK_STR_CONTAINS(d.message, want);
+			CHECK_STR_CONTAINS(d.message, "invalid deflate data");
+			/* the other segments still read; the whole plane does not */
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq ? 0 : 1, seg, NULL, &d),
+			             LOOM_OK);
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 0, plane, NULL, &d),
+			             LOOM_ECORRUPT);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom_db_verify(bd, NULL, NULL, &d), LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, "segment");
+			loom__db_reader_free(br);
+			loom_db_close(bd);
+			bd = NULL;
+		}
+		/* a header whose sizes do not add up to the unit */
+		memcpy(c, b, n);
+		loom__put32(c + off + 4 * dq, loom__le32(c + off + 4 * dq) - 1);
+		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
+		reseal(c, n);
+		spit(tpath("segbad.ldb"), c, n);
+		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
+		if (bd) {
+			br = loom__db_reader_new(bd);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, 7, seg, NULL, &d),
+			             LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, "unit 0 (density) at offset");
+			CHECK_STR_CONTAINS(d.message, "segments of");
+			loom__db_reader_free(br);
+			loom_db_close(bd);
+			bd = NULL;
+		}
+		/* a segment larger than its rows */
+		memcpy(c, b, n);
+		loom__put32(c + off + 4 * dq, 2u * 16 * 32 + 1);
+		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
+		reseal(c, n);
+		spit(tpath("segbad.ldb"), c, n);
+		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
+		if (bd) {
+			br = loom__db_reader_new(bd);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 0, plane, NULL, &d),
+			             LOOM_ECORRUPT);
+			snprintf(want, sizeof want, "segment %u of 1025 bytes, expected 0..1024", dq);
+			CHECK_STR_CONTAINS(d.message, want);
+			loom__db_reader_free(br);
+			loom_db_close(bd);
+			bd = NULL;
+		}
+	}
+out:
+	free(b);
+	free(c);
+	free(plane);
+	free(seg);
+	loom__db_reader_free(r);
+	loom_db_close(db);
+	loom_db_close(d1);
+	loom_db_close(d2);
+}
+
+/* One brick of 16 x 16 x 8 (segments of 2 rows, 256 bytes) whose density
+   rows 0-1 are noise (a raw segment), rows 2-3 zero (a zero segment), the
+   rest a smooth ramp (deflated): the writer's choice per segment, and
+   each reads back alone. */
+static void test_segment_kinds(void)
+{
+	loom__dbw_params wp;
+	loom__dbw_exemplar e;
+	loom_db_yarn yarns[256];
+	uint8_t weave[4] = {1, 0, 0, 1}, raw[4 * 2048], plane[2048];
+	uint64_t rng = 99;
+	loom__dbw *w = NULL;
+	loom_db *db = NULL;
+	loom__db_reader *r;
+	loom_diag d = {0};
+	uint8_t *b;
+	size_t n, e0;
+	const uint32_t brick[3] = {16, 16, 8};
+
+	memset(&wp, 0, sizeof wp);
+	memset(&e, 0, sizeof e);
+	memset(yarns, 0, sizeof yarns);
+	wp.n_exemplars = 1;
+	wp.block[0] = wp.block[1] = wp.block[2] = 8;
+	memcpy(wp.brick, brick, sizeof brick);
+	wp.voxel_size_um = 10;
+	wp.top_threshold = 64;
+	wp.level = 6;
+	yarns[1].kind = LOOM_YARN_WARP;
+	e.name = "segkinds";
+	e.weave_name = "plain";
+	e.rows = e.cols = 2;
+	e.weave = weave;
+	e.n_yarns = 1;
+	e.yarns = yarns;
+	memset(raw, 0, sizeof raw);
+	for (size_t i = 0; i < 2048; i++) {
+		size_t y = i / (16 * 8);
+		if (y < 2) {
+			rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+			raw[i] = (uint8_t)(rng >> 56) | 1;
+		} else if (y >= 4) {
+			raw[i] = (uint8_t)(16 * y + i % 8);
+		}
+		raw[3 * 2048 + i] = raw[i] ? 1 : 0;
+	}
+	CHECK_EQ_INT(loom__dbw_create(tpath("segk.ldb"), &wp, &w, &d), LOOM_OK);
+	if (!w)
+		return;
+	CHECK_EQ_INT(loom__dbw_begin_exemplar(w, &e, &d), LOOM_OK);
+	CHECK_EQ_INT(loom__dbw_add_brick(w, raw, &d), LOOM_OK);
+	CHECK_EQ_INT(loom__dbw_finish(w, NULL, &d), LOOM_OK);
+	b = slurp(tpath("segk.ldb"), &n);
+	e0 = index_entry(b, n, 0);
+	{
+		const uint8_t *u = b + loom__le64(b + e0);
+		uint32_t u0 = loom__le32(b + e0 + 24);
+		CHECK(u0 > 32 + 256 && u0 < 2048);
+		CHECK_EQ_INT(loom__le32(u + 0), 256);  /* noise: raw */
+		CHECK_EQ_INT(loom__le32(u + 4), 0);    /* zero */
+		for (unsigned q = 2; q < 8; q++) /* the ramp: deflated */
+			CHECK(loom__le32(u + 4 * q) > 0 && loom__le32(u + 4 * q) < 256);
+	}
+	free(b);
+	CHECK_EQ_INT(loom_db_open(tpath("segk.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		return;
+	r = loom__db_reader_new(db);
+	for (unsigned q = 0; q < 8; q++) {
+		memset(plane, 0xa5, sizeof plane);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, q, plane, NULL, &d), LOOM_OK);
+		for (size_t i = 0; i < 2048; i++)
+			if (plane[i] != (i / 256 == q ? raw[i] : 0xa5)) {
+				CHECK(plane[i] == (i / 256 == q ? raw[i] : 0xa5));
+				break;
+			}
+	}
+	CHECK_EQ_INT(loom__db_reader_read_unit(r, 0, 0, plane, NULL, &d), LOOM_OK);
+	CHECK(memcmp(plane, raw, 2048) == 0);
+	loom__db_reader_free(r);
+	loom_db_close(db);
 }
 
 static void test_index_out_of_range(void)
@@ -1258,6 +1540,8 @@ int main(void)
 	RUN(test_truncated_after_open);
 	RUN(test_crc_mismatch);
 	RUN(test_units);
+	RUN(test_segments);
+	RUN(test_segment_kinds);
 	RUN(test_index_out_of_range);
 	RUN(test_size_mismatch);
 	RUN(test_random_damage);

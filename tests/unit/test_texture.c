@@ -1608,20 +1608,20 @@ static loom_texel masked(loom_texel a, unsigned ch)
    with one channel against single samples; at the smallest budget (the
    bricks churn, corner pairs straddle bricks: 8-deep bricks) and a large
    one, with the lookups of all masks interleaved on one thread state. */
-/* Format version 1 against version 2 (each plane a unit; density-only
-   lookups then cache density units, texture.c): the same exemplars in
-   both, every mask against each one's brute-force reference, at the
-   smallest budget (below the working set) and a large one; version 2
-   reads fewer bytes for density alone. */
+/* Format versions 1, 2 (each plane a unit; density-only lookups then
+   cache density units, texture.c) and 3 (the density unit in segments,
+   filled one by one): the same exemplars in each, every mask against each
+   one's brute-force reference, at the smallest budget (below the working
+   set) and a large one; version 2 reads fewer bytes for density alone
+   than version 1, and version 3 inflates fewer than version 2. */
 static void old_format_same_lookups(void)
 {
-	char p1[4200], p2[4200];
+	char path[3][4200];
 	uint32_t brick[3] = {8, 8, 8};
-	uint64_t read_d[2] = {0, 0};
+	uint64_t read_d[3] = {0, 0, 0}, infl_d[3] = {0, 0, 0};
 
-	snprintf(p1, sizeof p1, "%s/v1.ldb", tmpdir);
-	snprintf(p2, sizeof p2, "%s/v2.ldb", tmpdir);
-	for (int v = 0; v < 2; v++) {
+	for (int v = 0; v < 3; v++) {
+		snprintf(path[v], sizeof path[v], "%s/v%d.ldb", tmpdir, v + 1);
 		loom_exgen_params p;
 		loom_diag d = {0};
 		loom_db *db = NULL;
@@ -1631,9 +1631,9 @@ static void old_format_same_lookups(void)
 		p.seed = 5;
 		p.threads = 2;
 		memcpy(p.brick, brick, sizeof p.brick);
-		p.db_version = v ? 2 : 1;
-		CHECK_EQ_INT(loom_exgen_write_db(v ? p2 : p1, &p, NULL, &d), LOOM_OK);
-		CHECK_EQ_INT(loom_db_open(v ? p2 : p1, &db, &d), LOOM_OK);
+		p.db_version = (uint32_t)v + 1;
+		CHECK_EQ_INT(loom_exgen_write_db(path[v], &p, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_open(path[v], &db, &d), LOOM_OK);
 		if (db)
 			f = synth(g_design, db);
 		if (!f || ref_init(&r, f, db) != 0) {
@@ -1645,7 +1645,7 @@ static void old_format_same_lookups(void)
 		{
 			loom_db_info info;
 			loom_db_get_info(db, &info);
-			CHECK_EQ_INT(info.version, v ? 2 : 1);
+			CHECK_EQ_INT(info.version, v + 1);
 		}
 		for (int b = 0; b < 2; b++) {
 			size_t budget = b ? 8u << 20 : min_budget(f, db, 1);
@@ -1674,6 +1674,7 @@ static void old_format_same_lookups(void)
 				if (t) {
 					loom_texture_get_stats(t, &st);
 					read_d[v] = st.bytes_read;
+					infl_d[v] = st.bytes_decompressed;
 				}
 			}
 			loom_texture_close(t);
@@ -1682,10 +1683,13 @@ static void old_format_same_lookups(void)
 		loom_fabric_free(f);
 		loom_db_close(db);
 	}
-	printf("  density-only lookups at the smallest budget read %llu bytes "
-	       "(version 1) and %llu (version 2)\n", (unsigned long long)read_d[0],
-	       (unsigned long long)read_d[1]);
+	printf("  density-only lookups at the smallest budget read / inflate %llu / "
+	       "%llu bytes (version 1), %llu / %llu (version 2), %llu / %llu (version "
+	       "3)\n", (unsigned long long)read_d[0], (unsigned long long)infl_d[0],
+	       (unsigned long long)read_d[1], (unsigned long long)infl_d[1],
+	       (unsigned long long)read_d[2], (unsigned long long)infl_d[2]);
 	CHECK(read_d[1] > 0 && read_d[1] < read_d[0]);
+	CHECK(infl_d[2] > 0 && infl_d[2] < infl_d[1] && infl_d[1] < infl_d[0]);
 }
 
 static void channel_masks(void)

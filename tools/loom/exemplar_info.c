@@ -157,8 +157,10 @@ int exemplar_info(int argc, char **argv)
 	} else {
 		printf("database %s\n", pos ? pos : cli_db_path(dbopt));
 		printf("  format version %u (%s), content hash %s, %llu bytes\n",
-		       info.version, info.voxel_layout == 2 ? "each plane of a brick stored "
-		       "apart" : "one stream a brick", hs, (unsigned long long)info.file_bytes);
+		       info.version, info.voxel_layout == 3 ? "each plane of a brick stored "
+		       "apart, density in 8 segments" : info.voxel_layout == 2 ?
+		       "each plane of a brick stored apart" : "one stream a brick", hs,
+		       (unsigned long long)info.file_bytes);
 		printf("  block %ux%ux%u voxels of %g um, brick %ux%ux%u, %llu bricks "
 		       "(%llu empty, %llu stored raw)\n", info.block[0], info.block[1],
 		       info.block[2], (double)info.voxel_size_um, info.brick[0],

@@ -67,7 +67,9 @@ typedef struct loom_db_info {
 	uint64_t stored_bytes;    /* brick bytes in the file */
 	uint64_t metadata_bytes;  /* tables + index read at open */
 	uint32_t voxel_layout;    /* 1: one stream a brick (version 1); 2: each
-	                             plane a unit of its own (version 2) */
+	                             plane a unit of its own (version 2); 3: as
+	                             2, the density unit in eight segments
+	                             (version 3) */
 } loom_db_info;
 
 /* One exemplar.  Pointers are owned by the database and valid until
@@ -261,9 +263,11 @@ typedef struct loom_exgen_params {
 	const char *pairs[LOOM_EXGEN_MAX_PAIRS][2]; /* warp, weft fibre names
 	                             (as fibre[]; NULL = the other one), distinct
 	                             pairs */
-	uint32_t db_version;      /* 0 or 2: the current format (each plane of
-	                             a brick stored apart); 1: format version 1
-	                             (one stream a brick) for older readers */
+	uint32_t db_version;      /* 0 or 3: the current format (each plane of
+	                             a brick stored apart, the density plane in
+	                             eight segments); 2: version 2 (the density
+	                             plane whole), 1: version 1 (one stream a
+	                             brick), for older readers */
 } loom_exgen_params;
 
 /*
