@@ -1025,7 +1025,7 @@ static int segs_decode(const loom_db *db, uint32_t id,
 static int unit_decode_segs(const loom_db *db, uint32_t id, unsigned u,
                             struct libdeflate_decompressor *dec, const uint8_t *src,
                             uint64_t off, uint8_t *out, unsigned q0, unsigned q1,
-                            loom_diag *diag)
+                            int checked, loom_diag *diag)
 {
 	const db_brick *b = brick_at(db, id);
 	size_t V = db->brick_voxels, lo = 0, len = V;
@@ -1039,7 +1039,7 @@ static int unit_decode_segs(const loom_db *db, uint32_t id, unsigned u,
 		memset(out + lo, 0, len);
 		return LOOM_OK;
 	}
-	crc = libdeflate_crc32(0, src, b->ub[u]);
+	crc = checked ? b->uc[u] : libdeflate_crc32(0, src, b->ub[u]);
 	if (crc != b->uc[u]) {
 		loom__db_brick_name(db, id, name, sizeof name);
 		return loom__fail(diag, LOOM_ECORRUPT, "%s, unit %u (%s): CRC32 mismatch at "
@@ -1077,7 +1077,7 @@ static int unit_decode(const loom_db *db, uint32_t id, unsigned u,
                        struct libdeflate_decompressor *dec, const uint8_t *src,
                        uint64_t off, uint8_t *out, loom_diag *diag)
 {
-	return unit_decode_segs(db, id, u, dec, src, off, out, 0, LOOM__DB_SEGS, diag);
+	return unit_decode_segs(db, id, u, dec, src, off, out, 0, LOOM__DB_SEGS, 0, diag);
 }
 
 /* pread n bytes of brick id at off; the error names the brick. */
@@ -1180,6 +1180,10 @@ struct loom__db_reader {
 	const loom_db *db;
 	struct libdeflate_decompressor *dec;
 	uint8_t *scratch;
+	/* scratch holds the density unit of brick seg_id, CRC checked (read_seg:
+	   the next segment of the same brick reads nothing) */
+	uint32_t seg_id;
+	int seg_held;
 };
 
 loom__db_reader *loom__db_reader_new(const loom_db *db)
@@ -1216,6 +1220,7 @@ size_t loom__db_reader_bytes(const loom_db *db)
 int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
                          size_t *n_read, loom_diag *diag)
 {
+	r->seg_held = 0; /* scratch is overwritten */
 	return loom__db_read_brick(r->db, id, r->dec, r->scratch, out, n_read, diag);
 }
 
@@ -1235,6 +1240,7 @@ int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
 
 	if (n_read)
 		*n_read = 0;
+	r->seg_held = 0; /* scratch may be overwritten */
 	if (id >= db->n_bricks || u >= LOOM__DB_UNITS)
 		return loom__fail(diag, LOOM_ERANGE, "%s: brick %u unit %u out of range "
 		                  "(the database has %u bricks)", db->path, id, u,
@@ -1263,7 +1269,7 @@ unsigned loom__db_dsegs(const loom_db *db)
 }
 
 int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q, uint8_t *plane,
-                             size_t *n_read, loom_diag *diag)
+                             int checked, size_t *n_read, loom_diag *diag)
 {
 	const loom_db *db = r->db;
 	unsigned ns = loom__db_dsegs(db);
@@ -1286,10 +1292,24 @@ int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q, uint8_
 		memset(plane + lo, 0, len);
 		return LOOM_OK;
 	}
-	/* into scratch even when raw: only the segment's rows are written */
-	rc = brick_pread(db, id, r->scratch, b->ub[0], b->offset, n_read, diag);
-	return rc ? rc : unit_decode_segs(db, id, 0, r->dec, r->scratch, b->offset, plane,
-	                                  q, q + 1, diag);
+	/* into scratch even when raw: only the segment's rows are written; a
+	   unit still there from this reader's last segment is not read again */
+	if (r->seg_held && r->seg_id == id) {
+		checked = 1;
+	} else {
+		r->seg_held = 0;
+		if ((rc = brick_pread(db, id, r->scratch, b->ub[0], b->offset, n_read, diag)))
+			return rc;
+	}
+	rc = unit_decode_segs(db, id, 0, r->dec, r->scratch, b->offset, plane, q, q + 1,
+	                      checked, diag);
+	/* held once its CRC matched (a segment that fails to inflate leaves
+	   the others readable) */
+	if (rc == LOOM_OK || checked || libdeflate_crc32(0, r->scratch, b->ub[0]) == b->uc[0]) {
+		r->seg_id = id;
+		r->seg_held = 1;
+	}
+	return rc;
 }
 
 /* ---- whole-exemplar helpers -------------------------------------------------- */

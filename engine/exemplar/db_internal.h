@@ -224,11 +224,15 @@ unsigned loom__db_dsegs(const loom_db *db);
  * into its place in plane (brick_voxels bytes): only the bytes of the
  * segment's rows are written (loom__db_seg_range), so threads may fill
  * different segments of one plane at once.  The whole unit is read and
- * its CRC checked; only segment q is inflated.  Errors as read_unit's,
- * naming the segment.
+ * its CRC checked (unless checked: a caller that has read another segment
+ * of the same unit through this open database, whose file loom only ever
+ * replaces by renaming, so its bytes cannot have changed); only segment q
+ * is inflated.  The segment header is checked either way.  Errors as
+ * read_unit's, naming the segment.
  */
 int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q,
-                             uint8_t *plane, size_t *n_read, loom_diag *diag);
+                             uint8_t *plane, int checked, size_t *n_read,
+                             loom_diag *diag);
 
 /*
  * Rows per density segment when a plane of brick (bx, by, bz) is cut into

@@ -112,8 +112,12 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
 		clock_gettime(CLOCK_MONOTONIC, &t0);
 		rc = loom__cache_thread_scratch(s->cth, &scratch, diag);
 		if (rc == LOOM_OK)
+			/* the unit's CRC was checked by the fill of any segment of
+			   the plane already in this frame */
 			rc = loom__db_reader_read_seg(scratch, (uint32_t)id, q,
-			                              (uint8_t *)frame + dunit_off(t, id), &n, diag);
+			                              (uint8_t *)frame + dunit_off(t, id),
+			                              (v & (uint64_t)0xff << 8 * (r & 3)) != 0, &n,
+			                              diag);
 		atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
 		if (rc != LOOM_OK) {
 			atomic_fetch_and_explicit(st, ~busy, memory_order_release);

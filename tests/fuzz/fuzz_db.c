@@ -73,7 +73,7 @@ static void exercise(loom_db *db)
 				    d.message[0] == 0)
 					abort();
 			for (unsigned q = 0; q < loom__db_dsegs(db); q++)
-				if (loom__db_reader_read_seg(r, id, q, brick, NULL, &d) != LOOM_OK &&
+				if (loom__db_reader_read_seg(r, id, q, brick, 0, NULL, &d) != LOOM_OK &&
 				    d.message[0] == 0)
 					abort();
 		}

@@ -1144,7 +1144,7 @@ static void test_segments(void)
 				at += cq;
 			}
 			memset(seg, 0xa5, g.brick_voxels);
-			CHECK_EQ_INT(loom__db_reader_read_seg(r, id, q, seg, NULL, &d), LOOM_OK);
+			CHECK_EQ_INT(loom__db_reader_read_seg(r, id, q, seg, 0, NULL, &d), LOOM_OK);
 			bad += memcmp(seg + lo, plane + lo, len) != 0;
 			for (size_t i = 0; i < g.brick_voxels; i++)
 				outside += (i < lo || i >= lo + len) && seg[i] != 0xa5;
@@ -1157,12 +1157,22 @@ static void test_segments(void)
 	printf("  segments: %zu zero, %zu raw, %zu deflated\n", kinds[0], kinds[1],
 	       kinds[2]);
 	CHECK(kinds[0] > 0 && kinds[2] > 0);
-	CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, 8, seg, NULL, &d), LOOM_ERANGE);
+	CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, 8, seg, 0, NULL, &d), LOOM_ERANGE);
+	/* the next segment of the brick whose unit the reader holds reads
+	   nothing more; another read in between drops it */
+	if (did != UINT32_MAX) {
+		size_t n1 = 0, n2 = 1, n3 = 0;
+		CHECK_EQ_INT(loom__db_reader_read_seg(r, did, 0, seg, 0, &n1, &d), LOOM_OK);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r, did, 1, seg, 0, &n2, &d), LOOM_OK);
+		CHECK_EQ_INT(loom__db_reader_read_unit(r, did, 3, plane, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r, did, 2, seg, 0, &n3, &d), LOOM_OK);
+		CHECK(n1 > 0 && n2 == 0 && n3 == n1);
+	}
 	/* version 1 has no segments; version 2 has one, the whole plane */
 	CHECK_EQ_INT(loom_db_open(tpath("gen1.ldb"), &d1, &d), LOOM_OK);
 	if (d1) {
 		loom__db_reader *r1 = loom__db_reader_new(d1);
-		CHECK_EQ_INT(loom__db_reader_read_seg(r1, 0, 0, seg, NULL, &d),
+		CHECK_EQ_INT(loom__db_reader_read_seg(r1, 0, 0, seg, 0, NULL, &d),
 		             LOOM_EUNSUPPORTED);
 		loom__db_reader_free(r1);
 	}
@@ -1174,11 +1184,11 @@ static void test_segments(void)
 		loom__db_geometry(d2, &g2);
 		for (id = 0; id < g2.n_bricks; id++) {
 			CHECK_EQ_INT(loom__db_reader_read_unit(r2, id, 0, plane, NULL, &d), LOOM_OK);
-			CHECK_EQ_INT(loom__db_reader_read_seg(r2, id, 0, seg, NULL, &d), LOOM_OK);
+			CHECK_EQ_INT(loom__db_reader_read_seg(r2, id, 0, seg, 0, NULL, &d), LOOM_OK);
 			bad2 += memcmp(seg, plane, g2.brick_voxels) != 0;
 		}
 		CHECK_EQ_INT(bad2, 0);
-		CHECK_EQ_INT(loom__db_reader_read_seg(r2, 0, 1, seg, NULL, &d), LOOM_ERANGE);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r2, 0, 1, seg, 0, NULL, &d), LOOM_ERANGE);
 		loom__db_reader_free(r2);
 	}
 	CHECK(did != UINT32_MAX);
@@ -1203,7 +1213,7 @@ static void test_segments(void)
 		if (bd) {
 			br = loom__db_reader_new(bd);
 			memset(&d, 0, sizeof d);
-			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, NULL, &d),
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 0, NULL, &d),
 			             LOOM_ECORRUPT);
 			snprintf(want, sizeof want, "segbad.ldb: brick %u (exemplar", did);
 			CHECK_STR_CONTAINS(d.message, want);
@@ -1211,13 +1221,36 @@ static void test_segments(void)
 			CHECK_STR_CONTAINS(d.message, want);
 			CHECK_STR_CONTAINS(d.message, "invalid deflate data");
 			/* the other segments still read; the whole plane does not */
-			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq ? 0 : 1, seg, NULL, &d),
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq ? 0 : 1, seg, 0, NULL, &d),
 			             LOOM_OK);
 			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 0, plane, NULL, &d),
 			             LOOM_ECORRUPT);
 			memset(&d, 0, sizeof d);
 			CHECK_EQ_INT(loom_db_verify(bd, NULL, NULL, &d), LOOM_ECORRUPT);
 			CHECK_STR_CONTAINS(d.message, "segment");
+			loom__db_reader_free(br);
+			loom_db_close(bd);
+			bd = NULL;
+		}
+		/* a unit CRC that does not match: a segment read checks it, one
+		   told the unit was checked already does not (and still reads
+		   the right bytes) */
+		memcpy(c, b, n);
+		loom__put32(c + e + 28, loom__le32(c + e + 28) ^ 1u);
+		reseal(c, n);
+		spit(tpath("segbad.ldb"), c, n);
+		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
+		if (bd) {
+			size_t lo, len;
+			br = loom__db_reader_new(bd);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 0, NULL, &d),
+			             LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, "unit 0 (density): CRC32 mismatch");
+			CHECK_EQ_INT(loom__db_reader_read_unit(r, did, 0, plane, NULL, &d), LOOM_OK);
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 1, NULL, &d), LOOM_OK);
+			loom__db_seg_range(p.brick, 8, dq, &lo, &len);
+			CHECK(memcmp(seg + lo, plane + lo, len) == 0);
 			loom__db_reader_free(br);
 			loom_db_close(bd);
 			bd = NULL;
@@ -1232,7 +1265,7 @@ static void test_segments(void)
 		if (bd) {
 			br = loom__db_reader_new(bd);
 			memset(&d, 0, sizeof d);
-			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, 7, seg, NULL, &d),
+			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, 7, seg, 0, NULL, &d),
 			             LOOM_ECORRUPT);
 			CHECK_STR_CONTAINS(d.message, "unit 0 (density) at offset");
 			CHECK_STR_CONTAINS(d.message, "segments of");
@@ -1340,7 +1373,7 @@ static void test_segment_kinds(void)
 	r = loom__db_reader_new(db);
 	for (unsigned q = 0; q < 8; q++) {
 		memset(plane, 0xa5, sizeof plane);
-		CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, q, plane, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom__db_reader_read_seg(r, 0, q, plane, 0, NULL, &d), LOOM_OK);
 		for (size_t i = 0; i < 2048; i++)
 			if (plane[i] != (i / 256 == q ? raw[i] : 0xa5)) {
 				CHECK(plane[i] == (i / 256 == q ? raw[i] : 0xa5));
