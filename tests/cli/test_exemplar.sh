@@ -65,6 +65,8 @@ for e in ex:
     assert e["raw_bytes"] == 120 * 80 * 48 * 4
     assert 0 < e["compressed_bytes"] < e["raw_bytes"]
 assert ex[0]["name"] == "twill-2-3" and ex[1]["name"] == "satin-1-4"
+# the current format: version 3, the density unit in segments
+assert j["version"] == 3 and j["voxel_layout"] == 3, (j["version"], j["voxel_layout"])
 # twill 2/3: every column has two 1s, every row two 1s
 assert all(r.count("1") == 2 for r in ex[0]["weave"])
 assert all(r.count("1") == 1 for r in ex[1]["weave"])
@@ -74,6 +76,7 @@ then pass info_json_keys; else fail info_json_keys "$(head -c 400 "$T/py")"; fi
 row0=$(cat "$T/py")
 expect_ok info_text "$LOOM" exemplar info "$DB"
 expect_out_contains info_text_name "satin-1-4"
+expect_out_contains info_text_version "format version 3 (each plane of a brick stored apart, density in 8 segments)"
 expect_out_contains info_text_weave "$row0"
 
 # default database lookup: LOOM_DB, then the data directory
