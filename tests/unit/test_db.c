@@ -424,6 +424,18 @@ static void fill_brick(uint8_t *raw, uint32_t bx, uint32_t by, uint32_t bz,
 
 /* The hand-made exemplar, into a new database of voxel layout `layout`
    (0: the current one), or appended to path's when append is set. */
+/* A 2 x 2 plain exemplar record for the writer, labels 1..n_yarns. */
+static void plain_exemplar(loom__dbw_exemplar *e, const char *name, const uint8_t *weave,
+                           const loom_db_yarn *yarns, uint32_t n_yarns)
+{
+	e->name = name;
+	e->weave_name = "plain";
+	e->rows = e->cols = 2;
+	e->weave = weave;
+	e->n_yarns = n_yarns;
+	e->yarns = yarns;
+}
+
 static int write_hand(const char *path, unsigned layout, int append, uint64_t *hash,
                       loom_diag *d)
 {
@@ -453,12 +465,7 @@ static int write_hand(const char *path, unsigned layout, int append, uint64_t *h
 	yarns[1].kind = LOOM_YARN_WARP;
 	yarns[1].index = 0;
 	yarns[3].flags = LOOM_DB_YARN_FLYAWAY;
-	e.name = "hand";
-	e.weave_name = "plain";
-	e.rows = e.cols = 2;
-	e.weave = weave;
-	e.n_yarns = 255;
-	e.yarns = yarns;
+	plain_exemplar(&e, "hand", weave, yarns, 255);
 	rc = append ? loom__dbw_append(path, 1, 0, &w, NULL, d) :
 	              loom__dbw_create(path, &wp, &w, d);
 	if (rc != LOOM_OK)
@@ -1094,6 +1101,24 @@ out:
 	loom_db_close(d2);
 }
 
+/* test_segments' damaged images: c (n bytes) resealed, written and opened;
+   a reader on it (NULL when it does not open, which is checked). */
+static loom__db_reader *damaged_reader(uint8_t *c, size_t n, loom_db **bd, loom_diag *d)
+{
+	reseal(c, n);
+	spit(tpath("segbad.ldb"), c, n);
+	CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), bd, d), LOOM_OK);
+	memset(d, 0, sizeof *d);
+	return *bd ? loom__db_reader_new(*bd) : NULL;
+}
+
+static void damaged_close(loom__db_reader *br, loom_db **bd)
+{
+	loom__db_reader_free(br);
+	loom_db_close(*bd);
+	*bd = NULL;
+}
+
 /* Version 3's density segments (brick 16 x 12 x 32: R = 2 rows, six
    segments used, two past the brick's rows): each segment alone equals
    its rows of the whole plane and writes nothing else; the segment
@@ -1207,12 +1232,7 @@ static void test_segments(void)
 		memcpy(c, b, n);
 		c[off + at] |= 0x06;
 		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
-		reseal(c, n);
-		spit(tpath("segbad.ldb"), c, n);
-		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
-		if (bd) {
-			br = loom__db_reader_new(bd);
-			memset(&d, 0, sizeof d);
+		if ((br = damaged_reader(c, n, &bd, &d)) != NULL) {
 			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 0, NULL, &d),
 			             LOOM_ECORRUPT);
 			snprintf(want, sizeof want, "segbad.ldb: brick %u (exemplar", did);
@@ -1228,22 +1248,15 @@ static void test_segments(void)
 			memset(&d, 0, sizeof d);
 			CHECK_EQ_INT(loom_db_verify(bd, NULL, NULL, &d), LOOM_ECORRUPT);
 			CHECK_STR_CONTAINS(d.message, "segment");
-			loom__db_reader_free(br);
-			loom_db_close(bd);
-			bd = NULL;
+			damaged_close(br, &bd);
 		}
 		/* a unit CRC that does not match: a segment read checks it, one
 		   told the unit was checked already does not (and still reads
 		   the right bytes) */
 		memcpy(c, b, n);
 		loom__put32(c + e + 28, loom__le32(c + e + 28) ^ 1u);
-		reseal(c, n);
-		spit(tpath("segbad.ldb"), c, n);
-		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
-		if (bd) {
+		if ((br = damaged_reader(c, n, &bd, &d)) != NULL) {
 			size_t lo, len;
-			br = loom__db_reader_new(bd);
-			memset(&d, 0, sizeof d);
 			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 0, NULL, &d),
 			             LOOM_ECORRUPT);
 			CHECK_STR_CONTAINS(d.message, "unit 0 (density): CRC32 mismatch");
@@ -1251,45 +1264,29 @@ static void test_segments(void)
 			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, dq, seg, 1, NULL, &d), LOOM_OK);
 			loom__db_seg_range(p.brick, 8, dq, &lo, &len);
 			CHECK(memcmp(seg + lo, plane + lo, len) == 0);
-			loom__db_reader_free(br);
-			loom_db_close(bd);
-			bd = NULL;
+			damaged_close(br, &bd);
 		}
 		/* a header whose sizes do not add up to the unit */
 		memcpy(c, b, n);
 		loom__put32(c + off + 4 * dq, loom__le32(c + off + 4 * dq) - 1);
 		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
-		reseal(c, n);
-		spit(tpath("segbad.ldb"), c, n);
-		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
-		if (bd) {
-			br = loom__db_reader_new(bd);
-			memset(&d, 0, sizeof d);
+		if ((br = damaged_reader(c, n, &bd, &d)) != NULL) {
 			CHECK_EQ_INT(loom__db_reader_read_seg(br, did, 7, seg, 0, NULL, &d),
 			             LOOM_ECORRUPT);
 			CHECK_STR_CONTAINS(d.message, "unit 0 (density) at offset");
 			CHECK_STR_CONTAINS(d.message, "segments of");
-			loom__db_reader_free(br);
-			loom_db_close(bd);
-			bd = NULL;
+			damaged_close(br, &bd);
 		}
 		/* a segment larger than its rows */
 		memcpy(c, b, n);
 		loom__put32(c + off + 4 * dq, 2u * 16 * 32 + 1);
 		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
-		reseal(c, n);
-		spit(tpath("segbad.ldb"), c, n);
-		CHECK_EQ_INT(loom_db_open(tpath("segbad.ldb"), &bd, &d), LOOM_OK);
-		if (bd) {
-			br = loom__db_reader_new(bd);
-			memset(&d, 0, sizeof d);
+		if ((br = damaged_reader(c, n, &bd, &d)) != NULL) {
 			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 0, plane, NULL, &d),
 			             LOOM_ECORRUPT);
 			snprintf(want, sizeof want, "segment %u of 1025 bytes, expected 0..1024", dq);
 			CHECK_STR_CONTAINS(d.message, want);
-			loom__db_reader_free(br);
-			loom_db_close(bd);
-			bd = NULL;
+			damaged_close(br, &bd);
 		}
 	}
 out:
@@ -1301,6 +1298,7 @@ out:
 	loom_db_close(db);
 	loom_db_close(d1);
 	loom_db_close(d2);
+	loom_db_close(bd);
 }
 
 /* One brick of 16 x 16 x 8 (segments of 2 rows, 256 bytes) whose density
@@ -1332,12 +1330,7 @@ static void test_segment_kinds(void)
 	wp.top_threshold = 64;
 	wp.level = 6;
 	yarns[1].kind = LOOM_YARN_WARP;
-	e.name = "segkinds";
-	e.weave_name = "plain";
-	e.rows = e.cols = 2;
-	e.weave = weave;
-	e.n_yarns = 1;
-	e.yarns = yarns;
+	plain_exemplar(&e, "segkinds", weave, yarns, 1);
 	memset(raw, 0, sizeof raw);
 	for (size_t i = 0; i < 2048; i++) {
 		size_t y = i / (16 * 8);
