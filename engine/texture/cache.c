@@ -105,6 +105,7 @@ struct loom__cache {
 	pthread_mutex_t slots_lock;   /* attach / detach */
 	_Atomic uint64_t bytes_in_use;
 	_Atomic uint64_t peak_bytes;
+	_Atomic uint32_t evicted;     /* a frame has been evicted (once set, set) */
 };
 
 /* ---------------------------------------------------------------- helpers */
@@ -600,6 +601,8 @@ static uint32_t clock_sweep(loom__cache_thread *th, struct stripe *sp)
 		atomic_store(&fr->tag, NO_TAG);
 		hash_remove(c, sp, f);
 		bump(&th->cnt.evictions, 1);
+		if (!atomic_load_explicit(&c->evicted, memory_order_relaxed))
+			atomic_store_explicit(&c->evicted, 1, memory_order_relaxed);
 		return f;
 	}
 	return NONE;
@@ -1127,4 +1130,9 @@ int loom__cache_check(loom__cache *c, loom_diag *diag)
 			if (FRAME_IS_PINNED(&c->frames[f]))
 				return loom__fail(diag, 0, "frame %u pinned with no thread attached", f);
 	return 1;
+}
+
+int loom__cache_evicted(const loom__cache *c)
+{
+	return (int)atomic_load_explicit(&((loom__cache *)c)->evicted, memory_order_relaxed);
 }

@@ -409,7 +409,7 @@ int loom__memo_seg_fill(loom_texture *t, struct tslot *s, uint32_t sy)
 	rc = loom__dunit_fill(t, s, s->memo_id & ~DUNIT_TAG, q, s->memo - s->memo_off, &d);
 	if (rc != LOOM_OK)
 		return loom__slot_error(t, s, rc, d.message);
-	s->memo_seg |= (uint8_t)(1u << q);
+	s->memo_seg = loom__dunit_segs(t, s->memo_id & ~DUNIT_TAG); /* q, maybe more */
 	return LOOM_OK;
 }
 

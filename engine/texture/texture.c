@@ -91,10 +91,11 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
 {
 	uint32_t r = stored_rank(t, id);
 	_Atomic uint64_t *st = &t->dstate[r >> 2];
+	uint64_t plane = ((uint64_t)0xff >> (8 - t->dsegs)) << 8 * (r & 3); /* its segments */
 	uint64_t have = (uint64_t)1 << (8 * (r & 3) + q), busy = have << 32;
-	uint64_t v = atomic_load_explicit(st, memory_order_acquire);
+	uint64_t v = atomic_load_explicit(st, memory_order_acquire), want, done;
 	void *scratch;
-	size_t n = 0, lo, len;
+	size_t n, lo, len;
 	int rc;
 
 	while (!(v & have)) {
@@ -103,34 +104,48 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
 			v = atomic_load_explicit(st, memory_order_acquire);
 			continue;
 		}
-		if (!atomic_compare_exchange_weak_explicit(st, &v, v | busy,
+		/* while the cache has evicted nothing, the budget holds all that
+		   was read so far: the plane's other missing segments are filled
+		   too, from the same read of the unit (once it evicts, a miss
+		   inflates only the segment asked for) */
+		want = have;
+		if (!loom__cache_evicted(t->cache))
+			want |= plane & ~v & ~(v >> 32);
+		if (!atomic_compare_exchange_weak_explicit(st, &v, v | want << 32,
 		                                           memory_order_acquire,
 		                                           memory_order_acquire))
 			continue;
-		/* claimed: the segment's bytes are this thread's until published */
+		/* claimed: the segments' bytes are this thread's until published */
 		struct timespec t0, t1;
 		clock_gettime(CLOCK_MONOTONIC, &t0);
+		done = 0;
 		rc = loom__cache_thread_scratch(s->cth, &scratch, diag);
-		if (rc == LOOM_OK)
-			/* the unit's CRC was checked by the fill of any segment of
-			   the plane already in this frame */
-			rc = loom__db_reader_read_seg(scratch, (uint32_t)id, q,
+		for (unsigned k = 0; k < t->dsegs && rc == LOOM_OK; k++) {
+			unsigned qk = (q + k) % t->dsegs; /* q first: its error is reported */
+			uint64_t bit = (uint64_t)1 << (8 * (r & 3) + qk);
+			if (!(want & bit))
+				continue;
+			/* the unit's CRC was checked by the fill of any segment of the
+			   plane already in this frame */
+			n = 0;
+			rc = loom__db_reader_read_seg(scratch, (uint32_t)id, qk,
 			                              (uint8_t *)frame + dunit_off(t, id),
-			                              (v & (uint64_t)0xff << 8 * (r & 3)) != 0, &n,
-			                              diag);
-		atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
-		if (rc != LOOM_OK) {
-			atomic_fetch_and_explicit(st, ~busy, memory_order_release);
-			return rc;
+			                              ((v | done) & plane) != 0, &n, diag);
+			atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
+			if (rc != LOOM_OK)
+				break;
+			done |= bit;
+			loom__db_seg_range(t->bs, t->dsegs, qk, &lo, &len);
+			bump(&s->cnt.dfill_bytes, len);
 		}
+		if (done) /* one miss, however many segments it filled */
+			bump(&s->cnt.dfills, 1);
 		clock_gettime(CLOCK_MONOTONIC, &t1);
-		loom__db_seg_range(t->bs, t->dsegs, q, &lo, &len);
-		bump(&s->cnt.dfills, 1);
-		bump(&s->cnt.dfill_bytes, len);
 		bump(&s->cnt.dfill_ns, (uint64_t)((t1.tv_sec - t0.tv_sec) * 1000000000LL +
 		                                  (t1.tv_nsec - t0.tv_nsec)));
-		atomic_fetch_xor_explicit(st, busy | have, memory_order_release);
-		return LOOM_OK;
+		/* publish what was filled, release every claim */
+		atomic_fetch_xor_explicit(st, want << 32 | done, memory_order_release);
+		return done & have ? LOOM_OK : rc;
 	}
 	return LOOM_OK;
 }

@@ -124,8 +124,9 @@ struct dzmap {
    load + store), summed by loom_texture_get_stats. */
 struct counters {
 	_Atomic uint64_t lookups, memo_hits, empty, xings, dz, errors;
-	_Atomic uint64_t dfills, dfill_ns; /* density segments inflated into units */
-	_Atomic uint64_t dfill_bytes;     /* their bytes */
+	_Atomic uint64_t dfills, dfill_ns; /* density unit fills (one or more
+	                                     segments each) */
+	_Atomic uint64_t dfill_bytes;     /* the bytes they inflated */
 };
 
 /* A trilinear corner column's steps 2-3 (lookup.c pair_raw): output

@@ -1663,6 +1663,26 @@ static void old_format_same_lookups(void)
 				bad += !texel_eq(&a, &e);
 			}
 			CHECK_EQ_INT(bad, 0);
+			if (b == 1 && v == 2) {
+				/* while nothing is evicted, a density-only miss on
+				   version 3 fills the whole plane (all its segments)
+				   from one read of its unit */
+				loom_texture_close(t);
+				t = open_tex(f, db, budget, 1);
+				for (int it = 0; t && it < 1000; it++) {
+					loom_texel a;
+					loom_texture_voxel_ch(t, rnd_range(-300, 300), rnd_range(-200, 200),
+					                      rnd_range(0, r.b3), LOOM_CHANNEL_DENSITY, &a);
+					loom_texture_get_stats(t, &st);
+					if (st.bytes_decompressed)
+						break;
+				}
+				if (t) {
+					CHECK_EQ_INT(st.evictions, 0);
+					CHECK_EQ_INT(st.bytes_decompressed, 8 * 8 * 8);
+					CHECK_EQ_INT(st.misses, 1);
+				}
+			}
 			if (b == 0) { /* density alone, from cold */
 				loom_texture_close(t);
 				t = open_tex(f, db, budget, 1);
