@@ -278,11 +278,11 @@ int loom__cache_thread_scratch(loom__cache_thread *th, void **scratch, loom_diag
    bytes.  Nothing is pinned and f may hold another brick by now: the
    bytes must never be read through the result, only prefetched. */
 uint32_t loom__cache_frame_of(const loom__cache_thread *th, const void *data);
+const void *loom__cache_hint(const loom__cache_thread *th, uint64_t brick_id, uint32_t f);
 
 /* 1 once the cache has evicted a frame (the budget has been below the
    working set since open); a hint, relaxed. */
 int loom__cache_evicted(const loom__cache *c);
-const void *loom__cache_hint(const loom__cache_thread *th, uint64_t brick_id, uint32_t f);
 
 /* Statistics snapshot (counters are exact when no call is in flight). */
 void loom__cache_get_stats(const loom__cache *c, loom__cache_stats *st);
