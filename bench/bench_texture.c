@@ -1017,13 +1017,13 @@ int main(int argc, char **argv)
 	if (argc > 2 || !bench_digits_in(parts, "12345"))
 		bench_reject("bench_texture", argv[argc > 2 ? 2 : 1], USAGE);
 	if (!(paper && *paper) && stat(dbp, &st) == 0 &&
-	    loom_db_open(dbp, &db, &diag) == LOOM_OK) { /* older format: again */
+	    loom_db_open(dbp, &db, &diag) == LOOM_OK) { /* another format: again */
 		loom_db_get_info(db, &info);
 		loom_db_close(db);
 		db = NULL;
-		if (info.voxel_layout < 3) {
-			printf("%s is of format version %u: generated again in the current "
-			       "one\n", dbp, info.version);
+		if (info.version != 2) { /* the default, which bench_vdb shares */
+			printf("%s is of format version %u: generated again in version 2\n",
+			       dbp, info.version);
 			unlink(dbp);
 		}
 	}

@@ -86,7 +86,9 @@ static const char USAGE[] =
 	"  --check    a small run on the default database (a test of the bench)\n"
 	"Environment: BENCH_VDB_CROSSINGS (region side, default 16), BENCH_VDB_SCALE,\n"
 	"BENCH_VDB_BRICK=XxYxZ (the paper database's brick shape, default 16x16x64;\n"
-	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), LOOM_PAPER_DB,\n"
+	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), BENCH_VDB_FORMAT=3\n"
+	"(the paper database in format version 3, $BUILD/bench/paper[-XxYxZ]-v3.ldb:\n"
+	"the density plane in segments), LOOM_PAPER_DB,\n"
 	"BUILD (default build).\n";
 
 namespace {
@@ -217,6 +219,7 @@ struct Setup {
 	int64_t lo[3] = {0, 0, 0};     /* region in bolt voxels */
 	int n[3] = {0, 0, 0};          /* its size; local coordinates 0..n-1 */
 	unsigned brick[3] = {0, 0, 0}; /* BENCH_VDB_BRICK, 0: the preset's */
+	unsigned format = 2;           /* BENCH_VDB_FORMAT: the database's version */
 };
 
 /* Open (making when missing) the database and the fabric. */
@@ -231,28 +234,29 @@ bool setup_open(Setup &S)
 		S.dbp = S.build + "/share/loom/default.ldb";
 	else if (paper && *paper)
 		S.dbp = paper;
-	else if (brick[0])
-		S.dbp = S.build + "/bench/paper-" + getenv("BENCH_VDB_BRICK") + ".ldb";
 	else
-		S.dbp = S.build + "/bench/paper.ldb";
-	bool stale = false; /* a generated database of an older format version */
+		S.dbp = S.build + "/bench/paper" +
+		        (brick[0] ? std::string("-") + getenv("BENCH_VDB_BRICK") : std::string()) +
+		        (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) + ".ldb";
+	bool stale = false; /* a generated database of another format version */
 	if (!S.check && !(paper && *paper) && stat(S.dbp.c_str(), &st) == 0) {
 		loom_db *old = NULL;
 		loom_db_info oi;
 		if (loom_db_open(S.dbp.c_str(), &old, &diag) == LOOM_OK) {
 			loom_db_get_info(old, &oi);
-			stale = oi.voxel_layout < 3;
+			stale = oi.version != S.format;
 			loom_db_close(old);
 		}
 		if (stale)
-			printf("%s is of format version %u: generated again in the current one\n",
-			       S.dbp.c_str(), oi.version);
+			printf("%s is of format version %u: generated again in version %u\n",
+			       S.dbp.c_str(), oi.version, S.format);
 	}
 	if (!S.check && (stale || stat(S.dbp.c_str(), &st) != 0)) {
 		loom_exgen_params p;
 		printf("generating the paper preset database %s (once, ~10-20 s)\n", S.dbp.c_str());
 		fflush(stdout);
 		loom_exgen_preset("paper", &p);
+		p.db_version = S.format;
 		if (brick[0])
 			for (int a = 0; a < 3; a++)
 				p.brick[a] = brick[a];
@@ -909,12 +913,22 @@ int main(int argc, char **argv)
 			return 2;
 		}
 	}
+	const char *fv = getenv("BENCH_VDB_FORMAT");
+	if (fv && *fv) {
+		if (strcmp(fv, "2") != 0 && strcmp(fv, "3") != 0) {
+			fprintf(stderr, "bench_vdb: BENCH_VDB_FORMAT='%s': expected 2 or 3\n", fv);
+			return 2;
+		}
+		S.format = (unsigned)atoi(fv);
+	}
 	S.xings = S.check ? 3 : 16;
 	if (xs && atoi(xs) > 0)
 		S.xings = atoi(xs);
 	/* per brick shape, so that runs with another BENCH_VDB_BRICK do not
 	   leave the default's fabric naming the other database */
-	std::string shape = S.brick[0] && !S.check ? std::string("-") + bs : std::string();
+	std::string shape = S.check ? std::string() :
+	                    (S.brick[0] ? std::string("-") + bs : std::string()) +
+	                    (S.format != 2 ? "-v" + std::to_string(S.format) : std::string());
 	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper" + shape + ".loomf");
 	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper" + shape + ".vdb");
 	mkdir((S.build + "/bench").c_str(), 0777);

@@ -40,7 +40,8 @@ struct libdeflate_decompressor;
 #define LOOM__DB_MAGIC "\x89LDB\r\n\x1a\n"   /* 8 bytes */
 #define LOOM__DB_META_MAGIC "LDBMETA1"        /* 8 bytes */
 #define LOOM__DB_TRAILER_MAGIC "LDBTRAIL"     /* 8 bytes */
-#define LOOM__DB_VERSION 3u                   /* written; 1 and 2 still read */
+#define LOOM__DB_VERSION 3u                   /* newest read (and written on
+                                                 request; 2 by default) */
 #define LOOM__DB_VERSION_UNITS2 2u            /* plane units, density whole */
 #define LOOM__DB_VERSION_PLANES1 1u           /* whole-brick streams */
 #define LOOM__DB_HEADER_BYTES 128u

@@ -173,8 +173,8 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	if (!w)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	w->p = *p;
-	if (w->p.layout != LOOM__DB_LAYOUT_PLANES && w->p.layout != LOOM__DB_LAYOUT_UNITS)
-		w->p.layout = LOOM__DB_LAYOUT_SEGS;
+	if (w->p.layout != LOOM__DB_LAYOUT_PLANES && w->p.layout != LOOM__DB_LAYOUT_SEGS)
+		w->p.layout = LOOM__DB_LAYOUT_UNITS;
 	w->entry_bytes = w->p.layout == LOOM__DB_LAYOUT_PLANES ? LOOM__DB_INDEX_BYTES :
 	                                                         LOOM__DB_INDEX2_BYTES;
 	w->brick_voxels = (size_t)p->brick[0] * p->brick[1] * p->brick[2];

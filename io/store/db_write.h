@@ -36,9 +36,10 @@ typedef struct loom__dbw_params {
 	uint64_t seed;
 	uint32_t flags;         /* header flags (bit 0: procedural) */
 	uint32_t layout;        /* voxel layout = format version: 0 or
-	                           LOOM__DB_LAYOUT_SEGS (3), LOOM__DB_LAYOUT_UNITS
-	                           (2) or LOOM__DB_LAYOUT_PLANES (1: appending
-	                           to an old file, tests) */
+	                           LOOM__DB_LAYOUT_UNITS (2, the default),
+	                           LOOM__DB_LAYOUT_SEGS (3: asked for) or
+	                           LOOM__DB_LAYOUT_PLANES (1: appending to an
+	                           old file, tests) */
 } loom__dbw_params;
 
 typedef struct loom__dbw_exemplar {

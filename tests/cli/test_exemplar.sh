@@ -65,8 +65,8 @@ for e in ex:
     assert e["raw_bytes"] == 120 * 80 * 48 * 4
     assert 0 < e["compressed_bytes"] < e["raw_bytes"]
 assert ex[0]["name"] == "twill-2-3" and ex[1]["name"] == "satin-1-4"
-# the current format: version 3, the density unit in segments
-assert j["version"] == 3 and j["voxel_layout"] == 3, (j["version"], j["voxel_layout"])
+# the default format: version 2, each plane a unit of its own
+assert j["version"] == 2 and j["voxel_layout"] == 2, (j["version"], j["voxel_layout"])
 # twill 2/3: every column has two 1s, every row two 1s
 assert all(r.count("1") == 2 for r in ex[0]["weave"])
 assert all(r.count("1") == 1 for r in ex[1]["weave"])
@@ -76,8 +76,18 @@ then pass info_json_keys; else fail info_json_keys "$(head -c 400 "$T/py")"; fi
 row0=$(cat "$T/py")
 expect_ok info_text "$LOOM" exemplar info "$DB"
 expect_out_contains info_text_name "satin-1-4"
-expect_out_contains info_text_version "format version 3 (each plane of a brick stored apart, density in 8 segments)"
+expect_out_contains info_text_version "format version 2 (each plane of a brick stored apart)"
 expect_out_contains info_text_weave "$row0"
+
+# --format-version 3: the density plane in segments, the same voxels
+expect_ok generate_v3 "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
+	--seed 5 --threads 1 --quiet --format-version 3 -o "$T/v3.ldb"
+expect_ok info_v3 "$LOOM" exemplar info "$T/v3.ldb"
+expect_out_contains info_v3_version "format version 3 (each plane of a brick stored apart, density in 8 segments)"
+expect_ok export_v2 "$LOOM" exemplar export "$DB" --exemplar 1 -o "$T/x2.nrrd"
+expect_ok export_v3 "$LOOM" exemplar export "$T/v3.ldb" --exemplar 1 -o "$T/x3.nrrd"
+expect_same v3_same_voxels "$T/x2.nrrd" "$T/x3.nrrd"
+expect_exit format_version_4 2 "$LOOM" exemplar generate --preset tiny --format-version 4 -o "$T/v4.ldb"
 
 # default database lookup: LOOM_DB, then the data directory
 expect_ok info_env env LOOM_DB="$DB" "$LOOM" exemplar info

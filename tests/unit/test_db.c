@@ -125,6 +125,7 @@ static void test_roundtrip_generated(void)
 	uint64_t hash = 0;
 	int rc;
 
+	p.db_version = 3; /* gen.ldb: version 3; gen2 and gen1 the older ones */
 	rc = loom_exgen_write_db(tpath("gen.ldb"), &p, &hash, &d);
 	CHECK_EQ_INT(rc, LOOM_OK);
 	if (rc == LOOM_OK) { /* the same exemplars in format version 1 */
@@ -1139,6 +1140,7 @@ static void test_segments(void)
 	p.brick[0] = 16;
 	p.brick[1] = 12;
 	p.brick[2] = 32;
+	p.db_version = 3;
 	CHECK_EQ_INT(loom_exgen_write_db(tpath("seg.ldb"), &p, NULL, &d), LOOM_OK);
 	CHECK_EQ_INT(loom_db_open(tpath("seg.ldb"), &db, &d), LOOM_OK);
 	if (!db)
@@ -1329,6 +1331,7 @@ static void test_segment_kinds(void)
 	wp.voxel_size_um = 10;
 	wp.top_threshold = 64;
 	wp.level = 6;
+	wp.layout = LOOM__DB_LAYOUT_SEGS;
 	yarns[1].kind = LOOM_YARN_WARP;
 	plain_exemplar(&e, "segkinds", weave, yarns, 1);
 	memset(raw, 0, sizeof raw);

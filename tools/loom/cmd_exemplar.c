@@ -187,7 +187,7 @@ static int sub_generate(int argc, char **argv)
 	uint8_t *dweave = NULL;
 	char *wbuf = NULL;
 	int quiet = 0, json = 0, scan = 0, rc;
-	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0;
+	uint32_t cross[2], block[3], brick[3], level = 0, threads = 0, fmt = 0;
 	uint64_t seed = 0;
 	double vs = 0, sett[2] = {0, 0}, ydiam[2] = {0, 0};
 	const char *sett_from = NULL, *fibre = "cotton";
@@ -232,6 +232,9 @@ static int sub_generate(int argc, char **argv)
 		OPT_SIZE3(0, "brick", brick, "XxYxZ", 0, UINT32_MAX,
 		          "brick shape (default 16x16x64)"),
 		OPT_U32(0, "level", &level, "L", 1, 12, "libdeflate level %r (default 6)"),
+		OPT_U32(0, "format-version", &fmt, "N", 1, 3, "database format %r (default 2; "
+		        "3: the density plane in eight segments, for density-only lookups "
+		        "below the working set; docs/formats.md)"),
 		OPT_THREADS(&threads, 64, "worker threads (default 2; %r)"),
 		OPT_STRING(0, "design", &design, "DESIGN", "write the woven ground truth of "
 		           "DESIGN (WIF, weave image, or an image with --map): one exemplar "
@@ -353,6 +356,8 @@ static int sub_generate(int argc, char **argv)
 	}
 	if (opt_given(&c, &level))
 		p.level = (int)level;
+	if (opt_given(&c, &fmt))
+		p.db_version = fmt;
 	if (opt_given(&c, &threads))
 		p.threads = threads;
 	memset(&ps, 0, sizeof ps);

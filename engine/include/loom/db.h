@@ -263,11 +263,13 @@ typedef struct loom_exgen_params {
 	const char *pairs[LOOM_EXGEN_MAX_PAIRS][2]; /* warp, weft fibre names
 	                             (as fibre[]; NULL = the other one), distinct
 	                             pairs */
-	uint32_t db_version;      /* 0 or 3: the current format (each plane of
-	                             a brick stored apart, the density plane in
-	                             eight segments); 2: version 2 (the density
-	                             plane whole), 1: version 1 (one stream a
-	                             brick), for older readers */
+	uint32_t db_version;      /* 0 or 2: the default format (each plane of
+	                             a brick stored apart); 3: the density plane
+	                             in eight segments as well (density-only
+	                             lookups below the working set inflate an
+	                             eighth of a plane; whole-brick reads are
+	                             slower: docs/formats.md); 1: version 1 (one
+	                             stream a brick), for older readers */
 } loom_exgen_params;
 
 /*
