@@ -1608,6 +1608,26 @@ static loom_texel masked(loom_texel a, unsigned ch)
    with one channel against single samples; at the smallest budget (the
    bricks churn, corner pairs straddle bricks: 8-deep bricks) and a large
    one, with the lookups of all masks interleaved on one thread state. */
+/* n density-only lookups at random voxels (z in 0..b3) of texture t, or
+   until the first that inflates anything (first_fill); the statistics
+   after them in *st.  Returns 1. */
+static int cold_density(loom_texture *t, int64_t b3, int n, int first_fill,
+                        loom_texture_stats *st)
+{
+	for (int it = 0; it < n; it++) {
+		loom_texel a;
+		loom_texture_voxel_ch(t, rnd_range(-300, 300), rnd_range(-200, 200),
+		                      rnd_range(0, b3), LOOM_CHANNEL_DENSITY, &a);
+		if (first_fill) {
+			loom_texture_get_stats(t, st);
+			if (st->bytes_decompressed)
+				break;
+		}
+	}
+	loom_texture_get_stats(t, st);
+	return 1;
+}
+
 /* Format versions 1, 2 (each plane a unit; density-only lookups then
    cache density units, texture.c) and 3 (the density unit in segments,
    filled one by one): the same exemplars in each, every mask against each
@@ -1669,15 +1689,7 @@ static void old_format_same_lookups(void)
 				   from one read of its unit */
 				loom_texture_close(t);
 				t = open_tex(f, db, budget, 1);
-				for (int it = 0; t && it < 1000; it++) {
-					loom_texel a;
-					loom_texture_voxel_ch(t, rnd_range(-300, 300), rnd_range(-200, 200),
-					                      rnd_range(0, r.b3), LOOM_CHANNEL_DENSITY, &a);
-					loom_texture_get_stats(t, &st);
-					if (st.bytes_decompressed)
-						break;
-				}
-				if (t) {
+				if (t && cold_density(t, r.b3, 1000, 1, &st)) {
 					CHECK_EQ_INT(st.evictions, 0);
 					CHECK_EQ_INT(st.bytes_decompressed, 8 * 8 * 8);
 					CHECK_EQ_INT(st.misses, 1);
@@ -1686,13 +1698,7 @@ static void old_format_same_lookups(void)
 			if (b == 0) { /* density alone, from cold */
 				loom_texture_close(t);
 				t = open_tex(f, db, budget, 1);
-				for (int it = 0; t && it < 2000; it++) {
-					loom_texel a;
-					loom_texture_voxel_ch(t, rnd_range(-300, 300), rnd_range(-200, 200),
-					                      rnd_range(0, r.b3), LOOM_CHANNEL_DENSITY, &a);
-				}
-				if (t) {
-					loom_texture_get_stats(t, &st);
+				if (t && cold_density(t, r.b3, 2000, 0, &st)) {
 					read_d[v] = st.bytes_read;
 					infl_d[v] = st.bytes_decompressed;
 				}
