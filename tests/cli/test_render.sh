@@ -63,6 +63,16 @@ if cmp -s "$T/a.png" "$T/d.png"; then fail seed_matters "seeds 7 and 8 gave the 
 expect_ok json "$LOOM" render "$F" $R --json -o "$T/e.exr"
 json_check json_fields "j['width'] == 64 and j['height'] == 48 and j['paths'] == 64*48*2 and j['scene'] == 'flat' and j['lookups'] > 0"
 json_check json_grid "j['majorant'] == 'grid' and j['cells'] > 0 and j['majorant_bytes'] > 0"
+# the brick cache's figures: every request a hit, a miss or an empty brick;
+# the tiny database fits the default budget (nothing evicted)
+json_check json_texture "(lambda t: t['hits'] + t['misses'] + t['empty_bricks'] == t['brick_requests'] and t['misses'] > 0 and t['bytes_read'] > 0 and t['bytes_decompressed'] > t['bytes_read'] and t['evictions'] == 0 and 0 < t['hit_rate'] <= 1 and t['peak_cache_bytes'] <= t['budget_bytes'])(j['texture'])"
+# at 1 MB the cache evicts, stays within its budget, and the picture is the
+# same bytes (a texture value does not depend on what is cached)
+expect_ok small_budget "$LOOM" render "$F" $R --seed 7 --threads 2 --budget 1 --json -o "$T/sb.png"
+json_check small_budget_evicts "(lambda t: t['evictions'] > 0 and t['misses'] > t['evictions'] and t['peak_cache_bytes'] <= t['budget_bytes'] < 1048576 and t['hit_rate'] < 1)(j['texture'])"
+expect_same small_budget_same_bytes "$T/a.png" "$T/sb.png"
+expect_ok stats_line "$LOOM" render "$F" $R --seed 7 -o "$T/sl.png"
+expect_err_contains stats_line_text "bricks: hit rate"
 # a budget below the grid is refused before it is built (nothing written)
 expect_exit grid_budget 1 "$LOOM" render "$F" $R --threads 2 --budget 0.1 -o "$T/nogrid.png"
 expect_err_contains grid_budget_msg "cannot hold the majorant grid"

@@ -308,6 +308,29 @@ void jw_bool(json_w *w, const char *key, int v)
 	fputs(v ? "true" : "false", w->fp);
 }
 
+double cli_hit_rate(const loom_texture_stats *st)
+{
+	return st->hits + st->misses ? (double)st->hits / (double)(st->hits + st->misses) : 1.0;
+}
+
+void jw_texture_stats(json_w *w, const loom_texture_stats *st)
+{
+	jw_num(w, "hit_rate", cli_hit_rate(st));
+	jw_uint(w, "brick_requests", st->brick_requests);
+	jw_uint(w, "hits", st->hits);
+	jw_uint(w, "misses", st->misses);
+	jw_uint(w, "empty_bricks", st->empty_bricks);
+	jw_uint(w, "evictions", st->evictions);
+	jw_uint(w, "bytes_read", st->bytes_read);
+	jw_uint(w, "bytes_decompressed", st->bytes_decompressed);
+	jw_num(w, "decompress_seconds", (double)st->decompress_ns * 1e-9);
+	jw_uint(w, "crossings", st->crossings);
+	jw_uint(w, "dz_columns", st->dz_columns);
+	jw_uint(w, "budget_bytes", st->budget_bytes);
+	jw_uint(w, "peak_cache_bytes", st->peak_bytes);
+	jw_uint(w, "cache_frames", st->cache_frames);
+}
+
 int cli_ends_with(const char *s, const char *ext)
 {
 	size_t n = strlen(s), e = strlen(ext);

@@ -126,4 +126,13 @@ void jw_uint(json_w *w, const char *key, unsigned long long v);
 void jw_num(json_w *w, const char *key, double v);  /* %.9g, NaN -> null */
 void jw_bool(json_w *w, const char *key, int v);
 
+/* A texture's brick requests served without a read (1 when none). */
+double cli_hit_rate(const loom_texture_stats *st);
+/* The brick cache's figures as keys of the open object (loom sample
+   --json at the top level, loom render --json in "texture"): hit_rate,
+   brick_requests, hits, misses, empty_bricks, evictions, bytes_read,
+   bytes_decompressed, decompress_seconds, crossings, dz_columns,
+   budget_bytes, peak_cache_bytes, cache_frames. */
+void jw_texture_stats(json_w *w, const loom_texture_stats *st);
+
 #endif

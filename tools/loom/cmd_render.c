@@ -416,6 +416,7 @@ int cmd_render(int argc, char **argv)
 	loom_texture_options to = LOOM_TEXTURE_OPTIONS_INIT;
 	loom_render_options ro = LOOM_RENDER_OPTIONS_INIT;
 	loom_render_stats st;
+	loom_texture_stats ts;
 	loom_volume_source src;
 	int sampler = LOOM_SAMPLER_SOBOL;
 	double noise = 0, prog_s = 0;
@@ -1034,6 +1035,7 @@ int cmd_render(int argc, char **argv)
 		cli_error(prog, "%s", diag.message);
 		goto fail;
 	}
+	loom_texture_get_stats(t, &ts);
 	if (json) {
 		json_w w;
 		jw_begin(&w, stdout);
@@ -1103,12 +1105,22 @@ int cmd_render(int argc, char **argv)
 			jw_num(&w, "cloth_h_mm", (double)src.ny * unit);
 		}
 		jw_num(&w, "seconds", st.seconds);
+		/* the brick cache since the texture was opened (the majorant's
+		   build included): whether --budget held what the picture read */
+		jw_obj(&w, "texture");
+		jw_texture_stats(&w, &ts);
+		jw_close(&w);
 		jw_end(&w);
 	} else if (!quiet) {
 		fprintf(stderr, "loom render: %s: %ux%u, %u spp in %.2f s (%.0f paths/s, "
 		        "%llu lookups)\n", out, width, height, spp, st.seconds,
 		        st.seconds > 0 ? (double)st.paths / st.seconds : 0.0,
 		        (unsigned long long)st.lookups);
+		fprintf(stderr, "  bricks: hit rate %.4f, %llu misses, %llu evictions, %.1f MiB "
+		        "read, %.2f s decompressing (budget %.0f MiB)\n", cli_hit_rate(&ts),
+		        (unsigned long long)ts.misses, (unsigned long long)ts.evictions,
+		        (double)ts.bytes_read / 1048576.0, (double)ts.decompress_ns * 1e-9,
+		        (double)ts.budget_bytes / 1048576.0);
 	}
 	free(rgb);
 	free(aovbuf);

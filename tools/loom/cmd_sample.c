@@ -196,7 +196,7 @@ static int run_random(const char *prog, loom_texture *t, const loom_fabric *f,
 	secs = now_s() - t0;
 	loom_texture_get_stats(t, &st);
 	rate = secs > 0 ? (double)n / secs : 0;
-	hit_rate = st.hits + st.misses ? (double)st.hits / (double)(st.hits + st.misses) : 1;
+	hit_rate = cli_hit_rate(&st);
 	if (json) {
 		json_w w;
 		char cs[32];
@@ -207,20 +207,7 @@ static int run_random(const char *prog, loom_texture *t, const loom_fabric *f,
 		jw_uint(&w, "seed", seed);
 		jw_num(&w, "seconds", secs);
 		jw_num(&w, "lookups_per_second", rate);
-		jw_num(&w, "hit_rate", hit_rate);
-		jw_uint(&w, "brick_requests", st.brick_requests);
-		jw_uint(&w, "hits", st.hits);
-		jw_uint(&w, "misses", st.misses);
-		jw_uint(&w, "empty_bricks", st.empty_bricks);
-		jw_uint(&w, "evictions", st.evictions);
-		jw_uint(&w, "bytes_read", st.bytes_read);
-		jw_uint(&w, "bytes_decompressed", st.bytes_decompressed);
-		jw_num(&w, "decompress_seconds", (double)st.decompress_ns * 1e-9);
-		jw_uint(&w, "crossings", st.crossings);
-		jw_uint(&w, "dz_columns", st.dz_columns);
-		jw_uint(&w, "budget_bytes", st.budget_bytes);
-		jw_uint(&w, "peak_cache_bytes", st.peak_bytes);
-		jw_uint(&w, "cache_frames", st.cache_frames);
+		jw_texture_stats(&w, &st);
 		jw_uint(&w, "peak_rss_bytes", peak_rss());
 		jw_uint(&w, "nonempty", nonempty);
 		jw_str(&w, "checksum", cs);

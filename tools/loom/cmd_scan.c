@@ -328,9 +328,7 @@ static void print_result(FILE *fp, const scan_result *r, int json, double secs, 
 			jw_num(&w, "budget_mb", j->budget_mb);
 			jw_uint(&w, "texture_budget_bytes", j->texture_budget);
 			jw_uint(&w, "tile_buffer_bytes", (uint64_t)j->worker_bytes * j->threads);
-			jw_num(&w, "hit_rate", st->hits + st->misses
-			                               ? (double)st->hits / (double)(st->hits + st->misses)
-			                               : 1.0);
+			jw_num(&w, "hit_rate", cli_hit_rate(st));
 			jw_uint(&w, "bytes_read", st->bytes_read);
 			jw_uint(&w, "peak_cache_bytes", st->peak_bytes);
 			jw_uint(&w, "errors", st->errors);
