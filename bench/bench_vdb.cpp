@@ -88,7 +88,9 @@ static const char USAGE[] =
 	"BENCH_VDB_BRICK=XxYxZ (the paper database's brick shape, default 16x16x64;\n"
 	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), BENCH_VDB_FORMAT=3\n"
 	"(the paper database in format version 3, $BUILD/bench/paper[-XxYxZ]-v3.ldb:\n"
-	"the density plane in segments), LOOM_PAPER_DB,\n"
+	"the density plane in segments), BENCH_VDB_DENSITY=raw (the density planes\n"
+	"stored raw, loom exemplar generate --raw-density: paper[-XxYxZ][-v3]-rawd.ldb),\n"
+	"LOOM_PAPER_DB,\n"
 	"BUILD (default build).\n";
 
 namespace {
@@ -220,6 +222,7 @@ struct Setup {
 	int n[3] = {0, 0, 0};          /* its size; local coordinates 0..n-1 */
 	unsigned brick[3] = {0, 0, 0}; /* BENCH_VDB_BRICK, 0: the preset's */
 	unsigned format = 2;           /* BENCH_VDB_FORMAT: the database's version */
+	bool raw_density = false;      /* BENCH_VDB_DENSITY=raw */
 };
 
 /* Open (making when missing) the database and the fabric. */
@@ -237,19 +240,23 @@ bool setup_open(Setup &S)
 	else
 		S.dbp = S.build + "/bench/paper" +
 		        (brick[0] ? std::string("-") + getenv("BENCH_VDB_BRICK") : std::string()) +
-		        (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) + ".ldb";
+		        (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) +
+		        (S.raw_density ? "-rawd" : "") + ".ldb";
 	bool stale = false; /* a generated database of another format version */
 	if (!S.check && !(paper && *paper) && stat(S.dbp.c_str(), &st) == 0) {
 		loom_db *old = NULL;
 		loom_db_info oi;
 		if (loom_db_open(S.dbp.c_str(), &old, &diag) == LOOM_OK) {
 			loom_db_get_info(old, &oi);
-			stale = oi.version != S.format;
+			stale = oi.version != S.format ||
+			        (oi.n_raw_density > 0) != S.raw_density;
 			loom_db_close(old);
 		}
 		if (stale)
-			printf("%s is of format version %u: generated again in version %u\n",
-			       S.dbp.c_str(), oi.version, S.format);
+			printf("%s is of format version %u, density %s: generated again in "
+			       "version %u, density %s\n", S.dbp.c_str(), oi.version,
+			       oi.n_raw_density ? "raw" : "deflated", S.format,
+			       S.raw_density ? "raw" : "deflated");
 	}
 	if (!S.check && (stale || stat(S.dbp.c_str(), &st) != 0)) {
 		loom_exgen_params p;
@@ -257,6 +264,7 @@ bool setup_open(Setup &S)
 		fflush(stdout);
 		loom_exgen_preset("paper", &p);
 		p.db_version = S.format;
+		p.density_raw = S.raw_density;
 		if (brick[0])
 			for (int a = 0; a < 3; a++)
 				p.brick[a] = brick[a];
@@ -921,6 +929,15 @@ int main(int argc, char **argv)
 		}
 		S.format = (unsigned)atoi(fv);
 	}
+	const char *dv = getenv("BENCH_VDB_DENSITY");
+	if (dv && *dv) {
+		if (strcmp(dv, "raw") != 0 && strcmp(dv, "deflate") != 0) {
+			fprintf(stderr, "bench_vdb: BENCH_VDB_DENSITY='%s': expected raw or "
+			        "deflate\n", dv);
+			return 2;
+		}
+		S.raw_density = strcmp(dv, "raw") == 0;
+	}
 	S.xings = S.check ? 3 : 16;
 	if (xs && atoi(xs) > 0)
 		S.xings = atoi(xs);
@@ -928,7 +945,8 @@ int main(int argc, char **argv)
 	   leave the default's fabric naming the other database */
 	std::string shape = S.check ? std::string() :
 	                    (S.brick[0] ? std::string("-") + bs : std::string()) +
-	                    (S.format != 2 ? "-v" + std::to_string(S.format) : std::string());
+	                    (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) +
+	                    (S.raw_density ? "-rawd" : "");
 	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper" + shape + ".loomf");
 	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper" + shape + ".vdb");
 	mkdir((S.build + "/bench").c_str(), 0777);

@@ -521,6 +521,8 @@ static int parse_index(loom_db *db, const uint8_t *m, uint64_t mlen,
 		if (b->storage == LOOM__DB_STORE_RAW ||
 		    (db->entry_bytes == LOOM__DB_INDEX2_BYTES && units_raw(db, b)))
 			db->info.n_raw_bricks++;
+		if (db->entry_bytes == LOOM__DB_INDEX2_BYTES && b->ub[0] == db->brick_voxels)
+			db->info.n_raw_density++;
 		db->info.stored_bytes += b->stored;
 		if (b->stored > db->max_stored)
 			db->max_stored = b->stored;

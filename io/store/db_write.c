@@ -505,13 +505,18 @@ static void encode_units(const uint8_t *raw, const uint32_t brick[3], unsigned l
 {
 	size_t nv = (size_t)brick[0] * brick[1] * brick[2];
 	size_t at = 0;
+	int draw = (layout & LOOM__DBW_DENSITY_RAW) != 0;
 
+	layout &= ~LOOM__DBW_DENSITY_RAW;
 	for (unsigned u = 0; u < LOOM__DB_UNITS; u++) {
 		const uint8_t *pl = raw + u * nv;
 		size_t n = 0, i = 0;
 		while (i < nv && pl[i] == 0)
 			i++;
-		if (i < nv && u == 0 && layout == LOOM__DB_LAYOUT_SEGS) {
+		if (i < nv && u == 0 && draw) {
+			memcpy(cbuf + at, pl, nv); /* raw: the reader's copy, no inflate */
+			n = nv;
+		} else if (i < nv && u == 0 && layout == LOOM__DB_LAYOUT_SEGS) {
 			n = encode_segs(pl, brick, nv, comp, cbuf + at);
 			if (n == 0) {
 				memcpy(cbuf + at, pl, nv);
@@ -573,7 +578,7 @@ void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
 				break;
 			}
 	}
-	if (layout != LOOM__DB_LAYOUT_PLANES) {
+	if ((layout & ~LOOM__DBW_DENSITY_RAW) != LOOM__DB_LAYOUT_PLANES) {
 		encode_units(raw, brick, layout, comp, cbuf, out);
 		return;
 	}
@@ -684,8 +689,9 @@ int loom__dbw_add_brick(loom__dbw *w, const uint8_t *raw, loom_diag *diag)
 
 	b.top = w->btop;
 	b.top_label = w->blabel;
-	loom__dbw_encode(raw, w->p.brick, w->solid, w->p.top_threshold, w->p.layout,
-	                 w->comp, w->cbuf, &b);
+	loom__dbw_encode(raw, w->p.brick, w->solid, w->p.top_threshold,
+	                 w->p.layout | (w->p.density_raw ? LOOM__DBW_DENSITY_RAW : 0), w->comp,
+	                 w->cbuf, &b);
 	return loom__dbw_put(w, &b, diag);
 }
 
@@ -978,6 +984,10 @@ int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
 	p.flags = loom__le32(hdr + 60) & ~clear_flags;
 	p.seed = info.seed;
 	p.layout = info.voxel_layout; /* an old file keeps its layout */
+	/* and its density storage: raw when every stored brick's is
+	   (written with density_raw) */
+	p.density_raw = info.n_raw_density > 0 &&
+	                info.n_raw_density == info.n_bricks - info.n_empty_bricks;
 	if (old)
 		*old = p;
 	meta = malloc(meta_len ? meta_len : 1);

@@ -40,7 +40,13 @@ typedef struct loom__dbw_params {
 	                           LOOM__DB_LAYOUT_SEGS (3: asked for) or
 	                           LOOM__DB_LAYOUT_PLANES (1: appending to an
 	                           old file, tests) */
+	uint32_t density_raw;   /* layouts 2, 3: density units stored raw */
 } loom__dbw_params;
+
+/* With layout 2 or 3 in loom__dbw_encode's layout: the density unit is
+   stored raw (copied, never deflated; readers know a raw unit by its size,
+   so the format does not change). */
+#define LOOM__DBW_DENSITY_RAW 0x100u
 
 typedef struct loom__dbw_exemplar {
 	const char *name;        /* < 32 bytes */
@@ -77,7 +83,8 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *e,
  * shrinks, else raw (data = raw); layout 2: each plane on its own into
  * cbuf (deflated if that shrinks it, else copied; an all-zero plane is 0
  * bytes), data = cbuf; layout 3: as 2 with the density plane's unit in
- * eight segments (docs/formats.md).  Fills the top-surface columns with solid[]
+ * eight segments (docs/formats.md); | LOOM__DBW_DENSITY_RAW: layout 2 or 3
+ * with the density unit raw.  Fills the top-surface columns with solid[]
  * (loom__db_solid_lut) and threshold.  Thread-safe given its own
  * compressor and buffers.
  */

@@ -142,7 +142,9 @@ static void *worker(void *arg)
 			b->top = s->top + bz * ncol;
 			b->top_label = s->top_label + bz * ncol;
 			loom__dbw_encode(pack, bs, P->solid[k], LOOM__DB_TOP_THRESHOLD,
-			                 exgen_layout(P->p), comp, cb, b);
+			                 exgen_layout(P->p) |
+			                         (P->p->density_raw ? LOOM__DBW_DENSITY_RAW : 0),
+			                 comp, cb, b);
 			if (b->storage == LOOM__DB_STORE_RAW) {
 				memcpy(cb, pack, P->brick_bytes);
 				b->data = cb;
@@ -360,6 +362,7 @@ static int run_pipe(const char *path, const loom_exgen_params *p, pipe *P_,
 	wp.seed = p->seed;
 	wp.flags = 1;
 	wp.layout = exgen_layout(p);
+	wp.density_raw = p->density_raw;
 	rc = loom__dbw_create(path, &wp, &w, diag);
 	if (rc) {
 		free_pipe(&P);

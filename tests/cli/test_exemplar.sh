@@ -88,6 +88,31 @@ expect_ok export_v2 "$LOOM" exemplar export "$DB" --exemplar 1 -o "$T/x2.nrrd"
 expect_ok export_v3 "$LOOM" exemplar export "$T/v3.ldb" --exemplar 1 -o "$T/x3.nrrd"
 expect_same v3_same_voxels "$T/x2.nrrd" "$T/x3.nrrd"
 expect_exit format_version_4 2 "$LOOM" exemplar generate --preset tiny --format-version 4 -o "$T/v4.ldb"
+# --raw-density: the density planes stored as they are (a larger file, the
+# same voxels, every density plane raw; versions 2 and 3 only)
+expect_ok generate_rawd "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
+	--seed 5 --threads 1 --quiet --raw-density -o "$T/rawd.ldb"
+expect_ok info_rawd "$LOOM" exemplar info "$T/rawd.ldb" --json
+if python3 - "$T/out" "$DB" <<'EOF' 2>"$T/py"
+import json, os, sys
+j = json.load(open(sys.argv[1]))
+stored = j["bricks"] - j["empty_bricks"]
+assert j["version"] == 2 and stored > 0, j
+assert j["raw_density_planes"] == stored, (j["raw_density_planes"], stored)
+assert j["file_bytes"] > os.path.getsize(sys.argv[2]), "not larger than deflated"
+EOF
+then pass rawd_info; else fail rawd_info "$(head -c 400 "$T/py")"; fi
+expect_ok info_v2_json "$LOOM" exemplar info "$DB" --json
+expect_out_contains v2_no_raw_density '"raw_density_planes": 0'
+expect_ok export_rawd "$LOOM" exemplar export "$T/rawd.ldb" --exemplar 1 -o "$T/xr.nrrd"
+expect_same rawd_same_voxels "$T/x2.nrrd" "$T/xr.nrrd"
+expect_ok verify_rawd "$LOOM" exemplar verify "$T/rawd.ldb" --quiet
+expect_ok generate_rawd_v3 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--quiet --raw-density --format-version 3 -o "$T/rawd3.ldb"
+expect_ok verify_rawd_v3 "$LOOM" exemplar verify "$T/rawd3.ldb" --quiet
+expect_exit rawd_v1 2 "$LOOM" exemplar generate --preset tiny --raw-density --format-version 1 \
+	-o "$T/rawd1.ldb"
+expect_err_contains rawd_v1_msg "--raw-density needs format version 2 or 3"
 
 # default database lookup: LOOM_DB, then the data directory
 expect_ok info_env env LOOM_DB="$DB" "$LOOM" exemplar info

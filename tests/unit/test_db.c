@@ -424,7 +424,8 @@ static void fill_brick(uint8_t *raw, uint32_t bx, uint32_t by, uint32_t bz,
 }
 
 /* The hand-made exemplar, into a new database of voxel layout `layout`
-   (0: the current one), or appended to path's when append is set. */
+   (0: the current one; | 0x100: its density planes stored raw), or
+   appended to path's when append is set. */
 /* A 2 x 2 plain exemplar record for the writer, labels 1..n_yarns. */
 static void plain_exemplar(loom__dbw_exemplar *e, const char *name, const uint8_t *weave,
                            const loom_db_yarn *yarns, uint32_t n_yarns)
@@ -457,7 +458,8 @@ static int write_hand(const char *path, unsigned layout, int append, uint64_t *h
 	wp.voxel_size_um = 10;
 	wp.top_threshold = 64;
 	wp.level = 6;
-	wp.layout = layout;
+	wp.layout = layout & 0xff;
+	wp.density_raw = (layout & 0x100) != 0;
 	memset(yarns, 0, sizeof yarns);
 	for (int l = 1; l < 256; l++) {
 		yarns[l].kind = LOOM_YARN_WEFT;
@@ -494,20 +496,23 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 
 /* Appending keeps the database's layout: a version-1 file stays version 1
    (its bricks are copied verbatim), a version-2 file version 2, a
-   version-3 file version 3; the appended exemplar reads back equal to the
-   first in each. */
+   version-3 file version 3, and a version-2 file whose density planes
+   are all raw (density_raw) stays so; the appended exemplar reads back
+   equal to the first in each. */
 static void test_append_layouts(void)
 {
-	for (unsigned lay = 1; lay <= 3; lay++) {
+	for (unsigned k = 1; k <= 4; k++) {
+		unsigned lay = k == 4 ? 2 : k;
 		loom_diag d = {0};
 		loom_db *db = NULL;
 		loom_db_info info;
 		uint64_t h = 0;
-		const char *p = tpath(lay == 1 ? "app1.ldb" : lay == 2 ? "app2.ldb" : "app3.ldb");
+		const char *p = tpath(k == 1 ? "app1.ldb" : k == 2 ? "app2.ldb" :
+		                      k == 3 ? "app3.ldb" : "app2r.ldb");
 		uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
 		uint8_t a[512], b[512], al[512], bl[512];
 		uint16_t ao[512], bo[512];
-		CHECK_EQ_INT(write_hand(p, lay, 0, &h, &d), LOOM_OK);
+		CHECK_EQ_INT(write_hand(p, lay | (k == 4 ? 0x100u : 0), 0, &h, &d), LOOM_OK);
 		CHECK_EQ_INT(write_hand(p, 0, 1, &h, &d), LOOM_OK);
 		CHECK_EQ_INT(loom_db_open(p, &db, &d), LOOM_OK);
 		if (!db) {
@@ -518,11 +523,94 @@ static void test_append_layouts(void)
 		CHECK_EQ_INT(info.version, lay);
 		CHECK_EQ_INT(info.voxel_layout, lay);
 		CHECK_EQ_INT(info.n_exemplars, 2);
+		if (k == 4) /* every stored brick's density raw, the appended too */
+			CHECK_EQ_INT(info.n_raw_density, info.n_bricks - info.n_empty_bricks);
 		CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
 		CHECK_EQ_INT(loom_db_read_box(db, 0, org, sz, a, ao, al, &d), LOOM_OK);
 		CHECK_EQ_INT(loom_db_read_box(db, 1, org, sz, b, bo, bl, &d), LOOM_OK);
 		CHECK(memcmp(a, b, sizeof a) == 0 && memcmp(al, bl, sizeof al) == 0 &&
 		      memcmp(ao, bo, sizeof ao) == 0);
+		loom_db_close(db);
+	}
+}
+
+/* Appending to a database written with density_raw keeps its density
+   planes raw (test_append_layouts' 64-voxel planes never compress, so
+   this one appends a 16 x 16 x 64 brick that does): to a raw tiny
+   database the appended brick's density is raw, to a deflated one it is
+   deflated. */
+static void test_append_raw_density(void)
+{
+	{ /* version 1 stores a brick as one stream: refused */
+		loom_exgen_params p;
+		loom_diag d = {0};
+		loom_exgen_preset("tiny", &p);
+		p.density_raw = 1;
+		p.db_version = 1;
+		CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+		CHECK(strstr(d.message, "density_raw") != NULL);
+		p.db_version = 3;
+		CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_OK);
+	}
+	for (int r = 0; r < 2; r++) {
+		loom_exgen_params p;
+		loom_diag d = {0};
+		loom_db *db = NULL;
+		loom_db_info before, after;
+		loom__dbw *w = NULL;
+		loom__dbw_exemplar e;
+		loom_db_yarn yarns[256];
+		uint8_t weave[4] = {1, 0, 0, 1}, *raw;
+		const char *path = tpath(r ? "app-raw.ldb" : "app-deflated.ldb");
+		size_t nv = 16 * 16 * 64;
+
+		loom_exgen_preset("tiny", &p);
+		p.n_weaves = 1;
+		p.weaves[0] = "twill:2/3";
+		p.density_raw = (uint32_t)r;
+		CHECK_EQ_INT(loom_exgen_write_db(path, &p, NULL, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_db_open(path, &db, &d), LOOM_OK);
+		if (!db)
+			continue;
+		loom_db_get_info(db, &before);
+		loom_db_close(db);
+		db = NULL;
+		CHECK(before.n_bricks > before.n_empty_bricks);
+		CHECK_EQ_INT(before.n_raw_density,
+		             r ? before.n_bricks - before.n_empty_bricks : 0);
+		/* a 2 x 2 exemplar of 16 x 12 x 12 voxels: one brick, its lower half
+		   dense warp (compresses well) */
+		raw = calloc(4, nv);
+		memset(yarns, 0, sizeof yarns);
+		yarns[1].kind = LOOM_YARN_WARP;
+		plain_exemplar(&e, "appended", weave, yarns, 1);
+		for (uint32_t col = 0; col < 16 * 16 && raw; col++)
+			for (uint32_t z = 0; z < 32; z++) {
+				raw[col * 64 + z] = 100;
+				raw[nv + col * 64 + z] = 7;
+				raw[3 * nv + col * 64 + z] = 1;
+			}
+		CHECK(raw != NULL);
+		if (raw && loom__dbw_append(path, 1, 0, &w, NULL, &d) == LOOM_OK) {
+			int rc = loom__dbw_begin_exemplar(w, &e, &d);
+			if (rc == LOOM_OK)
+				rc = loom__dbw_add_brick(w, raw, &d);
+			if (rc == LOOM_OK)
+				rc = loom__dbw_finish(w, NULL, &d);
+			else
+				loom__dbw_abort(w);
+			CHECK_EQ_INT(rc, LOOM_OK);
+		} else {
+			CHECK(0);
+		}
+		free(raw);
+		CHECK_EQ_INT(loom_db_open(path, &db, &d), LOOM_OK);
+		if (!db)
+			continue;
+		loom_db_get_info(db, &after);
+		CHECK_EQ_INT(after.n_bricks, before.n_bricks + 1);
+		CHECK_EQ_INT(after.n_raw_density, before.n_raw_density + (r ? 1 : 0));
+		CHECK_EQ_INT(loom_db_verify(db, NULL, NULL, &d), LOOM_OK);
 		loom_db_close(db);
 	}
 }
@@ -1563,6 +1651,7 @@ int main(void)
 	RUN(test_reader_object);
 	RUN(test_handmade);
 	RUN(test_append_layouts);
+	RUN(test_append_raw_density);
 	RUN(test_streamed_height_map);
 	RUN(test_bad_magic_version);
 	RUN(test_truncation);

@@ -105,6 +105,7 @@ int exemplar_info(int argc, char **argv)
 		jw_uint(&w, "bricks", info.n_bricks);
 		jw_uint(&w, "empty_bricks", info.n_empty_bricks);
 		jw_uint(&w, "raw_bricks", info.n_raw_bricks);
+		jw_uint(&w, "raw_density_planes", info.n_raw_density);
 		jw_arr(&w, "exemplars");
 		for (uint32_t k = 0; k < info.n_exemplars; k++) {
 			loom_db_exemplar_info e;
@@ -162,11 +163,12 @@ int exemplar_info(int argc, char **argv)
 		       "each plane of a brick stored apart" : "one stream a brick", hs,
 		       (unsigned long long)info.file_bytes);
 		printf("  block %ux%ux%u voxels of %g um, brick %ux%ux%u, %llu bricks "
-		       "(%llu empty, %llu stored raw)\n", info.block[0], info.block[1],
-		       info.block[2], (double)info.voxel_size_um, info.brick[0],
-		       info.brick[1], info.brick[2], (unsigned long long)info.n_bricks,
-		       (unsigned long long)info.n_empty_bricks,
-		       (unsigned long long)info.n_raw_bricks);
+		       "(%llu empty, %llu stored raw, %llu density planes raw)\n",
+		       info.block[0], info.block[1], info.block[2], (double)info.voxel_size_um,
+		       info.brick[0], info.brick[1], info.brick[2],
+		       (unsigned long long)info.n_bricks, (unsigned long long)info.n_empty_bricks,
+		       (unsigned long long)info.n_raw_bricks,
+		       (unsigned long long)info.n_raw_density);
 		printf("\n  %-3s %-18s %-14s %-9s %12s %12s %12s %7s  %s\n", "#", "name",
 		       "weave", "crossings", "voxels", "raw bytes", "compressed", "ratio",
 		       "weave rows (pick 0 first)");

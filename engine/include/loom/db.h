@@ -70,6 +70,9 @@ typedef struct loom_db_info {
 	                             plane a unit of its own (version 2); 3: as
 	                             2, the density unit in eight segments
 	                             (version 3) */
+	uint64_t n_raw_density;   /* versions 2, 3: stored bricks whose density
+	                             plane is stored uncompressed (all of them
+	                             in a database written with density_raw) */
 } loom_db_info;
 
 /* One exemplar.  Pointers are owned by the database and valid until
@@ -270,6 +273,14 @@ typedef struct loom_exgen_params {
 	                             eighth of a plane; whole-brick reads are
 	                             slower: docs/formats.md); 1: version 1 (one
 	                             stream a brick), for older readers */
+	uint32_t density_raw;     /* 0: density planes deflated (the default);
+	                             1: stored raw (versions 2 and 3), a file
+	                             1.8x larger whose density misses copy
+	                             16 KiB rather than inflate it, several
+	                             times faster when the budget is below the
+	                             working set (docs/exemplars.md, "Raw
+	                             density"); any reader of the version reads
+	                             it */
 } loom_exgen_params;
 
 /*
