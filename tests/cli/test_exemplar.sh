@@ -114,6 +114,42 @@ expect_exit rawd_v1 2 "$LOOM" exemplar generate --preset tiny --raw-density --fo
 	-o "$T/rawd1.ldb"
 expect_err_contains rawd_v1_msg "--raw-density needs format version 2 or 3"
 
+# convert: another storage, the same voxels and tables; back again gives
+# the original bytes (the writer is deterministic)
+expect_ok convert_raw "$LOOM" exemplar convert "$DB" -o "$T/cv-raw.ldb" --raw-density --quiet
+expect_ok convert_v3 "$LOOM" exemplar convert "$T/cv-raw.ldb" -o "$T/cv-v3.ldb" --format-version 3 --json
+if python3 - "$T/out" <<'EOF' 2>"$T/py"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["version"] == 3 and j["raw_density_planes"] == j["bricks"] > 0, j
+assert j["content_hash"] != j["input_content_hash"], j
+assert j["file_bytes"] == j["input_bytes"], j  # raw planes: the same bytes, other index
+EOF
+then pass convert_json; else fail convert_json "$(head -c 400 "$T/py")"; fi
+expect_ok convert_back "$LOOM" exemplar convert "$T/cv-v3.ldb" -o "$T/cv-back.ldb" \
+	--format-version 2 --deflate-density --quiet
+expect_same convert_round_trip "$DB" "$T/cv-back.ldb"
+expect_ok convert_v1 "$LOOM" exemplar convert "$DB" -o "$T/cv-v1.ldb" --format-version 1 --quiet
+expect_ok export_v1 "$LOOM" exemplar export "$T/cv-v1.ldb" --exemplar 1 -o "$T/xv1.nrrd"
+expect_same convert_v1_same_voxels "$T/x2.nrrd" "$T/xv1.nrrd"
+expect_exit convert_no_out 2 "$LOOM" exemplar convert "$DB"
+expect_exit convert_both 2 "$LOOM" exemplar convert "$DB" -o "$T/cv-x.ldb" --raw-density --deflate-density
+expect_exit convert_raw_v1 2 "$LOOM" exemplar convert "$DB" -o "$T/cv-x.ldb" --raw-density --format-version 1
+expect_exit convert_same 1 "$LOOM" exemplar convert "$DB" -o "$DB"
+expect_err_contains convert_same_msg "the output is the input"
+# a damaged brick: exit 1 naming it, nothing written
+cp "$DB" "$T/bad.ldb"
+python3 - "$T/bad.ldb" <<'EOF'
+import sys
+b = bytearray(open(sys.argv[1], "rb").read())
+b[4096] ^= 0xff  # inside the first bricks' data
+open(sys.argv[1], "wb").write(bytes(b))
+EOF
+expect_exit convert_damaged 1 "$LOOM" exemplar convert "$T/bad.ldb" -o "$T/cv-bad.ldb" --quiet
+expect_err_contains convert_damaged_msg "brick"
+if [ -e "$T/cv-bad.ldb" ] || ls "$T"/cv-bad.ldb.* >/dev/null 2>&1; then
+	fail convert_damaged_nothing "$(ls "$T" | grep cv-bad)"; else pass convert_damaged_nothing; fi
+
 # default database lookup: LOOM_DB, then the data directory
 expect_ok info_env env LOOM_DB="$DB" "$LOOM" exemplar info
 expect_out_contains info_env_path "$DB"

@@ -1,5 +1,5 @@
 /*
- * tools/loom/cmd_exemplar.c - `loom exemplar generate|build|info|verify|export`:
+ * tools/loom/cmd_exemplar.c - `loom exemplar generate|build|info|verify|export|convert`:
  * build, inspect, check and export exemplar databases (docs/exemplars.md).
  *
  * One file per job: this one dispatches and generates procedural
@@ -439,6 +439,8 @@ int cmd_exemplar(int argc, char **argv)
 		{"info", NULL, exemplar_info, "list a database's exemplars"},
 		{"verify", NULL, exemplar_verify, "check every brick and checksum of a database"},
 		{"export", NULL, exemplar_export, "write one exemplar volume as NRRD"},
+		{"convert", NULL, exemplar_convert, "write a database again in another format "
+		 "version\nor with its density planes raw or deflated"},
 		{NULL, NULL, NULL, NULL},
 	};
 	static const opts_dispatch d = {"loom exemplar", about_main, footer_main, subs};

@@ -189,6 +189,24 @@ LOOM_API int loom_db_verify(const loom_db *db,
                                              uint64_t total),
                             void *user, loom_diag *diag);
 
+/*
+ * Write database `in` again as `out` in another storage: format version
+ * db_version (0: in's; 1..3) and density planes stored raw (density_raw
+ * 1), deflated (0) or as in (-1: raw when all of in's are).  The voxels,
+ * exemplar records and block tables are the same; the content hash is
+ * not (it covers the storage), so a fabric synthesized over `in` needs
+ * `loom synth` again over `out`.  Streams: one brick in memory; `out` is
+ * written under a temporary name and renamed.  LOOM_EINVAL (arguments,
+ * out names in's file, raw density with version 1), the codes of
+ * loom_db_open and of a failed brick read (the brick named), LOOM_EIO,
+ * LOOM_ENOMEM.  progress (may be NULL) gets (bricks done, total); hash
+ * (may be NULL) the output's content hash.
+ */
+LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_version,
+                             int density_raw,
+                             void (*progress)(void *user, uint64_t done, uint64_t total),
+                             void *user, uint64_t *hash, loom_diag *diag);
+
 /* ---- Voxel encodings (docs/formats.md) ---------------------------------- */
 
 /* Decode a 16-bit orientation code to a unit direction with z >= 0. */
