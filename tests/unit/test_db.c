@@ -581,6 +581,7 @@ static void test_append_raw_density(void)
 		/* a 2 x 2 exemplar of 16 x 12 x 12 voxels: one brick, its lower half
 		   dense warp (compresses well) */
 		raw = calloc(4, nv);
+		memset(&e, 0, sizeof e); /* fibre: none recorded */
 		memset(yarns, 0, sizeof yarns);
 		yarns[1].kind = LOOM_YARN_WARP;
 		plain_exemplar(&e, "appended", weave, yarns, 1);
@@ -600,6 +601,8 @@ static void test_append_raw_density(void)
 			else
 				loom__dbw_abort(w);
 			CHECK_EQ_INT(rc, LOOM_OK);
+			if (rc != LOOM_OK)
+				printf("  %s\n", d.message);
 		} else {
 			CHECK(0);
 		}
