@@ -13,27 +13,23 @@
  */
 #include "io/store/db_write.h"
 
-#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
-/* Header fields the public info does not carry: level and flags. */
-static int header_fields(const char *path, int *level, uint32_t *flags, loom_diag *diag)
+/* The header bytes (level and flags are not in the public info). */
+static int read_header(const char *path, uint8_t h[LOOM__DB_HEADER_BYTES], loom_diag *diag)
 {
-	uint8_t h[LOOM__DB_HEADER_BYTES];
 	FILE *f = fopen(path, "rb");
+	size_t n;
 
 	if (!f)
 		return loom__fail(diag, LOOM_EIO, "%s: cannot open for reading", path);
-	if (fread(h, 1, sizeof h, f) != sizeof h) {
-		fclose(f);
-		return loom__fail(diag, LOOM_EIO, "%s: cannot read its header", path);
-	}
+	n = fread(h, 1, LOOM__DB_HEADER_BYTES, f);
 	fclose(f);
-	*level = (int)loom__le32(h + 56);
-	*flags = loom__le32(h + 60);
+	if (n != LOOM__DB_HEADER_BYTES)
+		return loom__fail(diag, LOOM_EIO, "%s: cannot read its header", path);
 	return LOOM_OK;
 }
 
@@ -56,7 +52,7 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 	loom__dbw_params p;
 	loom__dbw *w = NULL;
 	loom__db_reader *r = NULL;
-	uint8_t *buf = NULL;
+	uint8_t hdr[LOOM__DB_HEADER_BYTES], *buf = NULL;
 	uint64_t done = 0;
 	int rc;
 
@@ -73,22 +69,14 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 	if ((rc = loom_db_open(in, &db, diag)) != LOOM_OK)
 		return rc;
 	loom_db_get_info(db, &info);
-	memset(&p, 0, sizeof p);
-	if ((rc = header_fields(in, &p.level, &p.flags, diag)) != LOOM_OK)
+	if ((rc = read_header(in, hdr, diag)) != LOOM_OK)
 		goto done;
-	if (p.level < 1 || p.level > 12)
-		p.level = LOOM_DB_DEFAULT_LEVEL;
+	loom__dbw_params_like(&info, hdr, &p); /* what is not asked for is kept */
 	p.n_exemplars = info.n_exemplars;
-	memcpy(p.block, info.block, sizeof p.block);
-	memcpy(p.brick, info.brick, sizeof p.brick);
-	p.voxel_size_um = info.voxel_size_um;
-	p.top_threshold = (uint8_t)info.top_threshold;
-	p.seed = info.seed;
-	p.layout = db_version ? db_version : info.voxel_layout;
-	/* kept: raw when every stored brick's density plane is */
-	p.density_raw = density_raw >= 0 ? (uint32_t)density_raw :
-	                info.n_raw_density > 0 &&
-	                        info.n_raw_density == info.n_bricks - info.n_empty_bricks;
+	if (db_version)
+		p.layout = db_version;
+	if (density_raw >= 0)
+		p.density_raw = (uint32_t)density_raw;
 	if (p.density_raw && p.layout == LOOM__DB_LAYOUT_PLANES) {
 		rc = loom__fail(diag, LOOM_EINVAL, "%s: density planes stored raw need "
 		                "format version 2 or 3 (version 1 stores a brick as one "

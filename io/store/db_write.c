@@ -933,6 +933,28 @@ static int copy_exemplar(const uint8_t *m, size_t meta_len, uint32_t k, size_t e
 	return 0;
 }
 
+void loom__dbw_params_like(const loom_db_info *info,
+                           const uint8_t hdr[LOOM__DB_HEADER_BYTES], loom__dbw_params *p)
+{
+	memset(p, 0, sizeof *p);
+	for (int a = 0; a < 3; a++) {
+		p->block[a] = info->block[a];
+		p->brick[a] = info->brick[a];
+	}
+	p->voxel_size_um = info->voxel_size_um;
+	p->top_threshold = (uint8_t)info->top_threshold;
+	p->level = (int)loom__le32(hdr + 56);
+	if (p->level < 1 || p->level > 12)
+		p->level = LOOM_DB_DEFAULT_LEVEL;
+	p->flags = loom__le32(hdr + 60);
+	p->seed = info->seed;
+	p->layout = info->voxel_layout;
+	/* raw when every stored brick's density plane is (written with
+	   density_raw) */
+	p->density_raw = info->n_raw_density > 0 &&
+	                 info->n_raw_density == info->n_bricks - info->n_empty_bricks;
+}
+
 int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
                      loom__dbw **out, loom__dbw_params *old, loom_diag *diag)
 {
@@ -970,24 +992,10 @@ int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
 	}
 	meta_off = loom__le64(tr + 8);
 	meta_len = loom__le64(tr + 16);
-	memset(&p, 0, sizeof p);
+	/* an old file keeps its layout and density storage */
+	loom__dbw_params_like(&info, hdr, &p);
 	p.n_exemplars = n_old + n_new;
-	for (int a = 0; a < 3; a++) {
-		p.block[a] = info.block[a];
-		p.brick[a] = info.brick[a];
-	}
-	p.voxel_size_um = info.voxel_size_um;
-	p.top_threshold = (uint8_t)info.top_threshold;
-	p.level = (int)loom__le32(hdr + 56);
-	if (p.level < 1 || p.level > 12)
-		p.level = LOOM_DB_DEFAULT_LEVEL;
-	p.flags = loom__le32(hdr + 60) & ~clear_flags;
-	p.seed = info.seed;
-	p.layout = info.voxel_layout; /* an old file keeps its layout */
-	/* and its density storage: raw when every stored brick's is
-	   (written with density_raw) */
-	p.density_raw = info.n_raw_density > 0 &&
-	                info.n_raw_density == info.n_bricks - info.n_empty_bricks;
+	p.flags &= ~clear_flags;
 	if (old)
 		*old = p;
 	meta = malloc(meta_len ? meta_len : 1);

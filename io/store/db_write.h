@@ -108,6 +108,14 @@ unsigned loom__dbw_layout(const loom__dbw *w);
  * metadata and a 1 MiB copy buffer.  Errors as loom_db_open, LOOM_EIO,
  * LOOM_ENOMEM, LOOM_EINVAL (more than 4096 exemplars in all).
  */
+/* The parameters that write a database in the storage of the one with
+   info and header bytes hdr: its block, brick, voxel size, threshold,
+   level and flags (from hdr), seed, layout, and density_raw when every
+   stored brick's density plane is raw; n_exemplars 0 (loom__dbw_append,
+   loom_db_convert). */
+void loom__dbw_params_like(const loom_db_info *info,
+                           const uint8_t hdr[LOOM__DB_HEADER_BYTES], loom__dbw_params *p);
+
 int loom__dbw_append(const char *path, uint32_t n_new, uint32_t clear_flags,
                      loom__dbw **out, loom__dbw_params *old, loom_diag *diag);
 
