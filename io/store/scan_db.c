@@ -89,6 +89,12 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 	    (p->weave_name && strlen(p->weave_name) >= 32))
 		return loom__fail(diag, LOOM_EINVAL, "scan: database: exemplar name '%s' "
 		                  "is empty or longer than 31 bytes", p->name);
+	if (p->db_version > LOOM__DB_VERSION || p->density_raw > 1 ||
+	    (p->density_raw && p->db_version == LOOM__DB_VERSION_PLANES1))
+		return loom__fail(diag, LOOM_EINVAL, "scan: database: format version %u "
+		                  "with density_raw %u (expected version 0..%u, raw density "
+		                  "only with version 0, 2 or 3)", p->db_version,
+		                  p->density_raw, LOOM__DB_VERSION);
 	exists = stat(path, &st) == 0;
 	if (exists) {
 		loom_db *db;
@@ -113,6 +119,20 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 			                  path, wp.block[0], wp.block[1], wp.block[2], r->b1,
 			                  r->b2, r->b3, wp.block[0], wp.block[1], wp.block[2]);
 		}
+		if ((p->db_version && p->db_version != wp.layout) ||
+		    (p->density_raw && !wp.density_raw)) {
+			loom__dbw_abort(w);
+			if (p->density_raw && !wp.density_raw)
+				return loom__fail(diag, LOOM_EMISMATCH, "%s: the database's "
+				                  "density planes are deflated; appending keeps "
+				                  "its storage (convert it first: loom exemplar "
+				                  "convert --raw-density)", path);
+			return loom__fail(diag, LOOM_EMISMATCH, "%s: the database is format "
+			                  "version %u, not %u; appending keeps its version "
+			                  "(convert it first: loom exemplar convert "
+			                  "--format-version %u)", path, wp.layout,
+			                  p->db_version, p->db_version);
+		}
 		if (p->voxel_size_um > 0 &&
 		    fabsf(wp.voxel_size_um - p->voxel_size_um) > 1e-3f * wp.voxel_size_um)
 			loom__warn(diag, "%s: voxel size %g um, the scan's %g um; the "
@@ -132,6 +152,8 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 		wp.level = p->level;
 		wp.seed = 0;
 		wp.flags = 0;
+		wp.layout = p->db_version ? p->db_version : LOOM__DB_LAYOUT_UNITS;
+		wp.density_raw = p->density_raw;
 		rc = loom__dbw_create(path, &wp, &w, diag);
 		if (rc)
 			return rc;

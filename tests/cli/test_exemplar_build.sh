@@ -122,3 +122,37 @@ else fail build_raw_truth "$(head -c 600 "$T/py")"; fi
 expect_exit build_raw_no_dims 1 "$LOOM" exemplar build "$T/a.raw" --warps 7 --wefts 9 \
 	--db "$T/r2.ldb"
 expect_err_contains build_raw_no_dims_msg "--raw-dims"
+
+# 7. storage of a new database: --format-version 3 --raw-density gives the
+#    same voxels as the default storage (exemplar 0 of s.ldb, built from the
+#    same scan), every stored density plane raw; appending keeps a
+#    database's storage and refuses to change it (exit 1, file unchanged)
+expect_exit build_raw_v1 2 "$LOOM" exemplar build "$T/a.vol" --warps 7 --wefts 9 \
+	--raw-density --format-version 1 --db "$T/v.ldb"
+expect_err_contains build_raw_v1_msg "--raw-density needs format version 2 or 3"
+expect_ok build_raw_density "$LOOM" exemplar build "$T/a.vol" --orientation "$T/a-orient.vol" \
+	--warps 7 --wefts 9 --name twill-given --weave-name twill:2/3 --format-version 3 \
+	--raw-density --quiet --db "$T/v.ldb"
+expect_ok info_raw_density "$LOOM" exemplar info "$T/v.ldb" --json
+if python3 -c "import json,sys; j=json.load(open(sys.argv[1])); \
+assert j['version'] == 3, j['format_version']; \
+n = j['bricks'] - j['empty_bricks']; assert n > 0 and j['raw_density_planes'] == n, j" \
+	"$T/out"; then pass info_raw_density_all; else fail info_raw_density_all "$(head -c 300 "$T/out")"; fi
+"$LOOM" exemplar export "$T/v.ldb" --exemplar 0 -o "$T/v0.nrrd" 2>/dev/null
+expect_same raw_density_same_voxels "$T/e0.nrrd" "$T/v0.nrrd"
+expect_ok verify_raw_density "$LOOM" exemplar verify "$T/v.ldb"
+expect_ok build_append_raw "$LOOM" exemplar build "$T/c.vol" --warps 7 --wefts 9 --quiet \
+	--name satin --db "$T/v.ldb"
+expect_ok info_append_raw "$LOOM" exemplar info "$T/v.ldb" --json
+if python3 -c "import json,sys; j=json.load(open(sys.argv[1])); \
+assert j['version'] == 3 and len(j['exemplars']) == 2, j; \
+assert j['raw_density_planes'] == j['bricks'] - j['empty_bricks'], j" \
+	"$T/out"; then pass append_keeps_raw; else fail append_keeps_raw "$(head -c 300 "$T/out")"; fi
+cp "$T/s.ldb" "$T/s0.ldb"
+expect_exit build_append_not_raw 1 "$LOOM" exemplar build "$T/c.vol" --warps 7 --wefts 9 \
+	--raw-density --name satin-r --db "$T/s.ldb"
+expect_err_contains build_append_not_raw_msg "convert --raw-density"
+expect_exit build_append_other_version 1 "$LOOM" exemplar build "$T/c.vol" --warps 7 \
+	--wefts 9 --format-version 3 --name satin-3 --db "$T/s.ldb"
+expect_err_contains build_append_other_version_msg "format version 2"
+expect_same refused_appends_leave_db "$T/s.ldb" "$T/s0.ldb"

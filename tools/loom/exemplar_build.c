@@ -19,6 +19,7 @@ static const char usage_build[] =
 	"                    [--raw-dims X,Y,Z --raw-type u8|u16|f32]\n"
 	"                    [--voxel-mm S] [--block B1xB2] [--depth B3]\n"
 	"                    [--name NAME] [--weave-name S] [--threads N]\n"
+	"                    [--format-version N] [--raw-density]\n"
 	"                    [--json] [--quiet] --db DB\n";
 
 static const char about_build[] =
@@ -169,6 +170,8 @@ int exemplar_build(int argc, char **argv)
 	const char *prog = "loom exemplar build";
 	const char *scan = NULL, *orient_p = NULL, *name = NULL, *wname = "", *db = NULL;
 	int json = 0, quiet = 0, raw_type = LOOM_SCALAR_U8, rc, appended = 0;
+	int raw_density = 0;
+	uint32_t fmt = 0;
 	uint32_t raw_dims[3], dims[3], odims[3], block[2];
 	double sp = 0, osp, voxel_mm = 0;
 	char namebuf[32];
@@ -210,6 +213,10 @@ int exemplar_build(int argc, char **argv)
 		OPT_STRING(0, "name", &name, "NAME", "exemplar name, 1..31 bytes (default: the "
 		           "scan's file name)"),
 		OPT_STRING(0, "weave-name", &wname, "S", "weave recorded with it (default \"\")"),
+		OPT_U32(0, "format-version", &fmt, "N", 1, 3, "format %r of a new database "
+		        "(default 2; appending keeps the database's)"),
+		OPT_FLAG(0, "raw-density", &raw_density, "a new database with its density "
+		         "planes raw (docs/exemplars.md); appending keeps the database's"),
 		OPT_JSON(&json, "JSON: weave (one 0/1 string per pick of the crop), "
 		         "rotation_degrees, crop [x0, y0, w, h] (aligned frame), warps, wefts "
 		         "(tracked), crossings, block, ..."),
@@ -245,6 +252,9 @@ int exemplar_build(int argc, char **argv)
 	}
 	if (!name[0] || strlen(name) > 31)
 		opts_usage(&c, "--name: expected 1..31 bytes, got '%s'", name);
+	if (raw_density && fmt == 1)
+		opts_usage(&c, "--raw-density needs format version 2 or 3 (version 1 stores "
+		           "a brick as one stream)");
 	cli_diag_init(&diag, &quiet);
 	/* the database's block, when it exists */
 	if (stat(db, &st) == 0) {
@@ -260,6 +270,16 @@ int exemplar_build(int argc, char **argv)
 			         "--name", db, k, name);
 		}
 		loom_db_close(d);
+		/* appending keeps the storage: say so before the scan's work */
+		if (fmt && fmt != info.voxel_layout)
+			cli_fail(prog, "%s is format version %u; appending keeps it (convert it "
+			         "first: loom exemplar convert --format-version %u)", db,
+			         info.voxel_layout, fmt);
+		if (raw_density && (info.n_raw_density == 0 ||
+		                    info.n_raw_density != info.n_bricks - info.n_empty_bricks))
+			cli_fail(prog, "%s stores its density planes deflated; appending keeps "
+			         "that (convert it first: loom exemplar convert --raw-density)",
+			         db);
 		if (!opt_given(&c, block)) {
 			p.block_x = info.block[0];
 			p.block_y = info.block[1];
@@ -312,6 +332,8 @@ int exemplar_build(int argc, char **argv)
 	dp.name = name;
 	dp.weave_name = wname;
 	dp.voxel_size_um = (float)(voxel_mm * 1000);
+	dp.db_version = fmt;
+	dp.density_raw = (uint32_t)raw_density;
 	rc = loom_scan_write_db(r, db, &dp, &appended, &diag);
 	if (rc) {
 		loom_scan_result_free(r);

@@ -51,7 +51,7 @@ typedef struct loom_db_yarn {
 
 /* Whole-database facts. */
 typedef struct loom_db_info {
-	uint32_t version;         /* format version (1 or 2) */
+	uint32_t version;         /* format version (1, 2 or 3) */
 	uint32_t n_exemplars;
 	uint32_t block[3];        /* b1 (x, ends), b2 (y, picks), b3 (z) voxels */
 	uint32_t brick[3];        /* brick shape in voxels (x, y, z) */

@@ -495,6 +495,13 @@ typedef struct loom_scan_db_params {
 	                           against an existing one (warning) */
 	uint32_t brick[3];      /* brick shape of a new database (16x16x64) */
 	int level;              /* deflate level of a new database (6) */
+	uint32_t db_version;    /* format version of a new database: 0 (the
+	                           default, 2), 1, 2 or 3; appending: 0 or the
+	                           database's own (else LOOM_EMISMATCH) */
+	uint32_t density_raw;   /* 1: density planes stored raw (versions 2
+	                           and 3); appending: only to a database whose
+	                           density planes are raw (else LOOM_EMISMATCH:
+	                           loom_db_convert it first) */
 } loom_scan_db_params;
 
 LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
@@ -504,13 +511,15 @@ LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
  * the database's voxel encodings, yarn table from r->yarns: warps kind 1,
  * wefts kind 2, yarns outside the crop flagged LOOM_DB_YARN_OUTSIDE) at the
  * end of the database `path`, creating it if it does not exist (block =
- * r->b1 x b2 x b3).  An existing database is rewritten atomically (temporary
+ * r->b1 x b2 x b3, format p->db_version, density raw if p->density_raw).  An existing database is rewritten atomically (temporary
  * file + rename): its brick data and tables are copied verbatim, so its
  * exemplars read back byte-identical; its header flag "procedural" is
  * cleared.  *appended (may be NULL) says which case happened.  Errors:
  * LOOM_EINVAL (bad arguments, name taken), LOOM_EMISMATCH (the database's
  * block size differs from the result's), the database open errors
- * (loom_db_open), LOOM_EIO, LOOM_ENOMEM.  Memory: one brick plus the old
+ * (loom_db_open), LOOM_EIO, LOOM_ENOMEM; LOOM_EINVAL for db_version > 3
+ * or density_raw with version 1, LOOM_EMISMATCH when appending with a
+ * db_version or density_raw the database does not have.  Memory: one brick plus the old
  * database's metadata.
  */
 LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
