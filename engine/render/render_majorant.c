@@ -436,6 +436,17 @@ static int crossing_src(const loom_majorant *m, float *a, int64_t I, int64_t J,
 	if (s.exemplar >= m->n_exemplars)
 		return LOOM_ECORRUPT;
 	dz_range(m, &s.nbhd, a, dlo, dhi);
+	if (m->ef.coef) { /* the corner columns' offsets (the corner term) */
+		float cd[4];
+		if ((rc = loom_fabric_corner_dz(m->f, I, J, cd)) != LOOM_OK)
+			return rc;
+		for (int k = 0; k < 4; k++) {
+			double lo = fmax(-4096.0, (double)cd[k] - 1e-3), hi = fmin(4096.0, (double)cd[k] + 1e-3);
+			int64_t l = (int64_t)floor(lo), h = (int64_t)ceil(hi);
+			*dlo = l < *dlo ? l : *dlo;
+			*dhi = h > *dhi ? h : *dhi;
+		}
+	}
 	*blk = m->layer + ((uint64_t)m->off[s.exemplar] +
 	                   (uint64_t)s.row * m->bcols[s.exemplar] + s.col) * m->nsub * m->b3;
 	return LOOM_OK;

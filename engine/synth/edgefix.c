@@ -16,12 +16,10 @@
  * belong to the N and S edges, as in the paper (its T has b1 rows, L has
  * b2-2); the interior equations never read a corner.  So the N/S seams meet
  * everywhere and the W/E seams everywhere but at their two corner samples,
- * where four blocks meet and pairwise means cannot all agree.  (A 4-way
- * mean at the corners, which needs the diagonal neighbours, makes them meet
- * when the profiles agree at the shared corner column; on the generated
- * database the corner columns are gaps whose N/S and W/E profiles are
- * extrapolated separately and differ by 3.2 voxels on average, and there
- * that rule did worse than the paper's, so it is not used.  See
+ * where four blocks meet and pairwise means cannot all agree.  (A plain
+ * 4-way mean at the corners made them worse on the generated database,
+ * whose corner columns are gaps with extrapolated profiles; fabrics add a
+ * calibrated corner term instead, engine/synth/fabric.c "Block corners",
  * docs/synthesis.md.)
  *
  *        x=0 .............. x=b1-1

@@ -102,6 +102,11 @@ struct loom_fabric {
 	loom__fabric_block *blocks; /* K entries */
 	float *heights;        /* K edge-profile records (LOOM_EDGE_RECORD) */
 	loom_edge_profiles prof; /* points at heights */
+	float *corner_off;     /* K x 4 (NW, NE, SW, SE): the woven offset of
+	                          block t's corner column from the mean of the
+	                          four corner columns meeting there in its own
+	                          exemplar (0 on the exemplar's border); NULL:
+	                          no corner term (loom__fabric_corner_dz) */
 	double internal_step;  /* mean |dh| between neighbouring columns inside
 	                          blocks (the database's, for the seam metric) */
 	loom_synth_lookup lk;  /* randomised O(1) source lookup; points into
@@ -195,6 +200,22 @@ static inline float loom__fabric_dz_at(const loom_fabric *f,
 {
 	return loom_edgefix_at(f->ef, nb, lx, ly);
 }
+
+/* Step 3 at a block corner: the corner term (docs/synthesis.md, "Block
+   corners") replaces the offset of the four corner columns.  The index
+   (0 NW, 1 NE, 2 SW, 3 SE) of column (lx, ly), or -1 when it is not a
+   corner or the fabric has no corner term. */
+static inline int loom__fabric_corner_of(const loom_fabric *f, uint32_t lx,
+                                         uint32_t ly)
+{
+	if (!f->corner_off || (lx != 0 && lx != f->b1 - 1) ||
+	    (ly != 0 && ly != f->b2 - 1))
+		return -1;
+	return (ly ? 2 : 0) + (lx ? 1 : 0);
+}
+/* The offset of corner k of crossing (I, J) with the corner term (f has
+   corner_off). */
+float loom__fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J, int k);
 
 /* Everything about one crossing at once. */
 typedef struct loom__fabric_xing {

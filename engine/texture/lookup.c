@@ -131,6 +131,18 @@ static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a
 	}
 }
 
+/* Step 3: the offset of column (lx, ly) of crossing (I, J) whose
+   coefficient vectors are a: the corner term at a block corner (the
+   fabric's own function, so equal to loom_fabric_dz), else dz_eval. */
+static float dz_value(const loom_texture *t, const float *a, int64_t I, int64_t J,
+                      uint32_t lx, uint32_t ly)
+{
+	int k = loom__fabric_corner_of(t->fab, lx, ly);
+	if (__builtin_expect(k >= 0, 0))
+		return loom__fabric_corner_dz(t->fab, I, J, k);
+	return dz_eval(t, a, lx, ly);
+}
+
 float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
                        uint32_t ly)
 {
@@ -141,7 +153,7 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
 		return 0;
 	loom__fabric_nbhd(t->fab, I, J, &nb);
 	xent_coef(t, &nb, a);
-	return dz_eval(t, a, lx, ly);
+	return dz_value(t, a, I, J, lx, ly);
 }
 
 struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y)
@@ -334,7 +346,7 @@ int loom__dz_slow(const loom_texture *tc, struct tslot *s, struct xent *e, uint3
 	s->dz_prev = e;
 	if (e->map == NO_MAP && s->dz_run < DZ_RUN) {
 		bump(&s->cnt.dz, 1);
-		return loom__dz_fixed(dz_eval(t, e->a, lx, ly));
+		return loom__dz_fixed(dz_value(t, e->a, e->I, e->J, lx, ly));
 	}
 	if (e->map == NO_MAP ||
 	    atomic_load_explicit(&t->mapgen[e->map], memory_order_relaxed) != e->gen) {
@@ -347,7 +359,7 @@ int loom__dz_slow(const loom_texture *tc, struct tslot *s, struct xent *e, uint3
 				return (int)v - DZ_BIAS;
 		}
 	}
-	q = loom__dz_fixed(dz_eval(t, e->a, lx, ly));
+	q = loom__dz_fixed(dz_value(t, e->a, e->I, e->J, lx, ly));
 	bump(&s->cnt.dz, 1);
 	if (e->map != NO_MAP)
 		map_put(t, e, c, q);

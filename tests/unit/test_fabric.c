@@ -758,13 +758,44 @@ static void test_seam_block_and_sizes(void)
 	CHECK(f != NULL);
 	if (!f)
 		goto done;
+	/* the jumps before the fix as loom_edgefix_seam_block's; after it, the
+	   mean |jump| of the heights plus loom_fabric_dz's offsets (the corner
+	   term included) along the S and E edges */
 	for (int64_t I = -4; I < 30; I += 3)
 		for (int64_t J = -7; J < 30; J += 5) {
-			double a[4], b[4];
+			uint32_t b1 = f->b1, b2 = f->b2, rec = LOOM_EDGE_RECORD(b1, b2);
+			double a[4], b[4], sa = 0, ea = 0;
+			float *d0 = malloc(sizeof(float) * b1 * b2), *ds = malloc(sizeof(float) * b1 * b2);
+			float *de = malloc(sizeof(float) * b1 * b2);
+			loom_fabric_source s0, ss, se;
 			CHECK_EQ_INT(loom_fabric_seam_block(f, I, J, a), LOOM_OK);
 			CHECK_EQ_INT(loom_edgefix_seam_block(f->ef, &f->prof, &f->lk, I, J, b), LOOM_OK);
-			for (int k = 0; k < 4; k++)
-				CHECK(fabs(a[k] - b[k]) < 1e-9);
+			CHECK(fabs(a[0] - b[0]) < 1e-9);
+			CHECK(fabs(a[2] - b[2]) < 1e-9);
+			CHECK(d0 && ds && de);
+			if (!d0 || !ds || !de)
+				break;
+			loom_fabric_dz(f, I, J, d0);
+			loom_fabric_dz(f, I + 1, J, ds);
+			loom_fabric_dz(f, I, J + 1, de);
+			loom_fabric_source_at(f, I, J, &s0);
+			loom_fabric_source_at(f, I + 1, J, &ss);
+			loom_fabric_source_at(f, I, J + 1, &se);
+			for (uint32_t x = 0; x < b1; x++) {
+				double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_S(b1, b2) + x];
+				double h1 = f->heights[(size_t)ss.block * rec + LOOM_EDGE_N(b1, b2) + x];
+				sa += fabs((h0 + d0[(b2 - 1) * b1 + x]) - (h1 + ds[x]));
+			}
+			for (uint32_t y = 0; y < b2; y++) {
+				double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_E(b1, b2) + y];
+				double h1 = f->heights[(size_t)se.block * rec + LOOM_EDGE_W(b1, b2) + y];
+				ea += fabs((h0 + d0[y * b1 + b1 - 1]) - (h1 + de[y * b1]));
+			}
+			CHECK(fabs(a[1] - sa / b1) < 1e-9);
+			CHECK(fabs(a[3] - ea / b2) < 1e-9);
+			free(d0);
+			free(ds);
+			free(de);
 		}
 	CHECK_EQ_INT(loom_fabric_repeat_voxels(f, rep), LOOM_OK);
 	CHECK_EQ_INT(rep[0], 22 * 8);
@@ -781,6 +812,84 @@ static void test_seam_block_and_sizes(void)
 	CHECK_EQ_INT(loom_fabric_save(f, tpath("sz.loomf"), &bytes, &diag), LOOM_OK);
 	CHECK(bytes <= 4 * 18 * 22 + 2000000);
 done:
+	loom_fabric_free(f);
+	loom_design_free(d);
+}
+
+/* The corner term (docs/synthesis.md, "Block corners"): at every point
+   where four crossings meet, their corner columns' heights (profile +
+   loom_fabric_corner_dz) differ from their mean exactly by the sources'
+   woven corner offsets minus the offsets' mean; the mean |jump| between
+   the four is smaller than with the paper's rule (the N/S edges' values,
+   loom_edgefix_at) on this fabric; rank 0 has no term (all zero). */
+static void test_corner_term(void)
+{
+	loom_design *d = jacquard(18, 22, 7, 0);
+	loom_fabric *f = synth(d, db, db_path, 5, 0);
+	loom_fabric *f0 = NULL;
+	loom_fabric_options opt = LOOM_FABRIC_OPTIONS_INIT;
+	loom_diag diag = {0};
+	double jump = 0, jump_paper = 0, worst = 0;
+	uint64_t points = 0, off_nonzero = 0;
+
+	CHECK(f != NULL && f->corner_off != NULL);
+	if (!f || !f->corner_off)
+		goto done;
+	for (int64_t I = -3; I < 21; I++)
+		for (int64_t J = -4; J < 25; J++) {
+			/* the point at the SE corner of (I, J): (I, J) SE, (I, J+1) SW,
+			   (I+1, J) NE, (I+1, J+1) NW */
+			int64_t ci[4] = {I, I, I + 1, I + 1}, cj[4] = {J, J + 1, J, J + 1};
+			int cc[4] = {3, 2, 1, 0};
+			double h[4], hp[4], o[4], mh = 0, mo = 0;
+			for (int m = 0; m < 4; m++) {
+				loom_fabric_source s;
+				float cd[4];
+				uint32_t x = (cc[m] & 1) ? f->b1 - 1 : 0, y = (cc[m] & 2) ? f->b2 - 1 : 0;
+				const float *rec;
+				double p;
+				CHECK_EQ_INT(loom_fabric_source_at(f, ci[m], cj[m], &s), LOOM_OK);
+				CHECK_EQ_INT(loom_fabric_corner_dz(f, ci[m], cj[m], cd), LOOM_OK);
+				rec = f->heights + (size_t)s.block * LOOM_EDGE_RECORD(f->b1, f->b2);
+				p = cc[m] < 2 ? rec[LOOM_EDGE_N(f->b1, f->b2) + x]
+				              : rec[LOOM_EDGE_S(f->b1, f->b2) + x];
+				h[m] = p + cd[cc[m]];
+				hp[m] = p + loom_edgefix_at(f->ef, &s.nbhd, x, y);
+				o[m] = f->corner_off[(size_t)s.block * 4 + cc[m]];
+				off_nonzero += o[m] != 0;
+				mh += h[m] / 4;
+				mo += o[m] / 4;
+			}
+			for (int m = 0; m < 4; m++) {
+				double e = fabs((h[m] - mh) - (o[m] - mo));
+				worst = e > worst ? e : worst;
+			}
+			for (int a = 0; a < 4; a++)
+				for (int b = a + 1; b < 4; b++) {
+					jump += fabs(h[a] - h[b]);
+					jump_paper += fabs(hp[a] - hp[b]);
+				}
+			points++;
+		}
+	printf("  %llu corner points: mean |jump| %.3f voxels with the corner term, %.3f "
+	       "with the paper's rule; largest deviation from the woven offsets %.2e; "
+	       "%llu non-zero offsets\n", (unsigned long long)points, jump / (6.0 * points),
+	       jump_paper / (6.0 * points), worst, (unsigned long long)off_nonzero);
+	CHECK(worst < 1e-4);
+	CHECK(off_nonzero > points); /* the offsets are not all zero */
+	CHECK(jump < jump_paper);
+	/* rank 0: no edge fix, no corner term */
+	opt.rank = 0;
+	CHECK_EQ_INT(loom_fabric_synthesize(d, db, db_path, &opt, &f0, &diag), LOOM_OK);
+	if (f0) {
+		float cd[4] = {1, 1, 1, 1};
+		CHECK(f0->corner_off == NULL);
+		CHECK_EQ_INT(loom_fabric_corner_dz(f0, 2, 3, cd), LOOM_OK);
+		CHECK(cd[0] == 0 && cd[1] == 0 && cd[2] == 0 && cd[3] == 0);
+	}
+	CHECK_EQ_INT(loom_fabric_corner_dz(NULL, 0, 0, NULL), LOOM_EINVAL);
+done:
+	loom_fabric_free(f0);
 	loom_fabric_free(f);
 	loom_design_free(d);
 }
@@ -970,6 +1079,7 @@ int main(void)
 	RUN(test_correctness_on_voxels);
 	RUN(test_algorithms);
 	RUN(test_seam_block_and_sizes);
+	RUN(test_corner_term);
 	RUN(test_paper_bolt);
 	RUN(test_bad_args);
 	RUN(test_map_modes);

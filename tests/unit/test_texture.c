@@ -149,6 +149,7 @@ typedef struct ref {
 	int64_t cI, cJ;      /* crossing of dz */
 	float *dz;
 	uint64_t n_dz_blocks;
+	uint32_t rank;       /* the fabric's edge-fix rank (0: no fix, no corners) */
 } ref;
 
 static int ref_init(ref *r, const loom_fabric *f, const loom_db *db)
@@ -222,6 +223,7 @@ static int ref_init(ref *r, const loom_fabric *f, const loom_db *db)
 	prof.set = r->set; /* as the fabric builds it */
 	if (loom_edgefix_build(&prof, fp.rank, &r->ef, NULL))
 		return -1;
+	r->rank = fp.rank;
 	r->dz = malloc(sizeof(float) * r->b1 * r->b2);
 	r->cI = INT64_MIN;
 	return 0;
@@ -300,6 +302,78 @@ static long ref_dz16(float dz)
 	return lroundf(dz * 16.0f);
 }
 
+/* Height of the corner column c (0 NW, 1 NE, 2 SW, 3 SE) of exemplar u's
+   block (row, col), from the database's profiles; NAN outside the
+   exemplar. */
+static float ref_corner_h(const ref *r, uint32_t u, int64_t row, int64_t col, int c)
+{
+	loom_db_block_info bi;
+	uint32_t x = (c & 1) ? r->b1 - 1 : 0;
+	if (row < 0 || col < 0 || row >= r->ex[u].rows || col >= r->ex[u].cols ||
+	    loom_db_block(r->db, u, (uint32_t)row, (uint32_t)col, &bi))
+		return NAN;
+	return c < 2 ? bi.north[x] : bi.south[x];
+}
+
+/* The corner term written out (docs/synthesis.md, "Block corners"): the
+   four crossings meeting at corner k of (I, J) take the mean of their
+   corrected corner heights, each plus its source corner's offset from the
+   mean of the four corner columns around it in its exemplar (read from the
+   database's blocks, 0 where the exemplar ends). */
+/* The woven corner offset of set block t at its corner c; 0 and *inside
+   = 0 when the corner is on its exemplar's border. */
+static float ref_woven_off(const ref *r, uint32_t t, int c, int *inside)
+{
+	loom_synth_block sb;
+	int64_t vr = c < 2 ? -1 : 1, hc = (c & 1) ? 1 : -1;
+	float h, v, hz, d;
+	loom_synth_block_info(r->set, t, &sb);
+	h = ref_corner_h(r, sb.exemplar, sb.row, sb.col, c);
+	v = ref_corner_h(r, sb.exemplar, (int64_t)sb.row + vr, sb.col, c ^ 2);
+	hz = ref_corner_h(r, sb.exemplar, sb.row, (int64_t)sb.col + hc, c ^ 1);
+	d = ref_corner_h(r, sb.exemplar, (int64_t)sb.row + vr, (int64_t)sb.col + hc, c ^ 3);
+	*inside = !(isnan(v) || isnan(hz) || isnan(d));
+	return *inside ? h - 0.25f * (h + v + hz + d) : 0;
+}
+
+static float ref_corner_dz(const ref *r, int64_t I, int64_t J, int k)
+{
+	int64_t di = k < 2 ? -1 : 1, dj = (k & 1) ? 1 : -1;
+	int64_t ci[4] = {I, I + di, I, I + di}, cj[4] = {J, J, J + dj, J + dj};
+	float H[4], o[4], own = 0, mh, mo;
+	for (int m = 0; m < 4; m++) {
+		int c = m == 0 ? k : m == 1 ? k ^ 2 : m == 2 ? k ^ 1 : k ^ 3;
+		uint32_t x = (c & 1) ? r->b1 - 1 : 0, y = (c & 2) ? r->b2 - 1 : 0;
+		loom_synth_nbhd nb;
+		loom_synth_block sb;
+		float h;
+		int inside;
+		loom_synth_nbhd_at(&r->lk, ci[m], cj[m], &nb);
+		loom_synth_block_info(r->set, nb.self, &sb);
+		h = ref_corner_h(r, sb.exemplar, sb.row, sb.col, c);
+		o[m] = ref_woven_off(r, nb.self, c, &inside);
+		H[m] = h + loom_edgefix_at(r->ef, &nb, x, y);
+		if (m == 0)
+			own = h;
+	}
+	mh = 0.25f * ((H[0] + H[1]) + (H[2] + H[3]));
+	mo = 0.25f * ((o[0] + o[1]) + (o[2] + o[3]));
+	return (mh + (o[0] - mo)) - own;
+}
+
+/* The offset map of crossing (I, J): the edge fix's, the corner term at
+   the four corners (with a fix). */
+static void ref_dz_block(const ref *r, int64_t I, int64_t J, float *dz)
+{
+	loom_synth_nbhd nb;
+	loom_synth_nbhd_at(&r->lk, I, J, &nb);
+	loom_edgefix_block(r->ef, &nb, dz);
+	if (r->rank)
+		for (int k = 0; k < 4; k++)
+			dz[((k & 2) ? r->b2 - 1 : 0) * r->b1 + ((k & 1) ? r->b1 - 1 : 0)] =
+				ref_corner_dz(r, I, J, k);
+}
+
 static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 {
 	rv v = {0, 0, 0, 0, 0}, a, b;
@@ -314,9 +388,7 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 	lx = (uint32_t)(x - J * r->b1);
 	ly = (uint32_t)(y - I * r->b2);
 	if (I != r->cI || J != r->cJ) {
-		loom_synth_nbhd nb;
-		loom_synth_nbhd_at(&r->lk, I, J, &nb);
-		loom_edgefix_block(r->ef, &nb, r->dz);
+		ref_dz_block(r, I, J, r->dz);
 		r->cI = I;
 		r->cJ = J;
 		r->n_dz_blocks++;
@@ -652,7 +724,7 @@ static void reference_matches_fabric(void)
 			loom_synth_nbhd nb;
 			loom_fabric_source src;
 			loom_synth_nbhd_at(&g_ref.lk, I, J, &nb);
-			loom_edgefix_block(g_ref.ef, &nb, a);
+			ref_dz_block(&g_ref, I, J, a);
 			CHECK_EQ_INT(loom_fabric_dz(g_fab, I, J, b), LOOM_OK);
 			bad += memcmp(a, b, 4 * n) != 0;
 			CHECK_EQ_INT(loom_fabric_source_at(g_fab, I, J, &src), LOOM_OK);
@@ -666,9 +738,7 @@ static void reference_matches_fabric(void)
 		uint64_t diff = 0, nonzero = 0;
 		for (int64_t I = -40; t && I < 40; I += 3)
 			for (int64_t J = -50; J < 50; J += 7) {
-				loom_synth_nbhd nb;
-				loom_synth_nbhd_at(&g_ref.lk, I, J, &nb);
-				loom_edgefix_block(g_ref.ef, &nb, a);
+				ref_dz_block(&g_ref, I, J, a);
 				for (uint32_t ly = 0; ly < g_ref.b2; ly++)
 					for (uint32_t lx = 0; lx < g_ref.b1; lx++) {
 						float v = loom__texture_dz(t, I, J, lx, ly);
@@ -2183,7 +2253,7 @@ static void no_terraces(void)
 	uint32_t b1, b2, b3;
 	int64_t W, H;
 	float *h[2] = {NULL, NULL};
-	long pairs = 0, steps = 0;
+	long pairs = 0, steps = 0, corner_pairs = 0, corner_steps = 0;
 
 	if (!g_ok)
 		return;
@@ -2219,11 +2289,22 @@ static void no_terraces(void)
 			d1 = loom__texture_dz(t[0], I, J, (uint32_t)((x + 1) % b1), (uint32_t)(y % b2));
 			if (fabsf(d1 - d0) > 0.25f)
 				continue;
+			if ((x % b1 == 0 || (x + 1) % b1 == b1 - 1) &&
+			    (y % b2 == 0 || y % b2 == b2 - 1)) {
+				/* a block's corner column: the corner term sets its
+				   offset apart from the smooth field (docs/synthesis.md,
+				   "Block corners"; its values equal the reference's in
+				   reference_matches_fabric) */
+				corner_pairs++;
+				corner_steps += fabsf(f1 - f0) >= 1;
+				continue;
+			}
 			pairs++;
 			if (fabsf(f1 - f0) >= 1)
 				steps++;
 		}
-	printf("  %ld smooth neighbour pairs, %ld steps of a voxel\n", pairs, steps);
+	printf("  %ld smooth neighbour pairs, %ld steps of a voxel (with a corner column: "
+	       "%ld pairs, %ld steps)\n", pairs, steps, corner_pairs, corner_steps);
 	CHECK(pairs > 200);
 	CHECK_EQ_INT((int)steps, 0);
 out:

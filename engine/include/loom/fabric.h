@@ -240,6 +240,15 @@ LOOM_API int loom_fabric_source_at(const loom_fabric *f, int64_t I, int64_t J,
 LOOM_API int loom_fabric_dz(const loom_fabric *f, int64_t I, int64_t J,
                             float *dz);
 
+/* The offsets of crossing (I, J)'s four corner columns, dz[0..3] = NW (x 0,
+   y 0), NE (b1-1, 0), SW (0, b2-1), SE (b1-1, b2-1): loom_fabric_dz's
+   values there.  With the edge fix on they come from the corner term (the
+   four crossings meeting at each corner: docs/synthesis.md, "Block
+   corners"), not from the N/S edge rows alone.  LOOM_OK, LOOM_EINVAL,
+   LOOM_EUNUSABLE (detached). */
+LOOM_API int loom_fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J,
+                                   float dz[4]);
+
 /* Mean |seam jump| of crossing (I, J) along its S and E edges (voxels):
    out[0] S before the fix, out[1] S after, out[2] E before, out[3] E after.
    LOOM_OK, LOOM_EINVAL, LOOM_EUNUSABLE (detached). */
