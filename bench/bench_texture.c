@@ -1043,6 +1043,10 @@ int main(int argc, char **argv)
 	}
 	loom_db_get_info(db, &info);
 	B1 = info.block[0], B2 = info.block[1], B3 = info.block[2];
+	printf("database %s: %.1f MB, %u exemplars, block %ux%ux%u%s\n", dbp,
+	       info.file_bytes / 1e6, info.n_exemplars, B1, B2, B3,
+	       paper && *paper ? " (LOOM_PAPER_DB)" : " (the library's paper preset, "
+	       "smooth yarns: not the CLI's cotton --preset paper, docs/exemplars.md)");
 	d = jacquard(900, 1500);
 	t0 = now_s();
 	if (!d || loom_fabric_synthesize(d, db, dbp, NULL, &f, &diag) != LOOM_OK) {

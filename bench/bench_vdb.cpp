@@ -279,6 +279,11 @@ bool setup_open(Setup &S)
 	}
 	loom_db_info info;
 	loom_db_get_info(S.db, &info);
+	printf("database %s: %.1f MB, %u exemplars, block %ux%ux%u%s\n", S.dbp.c_str(),
+	       info.file_bytes / 1e6, info.n_exemplars, info.block[0], info.block[1],
+	       info.block[2], S.check ? "" : paper && *paper ? " (LOOM_PAPER_DB)" :
+	       " (the library's paper preset, smooth yarns: not the CLI's cotton "
+	       "--preset paper, docs/exemplars.md)");
 	loom_design *d = S.check ? jacquard(60, 80) : jacquard(900, 1500);
 	if (!d || loom_fabric_synthesize(d, S.db, S.dbp.c_str(), NULL, &S.fab, &diag) != LOOM_OK) {
 		printf("bench_vdb: synthesis: %s\n", diag.message);
