@@ -18,8 +18,10 @@
  * of basis solutions of the discrete Laplace equation (docs/synthesis.md),
  * hence discrete harmonic inside the block, so it takes its extremes on
  * the block's border (maximum principle): only the 2 (b1 + b2) - 4 border
- * columns are evaluated, not the b1 b2 of the map; a margin covers float
- * rounding, and the texture's rounding to 1/16 voxel blends source voxels
+ * columns are evaluated, not the b1 b2 of the map (the corner term
+ * replaces the four corner columns, which no interior value depends on:
+ * their values, loom_fabric_corner_dz, widen the range); a margin covers
+ * float rounding, and the texture's rounding to 1/16 voxel blends source voxels
  * z - ceil(q/16) and z - floor(q/16) (q = round(16 dz)), both inside
  * [z - ceil(dz_hi), z - floor(dz_lo)], with weights summing to 1;
  * output layer z reads source layer z - dz, so its bound is the largest
@@ -441,7 +443,8 @@ static int crossing_src(const loom_majorant *m, float *a, int64_t I, int64_t J,
 		if ((rc = loom_fabric_corner_dz(m->f, I, J, cd)) != LOOM_OK)
 			return rc;
 		for (int k = 0; k < 4; k++) {
-			double lo = fmax(-4096.0, (double)cd[k] - 1e-3), hi = fmin(4096.0, (double)cd[k] + 1e-3);
+			double lo = fmax(-4096.0, (double)cd[k] - 1e-3);
+			double hi = fmin(4096.0, (double)cd[k] + 1e-3);
 			int64_t l = (int64_t)floor(lo), h = (int64_t)ceil(hi);
 			*dlo = l < *dlo ? l : *dlo;
 			*dhi = h > *dhi ? h : *dhi;

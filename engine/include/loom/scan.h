@@ -511,7 +511,8 @@ LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
  * the database's voxel encodings, yarn table from r->yarns: warps kind 1,
  * wefts kind 2, yarns outside the crop flagged LOOM_DB_YARN_OUTSIDE) at the
  * end of the database `path`, creating it if it does not exist (block =
- * r->b1 x b2 x b3, format p->db_version, density raw if p->density_raw).  An existing database is rewritten atomically (temporary
+ * r->b1 x b2 x b3, format p->db_version, density planes raw if
+ * p->density_raw).  An existing database is rewritten atomically (temporary
  * file + rename): its brick data and tables are copied verbatim, so its
  * exemplars read back byte-identical; its header flag "procedural" is
  * cleared.  *appended (may be NULL) says which case happened.  Errors:
@@ -519,8 +520,8 @@ LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
  * block size differs from the result's), the database open errors
  * (loom_db_open), LOOM_EIO, LOOM_ENOMEM; LOOM_EINVAL for db_version > 3
  * or density_raw with version 1, LOOM_EMISMATCH when appending with a
- * db_version or density_raw the database does not have.  Memory: one brick plus the old
- * database's metadata.
+ * db_version or density_raw the database does not have.  Memory: one
+ * brick plus the old database's metadata.
  */
 LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
                                 const loom_scan_db_params *p, int *appended,
