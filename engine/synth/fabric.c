@@ -66,7 +66,7 @@ loom_fabric *loom__fabric_alloc(void)
 static float corner_height(const loom_fabric *f, uint32_t t, int c)
 {
 	const float *h = f->heights + (size_t)t * LOOM_EDGE_RECORD(f->b1, f->b2);
-	uint32_t x = (c & 1) ? f->b1 - 1 : 0;
+	uint32_t x = loom__fabric_corner_x(f, c);
 	return c < 2 ? h[LOOM_EDGE_N(f->b1, f->b2) + x] : h[LOOM_EDGE_S(f->b1, f->b2) + x];
 }
 
@@ -119,7 +119,7 @@ float loom__fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J, int k)
 
 	for (int m = 0; m < 4; m++) {
 		loom_synth_nbhd nb;
-		uint32_t x = (cc[m] & 1) ? f->b1 - 1 : 0, y = (cc[m] & 2) ? f->b2 - 1 : 0;
+		uint32_t x = loom__fabric_corner_x(f, cc[m]), y = loom__fabric_corner_y(f, cc[m]);
 		float h;
 		loom__fabric_nbhd(f, ci[m], cj[m], &nb);
 		h = corner_height(f, nb.self, cc[m]);
@@ -648,7 +648,7 @@ LOOM_API int loom_fabric_dz(const loom_fabric *f, int64_t I, int64_t J, float *d
 	loom__fabric_dz_block(f, &nb, dz);
 	if (f->corner_off)
 		for (int k = 0; k < 4; k++)
-			dz[(size_t)((k & 2) ? f->b2 - 1 : 0) * f->b1 + ((k & 1) ? f->b1 - 1 : 0)] =
+			dz[(size_t)loom__fabric_corner_y(f, k) * f->b1 + loom__fabric_corner_x(f, k)] =
 				loom__fabric_corner_dz(f, I, J, k);
 	return LOOM_OK;
 }
@@ -660,15 +660,15 @@ LOOM_API int loom_fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J,
 		return LOOM_EINVAL;
 	if (!f->attached)
 		return LOOM_EUNUSABLE;
-	for (int k = 0; k < 4; k++) {
-		if (f->corner_off) {
+	if (f->corner_off) {
+		for (int k = 0; k < 4; k++)
 			dz[k] = loom__fabric_corner_dz(f, I, J, k);
-		} else {
-			loom_synth_nbhd nb;
-			loom__fabric_nbhd(f, I, J, &nb);
-			dz[k] = loom_edgefix_at(f->ef, &nb, (k & 1) ? f->b1 - 1 : 0,
-			                        (k & 2) ? f->b2 - 1 : 0);
-		}
+	} else { /* no term: the edge fix's values there (0 at rank 0) */
+		loom_synth_nbhd nb;
+		loom__fabric_nbhd(f, I, J, &nb);
+		for (int k = 0; k < 4; k++)
+			dz[k] = loom_edgefix_at(f->ef, &nb, loom__fabric_corner_x(f, k),
+			                        loom__fabric_corner_y(f, k));
 	}
 	return LOOM_OK;
 }

@@ -213,6 +213,15 @@ static inline int loom__fabric_corner_of(const loom_fabric *f, uint32_t lx,
 		return -1;
 	return (ly ? 2 : 0) + (lx ? 1 : 0);
 }
+/* Column of corner k (0 NW, 1 NE, 2 SW, 3 SE) in a block. */
+static inline uint32_t loom__fabric_corner_x(const loom_fabric *f, int k)
+{
+	return (k & 1) ? f->b1 - 1 : 0;
+}
+static inline uint32_t loom__fabric_corner_y(const loom_fabric *f, int k)
+{
+	return (k & 2) ? f->b2 - 1 : 0;
+}
 /* The offset of corner k of crossing (I, J) with the corner term (f has
    corner_off). */
 float loom__fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J, int k);
