@@ -131,6 +131,66 @@ static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a
 	}
 }
 
+/* The whole-voxel bound [e->wlo, e->whi] of the offsets of crossing e's
+   columns but its four corners (which the corner term sets): each of them
+   reads its source voxels for output voxel z between z - e->whi and
+   z - e->wlo.  The offset
+   map is discrete harmonic inside the block (a sum of basis solutions of
+   the Laplace equation, docs/synthesis.md), so it takes its extremes on
+   the block's border (as the render majorant uses too); on each side of
+   the border, interval arithmetic over the coefficients e->a and each
+   basis field's range along the row or column it reads there
+   (t->frange), widened by the float error of the dot products, then
+   rounded to 1/DZ_SUB and split as loom__dz_fixed and dz_split do.  Not
+   finite or beyond DZ_LIMIT (a corrupt table): no bound. */
+static void xent_bound(const loom_texture *t, struct xent *e)
+{
+	/* which side's range each field group reads on each side of the
+	   block: n fields at (x, y), s at (x, b2 - 1 - y), w at (x, y), e at
+	   (b1 - 1 - x, y); sides 0 N (row 0), 1 S (last row), 2 W (column 0),
+	   3 E (last column) */
+	static const int reads[4][4] = {
+		/* n  s  w  e */
+		{0, 1, 0, 0}, /* on N */
+		{1, 0, 1, 1}, /* on S */
+		{2, 2, 2, 3}, /* on W */
+		{3, 3, 3, 2}, /* on E */
+	};
+	double lo = INFINITY, hi = -INFINITY, mag = 0;
+	uint32_t n = 2 * t->rh + 2 * t->rv;
+
+	for (int side = 0; side < 4; side++) {
+		double l = 0, h = 0;
+		for (uint32_t i = 0; i < n; i++) {
+			/* a[i] multiplies basis field k of group g */
+			int g = i < t->rh ? 0 : i < 2 * t->rh ? 1 : i < 2 * t->rh + t->rv ? 2 : 3;
+			uint32_t k = g < 2 ? i % t->rh : t->rh + (i - 2 * t->rh) % t->rv;
+			const float *fr = t->frange[reads[side][g]];
+			double a = e->a[i], f0 = a * fr[2 * k], f1 = a * fr[2 * k + 1];
+			l += f0 < f1 ? f0 : f1;
+			h += f0 < f1 ? f1 : f0;
+			if (!side)
+				mag += fabs(f0) > fabs(f1) ? fabs(f0) : fabs(f1);
+		}
+		lo = l < lo ? l : lo;
+		hi = h > hi ? h : hi;
+	}
+	if (!n)
+		lo = hi = 0;
+	lo -= 1e-3 + 1e-4 * mag;
+	hi += 1e-3 + 1e-4 * mag;
+	if (!(lo >= -(double)DZ_LIMIT && hi <= (double)DZ_LIMIT)) { /* also NaN */
+		e->wlo = 1;
+		e->whi = 0;
+		return;
+	}
+	/* lroundf is monotonic: q in [lround(DZ_SUB lo), lround(DZ_SUB hi)]
+	   (DZ_SUB dz is exact in float); a column of offset q reads source
+	   voxels z - ceil(q / DZ_SUB) to z - floor(q / DZ_SUB) */
+	e->wlo = (int32_t)floor((double)lround(DZ_SUB * lo) / DZ_SUB);
+	e->whi = (int32_t)ceil((double)lround(DZ_SUB * hi) / DZ_SUB);
+}
+
 /* Step 3: the offset of column (lx, ly) of crossing (I, J) whose
    coefficient vectors are a: the corner term at a block corner (the
    fabric's own function, so equal to loom_fabric_dz), else dz_eval. */
@@ -199,6 +259,7 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	e->tok[3] = 0;
 	e->tlut_ok = 0;
 	xent_coef(t, &xg.nb, e->a);
+	xent_bound(t, e);
 	loom__dzmap_attach(t, e, 0); /* evicting waits for a run (loom__dz_slow) */
 	e->valid = 1;
 	bump(&s->cnt.xings, 1);
@@ -556,15 +617,43 @@ static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, 
 	return e;
 }
 
-/* xent_at, and the prefetch of the source voxel at z with the offset
-   still unknown. */
-static inline struct xent *column_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
-                                     uint32_t z, unsigned ch, uint32_t *sx, uint32_t *sy)
+/* Voxels za..zb of output column (x, y), whose crossing entry is e and
+   source column (sx, sy), are empty whatever the column's offset: every
+   brick of the source column that the crossing's offsets could read from
+   (z - e->whi to z - e->wlo) is stored as nothing, or none is inside the
+   exemplar.  Answers most lookups in the air above and below the
+   cloth without the offset lane's load (a cache miss for scattered
+   lookups).  The four corner columns, whose offsets the bound does not
+   hold, are never answered so. */
+static inline int src_air(const loom_texture *t, const struct xent *e,
+                          uint32_t sx, uint32_t sy, int64_t za, int64_t zb)
 {
-	struct xent *e = xent_at(t, s, x, y, sx, sy);
+	uint32_t lx = sx - e->sx0, ly = sy - e->sy0;
+	int64_t z0 = za - e->whi, z1 = zb - e->wlo;
+	uint64_t base;
 
-	src_prefetch(t, s, e, *sx, *sy, z, ch);
-	return e;
+	if (e->wlo > e->whi || ((lx == 0 || lx == t->b1 - 1) && (ly == 0 || ly == t->b2 - 1)))
+		return 0;
+	z0 = z0 < 0 ? 0 : z0;
+	z1 = z1 >= (int64_t)t->b3 ? (int64_t)t->b3 - 1 : z1;
+	if (z0 <= z1) {
+		base = src_brick(t, e, sx, sy, 0);
+		for (uint32_t b = brick_of(t, 2, (uint32_t)z0); b <= brick_of(t, 2, (uint32_t)z1); b++)
+			if (!brick_empty(t, base + b))
+				return 0;
+	}
+	return 1;
+}
+
+/* A lookup answered by src_air: counted as a request for an empty brick,
+   and (sx, sy, za) made the walk's last source voxel. */
+static inline void air_note(const loom_texture *t, struct tslot *s, uint32_t sx,
+                            uint32_t sy, int64_t za)
+{
+	s->wsx = sx;
+	s->wsy = sy;
+	s->wsz = (uint32_t)(za < 0 ? 0 : za < (int64_t)t->b3 ? za : (int64_t)t->b3 - 1);
+	bump(&s->cnt.empty, 1);
 }
 
 /* A walk's or ray's new position (x, y) after the last one (*px, *py):
@@ -652,7 +741,14 @@ static inline int voxel_raw_w(loom_texture *t, struct tslot *s, int64_t x, int64
 	*r = raw_empty;
 	if ((uint64_t)z >= t->b3) /* Step 1 */
 		return LOOM_OK;
-	e = column_at(t, s, x, y, (uint32_t)z, ch, &sx, &sy);
+	e = xent_at(t, s, x, y, &sx, &sy);
+	if (src_air(t, e, sx, sy, z, z)) { /* empty whatever the offset */
+		air_note(t, s, sx, sy, z);
+		if (walk)
+			walk_next(t, s, x, y, ch);
+		return LOOM_OK;
+	}
+	src_prefetch(t, s, e, sx, sy, (uint32_t)z, ch);
 	w = dz_split(xent_dz(t, s, e, sx - e->sx0, sy - e->sy0), &f); /* Step 3 */
 	if (!f) {
 		rc = src_raw(t, s, e, sx, sy, z - w, ch, r);
@@ -704,7 +800,12 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 		sy = m->sy;
 		q = m->q;
 	} else {
-		e = column_at(t, s, x, y, (uint32_t)(in0 ? z : z + 1), ch, &sx, &sy);
+		e = xent_at(t, s, x, y, &sx, &sy);
+		if (src_air(t, e, sx, sy, z, z + 1)) { /* both empty whatever the offset */
+			air_note(t, s, sx, sy, z);
+			return LOOM_OK;
+		}
+		src_prefetch(t, s, e, sx, sy, (uint32_t)(in0 ? z : z + 1), ch);
 		q = xent_dz(t, s, e, sx - e->sx0, sy - e->sy0); /* Step 3 */
 		m->x = x;
 		m->y = y;
@@ -825,7 +926,10 @@ static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, 
 		return;
 	if (m->e && m->x == x && m->y == y)
 		return; /* its lane was just read */
-	e = column_at(t, s, x, y, (uint32_t)z, ch, &sx, &sy);
+	e = xent_at(t, s, x, y, &sx, &sy);
+	if (src_air(t, e, sx, sy, z, z + 1))
+		return; /* pair_raw will answer it so too */
+	src_prefetch(t, s, e, sx, sy, (uint32_t)z, ch);
 	if (e->map != NO_MAP)
 		__builtin_prefetch(&e->w[((size_t)(sy - e->sy0) * t->b1 + (sx - e->sx0)) >> 2]);
 }
@@ -892,13 +996,19 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		const uint8_t *c;
 
 		e = xent_at(t, s, x, y, &sx, &sy);
+		if (!j)
+			x0 = e->x0, y0 = e->y0;
+		one &= e->x0 == x0 && e->y0 == y0; /* (an entry may be recycled) */
+		if (src_air(t, e, sx, sy, z, z + 1)) {
+			air_note(t, s, sx, sy, z);
+			d[2 * k] = d[2 * k + 1] = 0;
+			sz = s->wsz;
+			continue;
+		}
 		q = xent_dz(t, s, e, sx - e->sx0, sy - e->sy0);
 		w = dz_split(q, &f);
 		zl = z - w - (f != 0);
 		zh = z + 1 - w;
-		if (!j)
-			x0 = e->x0, y0 = e->y0;
-		one &= e->x0 == x0 && e->y0 == y0; /* (an entry may be recycled) */
 		if (z < 0 || (uint64_t)(z + 1) >= t->b3 || zl < 0 || (uint64_t)zh >= t->b3 ||
 		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh)) {
 			rawvox r[2];

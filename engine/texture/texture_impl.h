@@ -107,6 +107,10 @@ struct xent {
 	uint64_t gen;            /* the map's generation when attached */
 	_Atomic uint64_t *w;     /* the map's lanes (4 columns a word) */
 	float *a;                /* edge-fix coefficients n[rh] s[rh] w[rv] e[rv] */
+	int32_t wlo, whi;        /* every column of the crossing but its four
+	                            corners reads output voxel z from source
+	                            voxels in [z - whi, z - wlo]; wlo > whi: no
+	                            bound (lookup.c xent_bound, src_air) */
 	/* what point lookups use is above (the first two cache lines); the
 	   region reads' table last */
 	uint8_t tlut[256];       /* label -> yarn type (region reads) */
@@ -187,6 +191,10 @@ struct loom_texture {
 	size_t bv;               /* voxels per brick (plane size) */
 	uint32_t rh, rv;         /* edge-fix ranks */
 	const float *coef, *field_h, *field_v; /* the fabric's tables */
+	float frange[4][4 * LOOM_EDGEFIX_MAX_RANK]; /* min, max of each basis
+	                            field (2 rh, then 2 rv) over the block's
+	                            first row, last row, first column, last
+	                            column (lookup.c xent_bound) */
 	float dens[256];         /* density byte -> d / 255 (correctly rounded) */
 	float albedo[LOOM_MAX_YARN_TYPES][3];
 	float align[LOOM_MAX_YARN_TYPES];
