@@ -621,12 +621,15 @@ static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, 
    source column (sx, sy), are empty whatever the column's offset: every
    brick of the source column that the crossing's offsets could read from
    (z - e->whi to z - e->wlo) is stored as nothing, or none is inside the
-   exemplar.  Answers most lookups in the air above and below the
-   cloth without the offset lane's load (a cache miss for scattered
+   exemplar, or (dens: the lookup reads no label, so a voxel of zero
+   density is empty) the occupancy table says the source column's tile
+   has no voxel of non-zero density at those heights of that brick.
+   Answers most lookups in the air above and below the cloth and between
+   its yarns without the offset lane's load (a cache miss for scattered
    lookups).  The four corner columns, whose offsets the bound does not
    hold, are never answered so. */
 static inline int src_air(const loom_texture *t, const struct xent *e,
-                          uint32_t sx, uint32_t sy, int64_t za, int64_t zb)
+                          uint32_t sx, uint32_t sy, int64_t za, int64_t zb, int dens)
 {
 	uint32_t lx = sx - e->sx0, ly = sy - e->sy0;
 	int64_t z0 = za - e->whi, z1 = zb - e->wlo;
@@ -636,11 +639,29 @@ static inline int src_air(const loom_texture *t, const struct xent *e,
 		return 0;
 	z0 = z0 < 0 ? 0 : z0;
 	z1 = z1 >= (int64_t)t->b3 ? (int64_t)t->b3 - 1 : z1;
-	if (z0 <= z1) {
-		base = src_brick(t, e, sx, sy, 0);
-		for (uint32_t b = brick_of(t, 2, (uint32_t)z0); b <= brick_of(t, 2, (uint32_t)z1); b++)
-			if (!brick_empty(t, base + b))
-				return 0;
+	if (z0 > z1)
+		return 1;
+	base = src_brick(t, e, sx, sy, 0);
+	for (uint32_t b = brick_of(t, 2, (uint32_t)z0); b <= brick_of(t, 2, (uint32_t)z1); b++) {
+		uint64_t id = base + b;
+		uint32_t v, lo, hi1;
+		int64_t zb0 = (int64_t)b * t->bs[2], l, h;
+		if (brick_empty(t, id))
+			continue;
+		if (!dens || !t->occ)
+			return 0;
+		v = atomic_load_explicit(&t->occ[(size_t)stored_rank(t, id) * t->occ_nt +
+		                                 in_brick(t, 1, sy) / OCC_T * t->occ_tx +
+		                                 in_brick(t, 0, sx) / OCC_T],
+		                         memory_order_relaxed);
+		if (!v)
+			return 0; /* not known yet */
+		lo = v & 0xffu;
+		hi1 = v >> 8;
+		l = z0 > zb0 ? z0 - zb0 : 0; /* the heights read in this brick */
+		h = z1 - zb0 < (int64_t)t->bs[2] - 1 ? z1 - zb0 : (int64_t)t->bs[2] - 1;
+		if (hi1 && l < (int64_t)hi1 && h >= (int64_t)lo)
+			return 0;
 	}
 	return 1;
 }
@@ -742,7 +763,7 @@ static inline int voxel_raw_w(loom_texture *t, struct tslot *s, int64_t x, int64
 	if ((uint64_t)z >= t->b3) /* Step 1 */
 		return LOOM_OK;
 	e = xent_at(t, s, x, y, &sx, &sy);
-	if (src_air(t, e, sx, sy, z, z)) { /* empty whatever the offset */
+	if (src_air(t, e, sx, sy, z, z, !(ch & CH_M))) { /* empty whatever the offset */
 		air_note(t, s, sx, sy, z);
 		if (walk)
 			walk_next(t, s, x, y, ch);
@@ -801,7 +822,7 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 		q = m->q;
 	} else {
 		e = xent_at(t, s, x, y, &sx, &sy);
-		if (src_air(t, e, sx, sy, z, z + 1)) { /* both empty whatever the offset */
+		if (src_air(t, e, sx, sy, z, z + 1, !(ch & CH_M))) { /* both empty whatever the offset */
 			air_note(t, s, sx, sy, z);
 			return LOOM_OK;
 		}
@@ -927,7 +948,7 @@ static inline void column_prefetch(loom_texture *t, struct tslot *s, int64_t x, 
 	if (m->e && m->x == x && m->y == y)
 		return; /* its lane was just read */
 	e = xent_at(t, s, x, y, &sx, &sy);
-	if (src_air(t, e, sx, sy, z, z + 1))
+	if (src_air(t, e, sx, sy, z, z + 1, !(ch & CH_M)))
 		return; /* pair_raw will answer it so too */
 	src_prefetch(t, s, e, sx, sy, (uint32_t)z, ch);
 	if (e->map != NO_MAP)
@@ -999,7 +1020,7 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		if (!j)
 			x0 = e->x0, y0 = e->y0;
 		one &= e->x0 == x0 && e->y0 == y0; /* (an entry may be recycled) */
-		if (src_air(t, e, sx, sy, z, z + 1)) {
+		if (src_air(t, e, sx, sy, z, z + 1, 1)) {
 			air_note(t, s, sx, sy, z);
 			d[2 * k] = d[2 * k + 1] = 0;
 			sz = s->wsz;

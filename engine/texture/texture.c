@@ -24,7 +24,9 @@
  *     block allocated at open (calloc: pages become resident when first
  *     used): per-exemplar tables (first brick, brick counts, label ->
  *     kind), a bit per brick (stored empty), 4 bytes per brick (the
- *     frame it was last got from: lookup.c's prefetch hint), and
+ *     frame it was last got from: lookup.c's prefetch hint), 2 bytes per
+ *     4 x 4-column tile of each stored brick (where its density is
+ *     non-zero: lookup.c's air test), and
  *     max_threads + 1 thread slots, each holding its cache thread
  *     handle, its current brick, its error message, the region gather
  *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries
@@ -72,6 +74,44 @@
 #include <stdlib.h>
 
 /* ------------------------------------------------------------ open/close */
+
+/* Whether the texture keeps an occupancy table for bricks of shape bs
+   (heights in a byte, whole tiles). */
+static int occ_shape_ok(const uint32_t bs[3])
+{
+	return bs[2] <= 255 && bs[0] % OCC_T == 0 && bs[1] % OCC_T == 0;
+}
+
+/* t->occ of stored brick id from its density plane d (z fastest): for
+   each tile, the union of its columns' voxels, then the first and last
+   non-zero height.  Every thread computes the same values from the same
+   bytes, so concurrent stores agree. */
+static void occ_fill(loom_texture *t, uint64_t id, const uint8_t *d)
+{
+	uint32_t bx = t->bs[0], bz = t->bs[2];
+	_Atomic uint16_t *o = t->occ + (size_t)stored_rank(t, id) * t->occ_nt;
+
+	for (uint32_t ty = 0; ty < t->bs[1] / OCC_T; ty++)
+		for (uint32_t tx = 0; tx < t->occ_tx; tx++) {
+			uint8_t u[256];
+			uint32_t lo = 255, hi1 = 0;
+			memset(u, 0, bz);
+			for (uint32_t j = 0; j < OCC_T; j++)
+				for (uint32_t i = 0; i < OCC_T; i++) {
+					const uint8_t *c = d + ((size_t)(ty * OCC_T + j) * bx +
+					                        tx * OCC_T + i) * bz;
+					for (uint32_t z = 0; z < bz; z++)
+						u[z] |= c[z];
+				}
+			for (uint32_t z = 0; z < bz; z++)
+				if (u[z]) {
+					lo = z < lo ? z : lo;
+					hi1 = z + 1;
+				}
+			atomic_store_explicit(&o[ty * t->occ_tx + tx], (uint16_t)(lo | hi1 << 8),
+			                      memory_order_relaxed);
+		}
+}
 
 /* A density unit (DUNIT_TAG | g): one frame for the density planes of the
    stored bricks of ranks 4g .. 4g+3 (dunit_key), each segment of each
@@ -145,7 +185,9 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
 		bump(&s->cnt.dfill_ns, (uint64_t)((t1.tv_sec - t0.tv_sec) * 1000000000LL +
 		                                  (t1.tv_nsec - t0.tv_nsec)));
 		/* publish what was filled, release every claim */
-		atomic_fetch_xor_explicit(st, want << 32 | done, memory_order_release);
+		v = atomic_fetch_xor_explicit(st, want << 32 | done, memory_order_acq_rel);
+		if (t->occ && done && ((v | done) & plane) == plane) /* the plane is whole */
+			occ_fill(t, id, frame + dunit_off(t, id));
 		return done & have ? LOOM_OK : rc;
 	}
 	return LOOM_OK;
@@ -169,6 +211,8 @@ static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag 
 		return dunit_load(t, id & ~DUNIT_TAG);
 	rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
 	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
+	if (rc == LOOM_OK && t->occ && !brick_empty(t, id)) /* plane 0: density */
+		occ_fill(t, id, dst);
 	return rc;
 }
 
@@ -386,7 +430,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom_texture *t;
 	size_t cols, slot_bytes, ex_bytes, mem_bytes, fixed, ent_bytes, fab, map_words;
 	uint64_t xings;
-	uint32_t n_ent, n_maps;
+	uint32_t n_ent, n_maps, n_stored = 0;
+	size_t occ_nt = 0;
 	unsigned T;
 	int rc;
 
@@ -423,6 +468,11 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		                  "tables do not match its block size");
 	loom__db_geometry(db, &g);
 
+	if (occ_shape_ok(g.brick)) { /* the occupancy table: stored bricks only */
+		for (uint32_t id = 0; id < g.n_bricks; id++)
+			n_stored += !loom__db_brick_empty(db, id);
+		occ_nt = (size_t)(g.brick[0] / OCC_T) * (g.brick[1] / OCC_T);
+	}
 	cols = (size_t)fabric->b1 * fabric->b2;
 	/* crossing entries per slot: XENT_WAYS, doubled (up to XENT_MAX) while
 	   all slots' entries stay within 1/32 of the budget */
@@ -432,7 +482,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 8, ALIGN) +
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN) + /* t->ne_rank */
 	           round_up(((size_t)g.n_bricks + 3) / 4 * 8, ALIGN) + /* t->dstate */
-	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN); /* t->hint */
+	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN) + /* t->hint */
+	           round_up(sizeof(uint16_t) * occ_nt * n_stored, ALIGN); /* t->occ */
 	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
 	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
 	n_ent = XENT_WAYS;
@@ -532,6 +583,12 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	                                 round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN));
 	t->hint = (_Atomic uint32_t *)((uint8_t *)t->dstate +
 	                               round_up(((size_t)g.n_bricks + 3) / 4 * 8, ALIGN));
+	if (occ_nt) {
+		t->occ = (_Atomic uint16_t *)((uint8_t *)t->hint +
+		                              round_up(sizeof(uint32_t) * g.n_bricks, ALIGN));
+		t->occ_tx = g.brick[0] / OCC_T;
+		t->occ_nt = (uint32_t)occ_nt;
+	}
 	t->n_bricks = g.n_bricks;
 	for (uint32_t id = 0; id < g.n_bricks; id++)
 		if (loom__db_brick_empty(db, id))

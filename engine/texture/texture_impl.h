@@ -51,6 +51,7 @@
 #define ALIGN 64
 #define RCOLS 64            /* columns gathered at once (x-fastest regions) */
 #define RZ 64               /* z values gathered at once */
+#define OCC_T 4             /* side of an occupancy tile, columns */
 #define DZ_WAYS 4           /* shared offset maps per set */
 #define DZ_RUN 4            /* offsets in a row in one entry before it may
                                take a map from another crossing */
@@ -205,6 +206,14 @@ struct loom_texture {
 	                            bricks before it (in mem); density units
 	                            group stored bricks by this rank */
 	uint32_t n_stored;       /* bricks not empty */
+	_Atomic uint16_t *occ;   /* per stored brick (by rank), per tile of
+	                            OCC_T x OCC_T columns: 0 not known yet;
+	                            else lo | (hi + 1) << 8, the heights in the
+	                            brick of the tile's first and last voxel of
+	                            non-zero density (0x00ff: none); filled when
+	                            a brick's density plane is read whole (in
+	                            mem; NULL: no table, lookup.c src_air) */
+	uint32_t occ_tx, occ_nt; /* tiles per brick row, per brick */
 	_Atomic uint64_t dunit_loads; /* unit frames claimed (they read nothing) */
 	_Atomic uint64_t *dstate; /* per density unit (in mem): bit 8j + q
 	                            segment q of plane j filled, bit 32 + 8j + q

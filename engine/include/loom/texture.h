@@ -145,7 +145,9 @@ typedef struct loom_texture_stats {
 	uint64_t misses;           /* requests that read a brick (or joined a
 	                              read in flight) */
 	uint64_t empty_bricks;     /* requests for bricks stored as nothing
-	                              (all empty; never read nor cached) */
+	                              (all empty; never read nor cached), and
+	                              point lookups answered as air without
+	                              their column's offset (docs/engine.md) */
 	uint64_t evictions;        /* cached bricks replaced */
 	uint64_t bytes_read;       /* compressed bytes read from the database */
 	uint64_t bytes_decompressed; /* brick bytes produced by the reads */
