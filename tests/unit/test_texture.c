@@ -1591,6 +1591,22 @@ static void filtered_lookups_at(size_t budget)
 }
 
 /* Batch = one sample per point; NULL channels untouched. */
+/* A trilinear sample of texture t at p with channels ch (into *a)
+   against the reference's (ref_trilinear, of g_ref): the number of
+   values that differ (density; orientation when ch has it). */
+static uint64_t tri_mismatch(loom_texture *t, const double p[3], unsigned ch, loom_texel *a)
+{
+	float dens, ori[3];
+	uint64_t bad = 0;
+
+	CHECK_EQ_INT(loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, a), LOOM_OK);
+	ref_trilinear(p, &dens, ori);
+	bad += fabsf(a->density - dens) > 1e-6f;
+	for (int k = 0; k < 3 && (ch & LOOM_CHANNEL_ORIENTATION); k++)
+		bad += fabsf(a->orientation[k] - ori[k]) > 1e-5f;
+	return bad;
+}
+
 static loom_texel masked(loom_texel a, unsigned ch);
 
 /* Lookups in the air (lookup.c src_air): a voxel whose source bricks,
@@ -1672,13 +1688,7 @@ static void air_without_offsets(void)
 				unsigned ch = k & 1 ? LOOM_CHANNEL_DENSITY
 				                    : LOOM_CHANNEL_DENSITY | LOOM_CHANNEL_ORIENTATION;
 				loom_texel a;
-				float dens, ori[3];
-				CHECK_EQ_INT(loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a),
-				             LOOM_OK);
-				ref_trilinear(p, &dens, ori);
-				bad += fabsf(a.density - dens) > 1e-6f;
-				for (int c = 0; c < 3 && (ch & LOOM_CHANNEL_ORIENTATION); c++)
-					bad += fabsf(a.orientation[c] - ori[c]) > 1e-5f;
+				bad += tri_mismatch(t, p, ch, &a);
 			}
 			g_ref = saved;
 			CHECK_EQ_INT(bad, 0);
@@ -2062,18 +2072,12 @@ static void walks_equal_reference(void)
 				int64_t q[3] = {(int64_t)floor(p[0]), (int64_t)floor(p[1]),
 				                (int64_t)floor(p[2])};
 				loom_texel a, e = masked(ref_texel(&g_ref, q[0], q[1], q[2]), ch);
-				float dens, ori[3];
 				CHECK_EQ_INT(loom_texture_voxel_ch(t, q[0], q[1], q[2], ch, &a), LOOM_OK);
 				bad += !texel_eq(&a, &e);
 				nonempty += e.density > 0;
 				ch = st % 3 ? LOOM_CHANNEL_DENSITY | LOOM_CHANNEL_ORIENTATION
 				            : LOOM_CHANNEL_DENSITY;
-				CHECK_EQ_INT(loom_texture_sample_ch(t, p, LOOM_FILTER_TRILINEAR, ch, &a),
-				             LOOM_OK);
-				ref_trilinear(p, &dens, ori);
-				bad += fabsf(a.density - dens) > 1e-6f;
-				for (int k = 0; k < 3 && (ch & LOOM_CHANNEL_ORIENTATION); k++)
-					bad += fabsf(a.orientation[k] - ori[k]) > 1e-5f;
+				bad += tri_mismatch(t, p, ch, &a);
 				if (ch == LOOM_CHANNEL_DENSITY) {
 					/* density alone (tri_dens_fast) is bit for bit the
 					   density of the general path */
