@@ -131,24 +131,30 @@ static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a
 	}
 }
 
-/* The whole-voxel bound [e->wlo, e->whi] of the offsets of crossing e's
-   columns but its four corners (which the corner term sets): each of them
-   reads its source voxels for output voxel z between z - e->whi and
-   z - e->wlo.  The offset
-   map is discrete harmonic inside the block (a sum of basis solutions of
-   the Laplace equation, docs/synthesis.md), so it takes its extremes on
-   the block's border (as the render majorant uses too); on each side of
-   the border, interval arithmetic over the coefficients e->a and each
-   basis field's range along the row or column it reads there
-   (t->frange), widened by the float error of the dot products, then
-   rounded to 1/DZ_SUB and split as loom__dz_fixed and dz_split do.  Not
-   finite or beyond DZ_LIMIT (a corrupt table): no bound. */
+/* The whole-voxel bound [e->wlo, e->whi] of the offsets dz_eval gives
+   crossing e's columns (every column but the four corners when the
+   corner term sets those): each of them reads its source voxels for
+   output voxel z between z - e->whi and z - e->wlo.  The offset map is
+   discrete harmonic inside the block (a sum of basis solutions of the
+   Laplace equation, docs/synthesis.md), so it takes its extremes on the
+   block's border (as the render majorant uses too); on each side of the
+   border, interval arithmetic over the coefficients e->a and each basis
+   field's range along the row or column it reads there (t->frange),
+   widened by the float error of the dot products (from that side's
+   magnitudes), then rounded to 1/DZ_SUB and split as loom__dz_fixed and
+   dz_split do.  Not finite or beyond DZ_LIMIT (a corrupt table): no
+   bound. */
 static void xent_bound(const loom_texture *t, struct xent *e)
 {
-	/* which side's range each field group reads on each side of the
-	   block: n fields at (x, y), s at (x, b2 - 1 - y), w at (x, y), e at
-	   (b1 - 1 - x, y); sides 0 N (row 0), 1 S (last row), 2 W (column 0),
-	   3 E (last column) */
+	/* the four groups of coefficients (n, s, w, e) in e->a: their first
+	   index, their rank and their first basis field in t->frange; and
+	   which side's range each group reads on each side of the block (n
+	   fields at (x, y), s at (x, b2 - 1 - y), w at (x, y), e at
+	   (b1 - 1 - x, y); sides 0 N (row 0), 1 S (last row), 2 W (column
+	   0), 3 E (last column)) */
+	const uint32_t first[4] = {0, t->rh, 2 * t->rh, 2 * t->rh + t->rv};
+	const uint32_t rank[4] = {t->rh, t->rh, t->rv, t->rv};
+	const uint32_t field[4] = {0, 0, t->rh, t->rh};
 	static const int reads[4][4] = {
 		/* n  s  w  e */
 		{0, 1, 0, 0}, /* on N */
@@ -156,29 +162,24 @@ static void xent_bound(const loom_texture *t, struct xent *e)
 		{2, 2, 2, 3}, /* on W */
 		{3, 3, 3, 2}, /* on E */
 	};
-	double lo = INFINITY, hi = -INFINITY, mag = 0;
-	uint32_t n = 2 * t->rh + 2 * t->rv;
+	double lo = INFINITY, hi = -INFINITY;
 
 	for (int side = 0; side < 4; side++) {
-		double l = 0, h = 0;
-		for (uint32_t i = 0; i < n; i++) {
-			/* a[i] multiplies basis field k of group g */
-			int g = i < t->rh ? 0 : i < 2 * t->rh ? 1 : i < 2 * t->rh + t->rv ? 2 : 3;
-			uint32_t k = g < 2 ? i % t->rh : t->rh + (i - 2 * t->rh) % t->rv;
-			const float *fr = t->frange[reads[side][g]];
-			double a = e->a[i], f0 = a * fr[2 * k], f1 = a * fr[2 * k + 1];
-			l += f0 < f1 ? f0 : f1;
-			h += f0 < f1 ? f1 : f0;
-			if (!side)
+		double l = 0, h = 0, mag = 0;
+		for (int g = 0; g < 4; g++) {
+			const float *fr = t->frange[reads[side][g]] + 2 * field[g];
+			for (uint32_t k = 0; k < rank[g]; k++) {
+				double a = e->a[first[g] + k], f0 = a * fr[2 * k], f1 = a * fr[2 * k + 1];
+				l += f0 < f1 ? f0 : f1;
+				h += f0 < f1 ? f1 : f0;
 				mag += fabs(f0) > fabs(f1) ? fabs(f0) : fabs(f1);
+			}
 		}
+		l -= 1e-3 + 1e-4 * mag;
+		h += 1e-3 + 1e-4 * mag;
 		lo = l < lo ? l : lo;
 		hi = h > hi ? h : hi;
 	}
-	if (!n)
-		lo = hi = 0;
-	lo -= 1e-3 + 1e-4 * mag;
-	hi += 1e-3 + 1e-4 * mag;
 	if (!(lo >= -(double)DZ_LIMIT && hi <= (double)DZ_LIMIT)) { /* also NaN */
 		e->wlo = 1;
 		e->whi = 0;
@@ -626,8 +627,8 @@ static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, 
    has no voxel of non-zero density at those heights of that brick.
    Answers most lookups in the air above and below the cloth and between
    its yarns without the offset lane's load (a cache miss for scattered
-   lookups).  The four corner columns, whose offsets the bound does not
-   hold, are never answered so.  Forced inline: as a call from the
+   lookups).  Corner columns the corner term sets (loom__fabric_corner_of),
+   whose offsets the bound does not hold, are never answered so.  Forced inline: as a call from the
    trilinear footprints it cost 5-9 % of their rate (docs/performance.md,
    "Lookups in the air"). */
 static inline __attribute__((always_inline)) int src_air(const loom_texture *t, const struct xent *e,
@@ -637,7 +638,7 @@ static inline __attribute__((always_inline)) int src_air(const loom_texture *t, 
 	int64_t z0 = za - e->whi, z1 = zb - e->wlo;
 	uint64_t base;
 
-	if (e->wlo > e->whi || ((lx == 0 || lx == t->b1 - 1) && (ly == 0 || ly == t->b2 - 1)))
+	if (e->wlo > e->whi || loom__fabric_corner_of(t->fab, lx, ly) >= 0)
 		return 0;
 	z0 = z0 < 0 ? 0 : z0;
 	z1 = z1 >= (int64_t)t->b3 ? (int64_t)t->b3 - 1 : z1;

@@ -469,8 +469,9 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	loom__db_geometry(db, &g);
 
 	if (occ_shape_ok(g.brick)) { /* the occupancy table: stored bricks only */
-		for (uint32_t id = 0; id < g.n_bricks; id++)
-			n_stored += !loom__db_brick_empty(db, id);
+		loom_db_info info;
+		loom_db_get_info(db, &info);
+		n_stored = (uint32_t)(info.n_bricks - info.n_empty_bricks);
 		occ_nt = (size_t)(g.brick[0] / OCC_T) * (g.brick[1] / OCC_T);
 	}
 	cols = (size_t)fabric->b1 * fabric->b2;
@@ -599,6 +600,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		t->ne_rank[w] = t->n_stored;
 		t->n_stored += (uint32_t)__builtin_popcountll(~t->empty[w]);
 	}
+	if (t->n_stored > n_stored) /* the index disagrees with its count: no table */
+		t->occ = NULL;
 	t->n_maps = n_maps;
 	t->map_words = map_words;
 	t->maps = (struct dzmap *)(t->mem + ex_bytes);

@@ -1620,9 +1620,9 @@ static loom_texel masked(loom_texel a, unsigned ch);
    of two repeats, with every channel and then density alone and with
    orientation (twice: the table is filled as bricks are read), and
    trilinear samples, equal the reference.  The slab's top layer, air in
-   the tiny exemplars, is answered without an offset but at the corner
-   columns (which the bound leaves out): at most 4 offsets per crossing
-   without the edge fix. */
+   the tiny exemplars, is answered without an offset but at most at the
+   corner columns (which the bound leaves out where the corner term sets
+   them): at most 4 offsets per crossing without the edge fix. */
 static void air_without_offsets(void)
 {
 	const uint32_t bricks[2][3] = {{4, 4, 1}, {8, 8, 16}};
@@ -1703,7 +1703,7 @@ static void air_without_offsets(void)
 	/* the top layer: the fixed fabric evaluates offsets for a minority of
 	   its columns (those whose bound reaches the cloth's top bricks); the
 	   same design without the fix (every offset 0: each column reads its
-	   own source voxel, in an empty brick) for none but the corners */
+	   own source voxel, in an empty brick) for at most the corners */
 	for (int k = 0; k < 2; k++) {
 		loom_fabric_options o = LOOM_FABRIC_OPTIONS_INIT;
 		loom_fabric *f0 = f;
