@@ -1021,8 +1021,8 @@ int main(int argc, char **argv)
 		loom_db_get_info(db, &info);
 		loom_db_close(db);
 		db = NULL;
-		if (info.version != 2) { /* the default, which bench_vdb shares */
-			printf("%s is of format version %u: generated again in version 2\n",
+		if (info.version != 4) { /* the default, which bench_vdb shares */
+			printf("%s is of format version %u: generated again in version 4\n",
 			       dbp, info.version);
 			unlink(dbp);
 		}

@@ -86,10 +86,11 @@ static const char USAGE[] =
 	"  --check    a small run on the default database (a test of the bench)\n"
 	"Environment: BENCH_VDB_CROSSINGS (region side, default 16), BENCH_VDB_SCALE,\n"
 	"BENCH_VDB_BRICK=XxYxZ (the paper database's brick shape, default 16x16x64;\n"
-	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), BENCH_VDB_FORMAT=3\n"
-	"(the paper database in format version 3, $BUILD/bench/paper[-XxYxZ]-v3.ldb:\n"
-	"the density plane in segments), BENCH_VDB_DENSITY=raw (the density planes\n"
-	"stored raw, loom exemplar generate --raw-density: paper[-XxYxZ][-v3]-rawd.ldb),\n"
+	"another shape is generated as $BUILD/bench/paper-XxYxZ.ldb), BENCH_VDB_FORMAT=2|3\n"
+	"(the paper database in format version 2 or 3 instead of the default 4,\n"
+	"$BUILD/bench/paper[-XxYxZ]-vN.ldb: density deflated, 3 in segments),\n"
+	"BENCH_VDB_DENSITY=raw (the density planes stored raw, loom exemplar generate\n"
+	"--raw-density: paper[-XxYxZ][-vN]-rawd.ldb),\n"
 	"LOOM_PAPER_DB,\n"
 	"BUILD (default build).\n";
 
@@ -221,7 +222,7 @@ struct Setup {
 	int64_t lo[3] = {0, 0, 0};     /* region in bolt voxels */
 	int n[3] = {0, 0, 0};          /* its size; local coordinates 0..n-1 */
 	unsigned brick[3] = {0, 0, 0}; /* BENCH_VDB_BRICK, 0: the preset's */
-	unsigned format = 2;           /* BENCH_VDB_FORMAT: the database's version */
+	unsigned format = 4;           /* BENCH_VDB_FORMAT: the database's version */
 	bool raw_density = false;      /* BENCH_VDB_DENSITY=raw */
 };
 
@@ -240,7 +241,7 @@ bool setup_open(Setup &S)
 	else
 		S.dbp = S.build + "/bench/paper" +
 		        (brick[0] ? std::string("-") + getenv("BENCH_VDB_BRICK") : std::string()) +
-		        (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) +
+		        (S.format != 4 ? "-v" + std::to_string(S.format) : std::string()) +
 		        (S.raw_density ? "-rawd" : "") + ".ldb";
 	bool stale = false; /* a generated database of another format version */
 	if (!S.check && !(paper && *paper) && stat(S.dbp.c_str(), &st) == 0) {
@@ -255,8 +256,8 @@ bool setup_open(Setup &S)
 		if (stale)
 			printf("%s is of format version %u, density %s: generated again in "
 			       "version %u, density %s\n", S.dbp.c_str(), oi.version,
-			       oi.n_raw_density ? "raw" : "deflated", S.format,
-			       S.raw_density ? "raw" : "deflated");
+			       oi.n_raw_density ? "raw" : "compressed", S.format,
+			       S.raw_density ? "raw" : "compressed");
 	}
 	if (!S.check && (stale || stat(S.dbp.c_str(), &st) != 0)) {
 		loom_exgen_params p;
@@ -928,8 +929,8 @@ int main(int argc, char **argv)
 	}
 	const char *fv = getenv("BENCH_VDB_FORMAT");
 	if (fv && *fv) {
-		if (strcmp(fv, "2") != 0 && strcmp(fv, "3") != 0) {
-			fprintf(stderr, "bench_vdb: BENCH_VDB_FORMAT='%s': expected 2 or 3\n", fv);
+		if (strcmp(fv, "2") != 0 && strcmp(fv, "3") != 0 && strcmp(fv, "4") != 0) {
+			fprintf(stderr, "bench_vdb: BENCH_VDB_FORMAT='%s': expected 2, 3 or 4\n", fv);
 			return 2;
 		}
 		S.format = (unsigned)atoi(fv);
@@ -950,7 +951,7 @@ int main(int argc, char **argv)
 	   leave the default's fabric naming the other database */
 	std::string shape = S.check ? std::string() :
 	                    (S.brick[0] ? std::string("-") + bs : std::string()) +
-	                    (S.format != 2 ? "-v" + std::to_string(S.format) : std::string()) +
+	                    (S.format != 4 ? "-v" + std::to_string(S.format) : std::string()) +
 	                    (S.raw_density ? "-rawd" : "");
 	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper" + shape + ".loomf");
 	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper" + shape + ".vdb");

@@ -163,7 +163,8 @@ static int parse_header(loom_db *db, const uint8_t *h, loom_diag *diag)
 		             db->info.brick[2], LOOM__DB_MAX_BRICK_BYTES);
 	/* version 1 stores a brick as one stream (layout 1), version 2 each
 	   plane as a unit of its own (layout 2), version 3 the density unit in
-	   segments (layout 3): the layout is the version */
+	   segments (layout 3), version 4 the density unit zero-run coded
+	   (layout 4): the layout is the version */
 	db->info.voxel_layout = v;
 	db->entry_bytes = v == 1 ? LOOM__DB_INDEX_BYTES : LOOM__DB_INDEX2_BYTES;
 	if (loom__le32(h + 44) != db->info.voxel_layout)
@@ -1064,6 +1065,18 @@ static int unit_decode_segs(const loom_db *db, uint32_t id, unsigned u,
 		}
 		return segs_decode(db, id, dec, src, b->ub[u], off, out, q0, q1, diag);
 	}
+	if (u == 0 && db->info.voxel_layout == LOOM__DB_LAYOUT_ZRUN) {
+		size_t at;
+		if (loom__zrun_decode(src, b->ub[u], out, V, &at) != 0) {
+			loom__db_brick_name(db, id, name, sizeof name);
+			return loom__fail(diag, LOOM_ECORRUPT, "%s, unit 0 (density) at offset "
+			                  "%llu: zero-run code malformed at byte %zu of %u "
+			                  "(a run past the plane's %zu bytes or past the unit, "
+			                  "or too few bytes)", name, (unsigned long long)off,
+			                  at, b->ub[u], V);
+		}
+		return LOOM_OK;
+	}
 	r = libdeflate_deflate_decompress(dec, src, b->ub[u], out, V, NULL);
 	if (r != LIBDEFLATE_SUCCESS) {
 		loom__db_brick_name(db, id, name, sizeof name);
@@ -1267,7 +1280,7 @@ int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
 unsigned loom__db_dsegs(const loom_db *db)
 {
 	return db->info.voxel_layout == LOOM__DB_LAYOUT_SEGS ? LOOM__DB_SEGS :
-	       db->info.voxel_layout == LOOM__DB_LAYOUT_UNITS ? 1u : 0u;
+	       db->info.voxel_layout == LOOM__DB_LAYOUT_PLANES ? 0u : 1u;
 }
 
 int loom__db_reader_read_seg(loom__db_reader *r, uint32_t id, unsigned q, uint8_t *plane,

@@ -40,8 +40,8 @@ struct libdeflate_decompressor;
 #define LOOM__DB_MAGIC "\x89LDB\r\n\x1a\n"   /* 8 bytes */
 #define LOOM__DB_META_MAGIC "LDBMETA1"        /* 8 bytes */
 #define LOOM__DB_TRAILER_MAGIC "LDBTRAIL"     /* 8 bytes */
-#define LOOM__DB_VERSION 3u                   /* newest read (and written on
-                                                 request; 2 by default) */
+#define LOOM__DB_VERSION 4u                   /* newest read and written */
+#define LOOM__DB_VERSION_DEFAULT 4u           /* written when none is asked */
 #define LOOM__DB_VERSION_UNITS2 2u            /* plane units, density whole */
 #define LOOM__DB_VERSION_PLANES1 1u           /* whole-brick streams */
 #define LOOM__DB_HEADER_BYTES 128u
@@ -54,6 +54,8 @@ struct libdeflate_decompressor;
 #define LOOM__DB_LAYOUT_UNITS 2u              /* the planes stored apart */
 #define LOOM__DB_LAYOUT_SEGS 3u               /* units, the density one in
                                                  segments (version 3) */
+#define LOOM__DB_LAYOUT_ZRUN 4u               /* units, the density one
+                                                 zero-run coded (version 4) */
 #define LOOM__DB_UNITS 4u                     /* units of a layout-2/3 brick */
 #define LOOM__DB_SEGS 8u                      /* segments of a layout-3
                                                  density unit */
@@ -211,12 +213,13 @@ int loom__db_reader_read(loom__db_reader *r, uint32_t id, uint8_t *out,
  */
 int loom__db_reader_read_unit(loom__db_reader *r, uint32_t id, unsigned u,
                               uint8_t *out, size_t *n_read, loom_diag *diag);
-/* voxel_layout of the database: LOOM__DB_LAYOUT_PLANES, _UNITS or _SEGS. */
+/* voxel_layout of the database: LOOM__DB_LAYOUT_PLANES, _UNITS, _SEGS or
+   _ZRUN. */
 unsigned loom__db_layout(const loom_db *db);
 
 /*
  * Segments of the density plane a reader can inflate one by one: 8 in
- * layout 3, 1 (the whole plane) in layout 2, 0 in layout 1.
+ * layout 3, 1 (the whole plane) in layouts 2 and 4, 0 in layout 1.
  */
 unsigned loom__db_dsegs(const loom_db *db);
 
@@ -279,5 +282,19 @@ static inline void loom__db_solid_lut(const loom_db_yarn *yarns, uint32_t n_yarn
 		solid[l] = yarns[l].kind != LOOM_YARN_NONE &&
 		           !(yarns[l].flags & LOOM_DB_YARN_FLYAWAY);
 }
+
+/*
+ * The zero-run code of a layout-4 density unit (engine/exemplar/zrun.c,
+ * docs/formats.md).  encode: the code of in[0..n) at out; its length, or
+ * 0 when it would not fit in cap bytes (the writer passes n - 1 and
+ * stores the plane raw on 0).  Deterministic.  decode: m bytes at in to
+ * exactly n bytes at out; 0, or 1 when the stream is malformed (a run
+ * past n bytes or past the stream, or fewer than n bytes), with *where
+ * (may be NULL) the offset of the token at fault or m.  Bytes of out past
+ * the decoded ones may be written before they are decoded.
+ */
+size_t loom__zrun_encode(const uint8_t *in, size_t n, uint8_t *out, size_t cap);
+int loom__zrun_decode(const uint8_t *in, size_t m, uint8_t *out, size_t n,
+                      size_t *where);
 
 #endif /* LOOM_DB_INTERNAL_H */

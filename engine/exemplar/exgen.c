@@ -1270,12 +1270,12 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 		                  p->size, sizeof *p);
 	if (p->db_version > LOOM__DB_VERSION)
 		return loom__fail(diag, LOOM_EINVAL, "exemplar generator: database version "
-		                  "%u, expected 0 (current), 1, 2 or %u", p->db_version,
+		                  "%u, expected 0 (the default, 4) or 1..%u", p->db_version,
 		                  LOOM__DB_VERSION);
 	if (p->density_raw > 1 || (p->density_raw && p->db_version == 1))
 		return loom__fail(diag, LOOM_EINVAL, "exemplar generator: density_raw %u "
 		                  "with database version %u (expected 0 or 1, and 1 only with "
-		                  "version 0, 2 or 3: version 1 stores a brick as one stream)",
+		                  "version 0, 2, 3 or 4: version 1 stores a brick as one stream)",
 		                  p->density_raw, p->db_version);
 	if (p->block[0] < 2 || p->block[1] < 2 || p->block[2] < 4 ||
 	    p->block[0] > LOOM__DB_MAX_BLOCK || p->block[1] > LOOM__DB_MAX_BLOCK ||

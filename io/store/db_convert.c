@@ -79,7 +79,7 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 		p.density_raw = (uint32_t)density_raw;
 	if (p.density_raw && p.layout == LOOM__DB_LAYOUT_PLANES) {
 		rc = loom__fail(diag, LOOM_EINVAL, "%s: density planes stored raw need "
-		                "format version 2 or 3 (version 1 stores a brick as one "
+		                "format version 2, 3 or 4 (version 1 stores a brick as one "
 		                "stream)", out);
 		goto done;
 	}

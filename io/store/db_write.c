@@ -173,8 +173,8 @@ int loom__dbw_create(const char *path, const loom__dbw_params *p,
 	if (!w)
 		return loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", path);
 	w->p = *p;
-	if (w->p.layout != LOOM__DB_LAYOUT_PLANES && w->p.layout != LOOM__DB_LAYOUT_SEGS)
-		w->p.layout = LOOM__DB_LAYOUT_UNITS;
+	if (w->p.layout < LOOM__DB_LAYOUT_PLANES || w->p.layout > LOOM__DB_LAYOUT_ZRUN)
+		w->p.layout = LOOM__DB_VERSION_DEFAULT;
 	w->entry_bytes = w->p.layout == LOOM__DB_LAYOUT_PLANES ? LOOM__DB_INDEX_BYTES :
 	                                                         LOOM__DB_INDEX2_BYTES;
 	w->brick_voxels = (size_t)p->brick[0] * p->brick[1] * p->brick[2];
@@ -496,9 +496,9 @@ static size_t encode_segs(const uint8_t *pl, const uint32_t brick[3], size_t nv,
 	return at < nv ? at : 0;
 }
 
-/* Layouts 2 and 3: each of the four planes as a unit of its own, back to
-   back in cbuf (4V bytes: every unit is at most V; the density unit, the
-   first, may use V + 32 while it is encoded). */
+/* Layouts 2, 3 and 4: each of the four planes as a unit of its own, back
+   to back in cbuf (4V bytes: every unit is at most V; the density unit,
+   the first, may use V + 32 while it is encoded). */
 static void encode_units(const uint8_t *raw, const uint32_t brick[3], unsigned layout,
                          struct libdeflate_compressor *comp, uint8_t *cbuf,
                          loom__dbw_brick *out)
@@ -518,6 +518,12 @@ static void encode_units(const uint8_t *raw, const uint32_t brick[3], unsigned l
 			n = nv;
 		} else if (i < nv && u == 0 && layout == LOOM__DB_LAYOUT_SEGS) {
 			n = encode_segs(pl, brick, nv, comp, cbuf + at);
+			if (n == 0) {
+				memcpy(cbuf + at, pl, nv);
+				n = nv;
+			}
+		} else if (i < nv && u == 0 && layout == LOOM__DB_LAYOUT_ZRUN) {
+			n = loom__zrun_encode(pl, nv, cbuf + at, nv - 1);
 			if (n == 0) {
 				memcpy(cbuf + at, pl, nv);
 				n = nv;

@@ -36,14 +36,14 @@ typedef struct loom__dbw_params {
 	uint64_t seed;
 	uint32_t flags;         /* header flags (bit 0: procedural) */
 	uint32_t layout;        /* voxel layout = format version: 0 or
-	                           LOOM__DB_LAYOUT_UNITS (2, the default),
-	                           LOOM__DB_LAYOUT_SEGS (3: asked for) or
-	                           LOOM__DB_LAYOUT_PLANES (1: appending to an
-	                           old file, tests) */
-	uint32_t density_raw;   /* layouts 2, 3: density units stored raw */
+	                           LOOM__DB_LAYOUT_ZRUN (4, the default),
+	                           LOOM__DB_LAYOUT_UNITS (2) or _SEGS (3:
+	                           asked for) or LOOM__DB_LAYOUT_PLANES (1:
+	                           appending to an old file, tests) */
+	uint32_t density_raw;   /* layouts 2..4: density units stored raw */
 } loom__dbw_params;
 
-/* With layout 2 or 3 in loom__dbw_encode's layout: the density unit is
+/* With layout 2, 3 or 4 in loom__dbw_encode's layout: the density unit is
    stored raw (copied, never deflated; readers know a raw unit by its size,
    so the format does not change). */
 #define LOOM__DBW_DENSITY_RAW 0x100u
@@ -65,7 +65,7 @@ typedef struct loom__dbw_brick {
 	uint32_t stored_bytes;
 	uint32_t crc;            /* CRC32 of the stored bytes */
 	const uint8_t *data;     /* stored bytes (cbuf or the raw brick) */
-	uint32_t unit_bytes[4];  /* layouts 2, 3: the planes' units in data, */
+	uint32_t unit_bytes[4];  /* layouts 2..4: the planes' units in data, */
 	uint32_t unit_crc[4];    /* back to back (0 bytes: an all-zero plane) */
 	int16_t *top;            /* per column (ly*bx + lx): local z of the top
 	                            solid voxel, -1 if none */
@@ -83,8 +83,9 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *e,
  * shrinks, else raw (data = raw); layout 2: each plane on its own into
  * cbuf (deflated if that shrinks it, else copied; an all-zero plane is 0
  * bytes), data = cbuf; layout 3: as 2 with the density plane's unit in
- * eight segments (docs/formats.md); | LOOM__DBW_DENSITY_RAW: layout 2 or 3
- * with the density unit raw.  Fills the top-surface columns with solid[]
+ * eight segments (docs/formats.md); layout 4: as 2 with the density
+ * plane zero-run coded (loom__zrun_encode) if that shrinks it;
+ * | LOOM__DBW_DENSITY_RAW: layout 2, 3 or 4 with the density unit raw.  Fills the top-surface columns with solid[]
  * (loom__db_solid_lut) and threshold.  Thread-safe given its own
  * compressor and buffers.
  */

@@ -33,11 +33,11 @@ typedef struct slot {
 	uint8_t *top_label;
 } slot;
 
-/* The voxel layout params ask for (db_version 1, 2, 3: that layout; 0:
-   the default, 2). */
+/* The voxel layout params ask for (db_version 1..4: that layout; 0: the
+   default, 4). */
 static unsigned exgen_layout(const loom_exgen_params *p)
 {
-	return p->db_version ? p->db_version : LOOM__DB_LAYOUT_UNITS;
+	return p->db_version ? p->db_version : LOOM__DB_VERSION_DEFAULT;
 }
 
 typedef struct pipe {

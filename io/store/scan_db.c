@@ -93,7 +93,7 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 	    (p->density_raw && p->db_version == LOOM__DB_VERSION_PLANES1))
 		return loom__fail(diag, LOOM_EINVAL, "scan: database: format version %u "
 		                  "with density_raw %u (expected version 0..%u, raw density "
-		                  "only with version 0, 2 or 3)", p->db_version,
+		                  "only with version 0, 2, 3 or 4)", p->db_version,
 		                  p->density_raw, LOOM__DB_VERSION);
 	exists = stat(path, &st) == 0;
 	if (exists) {
@@ -124,7 +124,7 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 			loom__dbw_abort(w);
 			if (p->density_raw && !wp.density_raw)
 				return loom__fail(diag, LOOM_EMISMATCH, "%s: the database's "
-				                  "density planes are deflated; appending keeps "
+				                  "density planes are compressed; appending keeps "
 				                  "its storage (convert it first: loom exemplar "
 				                  "convert --raw-density)", path);
 			return loom__fail(diag, LOOM_EMISMATCH, "%s: the database is format "
@@ -152,7 +152,7 @@ LOOM_API int loom_scan_write_db(const loom_scan_result *r, const char *path,
 		wp.level = p->level;
 		wp.seed = 0;
 		wp.flags = 0;
-		wp.layout = p->db_version ? p->db_version : LOOM__DB_LAYOUT_UNITS;
+		wp.layout = p->db_version ? p->db_version : LOOM__DB_VERSION_DEFAULT;
 		wp.density_raw = p->density_raw;
 		rc = loom__dbw_create(path, &wp, &w, diag);
 		if (rc)

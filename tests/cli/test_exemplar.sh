@@ -65,8 +65,9 @@ for e in ex:
     assert e["raw_bytes"] == 120 * 80 * 48 * 4
     assert 0 < e["compressed_bytes"] < e["raw_bytes"]
 assert ex[0]["name"] == "twill-2-3" and ex[1]["name"] == "satin-1-4"
-# the default format: version 2, each plane a unit of its own
-assert j["version"] == 2 and j["voxel_layout"] == 2, (j["version"], j["voxel_layout"])
+# the default format: version 4, each plane a unit of its own, density
+# zero-run coded
+assert j["version"] == 4 and j["voxel_layout"] == 4, (j["version"], j["voxel_layout"])
 # twill 2/3: every column has two 1s, every row two 1s
 assert all(r.count("1") == 2 for r in ex[0]["weave"])
 assert all(r.count("1") == 1 for r in ex[1]["weave"])
@@ -76,7 +77,7 @@ then pass info_json_keys; else fail info_json_keys "$(head -c 400 "$T/py")"; fi
 row0=$(cat "$T/py")
 expect_ok info_text "$LOOM" exemplar info "$DB"
 expect_out_contains info_text_name "satin-1-4"
-expect_out_contains info_text_version "format version 2 (each plane of a brick stored apart)"
+expect_out_contains info_text_version "format version 4 (each plane of a brick stored apart, density zero-run coded)"
 expect_out_contains info_text_weave "$row0"
 
 # --format-version 3: the density plane in segments, the same voxels
@@ -84,12 +85,21 @@ expect_ok generate_v3 "$LOOM" exemplar generate --preset small --weaves twill:2/
 	--seed 5 --threads 1 --quiet --format-version 3 -o "$T/v3.ldb"
 expect_ok info_v3 "$LOOM" exemplar info "$T/v3.ldb"
 expect_out_contains info_v3_version "format version 3 (each plane of a brick stored apart, density in 8 segments)"
-expect_ok export_v2 "$LOOM" exemplar export "$DB" --exemplar 1 -o "$T/x2.nrrd"
+expect_ok export_v4 "$LOOM" exemplar export "$DB" --exemplar 1 -o "$T/x2.nrrd"
 expect_ok export_v3 "$LOOM" exemplar export "$T/v3.ldb" --exemplar 1 -o "$T/x3.nrrd"
 expect_same v3_same_voxels "$T/x2.nrrd" "$T/x3.nrrd"
-expect_exit format_version_4 2 "$LOOM" exemplar generate --preset tiny --format-version 4 -o "$T/v4.ldb"
+# --format-version 2: every plane deflated, a smaller file, the same voxels
+expect_ok generate_v2 "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
+	--seed 5 --threads 1 --quiet --format-version 2 -o "$T/v2.ldb"
+expect_ok info_v2 "$LOOM" exemplar info "$T/v2.ldb"
+expect_out_contains info_v2_version "format version 2 (each plane of a brick stored apart),"
+expect_ok export_v2 "$LOOM" exemplar export "$T/v2.ldb" --exemplar 1 -o "$T/xv2.nrrd"
+expect_same v2_same_voxels "$T/x2.nrrd" "$T/xv2.nrrd"
+if [ "$(wc -c <"$T/v2.ldb")" -lt "$(wc -c <"$DB")" ]; then pass v2_smaller
+else fail v2_smaller "$(wc -c <"$T/v2.ldb") bytes in version 2, $(wc -c <"$DB") in 4"; fi
+expect_exit format_version_5 2 "$LOOM" exemplar generate --preset tiny --format-version 5 -o "$T/v5.ldb"
 # --raw-density: the density planes stored as they are (a larger file, the
-# same voxels, every density plane raw; versions 2 and 3 only)
+# same voxels, every density plane raw; versions 2 to 4 only)
 expect_ok generate_rawd "$LOOM" exemplar generate --preset small --weaves twill:2/3,satin:1/4 \
 	--seed 5 --threads 1 --quiet --raw-density -o "$T/rawd.ldb"
 expect_ok info_rawd "$LOOM" exemplar info "$T/rawd.ldb" --json
@@ -97,9 +107,9 @@ if python3 - "$T/out" "$DB" <<'EOF' 2>"$T/py"
 import json, os, sys
 j = json.load(open(sys.argv[1]))
 stored = j["bricks"] - j["empty_bricks"]
-assert j["version"] == 2 and stored > 0, j
+assert j["version"] == 4 and stored > 0, j
 assert j["raw_density_planes"] == stored, (j["raw_density_planes"], stored)
-assert j["file_bytes"] > os.path.getsize(sys.argv[2]), "not larger than deflated"
+assert j["file_bytes"] > os.path.getsize(sys.argv[2]), "not larger than compressed"
 EOF
 then pass rawd_info; else fail rawd_info "$(head -c 400 "$T/py")"; fi
 expect_ok info_v2_json "$LOOM" exemplar info "$DB" --json
@@ -112,7 +122,7 @@ expect_ok generate_rawd_v3 "$LOOM" exemplar generate --preset tiny --weaves twil
 expect_ok verify_rawd_v3 "$LOOM" exemplar verify "$T/rawd3.ldb" --quiet
 expect_exit rawd_v1 2 "$LOOM" exemplar generate --preset tiny --raw-density --format-version 1 \
 	-o "$T/rawd1.ldb"
-expect_err_contains rawd_v1_msg "--raw-density needs format version 2 or 3"
+expect_err_contains rawd_v1_msg "--raw-density needs format version 2, 3 or 4"
 
 # convert: another storage, the same voxels and tables; back again gives
 # the original bytes (the writer is deterministic)
@@ -127,8 +137,11 @@ assert j["file_bytes"] == j["input_bytes"], j  # raw planes: the same bytes, oth
 EOF
 then pass convert_json; else fail convert_json "$(head -c 400 "$T/py")"; fi
 expect_ok convert_back "$LOOM" exemplar convert "$T/cv-v3.ldb" -o "$T/cv-back.ldb" \
-	--format-version 2 --deflate-density --quiet
+	--format-version 4 --deflate-density --quiet
 expect_same convert_round_trip "$DB" "$T/cv-back.ldb"
+# version 2 to 4 gives what generating version 4 gives
+expect_ok convert_v2_v4 "$LOOM" exemplar convert "$T/v2.ldb" -o "$T/cv-v4.ldb" --format-version 4 --quiet
+expect_same convert_v2_v4_same "$DB" "$T/cv-v4.ldb"
 expect_ok convert_v1 "$LOOM" exemplar convert "$DB" -o "$T/cv-v1.ldb" --format-version 1 --quiet
 expect_ok export_v1 "$LOOM" exemplar export "$T/cv-v1.ldb" --exemplar 1 -o "$T/xv1.nrrd"
 expect_same convert_v1_same_voxels "$T/x2.nrrd" "$T/xv1.nrrd"

@@ -129,7 +129,7 @@ expect_err_contains build_raw_no_dims_msg "--raw-dims"
 #    database's storage and refuses to change it (exit 1, file unchanged)
 expect_exit build_raw_v1 2 "$LOOM" exemplar build "$T/a.vol" --warps 7 --wefts 9 \
 	--raw-density --format-version 1 --db "$T/v.ldb"
-expect_err_contains build_raw_v1_msg "--raw-density needs format version 2 or 3"
+expect_err_contains build_raw_v1_msg "--raw-density needs format version 2, 3 or 4"
 expect_ok build_raw_density "$LOOM" exemplar build "$T/a.vol" --orientation "$T/a-orient.vol" \
 	--warps 7 --wefts 9 --name twill-given --weave-name twill:2/3 --format-version 3 \
 	--raw-density --quiet --db "$T/v.ldb"
@@ -154,5 +154,5 @@ expect_exit build_append_not_raw 1 "$LOOM" exemplar build "$T/c.vol" --warps 7 -
 expect_err_contains build_append_not_raw_msg "convert --raw-density"
 expect_exit build_append_other_version 1 "$LOOM" exemplar build "$T/c.vol" --warps 7 \
 	--wefts 9 --format-version 3 --name satin-3 --db "$T/s.ldb"
-expect_err_contains build_append_other_version_msg "format version 2"
+expect_err_contains build_append_other_version_msg "format version 4"
 expect_same refused_appends_leave_db "$T/s.ldb" "$T/s0.ldb"

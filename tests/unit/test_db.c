@@ -137,6 +137,9 @@ static void test_roundtrip_generated(void)
 		p1.db_version = 2; /* and in version 2 */
 		CHECK_EQ_INT(loom_exgen_write_db(tpath("gen2.ldb"), &p1, &h1, &d), LOOM_OK);
 		CHECK(h1 != hash);
+		p1.db_version = 0; /* and in the default, version 4 */
+		CHECK_EQ_INT(loom_exgen_write_db(tpath("gen4.ldb"), &p1, &h1, &d), LOOM_OK);
+		CHECK(h1 != hash);
 	}
 	if (rc) {
 		printf("  %s\n", d.message);
@@ -501,14 +504,14 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
    equal to the first in each. */
 static void test_append_layouts(void)
 {
-	for (unsigned k = 1; k <= 4; k++) {
-		unsigned lay = k == 4 ? 2 : k;
+	for (unsigned k = 1; k <= 5; k++) {
+		unsigned lay = k == 4 ? 2 : k == 5 ? 4 : k;
 		loom_diag d = {0};
 		loom_db *db = NULL;
 		loom_db_info info;
 		uint64_t h = 0;
 		const char *p = tpath(k == 1 ? "app1.ldb" : k == 2 ? "app2.ldb" :
-		                      k == 3 ? "app3.ldb" : "app2r.ldb");
+		                      k == 3 ? "app3.ldb" : k == 4 ? "app2r.ldb" : "app4.ldb");
 		uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
 		uint8_t a[512], b[512], al[512], bl[512];
 		uint16_t ao[512], bo[512];
@@ -866,14 +869,14 @@ static void test_bad_magic_version(void)
 	spit(tpath("text2.ldb"), (const uint8_t *)"hello world, not a db\n", 22);
 	CHECK_EQ_INT(open_code(tpath("text2.ldb"), &d), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(d.message, "bad magic");
-	/* version 4 (or 0), even with a valid CRC, is a version error */
+	/* version 5 (or 0), even with a valid CRC, is a version error */
 	memcpy(c, b, n);
-	loom__put32(c + 8, 4);
+	loom__put32(c + 8, 5);
 	reseal(c, n);
-	spit(tpath("v4.ldb"), c, n);
-	CHECK_EQ_INT(open_code(tpath("v4.ldb"), &d), LOOM_EVERSION);
-	CHECK_STR_CONTAINS(d.message, "offset 8: format version 4, this loom reads "
-	                   "versions 1 to 3");
+	spit(tpath("v5.ldb"), c, n);
+	CHECK_EQ_INT(open_code(tpath("v5.ldb"), &d), LOOM_EVERSION);
+	CHECK_STR_CONTAINS(d.message, "offset 8: format version 5, this loom reads "
+	                   "versions 1 to 4");
 	loom__put32(c + 8, 0);
 	reseal(c, n);
 	spit(tpath("v4.ldb"), c, n);
@@ -1092,6 +1095,15 @@ static void test_units(void)
 		}
 		CHECK_EQ_INT(loom__db_dsegs(d2), 8);
 		CHECK_EQ_INT(loom__db_dsegs(d1), 0);
+		CHECK_EQ_INT(loom_db_open(tpath("gen4.ldb"), &dv2, &d), LOOM_OK);
+		if (dv2) {
+			loom_db_get_info(dv2, &iv2);
+			CHECK_EQ_INT(iv2.version, 4);
+			CHECK_EQ_INT(iv2.voxel_layout, 4);
+			CHECK_EQ_INT(iv2.n_empty_bricks, i1.n_empty_bricks);
+			CHECK_EQ_INT(loom__db_dsegs(dv2), 1);
+			loom_db_close(dv2);
+		}
 	}
 	for (uint32_t k = 0; k < i1.n_exemplars; k++) {
 		loom_db_exemplar_info e;
@@ -1473,6 +1485,181 @@ static void test_segment_kinds(void)
 	loom_db_close(db);
 }
 
+/* The zero-run code alone: a reference decoder written from
+   docs/formats.md, every encoding decoded by both; the encoder's choices
+   on a hand-worked plane; every malformed stream refused with the token
+   at fault; random streams never write past the plane. */
+static int zr_reference(const uint8_t *in, size_t m, uint8_t *out, size_t n)
+{
+	size_t i = 0, o = 0;
+	while (i < m) {
+		unsigned t = in[i++];
+		size_t len = t < 128 ? t + 1u : t - 127u;
+		if (o + len > n || (t >= 128 && i + len > m))
+			return 1;
+		for (size_t k = 0; k < len; k++)
+			out[o + k] = t < 128 ? 0 : in[i + k];
+		if (t >= 128)
+			i += len;
+		o += len;
+	}
+	return o != n;
+}
+
+static void test_zero_runs(void)
+{
+	static const uint8_t plane[] = {0, 0, 0, 5, 6, 0, 7, 0, 0, 9, 0};
+	static const uint8_t want[] = {2, 131, 5, 6, 0, 7, 1, 128, 9, 0};
+	uint8_t enc[1200], a[1200], b[1200];
+	uint64_t rng = 7;
+	size_t m, at;
+	long bad = 0, refused = 0;
+
+	m = loom__zrun_encode(plane, sizeof plane, enc, sizeof enc);
+	CHECK_EQ_INT(m, sizeof want);
+	CHECK(memcmp(enc, want, sizeof want) == 0);
+	CHECK_EQ_INT(loom__zrun_encode(plane, sizeof plane, enc, sizeof want - 1), 0);
+	/* runs at and past 128 of either kind, and planes of every length up
+	   to 1024 from noise with zeros in runs of every length */
+	for (int it = 0; it < 3000; it++) {
+		size_t n = it < 4 ? 1024 : 1 + (size_t)(it % 1024);
+		for (size_t i = 0; i < n;) {
+			size_t run;
+			rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+			run = 1 + (rng >> 33) % (it % 3 ? 12 : 300);
+			for (size_t k = 0; k < run && i < n; k++, i++)
+				a[i] = it == 0 ? 0 : it == 1 ? (uint8_t)(1 + i % 255) :
+				       (rng >> 40) & 1 ? 0 : (uint8_t)(1 + (rng >> 50) % 200);
+		}
+		m = loom__zrun_encode(a, n, enc, sizeof enc);
+		memset(b, 0xa5, sizeof b);
+		bad += m == 0 || loom__zrun_decode(enc, m, b, n, NULL) != 0 ||
+		       memcmp(a, b, n) != 0 || b[n] != 0xa5;
+		memset(b, 0x5a, sizeof b);
+		bad += zr_reference(enc, m, b, n) != 0 || memcmp(a, b, n) != 0;
+	}
+	CHECK_EQ_INT(bad, 0);
+	/* 1024 zeros: eight tokens of 128; 300 literals: 128 + 128 + 44 */
+	memset(a, 0, 1024);
+	CHECK_EQ_INT(loom__zrun_encode(a, 1024, enc, sizeof enc), 8);
+	CHECK_EQ_INT(enc[0], 127);
+	memset(a, 3, 300);
+	CHECK_EQ_INT(loom__zrun_encode(a, 300, enc, sizeof enc), 303);
+	CHECK(enc[0] == 255 && enc[129] == 255 && enc[258] == 127 + 44);
+	/* malformed: a zero run past the plane, a literal past the stream, a
+	   stream short of the plane */
+	CHECK_EQ_INT(loom__zrun_decode((const uint8_t[]){0, 4}, 2, b, 5, &at), 1);
+	CHECK_EQ_INT(at, 1);
+	CHECK_EQ_INT(loom__zrun_decode((const uint8_t[]){130, 1, 2}, 3, b, 3, &at), 1);
+	CHECK_EQ_INT(at, 0);
+	CHECK_EQ_INT(loom__zrun_decode((const uint8_t[]){1, 129, 1, 2}, 4, b, 5, &at), 1);
+	CHECK_EQ_INT(at, 4);
+	CHECK_EQ_INT(loom__zrun_decode((const uint8_t[]){1, 129, 1, 2}, 4, b, 4, NULL), 0);
+	/* random streams, and valid ones with a byte replaced: accepted
+	   exactly when the reference accepts them, the same bytes, nothing
+	   written past the plane */
+	for (int it = 0; it < 20000; it++) {
+		size_t n = 1 + it % 700, len = 1 + (size_t)(it * 7) % 40;
+		int ra, rb;
+		if (it % 2) {
+			for (size_t i = 0; i < n; i++) {
+				rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+				a[i] = (rng >> 60) < 9 ? 0 : (uint8_t)(rng >> 52);
+			}
+			len = loom__zrun_encode(a, n, enc, sizeof enc);
+			rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+			enc[(rng >> 33) % len] = (uint8_t)(rng >> 56);
+		} else {
+			for (size_t i = 0; i < len; i++) {
+				rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+				enc[i] = (uint8_t)(rng >> 56);
+			}
+		}
+		memset(a, 0xa5, sizeof a);
+		memset(b, 0xa5, sizeof b);
+		ra = loom__zrun_decode(enc, len, a, n, NULL);
+		rb = zr_reference(enc, len, b, n);
+		refused += ra;
+		bad += ra != rb || a[n] != 0xa5 || (!ra && memcmp(a, b, n) != 0);
+	}
+	CHECK_EQ_INT(bad, 0);
+	printf("  zero runs: %ld of 20000 streams refused\n", refused);
+	CHECK(refused > 10000 && refused < 19000);
+}
+
+/* Version 4 in a file: the density unit zero-run coded (smaller than
+   the plane, never what version 2 stores), the other units as version
+   2's; a damaged run is named and the other units still read. */
+static void test_zero_run_units(void)
+{
+	loom_db *db = NULL, *bd = NULL;
+	loom__db_reader *r = NULL, *br;
+	loom__db_geom g;
+	loom_diag d = {0};
+	uint8_t *b = NULL, *c = NULL, *plane = NULL, *dec = NULL;
+	size_t n = 0;
+	uint32_t id, zr = 0, did = UINT32_MAX;
+	long bad = 0;
+
+	CHECK_EQ_INT(loom_db_open(tpath("gen4.ldb"), &db, &d), LOOM_OK);
+	if (!db)
+		return;
+	loom__db_geometry(db, &g);
+	r = loom__db_reader_new(db);
+	b = slurp(tpath("gen4.ldb"), &n);
+	plane = malloc(g.brick_voxels);
+	dec = malloc(g.brick_voxels);
+	for (id = 0; id < g.n_bricks; id++) {
+		size_t e = index_entry(b, n, id);
+		uint32_t u0 = loom__le32(b + e + 24);
+		if (u0 == 0 || u0 == g.brick_voxels)
+			continue;
+		CHECK_EQ_INT(loom__db_reader_read_unit(r, id, 0, plane, NULL, &d), LOOM_OK);
+		bad += loom__zrun_decode(b + loom__le64(b + e), u0, dec, g.brick_voxels,
+		                         NULL) != 0 ||
+		       memcmp(dec, plane, g.brick_voxels) != 0;
+		zr++;
+		if (did == UINT32_MAX && u0 > 8 && b[loom__le64(b + e)] < 127)
+			did = id; /* starts with a zero run of at most 127: damaged below */
+	}
+	CHECK_EQ_INT(bad, 0);
+	CHECK(zr > 0 && did != UINT32_MAX);
+	printf("  version 4: %u density units zero-run coded\n", zr);
+	if (did == UINT32_MAX)
+		goto out;
+	c = malloc(n);
+	{
+		size_t e = index_entry(b, n, did);
+		uint64_t off = loom__le64(b + e);
+		uint32_t u0 = loom__le32(b + e + 24);
+		char want[96];
+		/* the first zero run one longer: the stream runs past the plane */
+		memcpy(c, b, n);
+		c[off]++;
+		loom__put32(c + e + 28, libdeflate_crc32(0, c + off, u0));
+		if ((br = damaged_reader(c, n, &bd, &d)) != NULL) {
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 0, plane, NULL, &d),
+			             LOOM_ECORRUPT);
+			snprintf(want, sizeof want, "segbad.ldb: brick %u (exemplar", did);
+			CHECK_STR_CONTAINS(d.message, want);
+			CHECK_STR_CONTAINS(d.message, "unit 0 (density) at offset");
+			CHECK_STR_CONTAINS(d.message, "zero-run code malformed at byte");
+			CHECK_EQ_INT(loom__db_reader_read_unit(br, did, 3, plane, NULL, &d), LOOM_OK);
+			memset(&d, 0, sizeof d);
+			CHECK_EQ_INT(loom_db_verify(bd, NULL, NULL, &d), LOOM_ECORRUPT);
+			CHECK_STR_CONTAINS(d.message, "zero-run");
+			damaged_close(br, &bd);
+		}
+	}
+out:
+	free(b);
+	free(c);
+	free(plane);
+	free(dec);
+	loom__db_reader_free(r);
+	loom_db_close(db);
+}
+
 static void test_index_out_of_range(void)
 {
 	size_t n;
@@ -1663,6 +1850,8 @@ int main(void)
 	RUN(test_units);
 	RUN(test_segments);
 	RUN(test_segment_kinds);
+	RUN(test_zero_runs);
+	RUN(test_zero_run_units);
 	RUN(test_index_out_of_range);
 	RUN(test_size_mismatch);
 	RUN(test_random_damage);

@@ -442,7 +442,7 @@ static void database_append(void)
 		CHECK_EQ_INT(ia.block[2], 40);
 		CHECK(fabsf(ia.voxel_size_um - 24) < 1e-4f);
 		CHECK_EQ_INT(loom_db_verify(a, NULL, NULL, &d), LOOM_OK);
-		CHECK_EQ_INT(ia.version, 2);
+		CHECK_EQ_INT(ia.version, 4);
 		CHECK_EQ_INT(ia.n_raw_density, 0);
 		loom_db_close(a);
 	}
@@ -451,7 +451,7 @@ static void database_append(void)
 	dp.db_version = 1;
 	dp.density_raw = 1;
 	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
-	dp.db_version = 4;
+	dp.db_version = 5;
 	dp.density_raw = 0;
 	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
 	dp.db_version = 3;
@@ -477,11 +477,11 @@ static void database_append(void)
 	dp.name = "again";
 	rc = loom_scan_write_db(r, tmp("new.ldb"), &dp, &appended, &d);
 	CHECK_EQ_INT(rc, LOOM_EMISMATCH);
-	CHECK_STR_CONTAINS(d.message, "density planes are deflated");
+	CHECK_STR_CONTAINS(d.message, "density planes are compressed");
 	dp.density_raw = 0;
 	rc = loom_scan_write_db(r, tmp("new.ldb"), &dp, &appended, &d);
 	CHECK_EQ_INT(rc, LOOM_EMISMATCH);
-	CHECK_STR_CONTAINS(d.message, "format version 2, not 3");
+	CHECK_STR_CONTAINS(d.message, "format version 4, not 3");
 	free(neu);
 	neu = slurp(tmp("new.ldb"), &new_len);
 	CHECK(old && neu && old_len == new_len && memcmp(old, neu, new_len) == 0);

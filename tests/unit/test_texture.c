@@ -1867,14 +1867,16 @@ static int cold_density(loom_texture *t, int64_t b3, int n, int first_fill,
    set) and a large one; version 2 reads fewer bytes for density alone
    than version 1, and version 3 inflates fewer than version 2.  The
    fourth: version 2 with its density planes stored raw (density_raw),
-   whose density misses read each plane's bytes as they are. */
+   whose density misses read each plane's bytes as they are; the fifth:
+   the default, version 4 (density zero-run coded), which reads more than
+   version 2's deflated planes and less than raw ones. */
 static void old_format_same_lookups(void)
 {
-	char path[4][4200];
+	char path[5][4200];
 	uint32_t brick[3] = {8, 8, 8};
-	uint64_t read_d[4] = {0, 0, 0, 0}, infl_d[4] = {0, 0, 0, 0};
+	uint64_t read_d[5] = {0, 0, 0, 0, 0}, infl_d[5] = {0, 0, 0, 0, 0};
 
-	for (int v = 0; v < 4; v++) {
+	for (int v = 0; v < 5; v++) {
 		snprintf(path[v], sizeof path[v], "%s/v%d.ldb", tmpdir, v + 1);
 		loom_exgen_params p;
 		loom_diag d = {0};
@@ -1885,7 +1887,7 @@ static void old_format_same_lookups(void)
 		p.seed = 5;
 		p.threads = 2;
 		memcpy(p.brick, brick, sizeof p.brick);
-		p.db_version = v < 3 ? (uint32_t)v + 1 : 2;
+		p.db_version = v < 3 ? (uint32_t)v + 1 : v == 3 ? 2 : 0;
 		p.density_raw = v == 3;
 		CHECK_EQ_INT(loom_exgen_write_db(path[v], &p, NULL, &d), LOOM_OK);
 		CHECK_EQ_INT(loom_db_open(path[v], &db, &d), LOOM_OK);
@@ -1900,7 +1902,7 @@ static void old_format_same_lookups(void)
 		{
 			loom_db_info info;
 			loom_db_get_info(db, &info);
-			CHECK_EQ_INT(info.version, v < 3 ? v + 1 : 2);
+			CHECK_EQ_INT(info.version, v < 3 ? v + 1 : v == 3 ? 2 : 4);
 		}
 		for (int b = 0; b < 2; b++) {
 			size_t budget = b ? 8u << 20 : min_budget(f, db, 1);
@@ -1946,16 +1948,21 @@ static void old_format_same_lookups(void)
 	}
 	printf("  density-only lookups at the smallest budget read / inflate %llu / "
 	       "%llu bytes (version 1), %llu / %llu (version 2), %llu / %llu (version "
-	       "3), %llu / %llu (version 2, density raw)\n", (unsigned long long)read_d[0],
-	       (unsigned long long)infl_d[0], (unsigned long long)read_d[1],
-	       (unsigned long long)infl_d[1], (unsigned long long)read_d[2],
-	       (unsigned long long)infl_d[2], (unsigned long long)read_d[3],
-	       (unsigned long long)infl_d[3]);
+	       "3), %llu / %llu (version 2, density raw), %llu / %llu (version 4)\n",
+	       (unsigned long long)read_d[0], (unsigned long long)infl_d[0],
+	       (unsigned long long)read_d[1], (unsigned long long)infl_d[1],
+	       (unsigned long long)read_d[2], (unsigned long long)infl_d[2],
+	       (unsigned long long)read_d[3], (unsigned long long)infl_d[3],
+	       (unsigned long long)read_d[4], (unsigned long long)infl_d[4]);
 	CHECK(read_d[1] > 0 && read_d[1] < read_d[0]);
 	/* raw: every density byte read as it is (no smaller than version 2's
 	   deflated reads) and nothing inflated beyond it */
 	CHECK(read_d[3] > read_d[1] && read_d[3] == infl_d[3]);
 	CHECK(infl_d[2] > 0 && infl_d[2] < infl_d[1] && infl_d[1] < infl_d[0]);
+	/* zero runs: between deflate and raw in bytes read, and fewer read
+	   than decoded */
+	CHECK(read_d[4] > read_d[1] && read_d[4] < read_d[3]);
+	CHECK(infl_d[4] > read_d[4]);
 }
 
 static void channel_masks(void)

@@ -232,12 +232,13 @@ static int sub_generate(int argc, char **argv)
 		OPT_SIZE3(0, "brick", brick, "XxYxZ", 0, UINT32_MAX,
 		          "brick shape (default 16x16x64)"),
 		OPT_U32(0, "level", &level, "L", 1, 12, "libdeflate level %r (default 6)"),
-		OPT_U32(0, "format-version", &fmt, "N", 1, 3, "database format %r (default 2; "
-		        "3: the density plane in eight segments, for density-only lookups "
-		        "below the working set; docs/formats.md)"),
+		OPT_U32(0, "format-version", &fmt, "N", 1, 4, "database format %r (default 4: "
+		        "density planes zero-run coded, decoded several times faster than "
+		        "DEFLATE; 2: all planes deflated, a smaller file; 3: as "
+		        "2, the density plane in eight segments; docs/formats.md)"),
 		OPT_FLAG(0, "raw-density", &raw_density, "store the density planes raw (a "
-		         "file 1.8x larger; density misses copy instead of inflating, "
-		         "several times faster below the working set; docs/exemplars.md)"),
+		         "larger file; density misses copy instead of decoding; "
+		         "docs/exemplars.md)"),
 		OPT_THREADS(&threads, 64, "worker threads (default 2; %r)"),
 		OPT_STRING(0, "design", &design, "DESIGN", "write the woven ground truth of "
 		           "DESIGN (WIF, weave image, or an image with --map): one exemplar "
@@ -362,8 +363,8 @@ static int sub_generate(int argc, char **argv)
 	if (opt_given(&c, &fmt))
 		p.db_version = fmt;
 	if (raw_density && p.db_version == 1)
-		opts_usage(&c, "--raw-density needs format version 2 or 3 (version 1 stores "
-		           "a brick as one stream)");
+		opts_usage(&c, "--raw-density needs format version 2, 3 or 4 (version 1 "
+		           "stores a brick as one stream)");
 	p.density_raw = (uint32_t)raw_density;
 	if (opt_given(&c, &threads))
 		p.threads = threads;

@@ -213,8 +213,8 @@ int exemplar_build(int argc, char **argv)
 		OPT_STRING(0, "name", &name, "NAME", "exemplar name, 1..31 bytes (default: the "
 		           "scan's file name)"),
 		OPT_STRING(0, "weave-name", &wname, "S", "weave recorded with it (default \"\")"),
-		OPT_U32(0, "format-version", &fmt, "N", 1, 3, "format %r of a new database "
-		        "(default 2; appending keeps the database's)"),
+		OPT_U32(0, "format-version", &fmt, "N", 1, 4, "format %r of a new database "
+		        "(default 4; appending keeps the database's)"),
 		OPT_FLAG(0, "raw-density", &raw_density, "a new database with its density "
 		         "planes raw (docs/exemplars.md); appending keeps the database's"),
 		OPT_JSON(&json, "JSON: weave (one 0/1 string per pick of the crop), "
@@ -253,8 +253,8 @@ int exemplar_build(int argc, char **argv)
 	if (!name[0] || strlen(name) > 31)
 		opts_usage(&c, "--name: expected 1..31 bytes, got '%s'", name);
 	if (raw_density && fmt == 1)
-		opts_usage(&c, "--raw-density needs format version 2 or 3 (version 1 stores "
-		           "a brick as one stream)");
+		opts_usage(&c, "--raw-density needs format version 2, 3 or 4 (version 1 "
+		           "stores a brick as one stream)");
 	cli_diag_init(&diag, &quiet);
 	/* the database's block, when it exists */
 	if (stat(db, &st) == 0) {

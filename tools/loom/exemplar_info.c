@@ -158,8 +158,10 @@ int exemplar_info(int argc, char **argv)
 	} else {
 		printf("database %s\n", pos ? pos : cli_db_path(dbopt));
 		printf("  format version %u (%s), content hash %s, %llu bytes\n",
-		       info.version, info.voxel_layout == 3 ? "each plane of a brick stored "
-		       "apart, density in 8 segments" : info.voxel_layout == 2 ?
+		       info.version, info.voxel_layout == 4 ? "each plane of a brick stored "
+		       "apart, density zero-run coded" : info.voxel_layout == 3 ?
+		       "each plane of a brick stored apart, density in 8 segments" :
+		       info.voxel_layout == 2 ?
 		       "each plane of a brick stored apart" : "one stream a brick", hs,
 		       (unsigned long long)info.file_bytes);
 		printf("  block %ux%ux%u voxels of %g um, brick %ux%ux%u, %llu bricks "
@@ -293,10 +295,10 @@ int exemplar_export(int argc, char **argv)
 /* ---- convert ------------------------------------------------------------- */
 
 static const char about_convert[] =
-	"Write a database again in another storage: --format-version N (1, 2 or 3)\n"
-	"and the density planes raw (--raw-density: about twice the file, several\n"
-	"times the lookups per second when the budget is below what a view\n"
-	"touches) or deflated (--deflate-density).  Without an option each is\n"
+	"Write a database again in another storage: --format-version N (1 to 4)\n"
+	"and the density planes raw (--raw-density: a larger file, no decoding on\n"
+	"a miss) or compressed (--deflate-density: DEFLATE in versions 1 to 3,\n"
+	"zero runs in version 4).  Without an option each is\n"
 	"kept.  The voxels, exemplars and block tables are the same; the content\n"
 	"hash is not, so fabrics made over DB need `loom synth` again over OUT.\n"
 	"One brick in memory at a time; OUT appears only when complete.\n";
@@ -314,10 +316,11 @@ int exemplar_convert(int argc, char **argv)
 	opt_entry opts[] = {
 		OPT_DB(&dbopt, DB_POS_HELP),
 		OPT_OUTPUT(&out, "OUT", "database to write (.ldb; not the input)"),
-		OPT_U32(0, "format-version", &fmt, "N", 1, 3, "format of OUT %r (default: "
+		OPT_U32(0, "format-version", &fmt, "N", 1, 4, "format of OUT %r (default: "
 		        "the input's; docs/formats.md)"),
 		OPT_FLAG(0, "raw-density", &raw, "store the density planes raw"),
-		OPT_FLAG(0, "deflate-density", &deflated, "store the density planes deflated"),
+		OPT_FLAG(0, "deflate-density", &deflated, "store the density planes compressed "
+		         "(DEFLATE; zero runs in version 4)"),
 		OPT_JSON(&json, "print the result as JSON"),
 		OPT_QUIET(&quiet, "no progress, no summary"),
 		OPT_END()

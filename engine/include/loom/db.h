@@ -191,8 +191,9 @@ LOOM_API int loom_db_verify(const loom_db *db,
 
 /*
  * Write database `in` again as `out` in another storage: format version
- * db_version (0: in's; 1..3) and density planes stored raw (density_raw
- * 1), deflated (0) or as in (-1: raw when all of in's are).  The voxels,
+ * db_version (0: in's; 1..4) and density planes stored raw (density_raw
+ * 1), compressed (0: DEFLATE, the zero-run code in version 4) or as in
+ * (-1: raw when all of in's are).  The voxels,
  * exemplar records and block tables are the same; the content hash is
  * not (it covers the storage), so a fabric synthesized over `in` needs
  * `loom synth` again over `out`.  Streams: one brick in memory; `out` is
@@ -284,21 +285,20 @@ typedef struct loom_exgen_params {
 	const char *pairs[LOOM_EXGEN_MAX_PAIRS][2]; /* warp, weft fibre names
 	                             (as fibre[]; NULL = the other one), distinct
 	                             pairs */
-	uint32_t db_version;      /* 0 or 2: the default format (each plane of
-	                             a brick stored apart); 3: the density plane
-	                             in eight segments as well (density-only
-	                             lookups below the working set inflate an
-	                             eighth of a plane; whole-brick reads are
-	                             slower: docs/formats.md); 1: version 1 (one
+	uint32_t db_version;      /* 0 or 4: the default format (each plane of
+	                             a brick stored apart, the density plane
+	                             zero-run coded: decoded several times
+	                             faster than DEFLATE); 2: every plane
+	                             deflated (a file 10-15 % smaller); 3:
+	                             as 2, the density plane in eight segments
+	                             (docs/formats.md); 1: version 1 (one
 	                             stream a brick), for older readers */
-	uint32_t density_raw;     /* 0: density planes deflated (the default);
-	                             1: stored raw (versions 2 and 3), a file
-	                             1.8x larger whose density misses copy
-	                             16 KiB rather than inflate it, several
-	                             times faster when the budget is below the
-	                             working set (docs/exemplars.md, "Raw
-	                             density"); any reader of the version reads
-	                             it */
+	uint32_t density_raw;     /* 0: density planes compressed (the
+	                             default); 1: stored raw (versions 2 to 4),
+	                             a larger file whose density misses copy
+	                             16 KiB rather than decode it
+	                             (docs/exemplars.md, "Raw density"); any
+	                             reader of the version reads it */
 } loom_exgen_params;
 
 /*

@@ -496,10 +496,10 @@ typedef struct loom_scan_db_params {
 	uint32_t brick[3];      /* brick shape of a new database (16x16x64) */
 	int level;              /* deflate level of a new database (6) */
 	uint32_t db_version;    /* format version of a new database: 0 (the
-	                           default, 2), 1, 2 or 3; appending: 0 or the
-	                           database's own (else LOOM_EMISMATCH) */
+	                           default, 4), 1, 2, 3 or 4; appending: 0 or
+	                           the database's own (else LOOM_EMISMATCH) */
 	uint32_t density_raw;   /* 1: density planes stored raw (versions 2
-	                           and 3); appending: only to a database whose
+	                           to 4); appending: only to a database whose
 	                           density planes are raw (else LOOM_EMISMATCH:
 	                           loom_db_convert it first) */
 } loom_scan_db_params;
@@ -518,7 +518,7 @@ LOOM_API void loom_scan_db_params_init(loom_scan_db_params *p);
  * cleared.  *appended (may be NULL) says which case happened.  Errors:
  * LOOM_EINVAL (bad arguments, name taken), LOOM_EMISMATCH (the database's
  * block size differs from the result's), the database open errors
- * (loom_db_open), LOOM_EIO, LOOM_ENOMEM; LOOM_EINVAL for db_version > 3
+ * (loom_db_open), LOOM_EIO, LOOM_ENOMEM; LOOM_EINVAL for db_version > 4
  * or density_raw with version 1, LOOM_EMISMATCH when appending with a
  * db_version or density_raw the database does not have.  Memory: one
  * brick plus the old database's metadata.
