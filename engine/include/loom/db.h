@@ -251,7 +251,7 @@ LOOM_API int loom_db_export_nrrd(const loom_db *db, uint32_t k, int channel,
 #define LOOM_EXGEN_MAX_PAIRS 4  /* material pairs of one generated database */
 /* Revision of the generator's output: bumped whenever the same parameters
    give different bytes (caches of generated databases key on it). */
-#define LOOM_EXGEN_REVISION 5
+#define LOOM_EXGEN_REVISION 6
 
 /* Generator parameters.  Initialise with loom_exgen_preset(). */
 typedef struct loom_exgen_params {
