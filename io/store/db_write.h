@@ -85,8 +85,9 @@ int loom__dbw_begin_exemplar(loom__dbw *w, const loom__dbw_exemplar *e,
  * bytes), data = cbuf; layout 3: as 2 with the density plane's unit in
  * eight segments (docs/formats.md); layout 4: as 2 with the density
  * plane zero-run coded (loom__zrun_encode) if that shrinks it;
- * | LOOM__DBW_DENSITY_RAW: layout 2, 3 or 4 with the density unit raw.  Fills the top-surface columns with solid[]
- * (loom__db_solid_lut) and threshold.  Thread-safe given its own
+ * | LOOM__DBW_DENSITY_RAW: layout 2, 3 or 4 with the density unit raw.
+ * Fills the top-surface columns with solid[] (loom__db_solid_lut) and
+ * threshold.  Thread-safe given its own
  * compressor and buffers.
  */
 void loom__dbw_encode(const uint8_t *raw, const uint32_t brick[3],
