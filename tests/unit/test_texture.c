@@ -1690,6 +1690,17 @@ static void air_without_offsets(void)
 				loom_texel a;
 				bad += tri_mismatch(t, p, ch, &a);
 			}
+			/* and every density-only footprint of the box, corner
+			   columns included (lookup.c src_air4 answers a footprint
+			   whose four columns are air at once) */
+			for (int64_t z = -1; z <= (int64_t)r.b3; z++)
+				for (int64_t y = lo[1]; y < hi[1]; y++)
+					for (int64_t x = lo[0]; x < hi[0]; x++) {
+						double p[3] = {(double)x + 0.75, (double)y + 0.75,
+						               (double)z + 0.25};
+						loom_texel a;
+						bad += tri_mismatch(t, p, LOOM_CHANNEL_DENSITY, &a);
+					}
 			g_ref = saved;
 			CHECK_EQ_INT(bad, 0);
 			loom_texture_close(t);
