@@ -1691,8 +1691,9 @@ static void air_without_offsets(void)
 				bad += tri_mismatch(t, p, ch, &a);
 			}
 			/* and every density-only footprint of the box, corner
-			   columns included (lookup.c src_air4 answers a footprint
-			   whose four columns are air at once) */
+			   columns included (tri_dens answers air columns with
+			   src_air; a joint test of all four was tried, and this
+			   caught it ignoring a corner column or a tile) */
 			for (int64_t z = -1; z <= (int64_t)r.b3; z++)
 				for (int64_t y = lo[1]; y < hi[1]; y++)
 					for (int64_t x = lo[0]; x < hi[0]; x++) {
