@@ -628,9 +628,9 @@ static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, 
    Answers most lookups in the air above and below the cloth and between
    its yarns without the offset lane's load (a cache miss for scattered
    lookups).  Corner columns the corner term sets (loom__fabric_corner_of),
-   whose offsets the bound does not hold, are never answered so.  Forced inline: as a call from the
-   trilinear footprints it cost 5-9 % of their rate (docs/performance.md,
-   "Lookups in the air"). */
+   whose offsets the bound does not hold, are never answered so.  Forced
+   inline: as a call from the trilinear footprints it cost 5-9 % of their
+   rate (docs/performance.md, "Lookups in the air"). */
 static inline __attribute__((always_inline)) int src_air(const loom_texture *t, const struct xent *e,
                           uint32_t sx, uint32_t sy, int64_t za, int64_t zb, int dens)
 {
