@@ -373,6 +373,8 @@ static uint64_t edge_table_bytes(const loom_edgefix *ef)
 	return 4 * n;
 }
 
+static void fabric_seam(loom_fabric *f, uint64_t rows, uint64_t cols);
+
 static int compute_metrics(loom_fabric *f, uint32_t window, loom_diag *diag)
 {
 	int rc;
@@ -387,11 +389,9 @@ static int compute_metrics(loom_fabric *f, uint32_t window, loom_diag *diag)
 	f->win_rows = f->win_cols = window ? window : LOOM_FABRIC_DEFAULT_WINDOW;
 	rc = loom_synth_metrics_window(f->set, f->design, &f->lk, 0, 0, f->win_rows,
 	                               f->win_cols, NULL, &f->m_bolt);
-	if (!rc)
-		rc = loom_edgefix_seam(f->ef, &f->prof, &f->lk, 0, 0, f->win_rows,
-		                       f->win_cols, f->internal_step, &f->seam);
 	if (rc)
 		return loom__fail(diag, rc, "synth: window metrics failed");
+	fabric_seam(f, f->win_rows, f->win_cols);
 	return LOOM_OK;
 }
 
@@ -681,48 +681,108 @@ static float dz_at_ij(const loom_fabric *f, int64_t I, int64_t J,
 	return k >= 0 ? loom__fabric_corner_dz(f, I, J, k) : loom_edgefix_at(f->ef, nb, x, y);
 }
 
+/* The seam metric of the fabric as it is looked up: |height jump| across
+   the S and E edges of blocks, without the fix (profiles alone) and with
+   the offsets a lookup applies (the edge fix and the corner term).  The
+   same definition as loom_edgefix_seam / _seam_block, which know only the
+   edge fix: with the corner term the four corner columns of every block
+   take loom__fabric_corner_dz instead. */
+typedef struct fseam {
+	double sum_b, sum_a, max_b, max_a, sum_cb, sum_ca;
+	uint64_t n, nc;
+} fseam;
+
+static void fseam_add(fseam *s, double before, double after, int corner)
+{
+	before = fabs(before);
+	after = fabs(after);
+	s->sum_b += before;
+	s->sum_a += after;
+	if (before > s->max_b)
+		s->max_b = before;
+	if (after > s->max_a)
+		s->max_a = after;
+	s->n++;
+	if (corner) { /* the E-edge samples at y = 0, b2 - 1 */
+		s->sum_cb += before;
+		s->sum_ca += after;
+		s->nc++;
+	}
+}
+
+/* Add the S edge of crossing (I, J) to se and its E edge to ee. */
+static void fseam_one(const loom_fabric *f, int64_t I, int64_t J, fseam *se,
+                      fseam *ee)
+{
+	loom_synth_nbhd a, below, right;
+	uint32_t b1 = f->b1, b2 = f->b2;
+	const float *hs, *hb, *hr;
+
+	loom__fabric_nbhd(f, I, J, &a);
+	loom__fabric_nbhd(f, I + 1, J, &below);
+	loom__fabric_nbhd(f, I, J + 1, &right);
+	hs = f->heights + (size_t)a.self * LOOM_EDGE_RECORD(b1, b2);
+	hb = f->heights + (size_t)below.self * LOOM_EDGE_RECORD(b1, b2);
+	hr = f->heights + (size_t)right.self * LOOM_EDGE_RECORD(b1, b2);
+	for (uint32_t x = 0; x < b1; x++) {
+		double h0 = hs[LOOM_EDGE_S(b1, b2) + x], h1 = hb[LOOM_EDGE_N(b1, b2) + x];
+		double d0 = dz_at_ij(f, I, J, &a, x, b2 - 1);
+		double d1 = dz_at_ij(f, I + 1, J, &below, x, 0);
+		fseam_add(se, h0 - h1, (h0 + d0) - (h1 + d1), 0);
+	}
+	for (uint32_t y = 0; y < b2; y++) {
+		double h0 = hs[LOOM_EDGE_E(b1, b2) + y], h1 = hr[LOOM_EDGE_W(b1, b2) + y];
+		double d0 = dz_at_ij(f, I, J, &a, b1 - 1, y);
+		double d1 = dz_at_ij(f, I, J + 1, &right, 0, y);
+		fseam_add(ee, h0 - h1, (h0 + d0) - (h1 + d1), y == 0 || y == b2 - 1);
+	}
+}
+
+/* f->seam over the crossings [0, rows) x [0, cols) (compute_metrics). */
+static void fabric_seam(loom_fabric *f, uint64_t rows, uint64_t cols)
+{
+	loom_seam_metrics *out = &f->seam;
+	fseam acc;
+
+	memset(&acc, 0, sizeof acc);
+	for (uint64_t a = 0; a < rows; a++)
+		for (uint64_t b = 0; b < cols; b++)
+			fseam_one(f, (int64_t)a, (int64_t)b, &acc, &acc);
+	memset(out, 0, sizeof *out);
+	out->samples = acc.n;
+	out->before_mean = acc.n ? acc.sum_b / (double)acc.n : 0;
+	out->after_mean = acc.n ? acc.sum_a / (double)acc.n : 0;
+	out->before_max = acc.max_b;
+	out->after_max = acc.max_a;
+	out->corner_samples = acc.nc;
+	out->corner_before_mean = acc.nc ? acc.sum_cb / (double)acc.nc : 0;
+	out->corner_after_mean = acc.nc ? acc.sum_ca / (double)acc.nc : 0;
+	out->internal_step = f->internal_step;
+	if (f->internal_step > 0) {
+		out->before_ratio = out->before_mean / f->internal_step;
+		out->after_ratio = out->after_mean / f->internal_step;
+	}
+}
+
 /* The same definition as loom_edgefix_seam_block (|height jump| means along
-   the S and E edges), without its per-call profile scan: a seam picture
-   calls it for every crossing. */
+   the S and E edges), with the corner term, and without its per-call
+   profile scan: a seam picture calls it for every crossing. */
 LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I, int64_t J,
                                     double out[4])
 {
-	loom_synth_nbhd a, below, right;
-	uint32_t b1, b2;
-	double sb = 0, sa = 0, eb = 0, ea = 0;
+	fseam se, ee;
 
 	if (!f || !out)
 		return LOOM_EINVAL;
 	if (!f->attached)
 		return LOOM_EUNUSABLE;
-	b1 = f->b1;
-	b2 = f->b2;
-	loom__fabric_nbhd(f, I, J, &a);
-	loom__fabric_nbhd(f, I + 1, J, &below);
-	loom__fabric_nbhd(f, I, J + 1, &right);
-	{
-		const float *hs = f->heights + (size_t)a.self * LOOM_EDGE_RECORD(b1, b2);
-		const float *hb = f->heights + (size_t)below.self * LOOM_EDGE_RECORD(b1, b2);
-		const float *hr = f->heights + (size_t)right.self * LOOM_EDGE_RECORD(b1, b2);
-		for (uint32_t x = 0; x < b1; x++) {
-			double h0 = hs[LOOM_EDGE_S(b1, b2) + x], h1 = hb[LOOM_EDGE_N(b1, b2) + x];
-			double d0 = dz_at_ij(f, I, J, &a, x, b2 - 1);
-			double d1 = dz_at_ij(f, I + 1, J, &below, x, 0);
-			sb += fabs(h0 - h1);
-			sa += fabs((h0 + d0) - (h1 + d1));
-		}
-		for (uint32_t y = 0; y < b2; y++) {
-			double h0 = hs[LOOM_EDGE_E(b1, b2) + y], h1 = hr[LOOM_EDGE_W(b1, b2) + y];
-			double d0 = dz_at_ij(f, I, J, &a, b1 - 1, y);
-			double d1 = dz_at_ij(f, I, J + 1, &right, 0, y);
-			eb += fabs(h0 - h1);
-			ea += fabs((h0 + d0) - (h1 + d1));
-		}
-	}
-	out[0] = sb / b1;
-	out[1] = sa / b1;
-	out[2] = eb / b2;
-	out[3] = ea / b2;
+	memset(&se, 0, sizeof se);
+	memset(&ee, 0, sizeof ee);
+	fseam_one(f, I, J, &se, &ee);
+	out[0] = se.sum_b / f->b1;
+	out[1] = se.sum_a / f->b1;
+	out[2] = ee.sum_b / f->b2;
+	out[3] = ee.sum_a / f->b2;
 	return LOOM_OK;
 }
 

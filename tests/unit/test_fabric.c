@@ -747,12 +747,56 @@ static void test_algorithms(void)
 	loom_design_free(d);
 }
 
+/* Brute force of one crossing's seam jumps after the fix: the heights plus
+   loom_fabric_dz's offsets (the corner term included) along its S and E
+   edges.  Adds the |jumps| to sum[0] (S edge), sum[1] (E edge) and sum[2]
+   (the E edge's corner samples, y = 0 and b2 - 1), the largest to *max. */
+static int brute_seam(const loom_fabric *f, int64_t I, int64_t J, double sum[3],
+                      double *max)
+{
+	uint32_t b1 = f->b1, b2 = f->b2, rec = LOOM_EDGE_RECORD(b1, b2);
+	float *d0 = malloc(sizeof(float) * b1 * b2), *ds = malloc(sizeof(float) * b1 * b2);
+	float *de = malloc(sizeof(float) * b1 * b2);
+	loom_fabric_source s0, ss, se;
+	int ok = d0 && ds && de;
+
+	if (ok) {
+		loom_fabric_dz(f, I, J, d0);
+		loom_fabric_dz(f, I + 1, J, ds);
+		loom_fabric_dz(f, I, J + 1, de);
+		loom_fabric_source_at(f, I, J, &s0);
+		loom_fabric_source_at(f, I + 1, J, &ss);
+		loom_fabric_source_at(f, I, J + 1, &se);
+		for (uint32_t x = 0; x < b1; x++) {
+			double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_S(b1, b2) + x];
+			double h1 = f->heights[(size_t)ss.block * rec + LOOM_EDGE_N(b1, b2) + x];
+			double j = fabs((h0 + d0[(b2 - 1) * b1 + x]) - (h1 + ds[x]));
+			sum[0] += j;
+			*max = j > *max ? j : *max;
+		}
+		for (uint32_t y = 0; y < b2; y++) {
+			double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_E(b1, b2) + y];
+			double h1 = f->heights[(size_t)se.block * rec + LOOM_EDGE_W(b1, b2) + y];
+			double j = fabs((h0 + d0[y * b1 + b1 - 1]) - (h1 + de[y * b1]));
+			sum[1] += j;
+			if (y == 0 || y == b2 - 1)
+				sum[2] += j;
+			*max = j > *max ? j : *max;
+		}
+	}
+	free(d0);
+	free(ds);
+	free(de);
+	return ok;
+}
+
 static void test_seam_block_and_sizes(void)
 {
 	loom_design *d = jacquard(18, 22, 6, 0);
 	loom_fabric *f = synth(d, db, db_path, 3, 0);
 	uint64_t rep[3], bolt[3], bytes = 0;
-	double total;
+	double total, win[3] = {0, 0, 0}, win_max = 0;
+	loom_fabric_metrics m;
 	loom_diag diag = {0};
 
 	CHECK(f != NULL);
@@ -763,40 +807,40 @@ static void test_seam_block_and_sizes(void)
 	   term included) along the S and E edges */
 	for (int64_t I = -4; I < 30; I += 3)
 		for (int64_t J = -7; J < 30; J += 5) {
-			uint32_t b1 = f->b1, b2 = f->b2, rec = LOOM_EDGE_RECORD(b1, b2);
-			double a[4], b[4], sa = 0, ea = 0;
-			float *d0 = malloc(sizeof(float) * b1 * b2), *ds = malloc(sizeof(float) * b1 * b2);
-			float *de = malloc(sizeof(float) * b1 * b2);
-			loom_fabric_source s0, ss, se;
+			double a[4], b[4], sum[3] = {0, 0, 0}, mx = 0;
 			CHECK_EQ_INT(loom_fabric_seam_block(f, I, J, a), LOOM_OK);
 			CHECK_EQ_INT(loom_edgefix_seam_block(f->ef, &f->prof, &f->lk, I, J, b), LOOM_OK);
 			CHECK(fabs(a[0] - b[0]) < 1e-9);
 			CHECK(fabs(a[2] - b[2]) < 1e-9);
-			CHECK(d0 && ds && de);
-			if (!d0 || !ds || !de)
-				break;
-			loom_fabric_dz(f, I, J, d0);
-			loom_fabric_dz(f, I + 1, J, ds);
-			loom_fabric_dz(f, I, J + 1, de);
-			loom_fabric_source_at(f, I, J, &s0);
-			loom_fabric_source_at(f, I + 1, J, &ss);
-			loom_fabric_source_at(f, I, J + 1, &se);
-			for (uint32_t x = 0; x < b1; x++) {
-				double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_S(b1, b2) + x];
-				double h1 = f->heights[(size_t)ss.block * rec + LOOM_EDGE_N(b1, b2) + x];
-				sa += fabs((h0 + d0[(b2 - 1) * b1 + x]) - (h1 + ds[x]));
-			}
-			for (uint32_t y = 0; y < b2; y++) {
-				double h0 = f->heights[(size_t)s0.block * rec + LOOM_EDGE_E(b1, b2) + y];
-				double h1 = f->heights[(size_t)se.block * rec + LOOM_EDGE_W(b1, b2) + y];
-				ea += fabs((h0 + d0[y * b1 + b1 - 1]) - (h1 + de[y * b1]));
-			}
-			CHECK(fabs(a[1] - sa / b1) < 1e-9);
-			CHECK(fabs(a[3] - ea / b2) < 1e-9);
-			free(d0);
-			free(ds);
-			free(de);
+			CHECK(brute_seam(f, I, J, sum, &mx));
+			CHECK(fabs(a[1] - sum[0] / f->b1) < 1e-9);
+			CHECK(fabs(a[3] - sum[1] / f->b2) < 1e-9);
 		}
+	/* the fabric's own metrics (loom synth's "seams ... corners ..." line)
+	   measure the offsets a lookup applies, corner term included, over the
+	   metrics window; before the fix as loom_edgefix_seam's */
+	CHECK_EQ_INT(loom_fabric_get_metrics(f, &m), LOOM_OK);
+	CHECK(f->corner_off != NULL);
+	for (uint64_t I = 0; I < m.window_rows; I++)
+		for (uint64_t J = 0; J < m.window_cols; J++)
+			CHECK(brute_seam(f, (int64_t)I, (int64_t)J, win, &win_max));
+	{
+		uint64_t n = m.window_rows * m.window_cols, ns = n * (f->b1 + f->b2);
+		loom_seam_metrics e;
+		CHECK_EQ_INT(m.seam.samples, ns);
+		CHECK_EQ_INT(m.seam.corner_samples, 2 * n);
+		CHECK(fabs(m.seam.after_mean - (win[0] + win[1]) / (double)ns) < 1e-9);
+		CHECK(fabs(m.seam.corner_after_mean - win[2] / (double)(2 * n)) < 1e-9);
+		CHECK(fabs(m.seam.after_max - win_max) < 1e-9);
+		CHECK_EQ_INT(loom_edgefix_seam(f->ef, &f->prof, &f->lk, 0, 0, m.window_rows,
+		                               m.window_cols, f->internal_step, &e), LOOM_OK);
+		CHECK(fabs(m.seam.before_mean - e.before_mean) < 1e-9);
+		CHECK(fabs(m.seam.corner_before_mean - e.corner_before_mean) < 1e-9);
+		CHECK(fabs(m.seam.after_ratio - m.seam.after_mean / f->internal_step) < 1e-12);
+		/* the edge fix alone differs at the corners (else this test
+		   could not tell the two apart) */
+		CHECK(fabs(e.corner_after_mean - m.seam.corner_after_mean) > 1e-3);
+	}
 	CHECK_EQ_INT(loom_fabric_repeat_voxels(f, rep), LOOM_OK);
 	CHECK_EQ_INT(rep[0], 22 * 8);
 	CHECK_EQ_INT(rep[1], 18 * 6);

@@ -106,8 +106,9 @@ typedef struct loom_fabric_metrics {
 	                              wrap-around neighbours */
 	loom_synth_metrics bolt;   /* window of the bolt after randomisation */
 	loom_seam_metrics seam;    /* seams over the same window, before and
-	                              after the edge fix, with the database's
-	                              internal step as baseline */
+	                              after the offsets lookups apply (edge
+	                              fix and corner term), with the
+	                              database's internal step as baseline */
 	uint64_t window_rows, window_cols; /* that window: [0,h) x [0,w) */
 	uint32_t n_exemplars;
 	const uint64_t *usage;     /* n_exemplars: crossings of the repeat whose
@@ -250,8 +251,8 @@ LOOM_API int loom_fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J,
                                    float dz[4]);
 
 /* Mean |seam jump| of crossing (I, J) along its S and E edges (voxels):
-   out[0] S before the fix, out[1] S after, out[2] E before, out[3] E after.
-   LOOM_OK, LOOM_EINVAL, LOOM_EUNUSABLE (detached). */
+   out[0] S before the fix, out[1] S after, out[2] E before, out[3] E after
+   (after: the offsets lookups apply, corner term included).  LOOM_OK, LOOM_EINVAL, LOOM_EUNUSABLE (detached). */
 LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I,
                                     int64_t J, double out[4]);
 
