@@ -24,6 +24,7 @@
  * lookup (loom__fabric_bind).  This file opens no file.
  */
 #include "fabric_internal.h"
+#include "seam_acc.h"
 
 #include <errno.h>
 #include <limits.h>
@@ -686,33 +687,10 @@ static float dz_at_ij(const loom_fabric *f, int64_t I, int64_t J,
    the offsets a lookup applies (the edge fix and the corner term).  The
    same definition as loom_edgefix_seam / _seam_block, which know only the
    edge fix: with the corner term the four corner columns of every block
-   take loom__fabric_corner_dz instead. */
-typedef struct fseam {
-	double sum_b, sum_a, max_b, max_a, sum_cb, sum_ca;
-	uint64_t n, nc;
-} fseam;
-
-static void fseam_add(fseam *s, double before, double after, int corner)
-{
-	before = fabs(before);
-	after = fabs(after);
-	s->sum_b += before;
-	s->sum_a += after;
-	if (before > s->max_b)
-		s->max_b = before;
-	if (after > s->max_a)
-		s->max_a = after;
-	s->n++;
-	if (corner) { /* the E-edge samples at y = 0, b2 - 1 */
-		s->sum_cb += before;
-		s->sum_ca += after;
-		s->nc++;
-	}
-}
-
-/* Add the S edge of crossing (I, J) to se and its E edge to ee. */
-static void fseam_one(const loom_fabric *f, int64_t I, int64_t J, fseam *se,
-                      fseam *ee)
+   take loom__fabric_corner_dz instead.  fabric_seam_one adds the S edge
+   of crossing (I, J) to se and its E edge to ee. */
+static void fabric_seam_one(const loom_fabric *f, int64_t I, int64_t J,
+                            loom__seam_acc *se, loom__seam_acc *ee)
 {
 	loom_synth_nbhd a, below, right;
 	uint32_t b1 = f->b1, b2 = f->b2;
@@ -728,40 +706,26 @@ static void fseam_one(const loom_fabric *f, int64_t I, int64_t J, fseam *se,
 		double h0 = hs[LOOM_EDGE_S(b1, b2) + x], h1 = hb[LOOM_EDGE_N(b1, b2) + x];
 		double d0 = dz_at_ij(f, I, J, &a, x, b2 - 1);
 		double d1 = dz_at_ij(f, I + 1, J, &below, x, 0);
-		fseam_add(se, h0 - h1, (h0 + d0) - (h1 + d1), 0);
+		loom__seam_add(se, h0 - h1, (h0 + d0) - (h1 + d1), 0);
 	}
 	for (uint32_t y = 0; y < b2; y++) {
 		double h0 = hs[LOOM_EDGE_E(b1, b2) + y], h1 = hr[LOOM_EDGE_W(b1, b2) + y];
 		double d0 = dz_at_ij(f, I, J, &a, b1 - 1, y);
 		double d1 = dz_at_ij(f, I, J + 1, &right, 0, y);
-		fseam_add(ee, h0 - h1, (h0 + d0) - (h1 + d1), y == 0 || y == b2 - 1);
+		loom__seam_add(ee, h0 - h1, (h0 + d0) - (h1 + d1), y == 0 || y == b2 - 1);
 	}
 }
 
 /* f->seam over the crossings [0, rows) x [0, cols) (compute_metrics). */
 static void fabric_seam(loom_fabric *f, uint64_t rows, uint64_t cols)
 {
-	loom_seam_metrics *out = &f->seam;
-	fseam acc;
+	loom__seam_acc acc;
 
 	memset(&acc, 0, sizeof acc);
 	for (uint64_t a = 0; a < rows; a++)
 		for (uint64_t b = 0; b < cols; b++)
-			fseam_one(f, (int64_t)a, (int64_t)b, &acc, &acc);
-	memset(out, 0, sizeof *out);
-	out->samples = acc.n;
-	out->before_mean = acc.n ? acc.sum_b / (double)acc.n : 0;
-	out->after_mean = acc.n ? acc.sum_a / (double)acc.n : 0;
-	out->before_max = acc.max_b;
-	out->after_max = acc.max_a;
-	out->corner_samples = acc.nc;
-	out->corner_before_mean = acc.nc ? acc.sum_cb / (double)acc.nc : 0;
-	out->corner_after_mean = acc.nc ? acc.sum_ca / (double)acc.nc : 0;
-	out->internal_step = f->internal_step;
-	if (f->internal_step > 0) {
-		out->before_ratio = out->before_mean / f->internal_step;
-		out->after_ratio = out->after_mean / f->internal_step;
-	}
+			fabric_seam_one(f, (int64_t)a, (int64_t)b, &acc, &acc);
+	loom__seam_finish(&acc, f->internal_step, &f->seam);
 }
 
 /* The same definition as loom_edgefix_seam_block (|height jump| means along
@@ -770,7 +734,7 @@ static void fabric_seam(loom_fabric *f, uint64_t rows, uint64_t cols)
 LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I, int64_t J,
                                     double out[4])
 {
-	fseam se, ee;
+	loom__seam_acc se, ee;
 
 	if (!f || !out)
 		return LOOM_EINVAL;
@@ -778,7 +742,7 @@ LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I, int64_t J,
 		return LOOM_EUNUSABLE;
 	memset(&se, 0, sizeof se);
 	memset(&ee, 0, sizeof ee);
-	fseam_one(f, I, J, &se, &ee);
+	fabric_seam_one(f, I, J, &se, &ee);
 	out[0] = se.sum_b / f->b1;
 	out[1] = se.sum_a / f->b1;
 	out[2] = ee.sum_b / f->b2;

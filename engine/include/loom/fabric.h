@@ -252,7 +252,8 @@ LOOM_API int loom_fabric_corner_dz(const loom_fabric *f, int64_t I, int64_t J,
 
 /* Mean |seam jump| of crossing (I, J) along its S and E edges (voxels):
    out[0] S before the fix, out[1] S after, out[2] E before, out[3] E after
-   (after: the offsets lookups apply, corner term included).  LOOM_OK, LOOM_EINVAL, LOOM_EUNUSABLE (detached). */
+   (after: the offsets lookups apply, corner term included).  LOOM_OK,
+   LOOM_EINVAL, LOOM_EUNUSABLE (detached). */
 LOOM_API int loom_fabric_seam_block(const loom_fabric *f, int64_t I,
                                     int64_t J, double out[4]);
 
