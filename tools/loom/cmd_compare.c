@@ -989,6 +989,8 @@ int cmd_compare(int argc, char **argv)
 			jw_num(&w, "seam_ratio_b", srb);
 			jw_num(&w, "corner_seam_ratio_a", cra);
 			jw_num(&w, "corner_seam_ratio_b", crb);
+			jw_uint(&w, "corner_pairs_a", A.corner_n);
+			jw_uint(&w, "corner_pairs_b", B.corner_n);
 			jw_uint(&w, "voxels", ac.voxels);
 			jw_num(&w, "seconds", secs);
 			jw_end(&w);
