@@ -10,6 +10,7 @@
 #   make fuzz       libFuzzer targets (clang); make fuzz-run SECONDS=N runs them
 #   make bench      run the benchmarks (figures, never pass/fail)
 #   make fidelity   synthesis against the woven ground truth (docs/fidelity.md)
+#   make fidelity-draws  the same over three seeds of the exemplar set (~15 min)
 #   make install    PREFIX=/usr/local DESTDIR=
 #   make help       this text
 #
@@ -106,7 +107,7 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo gallery test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity
+.PHONY: all demo gallery test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity fidelity-draws
 all: $(STATIC) $(SHARED) $(LOOM) $(VDB_PLUGIN) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
@@ -277,6 +278,10 @@ bench: all $(BENCH_BIN) $(VDB_BIN)
 # synthesis against the woven ground truth (docs/fidelity.md)
 fidelity: all
 	$(Q)sh bench/fidelity.sh $(BUILD)/loom $(DEFAULT_DB) $(BUILD)/fidelity
+
+# the same over several draws of the exemplar set (FIDELITY_DB_SEEDS)
+fidelity-draws: all
+	$(Q)sh bench/fidelity-draws.sh $(BUILD)/loom $(BUILD)/fidelity-draws
 
 # libFuzzer builds (clang, Debian's clang package: tools/deps.sh fuzz).
 # The library is compiled once into $(BUILD)/fuzz/libloom-fuzz.a with

@@ -1292,6 +1292,9 @@ int loom__exgen_check(const loom_exgen_params *p, loom_diag *diag)
 	if (p->rows > MAX_SIDE || p->cols > MAX_SIDE)
 		return loom__fail(diag, LOOM_EINVAL, "generator: %ux%u crossings (at most "
 		                  "%u per side)", p->rows, p->cols, MAX_SIDE);
+	if (p->min_crossings > MAX_SIDE)
+		return loom__fail(diag, LOOM_EINVAL, "generator: at least %u crossings per "
+		                  "side asked (at most %u)", p->min_crossings, MAX_SIDE);
 	for (int k = 0; k < 2; k++) {
 		const char *f = p->fibre[k];
 		if (f && strcmp(f, "none") && !fibre_find(f))
@@ -1414,10 +1417,11 @@ LOOM_API int loom_exgen_set_sett(loom_exgen_params *p, double ends_per_cm,
 	return LOOM_OK;
 }
 
-static uint32_t auto_side(uint32_t repeat)
+/* The smallest multiple of repeat >= p->min_crossings (0: 4). */
+static uint32_t auto_side(const loom_exgen_params *p, uint32_t repeat)
 {
-	uint32_t m = repeat;
-	while (m < 4)
+	uint32_t m = repeat, lo = p->min_crossings ? p->min_crossings : 4;
+	while (m < lo)
 		m += repeat;
 	return m;
 }
@@ -1566,15 +1570,23 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 	g = calloc(1, sizeof *g);
 	if (!g)
 		return loom__fail(diag, LOOM_ENOMEM, "generator: out of memory");
-	g->rows = p->rows ? p->rows : auto_side(rr);
-	g->cols = p->cols ? p->cols : auto_side(rc);
+	g->rows = p->rows ? p->rows : auto_side(p, rr);
+	g->cols = p->cols ? p->cols : auto_side(p, rc);
+	if ((!p->rows && g->rows > MAX_SIDE) || (!p->cols && g->cols > MAX_SIDE)) {
+		loom__exgen_free(g);
+		return loom__fail(diag, LOOM_EINVAL, "weave '%s' repeats every %ux%u "
+		                  "crossings: its smallest multiple of at least %u crossings "
+		                  "a side is %ux%u, above the largest window (%u a side)",
+		                  p->weaves[k], rr, rc, p->min_crossings ? p->min_crossings : 4,
+		                  auto_side(p, rr), auto_side(p, rc), MAX_SIDE);
+	}
 	if (g->rows % rr || g->cols % rc || g->rows > MAX_SIDE || g->cols > MAX_SIDE) {
 		loom__exgen_free(g);
 		return loom__fail(diag, LOOM_EINVAL, "weave '%s' repeats every %ux%u "
 		                  "crossings, which does not tile a %ux%u window (use "
 		                  "multiples of the repeat, at most %u)", p->weaves[k], rr,
-		                  rc, p->rows ? p->rows : auto_side(rr),
-		                  p->cols ? p->cols : auto_side(rc), MAX_SIDE);
+		                  rc, p->rows ? p->rows : auto_side(p, rr),
+		                  p->cols ? p->cols : auto_side(p, rc), MAX_SIDE);
 	}
 	loom_weave_name(&wp, g->weave_name, sizeof g->weave_name);
 	snprintf(g->name, sizeof g->name, "%s", g->weave_name);

@@ -312,3 +312,21 @@ expect_exit fibre_empty 2 "$LOOM" exemplar generate --fibre "" -o "$T/x.ldb"
 expect_err_contains fibre_empty_msg "--fibre"
 expect_exit fibre_empty_side 2 "$LOOM" exemplar generate --fibre cotton, -o "$T/x.ldb"
 expect_err_contains fibre_empty_side_msg "cotton, rayon, silk"
+# --min-crossings: each side the smallest multiple of the weave's repeat at
+# least N (5-end twill 10 x 10, 8-end satin 16 x 16); with --crossings a
+# usage error; a multiple above 64 a side: the weave, its repeat, the limit
+expect_ok min_crossings "$LOOM" exemplar generate --preset tiny --weaves twill:2/3,satin:1/7 \
+	--min-crossings 10 --fibre none --quiet -o "$T/mc.ldb"
+expect_ok min_crossings_info "$LOOM" exemplar info "$T/mc.ldb" --json
+if python3 -c "import json,sys; j=json.load(open(sys.argv[1])); c=[e['crossings'] for e in j['exemplars']]; sys.exit(0 if c == [[10, 10], [16, 16]] else 1)" "$T/out"; then
+	pass min_crossings_sizes
+else
+	fail min_crossings_sizes "$(cat "$T/out")"
+fi
+expect_exit min_crossings_with_crossings 2 "$LOOM" exemplar generate --preset tiny --min-crossings 10 \
+	--crossings 5x5 -o "$T/x.ldb"
+expect_err_contains min_crossings_with_crossings_msg "--min-crossings and --crossings exclude each other"
+expect_exit min_crossings_too_big 1 "$LOOM" exemplar generate --preset tiny --weaves twill:2/3 \
+	--min-crossings 61 -o "$T/x.ldb"
+expect_err_contains min_crossings_too_big_msg "weave 'twill:2/3' repeats every 5x5 crossings: its smallest multiple of at least 61 crossings a side is 65x65, above the largest window (64 a side)"
+if [ -e "$T/x.ldb" ]; then fail min_crossings_no_output "x.ldb exists"; else pass min_crossings_no_output; fi

@@ -992,6 +992,36 @@ static void test_bad_params(void)
 		CHECK(gd.rows == 6 && gd.cols == 6);
 		loom__exgen_free(g);
 	}
+	/* min_crossings: the smallest multiple of the repeat >= it, per side */
+	p.min_crossings = 10;
+	{
+		const char *w[] = {"plain", "twill:2/1", "satin:1/7", "basket:1/3"};
+		const uint32_t want[][2] = {{10, 10}, {12, 12}, {16, 16}, {10, 12}};
+		for (int i = 0; i < 4; i++) {
+			uint32_t rr, rc;
+			loom_weave_params wv;
+			p.weaves[0] = w[i];
+			CHECK_EQ_INT(loom_weave_parse(w[i], &wv, &d), LOOM_OK);
+			CHECK_EQ_INT(loom_weave_repeat(&wv, &rr, &rc, &d), LOOM_OK);
+			CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_OK);
+			if (g) {
+				loom__exgen_desc gd;
+				loom__exgen_describe(g, &gd);
+				/* brute force: the first multiple of the repeat >= 10 */
+				CHECK(gd.rows >= 10 && gd.rows % rr == 0 && gd.rows - rr < 10);
+				CHECK(gd.cols >= 10 && gd.cols % rc == 0 && gd.cols - rc < 10);
+				CHECK(gd.rows == want[i][0] && gd.cols == want[i][1]);
+				loom__exgen_free(g);
+			}
+		}
+	}
+	p.weaves[0] = "twill:2/3";
+	p.min_crossings = 61; /* 65 > 64 */
+	CHECK_EQ_INT(loom__exgen_new(&p, 0, 0, &g, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "is 65x65, above the largest window (64 a side)");
+	p.min_crossings = 65;
+	CHECK_EQ_INT(loom_exgen_check_params(&p, &d), LOOM_EINVAL);
+	CHECK_STR_CONTAINS(d.message, "at least 65 crossings per side asked (at most 64)");
 }
 
 

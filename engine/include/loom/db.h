@@ -260,7 +260,8 @@ typedef struct loom_exgen_params {
 	uint32_t block[3];        /* b1, b2, b3 voxels */
 	float voxel_size_um;
 	uint32_t rows, cols;      /* crossings per exemplar; 0 = per weave: the
-	                             smallest multiple of its repeat >= 4 */
+	                             smallest multiple of its repeat >=
+	                             min_crossings */
 	uint32_t n_weaves;        /* <= LOOM_EXGEN_MAX_WEAVES */
 	const char *weaves[LOOM_EXGEN_MAX_WEAVES]; /* loom_weave_parse names */
 	uint64_t seed;
@@ -299,6 +300,12 @@ typedef struct loom_exgen_params {
 	                             16 KiB rather than decode it
 	                             (docs/exemplars.md, "Raw density"); any
 	                             reader of the version reads it */
+	uint32_t min_crossings;   /* where rows or cols is 0: each side the
+	                             smallest multiple of the weave's repeat >=
+	                             this, at most 64; 0 = 4 (the presets).
+	                             Larger exemplars vary less from one seed
+	                             to the next (docs/fidelity.md, "Exemplar
+	                             draws") but make a larger file */
 } loom_exgen_params;
 
 /*
