@@ -59,15 +59,21 @@ import json, os, sys
 w, seeds = sys.argv[1], sys.argv[2:]
 keys = [("top_agreement_columns", "top agreement"), ("height_rmse_debiased", "height RMSE debiased"),
         ("block_offset_sd", "block-offset SD"), ("histogram_l1", "histogram L1"),
-        ("seam", "seam ratio / reference's"), ("corner", "corners / reference's")]
+        ("seam", "seam ratio / reference's"), ("corner", "corners / reference's"),
+        ("cover", "coverage seams / reference's")]
 def val(j, k):
+    if k == "cover" and "coverage_seam_ratio_a" not in j:
+        return float("nan")  # a JSON of an older loom compare
     if k == "seam":
         return j["seam_ratio_b"] / j["seam_ratio_a"] if j["seam_ratio_a"] else float("nan")
+    if k == "cover":
+        return j["coverage_seam_ratio_b"] / j["coverage_seam_ratio_a"] if j["coverage_seam_ratio_a"] else float("nan")
     if k == "corner":
         return j["corner_seam_ratio_b"] / j["corner_seam_ratio_a"] if j["corner_seam_ratio_a"] else float("nan")
     return j[k]
 d0 = os.path.join(w, "seed-" + seeds[0])
-designs = sorted({f[:-len("-synth.json")] for f in os.listdir(d0) if f.endswith("-synth.json")})
+designs = (os.environ.get("FIDELITY_DESIGNS") or "herringbone wavy-twill broken-twill basket "
+           "satin-1-7 satin-1-9 herringbone-8 overshot-sampler").split()
 print("Over %d database draws (seeds %s): floor (seed-2 reference vs seed 1) and the synthesized fabric's mean [min - max]"
       % (len(seeds), " ".join(seeds)))
 print()

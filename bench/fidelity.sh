@@ -36,8 +36,8 @@ get() { python3 -c "import json,sys; print('%.3f' % json.load(open(sys.argv[1]))
 # block size of DB (b1 b2)
 set -- $("$LOOM" exemplar info "$DB" --json | python3 -c "import json,sys; b=json.load(sys.stdin)['block']; print(b[0], b[1])")
 B1=$1; B2=$2
-printf '| design | crossings | consistency | pair | top agreement (columns) | height RMSE debiased | block-offset SD | histogram L1 | seam ratio (ref %s) | at block corners (ref %s) |\n' "->" "->"
-printf '|---|---|---|---|---|---|---|---|---|---|\n'
+printf '| design | crossings | consistency | pair | top agreement (columns) | height RMSE debiased | block-offset SD | histogram L1 | seam ratio (ref %s) | at block corners (ref %s) | coverage seams (ref %s) |\n' "->" "->" "->"
+printf '|---|---|---|---|---|---|---|---|---|---|---|\n'
 for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-7 satin-1-9 herringbone-8 overshot-sampler}; do
 	f=$W/$d.pbm
 	win=""
@@ -68,10 +68,11 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		# shellcheck disable=SC2086
 		"$LOOM" compare "$W/$d-gt1.ldb#0" "$b" --json $pics $region >"$W/$d-$pair.json"
 		j=$W/$d-$pair.json
-		printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s -> %s | %s -> %s |\n' "$d" "$rows" "$cons" \
+		printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s -> %s | %s -> %s | %s -> %s |\n' "$d" "$rows" "$cons" \
 			"$label" "$(get "$j" top_agreement_columns)" "$(get "$j" height_rmse_debiased)" \
 			"$(get "$j" block_offset_sd)" "$(get "$j" histogram_l1)" \
 			"$(get "$j" seam_ratio_a)" "$(get "$j" seam_ratio_b)" \
-			"$(get "$j" corner_seam_ratio_a)" "$(get "$j" corner_seam_ratio_b)"
+			"$(get "$j" corner_seam_ratio_a)" "$(get "$j" corner_seam_ratio_b)" \
+			"$(get "$j" coverage_seam_ratio_a)" "$(get "$j" coverage_seam_ratio_b)"
 	done
 done

@@ -124,13 +124,14 @@ keys = ["top_agreement_centres", "top_agreement_columns", "height_rmse",
         "height_rmse_debiased", "height_rmse_diameters", "block_offset_sd",
         "histogram_l1", "coverage_a", "coverage_b", "seam_ratio_a", "seam_ratio_b",
         "corner_seam_ratio_a", "corner_seam_ratio_b", "corner_pairs_a", "corner_pairs_b",
-        "voxels", "seconds"]
+        "coverage_seam_ratio_a", "coverage_seam_ratio_b", "voxels", "seconds"]
 assert sorted(j) == sorted(keys), sorted(j)
 assert j["top_agreement_centres"] == 1 and j["top_agreement_columns"] == 1, j
 assert j["height_rmse"] == 0 and j["block_offset_sd"] == 0 and j["histogram_l1"] == 0, j
 assert j["coverage_a"] == j["coverage_b"] > 0.5 and j["seam_ratio_a"] == j["seam_ratio_b"] > 0, j
 assert j["corner_seam_ratio_a"] == j["corner_seam_ratio_b"] > 0, j
 assert j["corner_pairs_a"] == j["corner_pairs_b"] > 0, j
+assert j["coverage_seam_ratio_a"] == j["coverage_seam_ratio_b"] > 0, j
 assert j["voxels"] == 128 * 72 * 12, j
 PY
 	then pass "$1"; else fail "$1" "$(head -c 600 "$T/py")"; fi
@@ -231,12 +232,23 @@ def corner(H):  # the seam pairs next to a point where four blocks meet
                     s[2] += abs(H[u, v] - h)
                     s[3] += 1
     return (s[0] / s[1]) / (s[2] / s[3]), s[1]
+def cov_seam(H):  # pairs with a top on one side only: across edges / inside
+    s = [0, 0, 0, 0]
+    for x in range(nx):
+        for y in range(ny):
+            for (u, v, edge) in ((x + 1, y, (x + 1) % b1 == 0), (x, y + 1, (y + 1) % b2 == 0)):
+                if u < nx and v < ny:
+                    k = 0 if edge else 2
+                    s[k] += ((x, y) in H) != ((u, v) in H)
+                    s[k + 1] += 1
+    return (s[0] / s[1]) / (s[2] / s[3])
 want = {"top_agreement_columns": agree, "top_agreement_centres": agc, "height_rmse": rmse,
         "height_rmse_debiased": deb, "height_rmse_diameters": deb / thick,
         "block_offset_sd": bosd, "histogram_l1": hl1, "coverage_a": len(Ha) / (nx * ny),
         "coverage_b": len(Hb) / (nx * ny), "seam_ratio_a": seam(Ha), "seam_ratio_b": seam(Hb),
         "corner_seam_ratio_a": corner(Ha)[0], "corner_seam_ratio_b": corner(Hb)[0],
-        "corner_pairs_a": corner(Ha)[1], "corner_pairs_b": corner(Hb)[1]}
+        "corner_pairs_a": corner(Ha)[1], "corner_pairs_b": corner(Hb)[1],
+        "coverage_seam_ratio_a": cov_seam(Ha), "coverage_seam_ratio_b": cov_seam(Hb)}
 for k, v in want.items():
     assert abs(j[k] - v) < 1e-6 * max(1, abs(v)), (k, j[k], v)
 assert 0 < agree < 1 and rmse > 0 and bosd > 0, want

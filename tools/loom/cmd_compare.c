@@ -31,7 +31,9 @@ static const char about[] =
 	"difference removed, per-block mean offsets), density histograms per\n"
 	"yarn kind, coverage, and each input's seam ratio (mean height jump\n"
 	"across block edges over the same inside blocks; also at the block\n"
-	"corners alone).  A and B are fabrics\n"
+	"corners alone; and the coverage seam ratio: neighbouring columns with a\n"
+	"top surface on one side only, across block edges over inside blocks).\n"
+	"A and B are fabrics\n"
 	"(.loomf), exemplars (DB.ldb#K, K an index or a name) or volumes\n"
 	"(NAME.density.vol or .nrrd, with NAME.kind.vol or .nrrd beside it, as\n"
 	"`loom export` writes the density and kind channels, placed by their\n"
@@ -86,6 +88,9 @@ typedef struct src {
 	double seam_sum, in_sum, corner_sum;
 	uint64_t seam_n, in_n, corner_n; /* corner: the seam pairs next to a
 	                                   point where four blocks meet */
+	uint64_t cov_seam_n, cov_seam_x, cov_in_n, cov_in_x; /* neighbouring
+	                       pairs across a block edge / inside a block, and
+	                       how many have a top surface on one side only */
 } src;
 
 static double now_s(void)
@@ -544,35 +549,39 @@ static int is_rim(int64_t v, uint32_t b) /* v is a block's first or last */
 }
 
 /* Seam statistics of one input over a finished band of rows [0, ny) (and the
-   pair with the previous band's last row when have_prev). */
+   pair with the previous band's last row when have_prev): height jumps
+   where both columns have a top, coverage mismatches over every pair. */
+static void seam_pair(src *s, float h0, float h1, int edge, int rim)
+{
+	int c0 = !isnan(h0), c1 = !isnan(h1);
+	if (edge)
+		s->cov_seam_n++, s->cov_seam_x += c0 != c1;
+	else
+		s->cov_in_n++, s->cov_in_x += c0 != c1;
+	if (!c0 || !c1)
+		return;
+	if (edge) {
+		s->seam_sum += fabsf(h1 - h0), s->seam_n++;
+		if (rim)
+			s->corner_sum += fabsf(h1 - h0), s->corner_n++;
+	} else
+		s->in_sum += fabsf(h1 - h0), s->in_n++;
+}
+
 static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
                   int have_prev)
 {
 	for (uint32_t y = 0; y < ny; y++)
 		for (size_t x = 0; x < W; x++) {
-			float h0 = s->h[(size_t)y * W + x], h1;
+			float h0 = s->h[(size_t)y * W + x];
 			int64_t gx = r->lo[0] + (int64_t)x, gy = y0 + y;
-			if (isnan(h0))
-				continue;
-			if (x + 1 < W && !isnan(h1 = s->h[(size_t)y * W + x + 1])) {
-				if (is_edge(gx, s->b1)) {
-					s->seam_sum += fabsf(h1 - h0), s->seam_n++;
-					if (is_rim(gy, s->b2))
-						s->corner_sum += fabsf(h1 - h0), s->corner_n++;
-				} else
-					s->in_sum += fabsf(h1 - h0), s->in_n++;
-			}
+			if (x + 1 < W)
+				seam_pair(s, h0, s->h[(size_t)y * W + x + 1], is_edge(gx, s->b1),
+				          is_rim(gy, s->b2));
 			if (y == 0 && !have_prev)
 				continue;
-			h1 = y ? s->h[(size_t)(y - 1) * W + x] : s->hprev[x];
-			if (isnan(h1))
-				continue;
-			if (is_edge(gy - 1, s->b2)) {
-				s->seam_sum += fabsf(h1 - h0), s->seam_n++;
-				if (is_rim(gx, s->b1))
-					s->corner_sum += fabsf(h1 - h0), s->corner_n++;
-			} else
-				s->in_sum += fabsf(h1 - h0), s->in_n++;
+			seam_pair(s, h0, y ? s->h[(size_t)(y - 1) * W + x] : s->hprev[x],
+			          is_edge(gy - 1, s->b2), is_rim(gx, s->b1));
 		}
 	memcpy(s->hprev, s->h + (size_t)(ny - 1) * W, W * sizeof *s->h);
 }
@@ -582,6 +591,15 @@ static void seams(src *s, const box *r, int64_t y0, uint32_t ny, size_t W,
 static double seam_ratio(const src *s, double sum, uint64_t n)
 {
 	return n && s->in_n && s->in_sum > 0 ? (sum / n) / (s->in_sum / s->in_n) : 0;
+}
+
+/* Fraction of block-edge pairs with a top on one side only over the same
+   fraction inside blocks (0 when either is undefined). */
+static double coverage_seam_ratio(const src *s)
+{
+	return s->cov_seam_n && s->cov_in_n && s->cov_in_x ?
+	       ((double)s->cov_seam_x / (double)s->cov_seam_n) /
+	       ((double)s->cov_in_x / (double)s->cov_in_n) : 0;
 }
 
 /* ---- pictures ---------------------------------------------------------------- */
@@ -969,6 +987,7 @@ int cmd_compare(int argc, char **argv)
 		double srb = seam_ratio(&B, B.seam_sum, B.seam_n);
 		double cra = seam_ratio(&A, A.corner_sum, A.corner_n);
 		double crb = seam_ratio(&B, B.corner_sum, B.corner_n);
+		double csa = coverage_seam_ratio(&A), csb = coverage_seam_ratio(&B);
 		double range = 0, secs;
 		if (picdir)
 			pic_write(prog, &pic, picdir, -mean, deb, &range, &diag);
@@ -991,6 +1010,8 @@ int cmd_compare(int argc, char **argv)
 			jw_num(&w, "corner_seam_ratio_b", crb);
 			jw_uint(&w, "corner_pairs_a", A.corner_n);
 			jw_uint(&w, "corner_pairs_b", B.corner_n);
+			jw_num(&w, "coverage_seam_ratio_a", csa);
+			jw_num(&w, "coverage_seam_ratio_b", csb);
 			jw_uint(&w, "voxels", ac.voxels);
 			jw_num(&w, "seconds", secs);
 			jw_end(&w);
@@ -1017,6 +1038,7 @@ int cmd_compare(int argc, char **argv)
 			printf("  %-28s %10.4f / %.4f  (%llu / %llu pairs)\n",
 			       "  at block corners A / B", cra, crb,
 			       (unsigned long long)A.corner_n, (unsigned long long)B.corner_n);
+			printf("  %-28s %10.4f / %.4f\n", "coverage seam ratio A / B", csa, csb);
 			printf("  %.2f s\n", secs);
 			if (picdir)
 				printf("  pictures %s/side-by-side.png, %s/height-difference.png "
