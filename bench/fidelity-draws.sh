@@ -44,7 +44,8 @@ for s in $SEEDS; do
 		# the same woven references for every draw (they depend on the
 		# database's geometry only, which the seed does not change)
 		for g in "$W/seed-$first"/*-gt[12].ldb; do
-			[ -e "$g" ] && ln -f "$g" "$W/seed-$s/" 2>/dev/null || cp "$g" "$W/seed-$s/"
+			[ -e "$g" ] || continue # no reference made (the glob unmatched)
+			ln -f "$g" "$W/seed-$s/" 2>/dev/null || cp "$g" "$W/seed-$s/"
 		done
 		reuse=1
 	fi
@@ -61,16 +62,12 @@ keys = [("top_agreement_columns", "top agreement"), ("height_rmse_debiased", "he
         ("block_offset_sd", "block-offset SD"), ("histogram_l1", "histogram L1"),
         ("seam", "seam ratio / reference's"), ("corner", "corners / reference's"),
         ("cover", "coverage seams / reference's")]
+RATIOS = {"seam": "seam_ratio", "corner": "corner_seam_ratio", "cover": "coverage_seam_ratio"}
 def val(j, k):
-    if k == "cover" and "coverage_seam_ratio_a" not in j:
-        return float("nan")  # a JSON of an older loom compare
-    if k == "seam":
-        return j["seam_ratio_b"] / j["seam_ratio_a"] if j["seam_ratio_a"] else float("nan")
-    if k == "cover":
-        return j["coverage_seam_ratio_b"] / j["coverage_seam_ratio_a"] if j["coverage_seam_ratio_a"] else float("nan")
-    if k == "corner":
-        return j["corner_seam_ratio_b"] / j["corner_seam_ratio_a"] if j["corner_seam_ratio_a"] else float("nan")
-    return j[k]
+    if k not in RATIOS:
+        return j[k]
+    a, b = j.get(RATIOS[k] + "_a"), j.get(RATIOS[k] + "_b")  # None: an older loom compare
+    return b / a if a and b is not None else float("nan")
 d0 = os.path.join(w, "seed-" + seeds[0])
 designs = (os.environ.get("FIDELITY_DESIGNS") or "herringbone wavy-twill broken-twill basket "
            "satin-1-7 satin-1-9 herringbone-8 overshot-sampler").split()

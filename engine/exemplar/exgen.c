@@ -1417,11 +1417,17 @@ LOOM_API int loom_exgen_set_sett(loom_exgen_params *p, double ends_per_cm,
 	return LOOM_OK;
 }
 
-/* The smallest multiple of repeat >= p->min_crossings (0: 4). */
+/* The least side of an automatic window: p->min_crossings, 0 meaning 4. */
+static uint32_t min_side(const loom_exgen_params *p)
+{
+	return p->min_crossings ? p->min_crossings : 4;
+}
+
+/* The smallest multiple of repeat >= min_side(p). */
 static uint32_t auto_side(const loom_exgen_params *p, uint32_t repeat)
 {
-	uint32_t m = repeat, lo = p->min_crossings ? p->min_crossings : 4;
-	while (m < lo)
+	uint32_t m = repeat;
+	while (m < min_side(p))
 		m += repeat;
 	return m;
 }
@@ -1577,7 +1583,7 @@ int loom__exgen_new(const loom_exgen_params *p, uint32_t k, uint32_t variant,
 		return loom__fail(diag, LOOM_EINVAL, "weave '%s' repeats every %ux%u "
 		                  "crossings: its smallest multiple of at least %u crossings "
 		                  "a side is %ux%u, above the largest window (%u a side)",
-		                  p->weaves[k], rr, rc, p->min_crossings ? p->min_crossings : 4,
+		                  p->weaves[k], rr, rc, min_side(p),
 		                  auto_side(p, rr), auto_side(p, rc), MAX_SIDE);
 	}
 	if (g->rows % rr || g->cols % rc || g->rows > MAX_SIDE || g->cols > MAX_SIDE) {

@@ -242,12 +242,13 @@ def cov_seam(H):  # pairs with a top on one side only: across edges / inside
                     s[k] += ((x, y) in H) != ((u, v) in H)
                     s[k + 1] += 1
     return (s[0] / s[1]) / (s[2] / s[3])
+corner_a, corner_b = corner(Ha), corner(Hb)
 want = {"top_agreement_columns": agree, "top_agreement_centres": agc, "height_rmse": rmse,
         "height_rmse_debiased": deb, "height_rmse_diameters": deb / thick,
         "block_offset_sd": bosd, "histogram_l1": hl1, "coverage_a": len(Ha) / (nx * ny),
         "coverage_b": len(Hb) / (nx * ny), "seam_ratio_a": seam(Ha), "seam_ratio_b": seam(Hb),
-        "corner_seam_ratio_a": corner(Ha)[0], "corner_seam_ratio_b": corner(Hb)[0],
-        "corner_pairs_a": corner(Ha)[1], "corner_pairs_b": corner(Hb)[1],
+        "corner_seam_ratio_a": corner_a[0], "corner_seam_ratio_b": corner_b[0],
+        "corner_pairs_a": corner_a[1], "corner_pairs_b": corner_b[1],
         "coverage_seam_ratio_a": cov_seam(Ha), "coverage_seam_ratio_b": cov_seam(Hb)}
 for k, v in want.items():
     assert abs(j[k] - v) < 1e-6 * max(1, abs(v)), (k, j[k], v)
