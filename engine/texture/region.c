@@ -653,6 +653,9 @@ static inline uint32_t group_len(const loom_texture *t, const struct xent *e, ui
 	return (uint32_t)(n < GMAX ? n : GMAX);
 }
 
+static void chunk_extent(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
+                         uint32_t ly, uint32_t cn, int64_t *ea, int64_t *eb);
+
 /* z-fastest: crossing by crossing (so each crossing entry is set up once
    per call), row by row, groups of columns sharing their bricks; each
    column's runs go straight to the output. */
@@ -679,8 +682,28 @@ static int region_zfast(loom_texture *t, struct tslot *s, const struct region *g
 					uint32_t lx = (uint32_t)(x - e->x0), n = group_len(t, e, lx, xe - x);
 					size_t off = ((size_t)(y - g->lo[1]) * g->nx + (size_t)(x - g->lo[0])) *
 					             g->nz;
-					int e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, g->lo[2],
-					                    g->hi[2], &k, off, g->nz);
+					int64_t ea, eb;
+					int e2;
+					/* the group's rows outside its extent are zeroed
+					   without reading their bricks (the group's output
+					   columns are adjacent: one run when all are empty) */
+					chunk_extent(t, s, e, lx, (uint32_t)(y - e->y0), n, &ea, &eb);
+					if (ea < g->lo[2])
+						ea = g->lo[2];
+					if (eb > g->hi[2])
+						eb = g->hi[2];
+					if (ea >= eb) {
+						sink_empty(&k, off, n * g->nz);
+						x += n;
+						continue;
+					}
+					for (uint32_t c = 0; c < n; c++) {
+						sink_empty(&k, off + c * g->nz, (size_t)(ea - g->lo[2]));
+						sink_empty(&k, off + c * g->nz + (size_t)(eb - g->lo[2]),
+						           (size_t)(g->hi[2] - eb));
+					}
+					e2 = group_fill(t, s, e, lx, (uint32_t)(y - e->y0), n, ea, eb, &k,
+					                off + (size_t)(ea - g->lo[2]), g->nz);
 					if (e2 != LOOM_OK && rc == LOOM_OK)
 						rc = e2;
 					x += n;
@@ -892,40 +915,72 @@ tr_label_kt(uint8_t *lab_out, uint8_t *kind, uint8_t *type, size_t o, size_t pla
 
 /* Output z range [*ea, *eb) outside which columns lx0 .. lx0 + cn - 1 of
    row ly of crossing e are surely empty: outside [0, b3), outside the
-   source block (z - dz outside [0, b3)), or in bricks stored as nothing.
+   source block (z - dz outside [0, b3)), in bricks stored as nothing, or,
+   in a stored brick whose every-plane occupancy (t->occa) is known, at
+   heights where the column's tile has no non-zero byte in any plane (an
+   output voxel copies its nearer source voxel's planes, and a voxel whose
+   nearer voxel is all zero is all zero).  At the paper scale the stored
+   bricks' heights cover 50 % of a 64 x 64 x 300 tile, the tiles' 20 %.
    Empty when *ea >= *eb. */
 static void chunk_extent(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                          uint32_t ly, uint32_t cn, int64_t *ea, int64_t *eb)
 {
 	int64_t b3 = t->b3, bz = t->bs[2], a = INT64_MAX, b = INT64_MIN;
 	uint32_t sy = e->sy0 + ly;
+	const _Atomic uint16_t *occa = t->region_no_occ ? NULL : t->occa;
+	size_t trow = occa ? (size_t)in_brick(t, 1, sy) / OCC_T * t->occ_tx : 0;
 
 	for (uint32_t c = 0; c < cn;) {
 		uint32_t n = group_len(t, e, lx0 + c, cn - c), sx = e->sx0 + lx0 + c;
+		uint32_t tx0 = in_brick(t, 0, sx) / OCC_T;
+		uint32_t ntl = (in_brick(t, 0, sx) + n - 1) / OCC_T - tx0 + 1;
 		uint64_t base = e->ex->first_brick +
 		                ((uint64_t)brick_of(t, 1, sy) * e->ex->nb[0] + brick_of(t, 0, sx)) *
 		                        e->ex->nb[2];
-		int64_t klo = -1, khi = -1; /* stored bricks of the group */
-		for (uint32_t kz = 0; kz < e->ex->nb[2]; kz++)
-			if (!brick_empty(t, base + kz)) {
-				if (klo < 0)
-					klo = kz;
-				khi = kz;
+		/* the source heights [slo, shi) that may hold a non-zero byte,
+		   per occupancy tile of the group (whole bricks without a table) */
+		int64_t slo[GMAX / OCC_T + 1], shi[GMAX / OCC_T + 1];
+		for (uint32_t i = 0; i < ntl; i++)
+			slo[i] = INT64_MAX, shi[i] = INT64_MIN;
+		for (uint32_t kz = 0; kz < e->ex->nb[2]; kz++) {
+			uint64_t id = base + kz;
+			const _Atomic uint16_t *ot;
+			if (brick_empty(t, id))
+				continue;
+			ot = occa ? occa + (size_t)stored_rank(t, id) * t->occ_nt + trow + tx0 : NULL;
+			for (uint32_t i = 0; i < ntl; i++) {
+				unsigned v = ot ? atomic_load_explicit(&ot[i], memory_order_relaxed) : 0;
+				int64_t l = kz * bz, h = l + bz;
+				if (v) { /* known: lo | (hi + 1) << 8, hi + 1 = 0 for none */
+					if (!(v >> 8))
+						continue;
+					h = l + (v >> 8);
+					l += v & 0xffu;
+				}
+				if (l < slo[i])
+					slo[i] = l;
+				if (h > shi[i])
+					shi[i] = h;
 			}
-		if (klo >= 0)
-			for (uint32_t q = c; q < c + n; q++) {
-				int f;
-				int64_t dz = dz_split(xent_dz(t, s, e, lx0 + q, ly), &f);
-				int64_t lo = klo * bz + dz, hi = (khi + 1) * bz + dz + (f != 0);
-				if (lo < dz)
-					lo = dz;
-				if (hi > b3 + dz + (f != 0))
-					hi = b3 + dz + (f != 0);
-				if (lo < a)
-					a = lo;
-				if (hi > b)
-					b = hi;
-			}
+		}
+		for (uint32_t q = c; q < c + n; q++) {
+			uint32_t i = (in_brick(t, 0, e->sx0 + lx0 + q)) / OCC_T - tx0;
+			int f;
+			int64_t dz, lo, hi;
+			if (slo[i] >= shi[i])
+				continue;
+			dz = dz_split(xent_dz(t, s, e, lx0 + q, ly), &f);
+			lo = slo[i] + dz;
+			hi = shi[i] + dz + (f != 0);
+			if (lo < dz)
+				lo = dz;
+			if (hi > b3 + dz + (f != 0))
+				hi = b3 + dz + (f != 0);
+			if (lo < a)
+				a = lo;
+			if (hi > b)
+				b = hi;
+		}
 		c += n;
 	}
 	*ea = a > 0 ? a : 0;
@@ -1323,6 +1378,26 @@ void loom__texture_region_whole(loom_texture *t, int on)
 {
 	if (t)
 		t->region_whole = on != 0;
+}
+
+void loom__texture_region_occ(loom_texture *t, int on)
+{
+	if (t)
+		t->region_no_occ = on == 0;
+}
+
+void loom__texture_occ_tiles(const loom_texture *t, uint64_t *known, uint64_t *narrow)
+{
+	*known = *narrow = 0;
+	if (!t || !t->occa)
+		return;
+	for (size_t i = 0; i < (size_t)t->n_stored * t->occ_nt; i++) {
+		unsigned v = atomic_load_explicit(&t->occa[i], memory_order_relaxed);
+		if (!v)
+			continue;
+		++*known;
+		*narrow += (v >> 8) == 0 || (v & 0xffu) > 0 || (v >> 8) < t->bs[2];
+	}
 }
 
 void loom__texture_simd(loom_texture *t, int on)

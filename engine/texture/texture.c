@@ -82,14 +82,17 @@ static int occ_shape_ok(const uint32_t bs[3])
 	return bs[2] <= 255 && bs[0] % OCC_T == 0 && bs[1] % OCC_T == 0;
 }
 
-/* t->occ of stored brick id from its density plane d (z fastest): for
-   each tile, the union of its columns' voxels, then the first and last
-   non-zero height.  Every thread computes the same values from the same
+/* One occupancy table of stored brick id from its first np planes (z
+   fastest, t->bv bytes apart, from d): for each tile, the union of its
+   columns' voxels over those planes, then the first and last non-zero
+   height.  np 1 fills t->occ (density), np LOOM__VOXEL_PLANES t->occa
+   (any byte).  Every thread computes the same values from the same
    bytes, so concurrent stores agree. */
-static void occ_fill(loom_texture *t, uint64_t id, const uint8_t *d)
+static void occ_fill(loom_texture *t, uint64_t id, const uint8_t *d, unsigned np)
 {
 	uint32_t bx = t->bs[0], bz = t->bs[2], nw = (bz + 7) / 8; /* <= 32 */
-	_Atomic uint16_t *o = t->occ + (size_t)stored_rank(t, id) * t->occ_nt;
+	_Atomic uint16_t *o = (np == 1 ? t->occ : t->occa) +
+	                      (size_t)stored_rank(t, id) * t->occ_nt;
 
 	/* filled before (the table outlives evictions; 0 is unknown, and a
 	   tile of air is 255): below the working set a brick comes back
@@ -104,22 +107,24 @@ static void occ_fill(loom_texture *t, uint64_t id, const uint8_t *d)
 			uint64_t u[32] = {0};
 			uint8_t b[8];
 			uint32_t lo = 255, hi1 = 0, w, k;
-			for (uint32_t j = 0; j < OCC_T; j++)
-				for (uint32_t i = 0; i < OCC_T; i++) {
-					const uint8_t *c = d + ((size_t)(ty * OCC_T + j) * bx +
-					                        tx * OCC_T + i) * bz;
-					uint64_t x;
-					for (w = 0; w < bz / 8; w++) {
-						memcpy(&x, c + 8 * w, 8);
-						u[w] |= x;
+			for (unsigned pl = 0; pl < np; pl++)
+				for (uint32_t j = 0; j < OCC_T; j++)
+					for (uint32_t i = 0; i < OCC_T; i++) {
+						const uint8_t *c = d + pl * t->bv +
+						                   ((size_t)(ty * OCC_T + j) * bx +
+						                    tx * OCC_T + i) * bz;
+						uint64_t x;
+						for (w = 0; w < bz / 8; w++) {
+							memcpy(&x, c + 8 * w, 8);
+							u[w] |= x;
+						}
+						if (bz % 8) { /* a last partial word */
+							memset(b, 0, 8);
+							memcpy(b, c + 8 * w, bz % 8);
+							memcpy(&x, b, 8);
+							u[w] |= x;
+						}
 					}
-					if (bz % 8) { /* a last partial word */
-						memset(b, 0, 8);
-						memcpy(b, c + 8 * w, bz % 8);
-						memcpy(&x, b, 8);
-						u[w] |= x;
-					}
-				}
 			for (w = 0; w < nw && !u[w]; w++)
 				;
 			if (w < nw) {
@@ -213,7 +218,7 @@ int loom__dunit_fill(loom_texture *t, struct tslot *s, uint64_t id, unsigned q,
 		/* publish what was filled, release every claim */
 		v = atomic_fetch_xor_explicit(st, want << 32 | done, memory_order_acq_rel);
 		if (t->occ && done && ((v | done) & plane) == plane) /* the plane is whole */
-			occ_fill(t, id, frame + dunit_off(t, id));
+			occ_fill(t, id, frame + dunit_off(t, id), 1);
 		return done & have ? LOOM_OK : rc;
 	}
 	return LOOM_OK;
@@ -237,8 +242,10 @@ static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag 
 		return dunit_load(t, id & ~DUNIT_TAG);
 	rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
 	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
-	if (rc == LOOM_OK && t->occ && !brick_empty(t, id)) /* plane 0: density */
-		occ_fill(t, id, dst);
+	if (rc == LOOM_OK && t->occ && !brick_empty(t, id)) { /* plane 0: density */
+		occ_fill(t, id, dst, 1);
+		occ_fill(t, id, dst, LOOM__VOXEL_PLANES); /* every plane: region reads */
+	}
 	return rc;
 }
 
@@ -510,7 +517,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	           round_up(((size_t)g.n_bricks + 63) / 64 * 4, ALIGN) + /* t->ne_rank */
 	           round_up(((size_t)g.n_bricks + 3) / 4 * 8, ALIGN) + /* t->dstate */
 	           round_up(sizeof(uint32_t) * g.n_bricks, ALIGN) + /* t->hint */
-	           round_up(sizeof(uint16_t) * occ_nt * n_stored, ALIGN); /* t->occ */
+	           2 * round_up(sizeof(uint16_t) * occ_nt * n_stored, ALIGN); /* occ, occa */
 	/* a shared offset map: 4 columns a 64-bit word, whole cache lines */
 	map_words = round_up((cols + 3) / 4, ALIGN / sizeof(uint64_t));
 	n_ent = XENT_WAYS;
@@ -613,6 +620,8 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	if (occ_nt) {
 		t->occ = (_Atomic uint16_t *)((uint8_t *)t->hint +
 		                              round_up(sizeof(uint32_t) * g.n_bricks, ALIGN));
+		t->occa = (_Atomic uint16_t *)((uint8_t *)t->occ +
+		                               round_up(sizeof(uint16_t) * occ_nt * n_stored, ALIGN));
 		t->occ_tx = g.brick[0] / OCC_T;
 		t->occ_nt = (uint32_t)occ_nt;
 	}
@@ -627,7 +636,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 		t->n_stored += (uint32_t)__builtin_popcountll(~t->empty[w]);
 	}
 	if (t->n_stored > n_stored) /* the index disagrees with its count: no table */
-		t->occ = NULL;
+		t->occ = t->occa = NULL;
 	t->n_maps = n_maps;
 	t->map_words = map_words;
 	t->maps = (struct dzmap *)(t->mem + ex_bytes);

@@ -189,6 +189,8 @@ struct loom_texture {
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
 	                            whole-voxel peer; loom__texture_region_whole) */
+	int region_no_occ;       /* region reads do not use occa
+	                            (loom__texture_region_occ) */
 	size_t bv;               /* voxels per brick (plane size) */
 	uint32_t rh, rv;         /* edge-fix ranks */
 	const float *coef, *field_h, *field_v; /* the fabric's tables */
@@ -213,6 +215,11 @@ struct loom_texture {
 	                            non-zero density (0x00ff: none); filled when
 	                            a brick's density plane is read whole (in
 	                            mem; NULL: no table, lookup.c src_air) */
+	_Atomic uint16_t *occa;  /* the same over every plane (the heights of
+	                            the first and last voxel with any non-zero
+	                            byte), filled when a brick is read whole;
+	                            region reads bound their output rows by it
+	                            (region.c chunk_extent); NULL with occ */
 	uint32_t occ_tx, occ_nt; /* tiles per brick row, per brick */
 	_Atomic uint64_t dunit_loads; /* unit frames claimed (they read nothing) */
 	_Atomic uint64_t *dstate; /* per density unit (in mem): bit 8j + q

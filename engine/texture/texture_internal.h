@@ -67,6 +67,18 @@ void loom__texture_simd(loom_texture *t, int on);
    NULL: no-op. */
 void loom__texture_region_whole(loom_texture *t, int on);
 
+/* on = 0: region reads of t bound their output rows by the stored bricks
+   alone, without the every-plane occupancy table (the bench's peer and the
+   tests' check that the table changes no byte); 1 (the default) restores
+   it.  Not thread-safe against reads in flight on t.  NULL: no-op. */
+void loom__texture_region_occ(loom_texture *t, int on);
+
+/* Tiles of t's every-plane occupancy table (t->occa, texture_impl.h) now
+   known, and of those the ones whose heights are narrower than their
+   brick (the ones that bound region reads more tightly than the bricks
+   do).  Both 0 without a table. */
+void loom__texture_occ_tiles(const loom_texture *t, uint64_t *known, uint64_t *narrow);
+
 /* Coarse voxel (X, Y, Z) of level k (1..loom_texture_lod_levels) of
    exemplar u, read through the brick cache: its five bytes (density,
    orientation code low and high, label, anisotropy; lod.c), zeros outside

@@ -1265,6 +1265,80 @@ static void region_paths(void)
 	CHECK_EQ_INT(bad, 0);
 }
 
+/* Region reads bound their output rows by the every-plane occupancy
+   table (loom__texture_region_occ): on the 16x4x32-brick database under
+   40x12x90 blocks, boxes read once to fill the table (whole-brick loads),
+   then again with the table and without it, both layouts, every channel
+   and density alone, each against the reference voxel for voxel; a guard
+   that the table is filled and narrower than its bricks in places (else
+   the check would prove nothing), and that with it the reads of either
+   layout request fewer bricks. */
+static void region_occupancy(void)
+{
+	const uint32_t block[3] = {40, 12, 90}, brick[3] = {16, 4, 32};
+	char path[4300];
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	ref r;
+	uint64_t bad = 0, boxes = 0, known = 0, narrow = 0, req[2][2] = {{0, 0}, {0, 0}};
+	int64_t box[12][6];
+
+	if (!g_ok)
+		return;
+	snprintf(path, sizeof path, "%s/occ.ldb", tmpdir);
+	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 7, block), LOOM_OK);
+	if (loom_db_open(path, &db, NULL) != LOOM_OK) {
+		CHECK(0);
+		return;
+	}
+	f = synth(g_design, db);
+	if (!f || ref_init(&r, f, db) != 0) {
+		CHECK(0);
+		loom_fabric_free(f);
+		loom_db_close(db);
+		return;
+	}
+	t = open_tex(f, db, (size_t)64 << 20, 1); /* nothing evicted */
+	for (int b = 0; b < 12; b++) { /* 3 whole columns, 9 from random heights */
+		box[b][0] = rnd_range(-90, 60);
+		box[b][1] = rnd_range(-30, 20);
+		box[b][2] = b < 3 ? -3 : rnd_range(0, (int64_t)r.b3 - 20);
+		box[b][3] = box[b][0] + rnd_range(20, 130);
+		box[b][4] = box[b][1] + rnd_range(3, 30);
+		box[b][5] = b < 3 ? (int64_t)r.b3 + 2 : rnd_range(box[b][2] + 1, (int64_t)r.b3);
+	}
+	for (int pass = 0; t && pass < 3; pass++) /* 0: fills the table */
+		for (int b = 0; b < 12; b++)
+			for (int lay = 0; lay < 2; lay++)
+				for (int m = 0; m < 2; m++) {
+					loom_texture_stats st0, st1;
+					loom__texture_region_occ(t, pass != 1);
+					loom_texture_get_stats(t, &st0);
+					bad += region_vs_ref(t, &r, box[b], box[b] + 3, m ? 31 : 1, lay);
+					loom_texture_get_stats(t, &st1);
+					if (pass)
+						req[lay][pass - 1] += st1.brick_requests - st0.brick_requests;
+					boxes++;
+				}
+	loom__texture_region_occ(t, 1);
+	loom__texture_occ_tiles(t, &known, &narrow);
+	printf("  %llu boxes, %llu mismatches; table: %llu tiles known, %llu narrower than "
+	       "their brick; brick requests without it / with it: x fastest %llu / %llu, "
+	       "z fastest %llu / %llu\n",
+	       (unsigned long long)boxes, (unsigned long long)bad, (unsigned long long)known,
+	       (unsigned long long)narrow, (unsigned long long)req[0][0],
+	       (unsigned long long)req[0][1], (unsigned long long)req[1][0],
+	       (unsigned long long)req[1][1]);
+	CHECK_EQ_INT(bad, 0);
+	CHECK(known > 0 && narrow > 0);
+	CHECK(req[0][1] < req[0][0] && req[1][1] < req[1][0]);
+	loom_texture_close(t);
+	ref_free(&r);
+	loom_fabric_free(f);
+	loom_db_close(db);
+}
+
 /* Sub-voxel offsets in region reads: a database 150 voxels thick in
    bricks 32 high, so an x-fastest read gathers several 64-voxel slabs and
    a column's run crosses bricks; boxes that start and end inside the
@@ -2507,6 +2581,7 @@ int main(void)
 	RUN(tiny_budgets_deterministic);
 	RUN(wide_blocks_region);
 	RUN(region_paths);
+	RUN(region_occupancy);
 	RUN(region_sub_voxel);
 	RUN(region_blend_edges);
 	RUN(labels_above_15);
