@@ -51,9 +51,12 @@ static void fill_brick(const loom_scan_volume *v, const uint32_t br[3], uint32_t
 				i = loom__scan_idx(v, x, y, z);
 				d = loom__density_encode(v->density[i]);
 				l = v->label ? v->label[i] : 0;
-				if ((d || l) && v->ocode)
+				/* a voxel of density 0 has code 0, labelled or not:
+				   point lookups report no orientation there and region
+				   reads copy the stored code, which must agree */
+				if (d && v->ocode)
 					c = v->ocode[i];
-				else if ((d || l) && v->orient)
+				else if (d && v->orient)
 					c = loom__orient_encode(v->orient[3 * i], v->orient[3 * i + 1],
 					                        v->orient[3 * i + 2]);
 				dp[o] = d;
