@@ -1276,29 +1276,15 @@ static void region_paths(void)
 static void region_occupancy(void)
 {
 	const uint32_t block[3] = {40, 12, 90}, brick[3] = {16, 4, 32};
-	char path[4300];
-	loom_db *db = NULL;
-	loom_fabric *f = NULL;
+	loom_db *db;
+	loom_fabric *f;
 	loom_texture *t = NULL;
 	ref r;
 	uint64_t bad = 0, boxes = 0, known = 0, narrow = 0, req[2][2] = {{0, 0}, {0, 0}};
 	int64_t box[12][6];
 
-	if (!g_ok)
+	if (!g_ok || block_fixture("occ.ldb", brick, 7, block, &db, &f, &r) != 0)
 		return;
-	snprintf(path, sizeof path, "%s/occ.ldb", tmpdir);
-	CHECK_EQ_INT(make_db_block(path, "tiny", brick, 7, block), LOOM_OK);
-	if (loom_db_open(path, &db, NULL) != LOOM_OK) {
-		CHECK(0);
-		return;
-	}
-	f = synth(g_design, db);
-	if (!f || ref_init(&r, f, db) != 0) {
-		CHECK(0);
-		loom_fabric_free(f);
-		loom_db_close(db);
-		return;
-	}
 	t = open_tex(f, db, (size_t)64 << 20, 1); /* nothing evicted */
 	for (int b = 0; b < 12; b++) { /* 3 whole columns, 9 from random heights */
 		box[b][0] = rnd_range(-90, 60);
