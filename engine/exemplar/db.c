@@ -1422,6 +1422,40 @@ done:
 	return rc;
 }
 
+/*
+ * The voxel rule of docs/formats.md: every voxel of density 0 has
+ * orientation code 0 (point lookups report none there, region reads copy
+ * the stored code).  `loom exemplar build` broke it before 2026-12-05;
+ * loom_db_convert writes such a file again with the codes cleared.
+ */
+static int check_orient_rule(const loom_db *db, uint32_t id, uint32_t bx,
+                             uint32_t by, uint32_t bz, const uint8_t *brick,
+                             loom_diag *diag)
+{
+	const uint32_t *bs = db->info.brick;
+	size_t nv = db->brick_voxels;
+
+	for (size_t i = 0; i < nv; i++) {
+		uint16_t code;
+		char name[192];
+		if (brick[i] != 0 || (brick[nv + i] | brick[2 * nv + i]) == 0)
+			continue;
+		code = loom__brick_orient(brick, nv, i);
+		loom__db_brick_name(db, id, name, sizeof name);
+		/* i = (ly * bx + lx) * bz + lz */
+		return loom__fail(diag, LOOM_ECORRUPT, "%s: voxel (%llu, %llu, %llu) of "
+		                  "the exemplar has density 0 and orientation code 0x%04x "
+		                  "(expected 0: docs/formats.md; files written by `loom "
+		                  "exemplar build` before 2026-12-05 break this rule, and "
+		                  "`loom exemplar convert` writes them again with the codes "
+		                  "cleared)", name,
+		                  (unsigned long long)bx * bs[0] + (i / bs[2]) % bs[0],
+		                  (unsigned long long)by * bs[1] + i / ((size_t)bs[2] * bs[0]),
+		                  (unsigned long long)bz * bs[2] + i % bs[2], code);
+	}
+	return LOOM_OK;
+}
+
 LOOM_API int loom_db_verify(const loom_db *db,
                             void (*progress)(void *user, uint64_t done,
                                              uint64_t total),
@@ -1458,6 +1492,8 @@ LOOM_API int loom_db_verify(const loom_db *db,
 				break;
 			}
 		if (rc)
+			break;
+		if ((rc = check_orient_rule(db, id, bx, by, bz, brick, diag)) != LOOM_OK)
 			break;
 		if (progress && ((id & 63) == 63 || id + 1 == db->n_bricks))
 			progress(user, id + 1, db->n_bricks);

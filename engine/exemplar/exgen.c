@@ -411,7 +411,8 @@ static void voxel_value(const loom__exgen *g, const hit *h, float u, float v,
 	*dens = loom__density_encode(kp->dmax * core * fib * edge);
 	for (int k = 0; k < 3; k++)
 		dir[k] = h->T[k] + w1 * h->e1[k] + w2 * h->e2[k];
-	*orient = loom__orient_encode(dir[0], dir[1], dir[2]);
+	/* the voxel rule (docs/formats.md): no orientation where density is 0 */
+	*orient = *dens ? loom__orient_encode(dir[0], dir[1], dir[2]) : 0;
 }
 
 /* Fill voxel column (x, y), z in [zs, ze), into column arrays whose index 0
@@ -745,8 +746,11 @@ static void gen_column_fibres(const loom__exgen *g, line_cache *lc, int64_t x,
 		}
 	}
 	for (int64_t z = zs; z < ze; z++)
-		if (best[z - zs] > 0.0f)
+		if (best[z - zs] > 0.0f) {
 			dens[z - zbase] = loom__density_encode(fminf(cov[z - zs], 1.0f));
+			if (!dens[z - zbase]) /* the voxel rule: no orientation there */
+				bor[z - zs] = 0;
+		}
 }
 
 /* Flyaway overlay on a box (same layout as loom__exgen_box). */

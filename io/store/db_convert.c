@@ -42,6 +42,19 @@ static int same_file(const char *a, const char *b)
 	       sa.st_ino == sb.st_ino;
 }
 
+/*
+ * The voxel rule (docs/formats.md): orientation code 0 wherever density is
+ * 0.  Files that `loom exemplar build` wrote before 2026-12-05 could keep
+ * the code of labelled voxels of density 0; converting clears it (what
+ * `loom exemplar verify` tells the user to do).
+ */
+static void clear_empty_orient(uint8_t *brick, size_t nv)
+{
+	for (size_t i = 0; i < nv; i++)
+		if (brick[i] == 0)
+			brick[nv + i] = brick[2 * nv + i] = 0;
+}
+
 LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_version,
                              int density_raw,
                              void (*progress)(void *user, uint64_t done, uint64_t total),
@@ -54,6 +67,7 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 	loom__db_reader *r = NULL;
 	uint8_t hdr[LOOM__DB_HEADER_BYTES], *buf = NULL;
 	uint64_t done = 0;
+	size_t nv;
 	int rc;
 
 	if (!in || !out)
@@ -84,8 +98,8 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 		goto done;
 	}
 	r = loom__db_reader_new(db);
-	buf = malloc((size_t)info.brick[0] * info.brick[1] * info.brick[2] *
-	             LOOM__VOXEL_PLANES);
+	nv = (size_t)info.brick[0] * info.brick[1] * info.brick[2];
+	buf = malloc(nv * LOOM__VOXEL_PLANES);
 	if (!r || !buf) {
 		rc = loom__fail(diag, LOOM_ENOMEM, "%s: out of memory", in);
 		goto done;
@@ -112,8 +126,10 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 		nb = (uint64_t)e.bricks[0] * e.bricks[1] * e.bricks[2];
 		for (uint64_t i = 0; i < nb && rc == LOOM_OK; i++) {
 			rc = loom__db_reader_read(r, e.first_brick + (uint32_t)i, buf, NULL, diag);
-			if (rc == LOOM_OK)
+			if (rc == LOOM_OK) {
+				clear_empty_orient(buf, nv);
 				rc = loom__dbw_add_brick(w, buf, diag);
+			}
 			if (progress && (++done % 256 == 0 || done == info.n_bricks))
 				progress(user, done, info.n_bricks);
 		}

@@ -172,6 +172,15 @@ expect_err_contains info_none_msg "no exemplar database"
 expect_ok info_default env LOOM_DB= LOOM_DATA= "$LOOM" exemplar info
 expect_out_contains info_default_path "default.ldb"
 
+# the voxel rule (docs/formats.md: orientation code 0 wherever density is
+# 0) holds for what generate writes with the default fibre-level yarns;
+# until 2026-12-05 a voxel at a fibre's edge whose coverage quantised to 0
+# kept its code, and verify names such a voxel
+for p in small tiny; do
+	expect_ok "rule_gen_$p" "$LOOM" exemplar generate --preset $p -o "$T/rule-$p.ldb" --quiet
+	expect_ok "rule_verify_$p" "$LOOM" exemplar verify "$T/rule-$p.ldb" --quiet
+done
+
 # verify, then damage one byte of the first stored brick (it starts right
 # after the 128-byte header: brick 0 is the bottom brick of column 0,0,
 # which holds cloth)

@@ -461,7 +461,7 @@ static int write_hand(const char *path, unsigned layout, int append, uint64_t *h
 	wp.voxel_size_um = 10;
 	wp.top_threshold = 64;
 	wp.level = 6;
-	wp.layout = layout & 0xff;
+	wp.layout = layout & 0xff; /* 0x100: density raw; 0x200: one bad voxel */
 	wp.density_raw = (layout & 0x100) != 0;
 	memset(yarns, 0, sizeof yarns);
 	for (int l = 1; l < 256; l++) {
@@ -484,6 +484,15 @@ static int write_hand(const char *path, unsigned layout, int append, uint64_t *h
 		for (uint32_t bx = 0; bx < 2; bx++)
 			for (uint32_t bz = 0; bz < 2; bz++) {
 				fill_brick(raw, bx, by, bz, &rng);
+				if ((layout & 0x200) && bx == 1 && by == 0 && bz == 1) {
+					/* break the voxel rule at (6, 1, 7): density 0, a
+					   label and an orientation code 0x1234 */
+					size_t i = loom__brick_index(4, 4, 2, 1, 3);
+					raw[i] = 0;
+					raw[64 + i] = 0x34;
+					raw[128 + i] = 0x12;
+					raw[192 + i] = 1;
+				}
 				if ((rc = loom__dbw_add_brick(w, raw, d)) != LOOM_OK) {
 					loom__dbw_abort(w);
 					return rc;
@@ -495,6 +504,50 @@ static int write_hand(const char *path, unsigned layout, int append, uint64_t *h
 static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 {
 	return write_hand(path, 0, 0, hash, d);
+}
+
+/* The voxel rule (docs/formats.md): orientation code 0 wherever density
+   is 0.  loom_db_verify refuses a file that breaks it, naming the voxel
+   and the code; loom_db_convert writes it again with that code cleared
+   and every other byte the same. */
+static void test_orient_rule(void)
+{
+	const char *bad = tpath("orule.ldb"), *good = tpath("orule-fixed.ldb");
+	loom_diag d = {0};
+	loom_db *a = NULL, *b = NULL;
+	uint64_t h = 0;
+	uint32_t org[3] = {0, 0, 0}, sz[3] = {8, 8, 8};
+	uint8_t da[512], db_[512], la[512], lb[512];
+	uint16_t oa[512], ob[512];
+	size_t at = ((size_t)7 * 8 + 1) * 8 + 6, differ = 0;
+
+	CHECK_EQ_INT(write_hand(bad, 0x200, 0, &h, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(bad, &a, &d), LOOM_OK);
+	if (!a)
+		return;
+	CHECK_EQ_INT(loom_db_verify(a, NULL, NULL, &d), LOOM_ECORRUPT);
+	CHECK(strstr(d.message, "voxel (6, 1, 7)") != NULL);
+	CHECK(strstr(d.message, "code 0x1234") != NULL);
+	CHECK(strstr(d.message, "loom exemplar convert") != NULL);
+	CHECK_EQ_INT(loom_db_convert(bad, good, 0, -1, NULL, NULL, &h, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(good, &b, &d), LOOM_OK);
+	if (!b) {
+		loom_db_close(a);
+		return;
+	}
+	CHECK_EQ_INT(loom_db_verify(b, NULL, NULL, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_read_box(a, 0, org, sz, da, oa, la, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_read_box(b, 0, org, sz, db_, ob, lb, &d), LOOM_OK);
+	CHECK(memcmp(da, db_, sizeof da) == 0 && memcmp(la, lb, sizeof la) == 0);
+	CHECK_EQ_INT(da[at], 0);
+	CHECK_EQ_INT(la[at], 1);
+	CHECK_EQ_INT(oa[at], 0x1234);
+	CHECK_EQ_INT(ob[at], 0);
+	for (size_t i = 0; i < 512; i++)
+		differ += oa[i] != ob[i];
+	CHECK_EQ_INT(differ, 1);
+	loom_db_close(a);
+	loom_db_close(b);
 }
 
 /* Appending keeps the database's layout: a version-1 file stays version 1
@@ -1840,6 +1893,7 @@ int main(void)
 	RUN(test_threaded_reads);
 	RUN(test_reader_object);
 	RUN(test_handmade);
+	RUN(test_orient_rule);
 	RUN(test_append_layouts);
 	RUN(test_append_raw_density);
 	RUN(test_streamed_height_map);

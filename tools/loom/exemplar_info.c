@@ -19,7 +19,9 @@ static const char about_info[] =
 static const char about_verify[] =
 	"Read every brick of a database, check its CRC32, decompress it to the\n"
 	"exact size and check its labels.  Exit status 0 when all are good, 1\n"
-	"naming the first bad brick otherwise.\n";
+	"naming the first bad brick otherwise.  A voxel of density 0 with an\n"
+	"orientation code breaks the voxel rule (docs/formats.md): `loom exemplar\n"
+	"convert` writes such a file again with those codes cleared.\n";
 
 static const char about_export[] =
 	"Write one exemplar volume as NRRD (raw data, axes x y z, spacing = voxel\n"
@@ -299,8 +301,10 @@ static const char about_convert[] =
 	"and the density planes raw (--raw-density: a larger file, no decoding on\n"
 	"a miss) or compressed (--deflate-density: DEFLATE in versions 1 to 3,\n"
 	"zero runs in version 4).  Without an option each is\n"
-	"kept.  The voxels, exemplars and block tables are the same; the content\n"
-	"hash is not, so fabrics made over DB need `loom synth` again over OUT.\n"
+	"kept.  The voxels, exemplars and block tables are the same (but for\n"
+	"orientation codes on voxels of density 0, against the voxel rule of\n"
+	"docs/formats.md, which are cleared); the content hash is not, so\n"
+	"fabrics made over DB need `loom synth` again over OUT.\n"
 	"One brick in memory at a time; OUT appears only when complete.\n";
 
 int exemplar_convert(int argc, char **argv)
