@@ -341,6 +341,8 @@ int loom__lod_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *
 		size_t nr = 0;
 		int rc = loom__db_reader_read(s->r, (uint32_t)id, dst, &nr, diag);
 		atomic_fetch_add_explicit(&t->bytes_read, nr, memory_order_relaxed);
+		if (rc == LOOM_OK) /* the air tests and region extents, as without LOD */
+			loom__texture_occ_loaded(t, id, dst);
 		return rc;
 	}
 	/* which exemplar and level: the last (u, k) whose first id is <= id */

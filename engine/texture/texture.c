@@ -232,6 +232,14 @@ uint8_t loom__dunit_segs(const loom_texture *t, uint64_t id)
 	return (uint8_t)(v >> 8 * (r & 3)) | t->dseg_pad;
 }
 
+void loom__texture_occ_loaded(loom_texture *t, uint64_t id, const uint8_t *brick)
+{
+	if (t->occ && !brick_empty(t, id)) {
+		occ_fill(t, id, brick, 1); /* plane 0: density */
+		occ_fill(t, id, brick, LOOM__VOXEL_PLANES); /* every plane: region reads */
+	}
+}
+
 static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag *diag)
 {
 	loom_texture *t = ctx;
@@ -242,10 +250,8 @@ static int tex_load(void *ctx, uint64_t id, void *dst, void *scratch, loom_diag 
 		return dunit_load(t, id & ~DUNIT_TAG);
 	rc = loom__db_reader_read(scratch, (uint32_t)id, dst, &n, diag);
 	atomic_fetch_add_explicit(&t->bytes_read, n, memory_order_relaxed);
-	if (rc == LOOM_OK && t->occ && !brick_empty(t, id)) { /* plane 0: density */
-		occ_fill(t, id, dst, 1);
-		occ_fill(t, id, dst, LOOM__VOXEL_PLANES); /* every plane: region reads */
-	}
+	if (rc == LOOM_OK)
+		loom__texture_occ_loaded(t, id, dst);
 	return rc;
 }
 

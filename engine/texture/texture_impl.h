@@ -540,6 +540,14 @@ static inline uint32_t in_brick(const loom_texture *t, int a, uint32_t v)
 	return t->pow2 ? v & t->mk[a] : v % t->bs[a];
 }
 
+/* ------------------------------------------------ texture.c (the loader) */
+
+/* After a whole-brick load of stored brick id into brick (its four
+   planes): fill its density and every-plane occupancy tables (the air
+   tests of lookups, the extents of region reads), when t has them.  Both
+   loaders call it (tex_load, and loom__lod_load for level-0 ids). */
+void loom__texture_occ_loaded(loom_texture *t, uint64_t id, const uint8_t *brick);
+
 /* ------------------------------------------------ lod.c (level of detail) */
 
 /* Set up the coarse levels of t (t->db, t->ex, t->n_bricks set): the

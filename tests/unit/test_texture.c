@@ -1320,6 +1320,33 @@ static void region_occupancy(void)
 	CHECK(known > 0 && narrow > 0);
 	CHECK(req[0][1] < req[0][0] && req[1][1] < req[1][0]);
 	loom_texture_close(t);
+	/* with LOD on, the level-0 loader fills the tables too (it did not
+	   before 2026-12-05: region reads were bounded by bricks, lookups had
+	   no air test), and the reads still equal the reference */
+	{
+		loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+		loom_diag d = {0};
+		uint64_t lbad = 0, lknown = 0, lnarrow = 0;
+		t = NULL;
+		o.budget_bytes = (size_t)64 << 20;
+		o.max_threads = 1;
+		o.lod = 1;
+		if (loom_texture_open(f, db, &o, &t, &d))
+			printf("  texture open (LOD): %s\n", d.message);
+		CHECK(t != NULL && loom_texture_lod_levels(t) > 0);
+		for (int pass = 0; t && pass < 2; pass++)
+			for (int b = 0; b < 12; b++)
+				for (int lay = 0; lay < 2; lay++)
+					lbad += region_vs_ref(t, &r, box[b], box[b] + 3, 31, lay);
+		if (t)
+			loom__texture_occ_tiles(t, &lknown, &lnarrow);
+		printf("  LOD on: %llu mismatches; %llu tiles known, %llu narrower\n",
+		       (unsigned long long)lbad, (unsigned long long)lknown,
+		       (unsigned long long)lnarrow);
+		CHECK_EQ_INT(lbad, 0);
+		CHECK(lknown > 0 && lnarrow > 0);
+		loom_texture_close(t);
+	}
 	ref_free(&r);
 	loom_fabric_free(f);
 	loom_db_close(db);
