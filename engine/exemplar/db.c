@@ -1425,8 +1425,9 @@ done:
 /*
  * The voxel rule of docs/formats.md: every voxel of density 0 has
  * orientation code 0 (point lookups report none there, region reads copy
- * the stored code).  `loom exemplar build` broke it before 2026-12-05;
- * loom_db_convert writes such a file again with the codes cleared.
+ * the stored code).  `loom exemplar generate` and `loom exemplar build`
+ * broke it before 2026-12-05; loom_db_convert writes such a file again
+ * with the codes cleared.
  */
 static int check_orient_rule(const loom_db *db, uint32_t id, uint32_t bx,
                              uint32_t by, uint32_t bz, const uint8_t *brick,
@@ -1445,9 +1446,10 @@ static int check_orient_rule(const loom_db *db, uint32_t id, uint32_t bx,
 		/* i = (ly * bx + lx) * bz + lz */
 		return loom__fail(diag, LOOM_ECORRUPT, "%s: voxel (%llu, %llu, %llu) of "
 		                  "the exemplar has density 0 and orientation code 0x%04x "
-		                  "(expected 0: docs/formats.md; files written by `loom "
-		                  "exemplar build` before 2026-12-05 break this rule, and "
-		                  "`loom exemplar convert` writes them again with the codes "
+		                  "(expected 0: docs/formats.md; `loom exemplar generate` "
+		                  "and `loom exemplar build` wrote such codes before "
+		                  "2026-12-05: generate the database again, or `loom "
+		                  "exemplar convert` writes it again with the codes "
 		                  "cleared)", name,
 		                  (unsigned long long)bx * bs[0] + (i / bs[2]) % bs[0],
 		                  (unsigned long long)by * bs[1] + i / ((size_t)bs[2] * bs[0]),

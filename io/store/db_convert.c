@@ -44,9 +44,10 @@ static int same_file(const char *a, const char *b)
 
 /*
  * The voxel rule (docs/formats.md): orientation code 0 wherever density is
- * 0.  Files that `loom exemplar build` wrote before 2026-12-05 could keep
- * the code of labelled voxels of density 0; converting clears it (what
- * `loom exemplar verify` tells the user to do).
+ * 0.  Files that `loom exemplar generate` or `loom exemplar build` wrote
+ * before 2026-12-05 could keep the code of voxels whose density quantised
+ * to 0; converting clears it (what `loom exemplar verify` tells the user
+ * to do).
  */
 static void clear_empty_orient(uint8_t *brick, size_t nv)
 {
