@@ -13,6 +13,7 @@
  */
 #include "io/store/db_write.h"
 
+#include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -49,11 +50,16 @@ static int same_file(const char *a, const char *b)
  * to 0; converting clears it (what `loom exemplar verify` tells the user
  * to do).
  */
-static void clear_empty_orient(uint8_t *brick, size_t nv)
+static uint64_t clear_empty_orient(uint8_t *brick, size_t nv)
 {
+	uint64_t n = 0;
+
 	for (size_t i = 0; i < nv; i++)
-		if (brick[i] == 0)
+		if (brick[i] == 0 && (brick[nv + i] | brick[2 * nv + i])) {
 			brick[nv + i] = brick[2 * nv + i] = 0;
+			n++;
+		}
+	return n;
 }
 
 LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_version,
@@ -67,7 +73,7 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 	loom__dbw *w = NULL;
 	loom__db_reader *r = NULL;
 	uint8_t hdr[LOOM__DB_HEADER_BYTES], *buf = NULL;
-	uint64_t done = 0;
+	uint64_t done = 0, cleared = 0;
 	size_t nv;
 	int rc;
 
@@ -128,7 +134,7 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 		for (uint64_t i = 0; i < nb && rc == LOOM_OK; i++) {
 			rc = loom__db_reader_read(r, e.first_brick + (uint32_t)i, buf, NULL, diag);
 			if (rc == LOOM_OK) {
-				clear_empty_orient(buf, nv);
+				cleared += clear_empty_orient(buf, nv);
 				rc = loom__dbw_add_brick(w, buf, diag);
 			}
 			if (progress && (++done % 256 == 0 || done == info.n_bricks))
@@ -139,6 +145,10 @@ LOOM_API int loom_db_convert(const char *in, const char *out, uint32_t db_versio
 		rc = loom__dbw_finish(w, hash, diag);
 		w = NULL;
 	}
+	if (rc == LOOM_OK && cleared)
+		loom__warn(diag, "%s: cleared the orientation codes of %" PRIu64 " voxel%s of "
+		           "density 0 (the voxel rule, docs/formats.md); %s keeps the rule",
+		           in, cleared, cleared == 1 ? "" : "s", out);
 done:
 	if (w)
 		loom__dbw_abort(w);

@@ -136,6 +136,10 @@ assert j["content_hash"] != j["input_content_hash"], j
 assert j["file_bytes"] == j["input_bytes"], j  # raw planes: the same bytes, other index
 EOF
 then pass convert_json; else fail convert_json "$(head -c 400 "$T/py")"; fi
+# a file that keeps the voxel rule: nothing cleared, no warning (test_db
+# checks the warning on a file that breaks it)
+if grep -q "warning" "$T/err"; then fail convert_no_warning "$(head -c 400 "$T/err")"
+else pass convert_no_warning; fi
 expect_ok convert_back "$LOOM" exemplar convert "$T/cv-v3.ldb" -o "$T/cv-back.ldb" \
 	--format-version 4 --deflate-density --quiet
 expect_same convert_round_trip "$DB" "$T/cv-back.ldb"

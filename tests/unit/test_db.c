@@ -506,6 +506,15 @@ static int write_handmade(const char *path, uint64_t *hash, loom_diag *d)
 	return write_hand(path, 0, 0, hash, d);
 }
 
+/* The last warning given (test_orient_rule). */
+static char warn_last[LOOM_DIAG_MSG_MAX];
+
+static void warn_keep(void *user, const char *msg)
+{
+	(void)user;
+	snprintf(warn_last, sizeof warn_last, "%s", msg);
+}
+
 /* The voxel rule (docs/formats.md): orientation code 0 wherever density
    is 0.  loom_db_verify refuses a file that breaks it, naming the voxel
    and the code; loom_db_convert writes it again with that code cleared
@@ -529,7 +538,20 @@ static void test_orient_rule(void)
 	CHECK(strstr(d.message, "voxel (6, 1, 7)") != NULL);
 	CHECK(strstr(d.message, "code 0x1234") != NULL);
 	CHECK(strstr(d.message, "loom exemplar convert") != NULL);
+	d.n_warnings = 0;
+	d.warn = warn_keep;
+	d.user = NULL;
+	warn_last[0] = 0;
 	CHECK_EQ_INT(loom_db_convert(bad, good, 0, -1, NULL, NULL, &h, &d), LOOM_OK);
+	/* the user is told what was cleared */
+	CHECK_EQ_INT(d.n_warnings, 1);
+	CHECK(strstr(warn_last, "cleared the orientation codes of 1 voxel of density 0") !=
+	      NULL);
+	d.warn = NULL;
+	d.n_warnings = 0;
+	CHECK_EQ_INT(loom_db_convert(good, tpath("orule-again.ldb"), 0, -1, NULL, NULL, &h, &d),
+	             LOOM_OK);
+	CHECK_EQ_INT(d.n_warnings, 0); /* nothing to clear: no warning */
 	CHECK_EQ_INT(loom_db_open(good, &b, &d), LOOM_OK);
 	if (!b) {
 		loom_db_close(a);

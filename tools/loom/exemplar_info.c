@@ -303,8 +303,9 @@ static const char about_convert[] =
 	"zero runs in version 4).  Without an option each is\n"
 	"kept.  The voxels, exemplars and block tables are the same (but for\n"
 	"orientation codes on voxels of density 0, against the voxel rule of\n"
-	"docs/formats.md, which are cleared); the content hash is not, so\n"
-	"fabrics made over DB need `loom synth` again over OUT.\n"
+	"docs/formats.md: they are cleared, and a warning says how many); the\n"
+	"content hash is not, so fabrics made over DB need `loom synth` again\n"
+	"over OUT.\n"
 	"One brick in memory at a time; OUT appears only when complete.\n";
 
 int exemplar_convert(int argc, char **argv)
