@@ -26,6 +26,9 @@ expect_exit bad_tile 2 "$LOOM" export "$F" --region "$REG" --format vol --tile 0
 expect_exit bad_shard 2 "$LOOM" export "$F" --region "$REG" --format vol --shard 3/3 -o "$T/x"
 expect_exit region_and_all 2 "$LOOM" export "$F" --region "$REG" --all --format vol -o "$T/x"
 expect_exit tile_over_budget 2 "$LOOM" export "$F" --all --format vol --tile 2048,2048 --budget 16 -o "$T/x"
+expect_err_contains tile_over_budget_msg "more than --budget"
+# one large tile: the advice is a smaller tile, not a larger one
+expect_err_contains tile_over_budget_advice "use a smaller --tile"
 # the manifest (a line per tile) counts against the budget: 16000 tiles of
 # one voxel column do not fit in 4 MiB, and nothing is written
 expect_exit manifest_over_budget 2 "$LOOM" export "$F" --region "$REG" --format vol \
@@ -33,7 +36,6 @@ expect_exit manifest_over_budget 2 "$LOOM" export "$F" --region "$REG" --format 
 expect_err_contains manifest_over_budget_msg "16000 tiles need about"
 if [ -e "$T/manifest_budget/manifest.json" ]; then fail manifest_over_budget_nothing "a manifest was written"
 else pass manifest_over_budget_nothing; fi
-expect_err_contains tile_over_budget_msg "more than --budget"
 : >"$T/afile"
 expect_exit out_not_dir 1 "$LOOM" export "$F" --region "$REG" --format vol -o "$T/afile/sub"
 expect_exit merge_nothing 1 "$LOOM" export --merge "$T"

@@ -384,7 +384,9 @@ void tiles_open_texture(tiles_job *j, const char *prog, size_t worker_bytes)
 	cli_diag_init(&diag, NULL);
 	char s1[40], s2[40], s3[40], s4[40]; /* loom__size_text */
 
-	if (j->job_bytes && buffers >= budget) {
+	/* Advice by the larger part: many tiles (a manifest line each) want
+	   larger tiles or shards; large tiles want smaller ones. */
+	if (buffers >= budget && (double)j->job_bytes > (double)worker_bytes * j->threads) {
 		fprintf(stderr, "%s: %llu tiles need about %s for the manifest and "
 		        "%s of buffers on %u thread%s: more than --budget %s (use "
 		        "a larger --tile, --shard I/N or a larger --budget)\n", prog,
