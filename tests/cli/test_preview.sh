@@ -50,6 +50,12 @@ png_check png_default_ihdr "$T/a.png" 80 60 2
 if [ ! -s "$T/err" ]; then pass quiet_silent; else fail quiet_silent "$(cat "$T/err")"; fi
 expect_ok png_threads1 "$LOOM" preview "$F" -o "$T/b.png" --threads 1 --quiet
 expect_same deterministic_threads "$T/a.png" "$T/b.png"
+# a budget too small names what it needs for the threads the preview runs:
+# all CPUs by default (the texture reserved 16 threads' state before)
+expect_exit budget_small 1 "$LOOM" preview "$F" --budget 0.01 -o "$T/x.png"
+expect_err_contains budget_small_threads "with $(nproc) thread"
+expect_exit budget_small_t3 1 "$LOOM" preview "$F" --budget 0.01 --threads 3 -o "$T/x.png"
+expect_err_contains budget_small_t3_threads "with 3 threads"
 expect_ok png_width "$LOOM" preview "$F" --width 40 -o "$T/c.png" --quiet
 png_check png_width_ihdr "$T/c.png" 40 30 2
 expect_ok png_region "$LOOM" preview "$F" --region -100,-50:300,150 --width 64 \

@@ -187,7 +187,11 @@ int cmd_preview(int argc, char **argv)
 	budget = (size_t)(budget_mb * 1048576.0);
 	own = budget / 4 < ((size_t)16 << 20) ? budget / 4 : (size_t)16 << 20;
 	to.budget_bytes = budget - own;
-	to.max_threads = threads ? threads : 16;
+	/* the texture's per-thread state for the threads the preview runs,
+	   no more: the budget is not spent on threads a small host lacks */
+	if (!threads)
+		threads = cli_cpus();
+	to.max_threads = threads;
 	if (loom_texture_open(f, db, &to, &t, &diag) != LOOM_OK) {
 		loom_paint_free(paint);
 		loom_fabric_free(f);
