@@ -213,7 +213,7 @@ static void run_dmin(dp_ctx *cx, const uint8_t *codes)
 			continue;
 		}
 		for (uint32_t i = 0; i < n; i++) {
-			unsigned d = run_dist(want, br + 4 * (size_t)list[i]);
+			unsigned d = run_dist(want, br + 4 * (size_t)list[i], codes[q] & 1u);
 			cx->dist[i] = d;
 			dmin = d < dmin ? d : dmin;
 		}

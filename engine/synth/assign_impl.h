@@ -131,13 +131,22 @@ static inline int run_long(const uint8_t r[4])
 	return r[0] + r[1] + 1u >= RUN_LONG || r[2] + r[3] + 1u >= RUN_LONG;
 }
 
-/* How far two crossings' float runs differ (0 = the same). */
-static inline unsigned run_dist(const uint8_t a[4], const uint8_t b[4])
+/*
+ * How far two crossings' float runs differ (0 = the same), for crossings
+ * of value v (1: the warp on top).  The runs along the top yarn (the row
+ * for the weft, v = 0; the column for the warp) come first, those across
+ * it break ties: the top surface is the top yarn's float, and where no
+ * block matches both axes (a 1/9 satin's places copied from a 1/7's,
+ * whose moves differ) the plain sum traded the place along the top float
+ * for the place along the float underneath (docs/fidelity.md, "Float
+ * runs").  Each axis sums two runs of at most 15: below 64.
+ */
+static inline unsigned run_dist(const uint8_t a[4], const uint8_t b[4], unsigned v)
 {
-	unsigned d = 0;
+	unsigned d[2] = {0, 0};
 	for (int k = 0; k < 4; k++)
-		d += (unsigned)(a[k] > b[k] ? a[k] - b[k] : b[k] - a[k]);
-	return d;
+		d[k >> 1] += (unsigned)(a[k] > b[k] ? a[k] - b[k] : b[k] - a[k]);
+	return v ? d[1] * 64u + d[0] : d[0] * 64u + d[1];
 }
 
 /* Image of block (r, c) of e under (dr, dc). */

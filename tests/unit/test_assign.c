@@ -318,11 +318,18 @@ static unsigned runs_dist_ref(const uint8_t *wa, uint32_t ma, uint32_t na, uint3
 	/* the rule is for floats of 6 or more (along the row or the column) */
 	if (ra4[0] + ra4[1] + 1 < 6 && ra4[2] + ra4[3] + 1 < 6)
 		return 0;
+	/* the runs along the crossing's top yarn first (the row for the weft,
+	   value 0; the column for the warp), those across it break ties */
+	unsigned along = 0, across = 0, top_warp = wa[ra * na + ca] & 1;
 	for (int k = 0; k < 4; k++) {
 		unsigned a = run_ref(wa, ma, na, ra, ca, dir[k][0], dir[k][1]);
 		unsigned b = run_ref(wb, mb, nb, rb, cb, dir[k][0], dir[k][1]);
-		d += a > b ? a - b : b - a;
+		if ((k >= 2) == (top_warp != 0))
+			along += a > b ? a - b : b - a;
+		else
+			across += a > b ? a - b : b - a;
 	}
+	d = along * 1000 + across;
 	return d;
 }
 
