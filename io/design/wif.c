@@ -1586,6 +1586,15 @@ static const char *sniff_binary(const unsigned char *t, size_t len)
 	return NULL;
 }
 
+/* Nothing but white space (an empty or blank file). */
+static int blank_text(const char *t, size_t len)
+{
+	for (size_t i = 0; i < len; i++)
+		if (!is_blank(t[i]) && t[i] != '\n' && t[i] != '\r')
+			return 0;
+	return 1;
+}
+
 int loom__wif_parse_limited(const char *text, size_t len, const char *name,
                             uint64_t max_cells, loom_design **out,
                             loom_diag *diag)
@@ -1600,6 +1609,10 @@ int loom__wif_parse_limited(const char *text, size_t len, const char *name,
 	if (!out || (!text && len))
 		return loom__fail(diag, LOOM_EINVAL, "%s: NULL argument", name);
 	memset(&p, 0, sizeof p);
+	if (blank_text(text, len))
+		return loom__fail(diag, LOOM_ETRUNCATED, "%s: empty file, expected a "
+		                  "WIF draft ([WIF], [THREADING], [TIEUP] and "
+		                  "[TREADLING] or [LIFTPLAN] sections)", name);
 	if (text) {
 		const char *what = sniff_binary((const unsigned char *)text, len);
 		if (what)

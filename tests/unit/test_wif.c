@@ -125,6 +125,7 @@ static int code_of(const char *name)
 		{"LOOM_EINVAL", LOOM_EINVAL}, {"LOOM_EFORMAT", LOOM_EFORMAT},
 		{"LOOM_ERANGE", LOOM_ERANGE}, {"LOOM_EIO", LOOM_EIO},
 		{"LOOM_ENOMEM", LOOM_ENOMEM}, {"LOOM_EUNSUPPORTED", LOOM_EUNSUPPORTED},
+		{"LOOM_ETRUNCATED", LOOM_ETRUNCATED},
 	};
 	for (size_t i = 0; i < sizeof codes / sizeof *codes; i++)
 		if (!strcmp(name, codes[i].n))
@@ -604,8 +605,11 @@ static void test_args_and_limits(void)
 	CHECK_EQ_INT(loom_wif_parse(NULL, 3, "x", &d, &diag), LOOM_EINVAL);
 	CHECK(d == NULL);
 	CHECK_EQ_INT(loom_wif_parse("abc", 3, "x", NULL, &diag), LOOM_EINVAL);
-	CHECK_EQ_INT(loom_wif_parse(NULL, 0, NULL, &d, &diag), LOOM_EFORMAT);
-	CHECK_STR_CONTAINS(diag.message, "(wif):1: no threading");
+	CHECK_EQ_INT(loom_wif_parse(NULL, 0, NULL, &d, &diag), LOOM_ETRUNCATED);
+	CHECK_STR_CONTAINS(diag.message, "(wif): empty file, expected a WIF draft");
+	CHECK_EQ_INT(loom_wif_parse(" \n", 2, NULL, &d, &diag), LOOM_ETRUNCATED);
+	CHECK_EQ_INT(loom_wif_parse("; c\n", 4, "c.wif", &d, &diag), LOOM_EFORMAT);
+	CHECK_STR_CONTAINS(diag.message, "c.wif:1: no threading");
 	CHECK_EQ_INT(loom_wif_read(NULL, &d, &diag), LOOM_EINVAL);
 	CHECK_EQ_INT(loom_wif_read("/nonexistent/x.wif", &d, &diag), LOOM_EIO);
 	CHECK_STR_CONTAINS(diag.message, "/nonexistent/x.wif");
