@@ -15,10 +15,12 @@
  * Per crossing (I, J) of the bolt, at render time: the crossing's source
  * block (loom_fabric_source_at, randomisation included) and a range
  * [dz_lo, dz_hi] holding its edge-fix offsets.  The offset map is a sum
- * of basis solutions of the discrete Laplace equation (docs/synthesis.md),
- * hence discrete harmonic inside the block, so it takes its extremes on
- * the block's border (maximum principle): only the 2 (b1 + b2) - 4 border
- * columns are evaluated, not the b1 b2 of the map (the corner term
+ * of basis solutions of the screened discrete Laplace equation
+ * (docs/synthesis.md), so its positive maximum and negative minimum lie
+ * on the block's border (maximum principle) and the interior between 0
+ * and the border's values: only the 2 (b1 + b2) - 4 border columns are
+ * evaluated, not the b1 b2 of the map, and the range is widened to hold
+ * 0 (the corner term
  * replaces the four corner columns, which no interior value depends on:
  * their values, loom_fabric_corner_dz, widen the range); a margin covers
  * float rounding, and the texture's rounding to 1/16 voxel blends source voxels
@@ -419,6 +421,11 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 	margin = 1e-3 + 1e-4 * mag;
 	lo -= margin;
 	hi += margin;
+	/* screened fields: the interior lies between 0 and the border's
+	   values, not always between the border's extremes (a block whose
+	   whole border is raised sinks back towards 0 inside) */
+	lo = lo < 0 ? lo : 0;
+	hi = hi > 0 ? hi : 0;
 	lo = lo < -4096.0 ? -4096.0 : lo > 4096.0 ? 4096.0 : lo;
 	hi = hi < -4096.0 ? -4096.0 : hi > 4096.0 ? 4096.0 : hi;
 	*dlo = (int64_t)floor(lo);

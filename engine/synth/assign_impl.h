@@ -138,8 +138,9 @@ static inline int run_long(const uint8_t r[4])
  * it break ties: the top surface is the top yarn's float, and where no
  * block matches both axes (a 1/9 satin's places copied from a 1/7's,
  * whose moves differ) the plain sum traded the place along the top float
- * for the place along the float underneath (docs/fidelity.md, "Float
- * runs").  Each axis sums two runs of at most 15: below 64.
+ * for the place along the float underneath (docs/fidelity.md, "Runs
+ * along the top yarn first").  Each axis sums two runs of at most 15:
+ * below 64.
  */
 static inline unsigned run_dist(const uint8_t a[4], const uint8_t b[4], unsigned v)
 {

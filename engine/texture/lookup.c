@@ -134,14 +134,15 @@ static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a
 /* The whole-voxel bound [e->wlo, e->whi] of the offsets dz_eval gives
    crossing e's columns (every column but the four corners when the
    corner term sets those): each of them reads its source voxels for
-   output voxel z between z - e->whi and z - e->wlo.  The offset map is
-   discrete harmonic inside the block (a sum of basis solutions of the
-   Laplace equation, docs/synthesis.md), so it takes its extremes on the
-   block's border (as the render majorant uses too); on each side of the
-   border, interval arithmetic over the coefficients e->a and each basis
-   field's range along the row or column it reads there (t->frange),
-   widened by the float error of the dot products (from that side's
-   magnitudes), then rounded to 1/DZ_SUB and split as loom__dz_fixed and
+   output voxel z between z - e->whi and z - e->wlo.  The offset map is a
+   sum of basis solutions of the screened Laplace equation
+   (docs/synthesis.md), so its positive maximum and negative minimum lie
+   on the block's border and its interior between 0 and the border's
+   values (as the render majorant uses too); on each side of the border,
+   interval arithmetic over the coefficients e->a and each basis field's
+   range along the row or column it reads there (t->frange), widened by
+   the float error of the dot products (from that side's magnitudes) and
+   to hold 0, then rounded to 1/DZ_SUB and split as loom__dz_fixed and
    dz_split do.  Not finite or beyond DZ_LIMIT (a corrupt table): no
    bound. */
 static void xent_bound(const loom_texture *t, struct xent *e)
@@ -180,6 +181,12 @@ static void xent_bound(const loom_texture *t, struct xent *e)
 		lo = l < lo ? l : lo;
 		hi = h > hi ? h : hi;
 	}
+	/* the screened fields take their extremes on the border only where
+	   they are positive (negative): the interior lies between 0 and the
+	   border's values (a block whose whole border is raised sinks back
+	   towards 0 inside) */
+	lo = lo < 0 ? lo : 0;
+	hi = hi > 0 ? hi : 0;
 	if (!(lo >= -(double)DZ_LIMIT && hi <= (double)DZ_LIMIT)) { /* also NaN */
 		e->wlo = 1;
 		e->whi = 0;

@@ -193,6 +193,43 @@ static void sign_by_hand(void)
 	loom_edgefix_free(ef);
 }
 
+/* A block lower than all four neighbours: its whole border is raised, and
+   the screened fix sinks back towards 0 inside, below the border's least
+   value (so a bound of the offsets from the border alone must hold 0, as
+   the texture's xent_bound and the render majorant's dz_range do). */
+static void raised_border_sinks_inside(void)
+{
+	uint32_t b1 = 24, b2 = 16, rec = LOOM_EDGE_RECORD(24, 16);
+	float h[2 * LOOM_EDGE_RECORD(24, 16)], dz[24 * 16];
+	loom_edge_profiles p = {24, 16, 2, h, NULL};
+	loom_synth_nbhd nb = {0, 1, 1, 1, 1};
+	loom_edgefix *ef = NULL;
+	float blo = INFINITY, bhi = -INFINITY, ilo = INFINITY, ihi = -INFINITY;
+
+	for (uint32_t k = 0; k < rec; k++) {
+		h[k] = 10;
+		h[rec + k] = 14;
+	}
+	CHECK_EQ_INT(loom_edgefix_build(&p, 1, &ef, NULL), LOOM_OK);
+	loom_edgefix_block(ef, &nb, dz);
+	for (uint32_t y = 0; y < b2; y++)
+		for (uint32_t x = 0; x < b1; x++) {
+			float v = dz[y * b1 + x];
+			int border = x == 0 || y == 0 || x == b1 - 1 || y == b2 - 1;
+			if (border) {
+				blo = v < blo ? v : blo;
+				bhi = v > bhi ? v : bhi;
+			} else {
+				ilo = v < ilo ? v : ilo;
+				ihi = v > ihi ? v : ihi;
+			}
+		}
+	CHECK(fabs(blo - 2.0) < 1e-4 && fabs(bhi - 2.0) < 1e-4); /* half of 4 */
+	CHECK(ilo < 0.5f * blo);                                /* sinks inside */
+	CHECK(ilo > 0 && ihi <= bhi + 1e-5f);                   /* within [0, max] */
+	loom_edgefix_free(ef);
+}
+
 static void exact_boundary_and_residual(void)
 {
 	loom_edge_profiles p;
@@ -629,6 +666,7 @@ int main(void)
 	CHECK_MAIN_BEGIN("test_edgefix");
 	RUN(exact_vs_iterative);
 	RUN(sign_by_hand);
+	RUN(raised_border_sinks_inside);
 	RUN(exact_boundary_and_residual);
 	RUN(full_rank_is_exact_and_truncation);
 	RUN(at_equals_block_and_tables);
