@@ -223,6 +223,21 @@ if [ -f "$MESH" ]; then
 fi
 expect_exit mesh_missing 1 "$LOOM" render "$F" --mesh "$T/nope.obj" $R -o "$T/x.png"
 expect_err_contains mesh_missing_msg "nope.obj"
+# meshes with nothing to map onto: no faces (an empty file, a comment, only
+# vertices) or no extent; each named, nothing written
+: > "$T/empty.obj"
+printf '# nothing\n' > "$T/comment.obj"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\n' > "$T/nofaces.obj"
+printf 'v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n' > "$T/point.obj"
+for m in empty comment nofaces; do
+	expect_exit mesh_$m 1 "$LOOM" render "$F" --mesh "$T/$m.obj" $R -o "$T/x.png"
+	expect_err_contains mesh_${m}_msg "$m.obj: no faces: expected 'f' lines"
+done
+expect_err_contains mesh_nofaces_count "3 vertices read"
+expect_exit mesh_point 1 "$LOOM" render "$F" --mesh "$T/point.obj" $R -o "$T/x.png"
+expect_err_contains mesh_point_msg "point.obj: the mesh has no extent"
+if [ -e "$T/x.png" ]; then fail mesh_bad_no_output "an image was written"
+else pass mesh_bad_no_output; fi
 # Embree is loaded only for meshes: without it a flat render still works and
 # a mesh render fails with a message naming the library, writing nothing
 if [ -f "$MESH" ]; then

@@ -763,6 +763,12 @@ int cmd_render(int argc, char **argv)
 			cli_error(prog, "%s", diag.message);
 			goto fail;
 		}
+		if (mesh->n_triangles == 0) { /* also an empty file */
+			cli_error(prog, "%s: no faces: expected 'f' lines (a mesh of "
+			          "triangles or polygons; %u vertices read)", mesh_path,
+			          mesh->n_positions);
+			goto fail;
+		}
 		for (int k = 0; k < 3; k++) {
 			blo[k] = INFINITY;
 			bhi[k] = -INFINITY;
@@ -776,8 +782,9 @@ int cmd_render(int argc, char **argv)
 		for (int k = 0; k < 3; k++)
 			diag_len += (bhi[k] - blo[k]) * (bhi[k] - blo[k]);
 		diag_len = sqrt(diag_len);
-		if (!(diag_len > 0)) {
-			cli_error(prog, "%s: the mesh has no extent", mesh_path);
+		if (!(diag_len > 0) || !isfinite(diag_len)) {
+			cli_error(prog, "%s: the mesh has no extent (all its vertices at "
+			          "one point)", mesh_path);
 			goto fail;
 		}
 		sp.thickness = thickness > 0 ? thickness : 0.015 * diag_len;
