@@ -19,10 +19,10 @@
  * (docs/synthesis.md), so its positive maximum and negative minimum lie
  * on the block's border (maximum principle) and the interior between 0
  * and the border's values: only the 2 (b1 + b2) - 4 border columns are
- * evaluated, not the b1 b2 of the map, and the range is widened to hold
- * 0 (the corner term
- * replaces the four corner columns, which no interior value depends on:
- * their values, loom_fabric_corner_dz, widen the range); a margin covers
+ * evaluated, not the b1 b2 of the map, and the range is widened to hold 0
+ * (the corner term replaces the four corner columns, which no interior
+ * value depends on: their values, loom_fabric_corner_dz, widen the
+ * range); a margin covers
  * float rounding, and the texture's rounding to 1/16 voxel blends source voxels
  * z - ceil(q/16) and z - floor(q/16) (q = round(16 dz)), both inside
  * [z - ceil(dz_hi), z - floor(dz_lo)], with weights summing to 1;

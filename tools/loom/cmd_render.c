@@ -782,7 +782,7 @@ int cmd_render(int argc, char **argv)
 		for (int k = 0; k < 3; k++)
 			diag_len += (bhi[k] - blo[k]) * (bhi[k] - blo[k]);
 		diag_len = sqrt(diag_len);
-		if (!(diag_len > 0) || !isfinite(diag_len)) {
+		if (!(diag_len > 0)) { /* finite: faces need vertices */
 			cli_error(prog, "%s: the mesh has no extent (all its vertices at "
 			          "one point)", mesh_path);
 			goto fail;
