@@ -184,7 +184,9 @@ static void xent_bound(const loom_texture *t, struct xent *e)
 	/* the screened fields take their extremes on the border only where
 	   they are positive (negative): the interior lies between 0 and the
 	   border's values (a block whose whole border is raised sinks back
-	   towards 0 inside) */
+	   towards 0 inside).  Each side's ranges pass through the corner
+	   rows or columns, where the other sides' fields are 0, so l <= 0 <= h
+	   already for sides 2 and 3; held here whatever the tables */
 	lo = lo < 0 ? lo : 0;
 	hi = hi > 0 ? hi : 0;
 	if (!(lo >= -(double)DZ_LIMIT && hi <= (double)DZ_LIMIT)) { /* also NaN */

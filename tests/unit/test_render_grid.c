@@ -24,7 +24,9 @@
  */
 #include "loom.h"
 #include "check.h"
+#include "raise_block.h"
 #include "render/render_internal.h"
+#include "synth/fabric_internal.h"
 
 #include <errno.h>
 #include <math.h>
@@ -408,6 +410,134 @@ static void test_majorant_bounds(void)
 	free(nb);
 	free(tb);
 	loom_majorant_free(m);
+}
+
+/* A crossing whose whole border the edge fix raises (its source block's
+   edges lowered in the fabric's tables, as if the block lay lower in z):
+   the screened fix sinks back towards 0 inside, below the border's least
+   value, so the majorant's offset range must hold 0, not only the border
+   columns' range (dz_range).  Every voxel of the crossing and its eight
+   neighbours at or below its cell's nearest bound, trilinear samples
+   below the trilinear bound.  With the border's range alone the interior
+   columns' cloth lay under cells bounded by 0. */
+static void test_majorant_raised_block(void)
+{
+	loom_fabric *f = NULL;
+	loom_texture *t = NULL;
+	loom_majorant *m = NULL;
+	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
+	loom_fabric_source src;
+	loom_diag d = {0};
+	int64_t I = -1, J = -1, cell[3], nsx, nsy, nzc;
+	float *dz = NULL, blo = INFINITY, ilo = INFINITY;
+	uint8_t *nb = NULL, *tb = NULL;
+	long under = 0, filled = 0;
+	uint64_t rng = 3;
+
+	if (!g_fab)
+		return;
+	CHECK_EQ_INT(loom_fabric_synthesize(g_design, g_db, db_path, NULL, &f, &d), LOOM_OK);
+	if (!f)
+		return;
+	/* a crossing whose source block is none of its neighbours' */
+	for (int64_t i = 0; i < (int64_t)g_design->rows && I < 0; i++)
+		for (int64_t j = 0; j < (int64_t)g_design->cols && I < 0; j++) {
+			loom_synth_nbhd *n = &src.nbhd;
+			CHECK_EQ_INT(loom_fabric_source_at(f, i, j, &src), LOOM_OK);
+			if (n->self != n->n && n->self != n->s && n->self != n->w &&
+			    n->self != n->e) {
+				I = i;
+				J = j;
+			}
+		}
+	CHECK(I >= 0);
+	dz = malloc(sizeof(float) * B[0] * B[1]);
+	if (I < 0 || !dz)
+		goto done;
+	lower_block(f->ef, src.nbhd.self, 3.0f * (float)B[2]);
+	{ /* and its corner columns, which the corner term reads from the
+	     fabric's profiles, by what lower_block took from them */
+		loom_edgefix_tables et;
+		float *h = f->heights + (size_t)src.nbhd.self * LOOM_EDGE_RECORD(B[0], B[1]), vh = 0;
+		CHECK_EQ_INT(loom_edgefix_get_tables(f->ef, &et), LOOM_OK);
+		for (uint32_t x = 0; x < B[0]; x++)
+			vh += et.basis_h[x * et.rank_h];
+		for (uint32_t x = 0; x < B[0]; x += B[0] - 1) {
+			float drop = 3.0f * (float)B[2] * vh * et.basis_h[x * et.rank_h];
+			h[LOOM_EDGE_N(B[0], B[1]) + x] -= drop;
+			h[LOOM_EDGE_S(B[0], B[1]) + x] -= drop;
+		}
+	}
+	CHECK_EQ_INT(loom_fabric_dz(f, I, J, dz), LOOM_OK);
+	for (uint32_t y = 0; y < B[1]; y++)
+		for (uint32_t x = 0; x < B[0]; x++) {
+			float v = dz[y * B[0] + x];
+			if ((x == 0 || x == B[0] - 1) && (y == 0 || y == B[1] - 1))
+				continue; /* the corner term's */
+			if (x == 0 || y == 0 || x == B[0] - 1 || y == B[1] - 1)
+				blo = v < blo ? v : blo;
+			else
+				ilo = v < ilo ? v : ilo;
+		}
+	printf("  crossing (%lld,%lld): border offsets >= %.2f, interior down to %.2f\n",
+	       (long long)I, (long long)J, blo, ilo);
+	CHECK(blo > 1.0f && ilo < blo - 1.5f); /* the premise */
+	o.budget_bytes = (size_t)8 << 20;
+	CHECK_EQ_INT(loom_texture_open(f, g_db, &o, &t, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_majorant_build(f, &m, &d), LOOM_OK);
+	if (!t || !m)
+		goto done;
+	loom_majorant_cell_size(m, cell);
+	nsx = B[0] / cell[0];
+	nsy = B[1] / cell[1];
+	nzc = ((int64_t)B[2] + cell[2] - 1) / cell[2];
+	nb = malloc((size_t)(nsx * nsy * nzc));
+	tb = malloc((size_t)(nsx * nsy * nzc));
+	if (!nb || !tb)
+		goto done;
+	for (int64_t ci = I - 1; ci <= I + 1; ci++)
+		for (int64_t cj = J - 1; cj <= J + 1; cj++) {
+			CHECK_EQ_INT(loom_majorant_bound(m, LOOM_FILTER_NEAREST, ci, cj, nb), LOOM_OK);
+			CHECK_EQ_INT(loom_majorant_bound(m, LOOM_FILTER_TRILINEAR, ci, cj, tb),
+			             LOOM_OK);
+			for (int64_t y = ci * B[1]; y < (ci + 1) * B[1]; y++)
+				for (int64_t x = cj * B[0]; x < (cj + 1) * B[0]; x++)
+					for (int64_t z = 0; z < B[2]; z++) {
+						loom_texel tx;
+						int64_t u = ((y - ci * B[1]) / cell[1]) * nsx +
+						            (x - cj * B[0]) / cell[0];
+						uint8_t bound = nb[u * nzc + z / cell[2]];
+						CHECK_EQ_INT(loom_texture_voxel(t, x, y, z, &tx), LOOM_OK);
+						filled += tx.density > 0;
+						if (tx.density > (float)bound / 255.0f && under++ < 3)
+							printf("  voxel (%lld %lld %lld) density %g, bound %u\n",
+							       (long long)x, (long long)y, (long long)z,
+							       tx.density, bound);
+					}
+			for (int k = 0; k < 2000; k++) {
+				double p[3] = {(cj + urand(&rng)) * B[0], (ci + urand(&rng)) * B[1],
+				               urand(&rng) * B[2]};
+				loom_texel tx;
+				int64_t u = ((int64_t)floor(p[1] - ci * B[1]) / cell[1]) * nsx +
+				            (int64_t)floor(p[0] - cj * B[0]) / cell[0];
+				uint8_t bound = tb[u * nzc + (int64_t)floor(p[2]) / cell[2]];
+				CHECK_EQ_INT(loom_texture_sample(t, p, LOOM_FILTER_TRILINEAR, &tx),
+				             LOOM_OK);
+				if (tx.density > (float)bound / 255.0f * 1.0001f && under++ < 3)
+					printf("  trilinear (%g %g %g) density %g, bound %u\n", p[0], p[1],
+					       p[2], tx.density, bound);
+			}
+		}
+	printf("  %ld voxels with density, %ld above their bound\n", filled, under);
+	CHECK(filled > 0);
+	CHECK_EQ_INT((int)under, 0);
+done:
+	free(nb);
+	free(tb);
+	free(dz);
+	loom_majorant_free(m);
+	loom_texture_close(t);
+	loom_fabric_free(f);
 }
 
 /* The fabric's majorant grid and the nearest-filter grid source over the
@@ -832,6 +962,7 @@ int main(void)
 	RUN(test_area_rows);
 	RUN(setup);
 	RUN(test_majorant_bounds);
+	RUN(test_majorant_raised_block);
 	RUN(test_majorant_zspan);
 	RUN(test_grid_lookup);
 	RUN(test_majorant_exact);

@@ -10,6 +10,8 @@
  */
 #include "check.h"
 #include "loom.h"
+#include "raise_block.h"
+#include "synth/fabric_internal.h"
 #include "texture/texture_internal.h"
 
 #include <errno.h>
@@ -1852,6 +1854,113 @@ static void air_without_offsets(void)
 	loom_db_close(db);
 }
 
+
+/* A crossing whose whole border is raised by 14 voxels or more (its
+   source block's edge coefficients lowered): the screened fix sinks back
+   to about 2 inside, so its columns read source voxels 2 to 70 below
+   their own, far more than any woven fabric's.  Points, density-only
+   points, trilinear footprints and region reads against the reference,
+   at the smallest budget and a large one.  The crossing's offset bound
+   (xent_bound) must hold the interior's low offsets; it does by
+   construction (each side's ranges pass through corner rows or columns
+   where the other sides' fields vanish, so the bound holds 0: this test
+   passed before the widening too), unlike the render majorant's, which
+   test_render_grid checks on such a block. */
+static void raised_block(void)
+{
+	const uint32_t brick[3] = {4, 4, 1};
+	loom_db *db = NULL;
+	loom_fabric *f = NULL;
+	loom_texture *t;
+	ref r;
+	loom_synth_nbhd nb = {0, 0, 0, 0, 0};
+	int64_t I = -1, J = -1;
+	float *dz, blo = INFINITY, ilo = INFINITY;
+	uint64_t bad = 0, nonempty = 0;
+
+	if (!g_ok || block_fixture("raised.ldb", brick, 1, NULL, &db, &f, &r) != 0)
+		return;
+	/* a crossing whose source block is none of its neighbours' */
+	for (int64_t i = 1; i + 1 < (int64_t)g_design->rows && I < 0; i++)
+		for (int64_t j = 1; j + 1 < (int64_t)g_design->cols && I < 0; j++) {
+			loom_synth_nbhd_at(&r.lk, i, j, &nb);
+			if (nb.self != nb.n && nb.self != nb.s && nb.self != nb.w &&
+			    nb.self != nb.e) {
+				I = i;
+				J = j;
+			}
+		}
+	CHECK(I >= 0);
+	dz = malloc(sizeof(float) * r.b1 * r.b2);
+	if (I >= 0 && dz) {
+		float lam = 3.0f * (float)r.b3;
+		lower_block(f->ef, nb.self, lam);
+		lower_block(r.ef, nb.self, lam);
+		r.cI = INT64_MIN;
+		loom_edgefix_block(r.ef, &nb, dz);
+		for (uint32_t y = 0; y < r.b2; y++)
+			for (uint32_t x = 0; x < r.b1; x++) {
+				float v = dz[y * r.b1 + x];
+				int corner = (x == 0 || x == r.b1 - 1) && (y == 0 || y == r.b2 - 1);
+				if (corner)
+					continue; /* the corner term's */
+				if (x == 0 || y == 0 || x == r.b1 - 1 || y == r.b2 - 1)
+					blo = v < blo ? v : blo;
+				else
+					ilo = v < ilo ? v : ilo;
+			}
+		printf("  crossing (%lld,%lld), block %u x %u x %u: border offsets >= %.2f, "
+		       "interior down to %.2f voxels\n", (long long)I, (long long)J, r.b1, r.b2,
+		       r.b3, blo, ilo);
+		/* the premise: raised all round, and sinking inside by more than
+		   a voxel below the border's least value */
+		CHECK(blo > 1.0f);
+		CHECK(ilo < blo - 1.5f);
+		for (int pass = 0; pass < 2; pass++) {
+			int64_t lo[3] = {(J - 1) * r.b1, (I - 1) * r.b2, -2};
+			int64_t hi[3] = {(J + 2) * r.b1, (I + 2) * r.b2, 3 * (int64_t)r.b3};
+			t = open_tex(f, db, pass ? 8u << 20 : min_budget(f, db, 1), 1);
+			CHECK(t != NULL);
+			if (!t)
+				continue;
+			nonempty = 0;
+			bad += check_box(t, &r, lo, hi, pass, &nonempty);
+			for (int64_t z = lo[2]; z < hi[2]; z++)
+				for (int64_t y = lo[1]; y < hi[1]; y++)
+					for (int64_t x = lo[0]; x < hi[0]; x++) {
+						loom_texel a, e = masked(ref_texel(&r, x, y, z),
+						                         LOOM_CHANNEL_DENSITY);
+						CHECK_EQ_INT(loom_texture_voxel_ch(t, x, y, z,
+						                                   LOOM_CHANNEL_DENSITY, &a),
+						             LOOM_OK);
+						bad += !texel_eq(&a, &e);
+					}
+			ref saved = g_ref;
+			g_ref = r;
+			for (int64_t z = lo[2]; z < hi[2]; z++)
+				for (int64_t y = lo[1]; y < hi[1]; y++)
+					for (int64_t x = lo[0]; x < hi[0]; x++) {
+						double p[3] = {(double)x + 0.5, (double)y + 0.25,
+						               (double)z + 0.75};
+						loom_texel a;
+						bad += tri_mismatch(t, p, LOOM_CHANNEL_DENSITY, &a);
+					}
+			g_ref = saved;
+			for (int lay = 0; lay < 2; lay++) { /* density alone, every channel */
+				bad += region_vs_ref(t, &r, lo, hi, 1, lay);
+				bad += region_vs_ref(t, &r, lo, hi, 31, lay);
+			}
+			CHECK(nonempty > 100);
+			loom_texture_close(t);
+		}
+		CHECK_EQ_INT(bad, 0);
+	}
+	free(dz);
+	ref_free(&r);
+	loom_fabric_free(f);
+	loom_db_close(db);
+}
+
 /* Batches equal point lookups, at a budget holding the working set and at
    one far below it (evictions inside the batch, 2 thread slots), and a
    bad position fails alone in a small and a large batch, the batch
@@ -2590,6 +2699,7 @@ int main(void)
 	RUN(crossing_tile_fits);
 	RUN(odd_brick_shape);
 	RUN(air_without_offsets);
+	RUN(raised_block);
 	RUN(region_equals_points);
 	RUN(tiny_budgets_deterministic);
 	RUN(wide_blocks_region);
