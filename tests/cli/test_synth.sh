@@ -37,6 +37,43 @@ if [ -s "$T/err" ]; then fail synth_quiet_stderr "$(head -c 200 "$T/err")"; else
 expect_ok synth_wif_again "$LOOM" synth "$WIF" --quiet -o "$T/h8b.loomf"
 if [ -s "$T/out" ]; then fail synth_quiet_stdout "$(head -c 200 "$T/out")"; else pass synth_quiet_stdout; fi
 expect_same synth_deterministic "$T/h8.loomf" "$T/h8b.loomf"
+# floats longer than any exemplar's: the summary and --json give the
+# longest floats of the design and of the database (the database's
+# computed here from the weaves `loom exemplar info --json` lists for the
+# same default database, runs within each exemplar), and a warning names
+# them; the herringbone above had none (synth_quiet_stderr)
+expect_ok float_db_info "$LOOM" exemplar info --json
+cp "$T/out" "$T/exinfo.json"
+expect_ok float_make "$LOOM" pattern make satin:1/9 -q -o "$T/s19.pbm"
+expect_ok float_synth "$LOOM" synth "$T/s19.pbm" -o "$T/s19.loomf"
+expect_out_contains float_summary "longest floats: warp 1, weft 9 crossings"
+expect_err_contains float_warning "warning: the design's longest weft float is 9 crossings"
+expect_err_contains float_warning_doc "docs/fidelity.md"
+expect_ok float_json "$LOOM" synth "$T/s19.pbm" --json -o "$T/s19.loomf"
+if python3 - "$T/out" "$T/exinfo.json" >"$T/py" 2>&1 <<'EOF'
+import json, sys
+j = json.load(open(sys.argv[1]))["longest_float"]
+warp = weft = 0
+for e in json.load(open(sys.argv[2]))["exemplars"]:
+    rows = e["weave"]
+    for r in rows:
+        n = 0
+        for c in r:
+            n = 0 if c == "1" else n + 1
+            weft = max(weft, n)
+    for k in range(len(rows[0])):
+        n = 0
+        for r in rows:
+            n = n + 1 if r[k] == "1" else 0
+            warp = max(warp, n)
+assert (j["design_warp"], j["design_weft"]) == (1, 9), j
+assert (j["database_warp"], j["database_weft"]) == (warp, weft), (j, warp, weft)
+assert weft < 9, weft
+EOF
+then pass float_json_keys; else fail float_json_keys "$(head -c 600 "$T/py")"; fi
+expect_ok float_quiet "$LOOM" synth "$T/s19.pbm" --quiet -o "$T/s19.loomf"
+if [ -s "$T/err" ]; then fail float_quiet_silent "$(head -c 200 "$T/err")"; else pass float_quiet_silent; fi
+
 # --rank 0 and --edge-fix off: no edge fix (seams unchanged), the same bytes
 # as each other, a fabric every command opens; the default rank moves seams
 expect_ok synth_rank0 "$LOOM" synth "$WIF" --rank 0 --json -o "$T/r0.loomf"
