@@ -59,3 +59,11 @@ expect_ok look_text "$LOOM" look "$LOOM_TOP/tests/data/wif/colors.wif" -o "$T/c"
 expect_out_contains list_drawdown "colors-drawdown.png"
 expect_out_contains list_render "colors-render.png"
 expect_err_contains progress_render "render"
+if grep -qF "longest" "$T/err"; then fail short_floats_no_warning "$(grep -F longest "$T/err")"; else pass short_floats_no_warning; fi
+# a design with floats longer than any exemplar's: the warning names its
+# longest weft float, as `loom pattern info` counts it
+expect_ok long_float_make "$LOOM" pattern make satin:1/9 -q -o "$T/s19.pbm"
+expect_ok long_float_info "$LOOM" pattern info "$T/s19.pbm" --json
+weft=$(python3 -c 'import json,sys; print(json.load(sys.stdin)["weft_floats"]["max"])' <"$T/out")
+expect_ok long_float_look "$LOOM" look "$T/s19.pbm" -o "$T/s19" --time 1 --width 48
+expect_err_contains long_float_warning "warning: the design's longest weft float is $weft crossings"

@@ -252,6 +252,10 @@ int cmd_look(int argc, char **argv)
 	fo.seed = seed;
 	if (loom_fabric_synthesize(d, db, db_path, &fo, &f, &diag) != LOOM_OK)
 		goto fail_diag;
+	{
+		uint32_t dfl[2], xfl[2];
+		cli_float_check(prog, d, db, quiet, 0, dfl, xfl);
+	}
 	if (loom_fabric_save(f, file_in(&lk, ".loomf", path, sizeof path), NULL, &diag) !=
 	    LOOM_OK)
 		goto fail_diag;

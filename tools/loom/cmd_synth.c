@@ -284,33 +284,6 @@ typedef struct run {
 	int floats;                    /* dfloat, xfloat set (not --identity) */
 } run;
 
-/* The longest warp float (run of 1s down a column) and weft float (run of
-   0s along a row) of the exemplars' weaves, as runs of neighbouring
-   blocks: within the exemplar, not across its border, since synthesis
-   never continues a copy across an exemplar's border. */
-static void db_floats(const loom_db *db, uint32_t fl[2])
-{
-	loom_db_info info;
-
-	fl[0] = fl[1] = 0;
-	loom_db_get_info(db, &info);
-	for (uint32_t u = 0; u < info.n_exemplars; u++) {
-		loom_db_exemplar_info e;
-		if (loom_db_exemplar(db, u, &e) != LOOM_OK || !e.weave)
-			continue;
-		for (uint32_t i = 0; i < e.rows; i++)
-			for (uint32_t j = 0, n = 0; j < e.cols; j++) {
-				n = e.weave[(size_t)i * e.cols + j] ? 0 : n + 1;
-				fl[1] = n > fl[1] ? n : fl[1];
-			}
-		for (uint32_t j = 0; j < e.cols; j++)
-			for (uint32_t i = 0, n = 0; i < e.rows; i++) {
-				n = e.weave[(size_t)i * e.cols + j] ? n + 1 : 0;
-				fl[0] = n > fl[0] ? n : fl[0];
-			}
-	}
-}
-
 static void print_json(const run *r)
 {
 	const loom_design *d = loom_fabric_design(r->f);
@@ -698,29 +671,8 @@ int cmd_synth(int argc, char **argv)
 	if (loom_fabric_synthesize(d, db, r.db_path, &o, &f, &diag) != LOOM_OK)
 		cli_fail(prog, "%s%s", progress ? "\n" : "", diag.message);
 	r.t_synth = now_s() - t0;
-	if (!identity) {
-		loom_design_stats st;
-		if (loom_design_analyze(d, &st) == LOOM_OK) {
-			r.dfloat[0] = st.max_warp_float;
-			r.dfloat[1] = st.max_weft_float;
-			db_floats(db, r.xfloat);
-			r.floats = 1;
-		}
-	}
-	if (r.floats && !quiet && (r.dfloat[0] > r.xfloat[0] || r.dfloat[1] > r.xfloat[1])) {
-		char what[128];
-		int n = 0;
-		for (int k = 0; k < 2; k++)
-			if (r.dfloat[k] > r.xfloat[k])
-				n += snprintf(what + n, sizeof what - (size_t)n,
-				              "%s%s float is %u crossings, the database's %u",
-				              n ? "; its longest " : "", k ? "weft" : "warp", r.dfloat[k],
-				              r.xfloat[k]);
-		fprintf(stderr, "%sloom synth: warning: the design's longest %s: blocks along "
-		        "longer floats are copied from shorter ones, so their heights differ "
-		        "from the woven cloth's (docs/fidelity.md, \"Float runs\")\n",
-		        progress ? "\n" : "", what);
-	}
+	if (!identity)
+		r.floats = cli_float_check(prog, d, db, quiet, progress, r.dfloat, r.xfloat);
 	loom_design_free(d);
 	if (progress)
 		fprintf(stderr, " writing...");

@@ -1,6 +1,8 @@
 /*
  * tools/loom/settdb.c - exemplar databases woven at a draft's own sett
- * (docs/exemplars.md, "Databases for a draft's sett").
+ * (docs/exemplars.md, "Databases for a draft's sett"), and the checks of
+ * a design against the database it is synthesized over: the sett's
+ * aspect (cli_sett_check) and the longest floats (cli_float_check).
  *
  * A draft that states its sett (WIF Spacing) gets a database generated for
  * that sett and those yarn diameters: the small preset's weaves and seed,
@@ -347,4 +349,56 @@ void cli_sett_check(const loom_design *d, const loom_db *db, const char *db_path
 		        "for the draft's sett)\n", db_path, info.block[0], info.block[1],
 		        have, (double)d->sett[0], (double)d->sett[1], want,
 		        have > want ? "wider than it should" : "narrower than it should");
+}
+
+/* The longest warp float (run of 1s down a column) and weft float (run of
+   0s along a row) of the exemplars' weaves, as runs of neighbouring
+   blocks: within the exemplar, not across its border, since synthesis
+   never continues a copy across an exemplar's border. */
+static void db_floats(const loom_db *db, uint32_t fl[2])
+{
+	loom_db_info info;
+
+	fl[0] = fl[1] = 0;
+	loom_db_get_info(db, &info);
+	for (uint32_t u = 0; u < info.n_exemplars; u++) {
+		loom_db_exemplar_info e;
+		if (loom_db_exemplar(db, u, &e) != LOOM_OK || !e.weave)
+			continue;
+		for (uint32_t i = 0; i < e.rows; i++)
+			for (uint32_t j = 0, n = 0; j < e.cols; j++) {
+				n = e.weave[(size_t)i * e.cols + j] ? 0 : n + 1;
+				fl[1] = n > fl[1] ? n : fl[1];
+			}
+		for (uint32_t j = 0; j < e.cols; j++)
+			for (uint32_t i = 0, n = 0; i < e.rows; i++) {
+				n = e.weave[(size_t)i * e.cols + j] ? n + 1 : 0;
+				fl[0] = n > fl[0] ? n : fl[0];
+			}
+	}
+}
+
+int cli_float_check(const char *prog, const loom_design *d, const loom_db *db, int quiet,
+                    int newline, uint32_t dfl[2], uint32_t xfl[2])
+{
+	loom_design_stats st;
+	char what[128];
+	int n = 0;
+
+	if (loom_design_analyze(d, &st) != LOOM_OK)
+		return 0;
+	dfl[0] = st.max_warp_float;
+	dfl[1] = st.max_weft_float;
+	db_floats(db, xfl);
+	for (int k = 0; k < 2; k++)
+		if (dfl[k] > xfl[k])
+			n += snprintf(what + n, sizeof what - (size_t)n,
+			              "%s%s float is %u crossings, the database's %u",
+			              n ? "; its longest " : "", k ? "weft" : "warp", dfl[k], xfl[k]);
+	if (n && !quiet)
+		fprintf(stderr, "%s%s: warning: the design's longest %s: blocks along longer "
+		        "floats are copied from shorter ones, so their heights differ from the "
+		        "woven cloth's (docs/fidelity.md, \"Float runs\")\n", newline ? "\n" : "",
+		        prog, what);
+	return 1;
 }
