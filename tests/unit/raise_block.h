@@ -10,20 +10,21 @@
 
 #include <stdint.h>
 
-/* Lower block t's four edge profiles by lam times the projection of a
-   constant onto the bases (its coefficients in tb), so that a crossing
-   copying t has its whole border raised by about lam / 2. */
-static inline void lower_block(const loom_edgefix *ef, uint32_t t, float lam)
+/* Lower source block t's four edge profiles in the edge fix's tables by
+   lam times their first basis vectors (the profiles' mean level, one sign
+   along an edge), as a database whose block t lay lower in z would have
+   them: a crossing copying t then has its border raised by about lam / 2
+   (the callers check the offsets they get).  The tables are the edge
+   fix's own heap copies, edited in place.  rec: NULL, or block t's edge
+   record (LOOM_EDGE_RECORD floats) whose four corner samples, which the
+   corner term reads, are lowered by as much as the N and S profiles are
+   there. */
+static inline void lower_block(const loom_edgefix *ef, uint32_t t, float lam, float *rec)
 {
 	loom_edgefix_tables tb;
 	float *c, vh = 0, vv = 0;
 	if (loom_edgefix_get_tables(ef, &tb) != LOOM_OK)
 		return;
-	/* the tables are the edge fix's own heap copies: edited in place, as
-	   a database whose block t lay lower in z would have them.  Only the
-	   first basis vectors (the profiles' mean level: one sign along the
-	   edge, checked by the caller), so that the texture's interval bound
-	   is nearly as tight as the field's own range */
 	c = (float *)(uintptr_t)(tb.coef + (size_t)t * 2 * (tb.rank_h + tb.rank_v));
 	for (uint32_t x = 0; x < tb.b1; x++)
 		vh += tb.basis_h[x * tb.rank_h];
@@ -33,6 +34,11 @@ static inline void lower_block(const loom_edgefix *ef, uint32_t t, float lam)
 	c[tb.rank_h] -= lam * vh;
 	c[2 * tb.rank_h] -= lam * vv;
 	c[2 * tb.rank_h + tb.rank_v] -= lam * vv;
+	for (uint32_t x = 0; rec && x < tb.b1; x += tb.b1 - 1) {
+		float drop = lam * vh * tb.basis_h[x * tb.rank_h];
+		rec[LOOM_EDGE_N(tb.b1, tb.b2) + x] -= drop;
+		rec[LOOM_EDGE_S(tb.b1, tb.b2) + x] -= drop;
+	}
 }
 
 #endif

@@ -324,6 +324,43 @@ static void setup(void)
 	printf("  block %ux%ux%u\n", B[0], B[1], B[2]);
 }
 
+/* Every voxel of crossing (I, J) against its cell's nearest bound nb and
+   `samples` trilinear samples at random points against the trilinear
+   bound tb (loom_majorant_bound's cells, `cell` voxels each): each above
+   its bound adds 1 to *under (the first 3 printed); *voxels counts the
+   voxels, *filled those with density. */
+static void crossing_vs_bounds(loom_texture *t, int64_t I, int64_t J, const int64_t cell[3],
+                               const uint8_t *nb, const uint8_t *tb, int samples,
+                               uint64_t *rng, long *under, long *voxels, long *filled)
+{
+	int64_t nsx = B[0] / cell[0], nzc = ((int64_t)B[2] + cell[2] - 1) / cell[2];
+
+	for (int64_t y = I * B[1]; y < (I + 1) * B[1]; y++)
+		for (int64_t x = J * B[0]; x < (J + 1) * B[0]; x++)
+			for (int64_t z = 0; z < B[2]; z++) {
+				loom_texel tx;
+				int64_t u = ((y - I * B[1]) / cell[1]) * nsx + (x - J * B[0]) / cell[0];
+				uint8_t bound = nb[u * nzc + z / cell[2]];
+				CHECK_EQ_INT(loom_texture_voxel(t, x, y, z, &tx), LOOM_OK);
+				(*voxels)++;
+				*filled += tx.density > 0;
+				if (tx.density > (float)bound / 255.0f && (*under)++ < 3)
+					printf("  voxel (%lld %lld %lld) density %g, bound %u\n",
+					       (long long)x, (long long)y, (long long)z, tx.density, bound);
+			}
+	for (int k = 0; k < samples; k++) {
+		double p[3] = {(J + urand(rng)) * B[0], (I + urand(rng)) * B[1], urand(rng) * B[2]};
+		loom_texel tx;
+		int64_t u = ((int64_t)floor(p[1] - I * B[1]) / cell[1]) * nsx +
+		            (int64_t)floor(p[0] - J * B[0]) / cell[0];
+		uint8_t bound = tb[u * nzc + (int64_t)floor(p[2]) / cell[2]];
+		CHECK_EQ_INT(loom_texture_sample(t, p, LOOM_FILTER_TRILINEAR, &tx), LOOM_OK);
+		if (tx.density > (float)bound / 255.0f * 1.0001f && (*under)++ < 3)
+			printf("  trilinear (%g %g %g) density %g, bound %u\n", p[0], p[1], p[2],
+			       tx.density, bound);
+	}
+}
+
 static void test_majorant_bounds(void)
 {
 	loom_majorant *m = NULL;
@@ -331,7 +368,7 @@ static void test_majorant_bounds(void)
 	int64_t cell[3];
 	uint8_t *nb, *tb;
 	int64_t nsx, nsy, nzc;
-	long under = 0, voxels = 0, empty_cells = 0, cells = 0, dzs = 0;
+	long under = 0, voxels = 0, filled = 0, empty_cells = 0, cells = 0, dzs = 0;
 	uint64_t rng = 7;
 	float *dz;
 
@@ -371,34 +408,8 @@ static void test_majorant_bounds(void)
 				if (tb[c] < nb[c])
 					under++; /* trilinear covers more: never smaller */
 			}
-			for (int64_t y = I * B[1]; y < (I + 1) * B[1]; y++)
-				for (int64_t x = J * B[0]; x < (J + 1) * B[0]; x++)
-					for (int64_t z = 0; z < B[2]; z++) {
-						loom_texel tx;
-						int64_t u = ((y - I * B[1]) / cell[1]) * nsx + (x - J * B[0]) / cell[0];
-						uint8_t bound = nb[u * nzc + z / cell[2]];
-						CHECK_EQ_INT(loom_texture_voxel(g_tex, x, y, z, &tx), LOOM_OK);
-						voxels++;
-						if (tx.density > (float)bound / 255.0f) {
-							if (under++ < 3)
-								printf("  voxel (%lld %lld %lld) density %g, bound %u\n",
-								       (long long)x, (long long)y, (long long)z,
-								       tx.density, bound);
-						}
-					}
-			for (int k = 0; k < 200; k++) {
-				double p[3] = {(J + urand(&rng)) * B[0], (I + urand(&rng)) * B[1],
-				               urand(&rng) * B[2]};
-				loom_texel tx;
-				int64_t u = ((int64_t)floor(p[1] - I * B[1]) / cell[1]) * nsx +
-				            (int64_t)floor(p[0] - J * B[0]) / cell[0];
-				uint8_t bound = tb[u * nzc + (int64_t)floor(p[2]) / cell[2]];
-				CHECK_EQ_INT(loom_texture_sample(g_tex, p, LOOM_FILTER_TRILINEAR, &tx),
-				             LOOM_OK);
-				if (tx.density > (float)bound / 255.0f * 1.0001f && under++ < 3)
-					printf("  trilinear (%g %g %g) density %g, bound %u\n", p[0], p[1],
-					       p[2], tx.density, bound);
-			}
+			crossing_vs_bounds(g_tex, I, J, cell, nb, tb, 200, &rng, &under, &voxels,
+			                   &filled);
 		}
 	printf("  %ld voxels checked, %ld of %ld cells empty, %ld columns with dz != 0\n",
 	       voxels, empty_cells, cells, dzs);
@@ -431,7 +442,7 @@ static void test_majorant_raised_block(void)
 	int64_t I = -1, J = -1, cell[3], nsx, nsy, nzc;
 	float *dz = NULL, blo = INFINITY, ilo = INFINITY;
 	uint8_t *nb = NULL, *tb = NULL;
-	long under = 0, filled = 0;
+	long under = 0, voxels = 0, filled = 0;
 	uint64_t rng = 3;
 
 	if (!g_fab)
@@ -454,20 +465,10 @@ static void test_majorant_raised_block(void)
 	dz = malloc(sizeof(float) * B[0] * B[1]);
 	if (I < 0 || !dz)
 		goto done;
-	lower_block(f->ef, src.nbhd.self, 3.0f * (float)B[2]);
-	{ /* and its corner columns, which the corner term reads from the
-	     fabric's profiles, by what lower_block took from them */
-		loom_edgefix_tables et;
-		float *h = f->heights + (size_t)src.nbhd.self * LOOM_EDGE_RECORD(B[0], B[1]), vh = 0;
-		CHECK_EQ_INT(loom_edgefix_get_tables(f->ef, &et), LOOM_OK);
-		for (uint32_t x = 0; x < B[0]; x++)
-			vh += et.basis_h[x * et.rank_h];
-		for (uint32_t x = 0; x < B[0]; x += B[0] - 1) {
-			float drop = 3.0f * (float)B[2] * vh * et.basis_h[x * et.rank_h];
-			h[LOOM_EDGE_N(B[0], B[1]) + x] -= drop;
-			h[LOOM_EDGE_S(B[0], B[1]) + x] -= drop;
-		}
-	}
+	/* and its corner columns, which the corner term reads from the
+	   fabric's profiles */
+	lower_block(f->ef, src.nbhd.self, 3.0f * (float)B[2],
+	            f->heights + (size_t)src.nbhd.self * LOOM_EDGE_RECORD(B[0], B[1]));
 	CHECK_EQ_INT(loom_fabric_dz(f, I, J, dz), LOOM_OK);
 	for (uint32_t y = 0; y < B[1]; y++)
 		for (uint32_t x = 0; x < B[0]; x++) {
@@ -500,33 +501,8 @@ static void test_majorant_raised_block(void)
 			CHECK_EQ_INT(loom_majorant_bound(m, LOOM_FILTER_NEAREST, ci, cj, nb), LOOM_OK);
 			CHECK_EQ_INT(loom_majorant_bound(m, LOOM_FILTER_TRILINEAR, ci, cj, tb),
 			             LOOM_OK);
-			for (int64_t y = ci * B[1]; y < (ci + 1) * B[1]; y++)
-				for (int64_t x = cj * B[0]; x < (cj + 1) * B[0]; x++)
-					for (int64_t z = 0; z < B[2]; z++) {
-						loom_texel tx;
-						int64_t u = ((y - ci * B[1]) / cell[1]) * nsx +
-						            (x - cj * B[0]) / cell[0];
-						uint8_t bound = nb[u * nzc + z / cell[2]];
-						CHECK_EQ_INT(loom_texture_voxel(t, x, y, z, &tx), LOOM_OK);
-						filled += tx.density > 0;
-						if (tx.density > (float)bound / 255.0f && under++ < 3)
-							printf("  voxel (%lld %lld %lld) density %g, bound %u\n",
-							       (long long)x, (long long)y, (long long)z,
-							       tx.density, bound);
-					}
-			for (int k = 0; k < 2000; k++) {
-				double p[3] = {(cj + urand(&rng)) * B[0], (ci + urand(&rng)) * B[1],
-				               urand(&rng) * B[2]};
-				loom_texel tx;
-				int64_t u = ((int64_t)floor(p[1] - ci * B[1]) / cell[1]) * nsx +
-				            (int64_t)floor(p[0] - cj * B[0]) / cell[0];
-				uint8_t bound = tb[u * nzc + (int64_t)floor(p[2]) / cell[2]];
-				CHECK_EQ_INT(loom_texture_sample(t, p, LOOM_FILTER_TRILINEAR, &tx),
-				             LOOM_OK);
-				if (tx.density > (float)bound / 255.0f * 1.0001f && under++ < 3)
-					printf("  trilinear (%g %g %g) density %g, bound %u\n", p[0], p[1],
-					       p[2], tx.density, bound);
-			}
+			crossing_vs_bounds(t, ci, cj, cell, nb, tb, 2000, &rng, &under, &voxels,
+			                   &filled);
 		}
 	printf("  %ld voxels with density, %ld above their bound\n", filled, under);
 	CHECK(filled > 0);

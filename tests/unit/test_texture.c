@@ -1894,8 +1894,8 @@ static void raised_block(void)
 	dz = malloc(sizeof(float) * r.b1 * r.b2);
 	if (I >= 0 && dz) {
 		float lam = 3.0f * (float)r.b3;
-		lower_block(f->ef, nb.self, lam);
-		lower_block(r.ef, nb.self, lam);
+		lower_block(f->ef, nb.self, lam, NULL);
+		lower_block(r.ef, nb.self, lam, NULL);
 		r.cI = INT64_MIN;
 		loom_edgefix_block(r.ef, &nb, dz);
 		for (uint32_t y = 0; y < r.b2; y++)

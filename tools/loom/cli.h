@@ -87,11 +87,10 @@ void cli_sett_check(const loom_design *d, const loom_db *db, const char *db_path
                     int quiet);
 /* The design's longest warp and weft floats (dfl, around the repeat) and
    the database's (xfl, within each exemplar's weave); unless quiet, a
-   warning on stderr (after a newline if newline) when the design's are
-   longer (docs/fabric.md, "loom synth").  1, or 0 when d cannot be
-   analysed. */
+   warning on stderr when the design's are longer (docs/fabric.md, "loom
+   synth").  1, or 0 when d cannot be analysed. */
 int cli_float_check(const char *prog, const loom_design *d, const loom_db *db, int quiet,
-                    int newline, uint32_t dfl[2], uint32_t xfl[2]);
+                    uint32_t dfl[2], uint32_t xfl[2]);
 
 /* Before long work (tools/loom/outcheck.c): fail (exit 1) when path is a
    directory or its directory is missing or not writable; for an output

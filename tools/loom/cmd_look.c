@@ -250,12 +250,12 @@ int cmd_look(int argc, char **argv)
 	if (loom_db_open(db_path, &db, &diag) != LOOM_OK)
 		goto fail_diag;
 	fo.seed = seed;
-	if (loom_fabric_synthesize(d, db, db_path, &fo, &f, &diag) != LOOM_OK)
-		goto fail_diag;
 	{
 		uint32_t dfl[2], xfl[2];
-		cli_float_check(prog, d, db, quiet, 0, dfl, xfl);
+		cli_float_check(prog, d, db, quiet, dfl, xfl);
 	}
+	if (loom_fabric_synthesize(d, db, db_path, &fo, &f, &diag) != LOOM_OK)
+		goto fail_diag;
 	if (loom_fabric_save(f, file_in(&lk, ".loomf", path, sizeof path), NULL, &diag) !=
 	    LOOM_OK)
 		goto fail_diag;

@@ -664,6 +664,8 @@ int cmd_synth(int argc, char **argv)
 			        "(omit --db to weave a database of the design's pairs)\n",
 			        r.db_path);
 	}
+	if (!identity)
+		r.floats = cli_float_check(prog, d, db, quiet, r.dfloat, r.xfloat);
 	if (progress)
 		fprintf(stderr, "%s: %ux%u crossings: assigning, edge-fix tables...", prog,
 		        d->rows, d->cols);
@@ -671,8 +673,6 @@ int cmd_synth(int argc, char **argv)
 	if (loom_fabric_synthesize(d, db, r.db_path, &o, &f, &diag) != LOOM_OK)
 		cli_fail(prog, "%s%s", progress ? "\n" : "", diag.message);
 	r.t_synth = now_s() - t0;
-	if (!identity)
-		r.floats = cli_float_check(prog, d, db, quiet, progress, r.dfloat, r.xfloat);
 	loom_design_free(d);
 	if (progress)
 		fprintf(stderr, " writing...");

@@ -379,7 +379,7 @@ static void db_floats(const loom_db *db, uint32_t fl[2])
 }
 
 int cli_float_check(const char *prog, const loom_design *d, const loom_db *db, int quiet,
-                    int newline, uint32_t dfl[2], uint32_t xfl[2])
+                    uint32_t dfl[2], uint32_t xfl[2])
 {
 	loom_design_stats st;
 	char what[128];
@@ -396,9 +396,8 @@ int cli_float_check(const char *prog, const loom_design *d, const loom_db *db, i
 			              "%s%s float is %u crossings, the database's %u",
 			              n ? "; its longest " : "", k ? "weft" : "warp", dfl[k], xfl[k]);
 	if (n && !quiet)
-		fprintf(stderr, "%s%s: warning: the design's longest %s: blocks along longer "
+		fprintf(stderr, "%s: warning: the design's longest %s: blocks along longer "
 		        "floats are copied from shorter ones, so their heights differ from the "
-		        "woven cloth's (docs/fidelity.md, \"Float runs\")\n", newline ? "\n" : "",
-		        prog, what);
+		        "woven cloth's (docs/fidelity.md, \"Float runs\")\n", prog, what);
 	return 1;
 }
