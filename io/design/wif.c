@@ -875,7 +875,9 @@ static void untied_treadles(wif_parser *p, const wif_build *b, uint32_t rows,
                             uint32_t ntr)
 {
 	const wif_list *tr = &p->list[L_TREADLING];
-	uint8_t seen[WIF_MAX_TREADLES + 1];
+	/* treadle numbers go up to WIF_MAX_TREADLES as written, one more in a
+	   draft counted from 0 (normalise_numbers reads it one higher) */
+	uint8_t seen[WIF_MAX_TREADLES + 2];
 	uint32_t warned = 0;
 
 	memset(seen, 0, sizeof seen);
