@@ -14,6 +14,7 @@
 #include "synth/fabric_internal.h"
 #include "texture/texture_internal.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -481,6 +482,33 @@ static uint64_t check_box(loom_texture *t, ref *r, const int64_t lo[3],
 			(*nonempty)++;
 	}
 	return bad;
+}
+
+/* The databases and fabrics the tests wrote, and their directory: removed
+   when every test passed, kept for a look otherwise. */
+static void remove_tmpdir(void)
+{
+	DIR *dir;
+	struct dirent *e;
+
+	if (!tmpdir[0])
+		return;
+	if (check_tests_failed) {
+		printf("  files kept in %s\n", tmpdir);
+		return;
+	}
+	dir = opendir(tmpdir);
+	if (!dir)
+		return;
+	while ((e = readdir(dir))) {
+		char path[8192];
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+			continue;
+		snprintf(path, sizeof path, "%s/%s", tmpdir, e->d_name);
+		CHECK(unlink(path) == 0);
+	}
+	closedir(dir);
+	CHECK(rmdir(tmpdir) == 0);
 }
 
 /* ---------------------------------------------------------------- tests */
@@ -2721,5 +2749,6 @@ int main(void)
 	loom_fabric_free(g_fab);
 	loom_design_free(g_design);
 	loom_db_close(g_db);
+	RUN(remove_tmpdir);
 	CHECK_MAIN_END();
 }
