@@ -5,6 +5,7 @@
  * and a message naming the place; none may crash).
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "exemplar/db_internal.h"
 #include "io/store/db_write.h"
 #include "exemplar/exgen.h"
@@ -15,38 +16,6 @@
 #include <pthread.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-static char tmpdir[4096];
-
-static const char *tpath(const char *name)
-{
-	static char buf[8][4200];
-	static int slot;
-	char *p = buf[slot++ & 7];
-	snprintf(p, 4200, "%s/%s", tmpdir, name);
-	return p;
-}
-
-static uint8_t *slurp(const char *path, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	uint8_t *b;
-	long n;
-
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	b = malloc((size_t)n + 1);
-	if (fread(b, 1, (size_t)n, fp) != (size_t)n) {
-		free(b);
-		b = NULL;
-	}
-	fclose(fp);
-	*len = (size_t)n;
-	return b;
-}
 
 static void spit(const char *path, const uint8_t *b, size_t n)
 {
@@ -1903,14 +1872,10 @@ static void test_random_damage(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_db");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_db.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_db/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	RUN(test_roundtrip_generated);
 	RUN(test_threaded_reads);
 	RUN(test_reader_object);
@@ -1931,5 +1896,6 @@ int main(void)
 	RUN(test_index_out_of_range);
 	RUN(test_size_mismatch);
 	RUN(test_random_damage);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

@@ -6,45 +6,13 @@
  * direction, fibre orientation along the yarn, empty space above/below).
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "exemplar/db_internal.h"
 #include "io/store/db_write.h"
 #include "exemplar/exgen.h"
 
 #include <math.h>
 #include <unistd.h>
-
-static char tmpdir[4096];
-
-static const char *tpath(const char *name)
-{
-	static char buf[4][4200];
-	static int slot;
-	char *p = buf[slot++ & 3];
-	snprintf(p, 4200, "%s/%s", tmpdir, name);
-	return p;
-}
-
-static uint8_t *slurp(const char *path, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	uint8_t *b;
-	long n;
-
-	*len = 0;
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	b = malloc((size_t)n + 1);
-	if (fread(b, 1, (size_t)n, fp) != (size_t)n) {
-		free(b);
-		b = NULL;
-	}
-	fclose(fp);
-	*len = (size_t)n;
-	return b;
-}
 
 /* A whole exemplar volume from the generator, x fastest. */
 typedef struct vol {
@@ -1525,14 +1493,10 @@ static void test_fibre_threads(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_exgen");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_exgen.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_exgen/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	RUN(test_determinism);
 	RUN(test_threads);
 	RUN(test_crossing_centres);
@@ -1549,5 +1513,6 @@ int main(void)
 	RUN(test_fibre_fill);
 	RUN(test_fibre_hair);
 	RUN(test_fibre_threads);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

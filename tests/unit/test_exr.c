@@ -8,43 +8,13 @@
  * accept the files and list our channels and ZIP compression.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <dirent.h>
 #include <math.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-static char tmpdir[1024];
-
-static const char *tpath(const char *name)
-{
-	static char buf[4][1200];
-	static int k;
-	k = (k + 1) & 3;
-	snprintf(buf[k], sizeof buf[k], "%s/%s", tmpdir, name);
-	return buf[k];
-}
-
-static int file_exists(const char *p)
-{
-	struct stat st;
-	return stat(p, &st) == 0;
-}
-
-static int temp_files_left(void)
-{
-	DIR *d = opendir(tmpdir);
-	struct dirent *e;
-	int n = 0;
-	if (!d)
-		return 0;
-	while ((e = readdir(d)))
-		if (strstr(e->d_name, ".tmp."))
-			n++;
-	closedir(d);
-	return n;
-}
 
 static uint64_t rng_state;
 static int openexr_zip; /* which compressor the writer uses */
@@ -249,7 +219,7 @@ static void exrheader_accepts(void)
 	loom_exr_image *img = NULL;
 	loom_diag d = {0};
 	float row[33 * 7];
-	char cmd[1400], out[8192];
+	char cmd[sizeof tmpdir + 256], out[8192];
 	size_t n = 0;
 	FILE *p;
 
@@ -391,11 +361,10 @@ static void reader_errors(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	CHECK_MAIN_BEGIN("test_exr");
-	snprintf(tmpdir, sizeof tmpdir, "%s/exr.%ld", base ? base : "/tmp",
-	         (long)getpid());
-	mkdir(tmpdir, 0777);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
+		return 1;
 	RUN(round_trips_libdeflate);
 	RUN(round_trips_openexr_zip);
 	RUN(equal_size_libdeflate);
@@ -403,5 +372,6 @@ int main(void)
 	RUN(exrheader_accepts);
 	RUN(writer_errors);
 	RUN(reader_errors);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

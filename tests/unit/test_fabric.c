@@ -8,6 +8,7 @@
  * block is the warp exactly where the design says warp over.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "synth/fabric_internal.h"
 
 #include <libdeflate.h>
@@ -15,40 +16,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static char tmpdir[4096];
 static char db_path[4200], db2_path[4200], db3_path[4200];
 static loom_db *db, *db2, *db3;   /* tiny; tiny with another seed; 12 weaves */
-
-static const char *tpath(const char *name)
-{
-	static char buf[8][4200];
-	static int slot;
-	char *p = buf[slot++ & 7];
-	snprintf(p, 4200, "%s/%s", tmpdir, name);
-	return p;
-}
-
-static uint8_t *slurp(const char *path, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	uint8_t *b;
-	long n;
-
-	*len = 0;
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	b = malloc((size_t)n + 1);
-	if (b && fread(b, 1, (size_t)n, fp) != (size_t)n) {
-		free(b);
-		b = NULL;
-	}
-	fclose(fp);
-	*len = (size_t)n;
-	return b;
-}
 
 static void spit(const char *path, const uint8_t *b, size_t n)
 {
@@ -1095,14 +1064,10 @@ static int make_db(const char *path, uint64_t seed, int twelve, loom_db **out)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_fabric");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_fabric.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_fabric/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	snprintf(db2_path, sizeof db2_path, "%s/tiny2.ldb", tmpdir);
 	snprintf(db3_path, sizeof db3_path, "%s/tiny12.ldb", tmpdir);
@@ -1130,5 +1095,6 @@ int main(void)
 	loom_db_close(db);
 	loom_db_close(db2);
 	loom_db_close(db3);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

@@ -4,20 +4,10 @@
  * (LOOM_SYNTH_IDENTITY): brute force, voxel by voxel (docs/fidelity.md).
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <unistd.h>
-
-static char tmpdir[4096];
-
-static const char *tpath(const char *name)
-{
-	static char buf[4][4200];
-	static int slot;
-	char *p = buf[slot++ & 3];
-	snprintf(p, 4200, "%s/%s", tmpdir, name);
-	return p;
-}
 
 /* A design of rows x cols with a broken-twill-like pattern (not periodic
    with a small repeat, so a shifted copy would be caught). */
@@ -167,16 +157,12 @@ static void large_design_and_limit(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_fidelity");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_fidelity.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_fidelity/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	RUN(identity_copies_ground_truth);
 	RUN(large_design_and_limit);
-	rmdir(tmpdir);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

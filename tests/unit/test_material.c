@@ -4,6 +4,7 @@
  * tags, and synthesis restricted to each crossing's pair.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 #include "synth/fabric_internal.h"
 
@@ -11,17 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-
-static char tmpdir[4096];
-
-static const char *tpath(const char *name)
-{
-	static char buf[8][4200];
-	static int slot;
-	char *p = buf[slot++ & 7];
-	snprintf(p, 4200, "%s/%s", tmpdir, name);
-	return p;
-}
 
 /* Small preset, two weaves; n_pairs 0: one pair (cotton), else cotton/cotton
    and silk/cotton. */
@@ -49,28 +39,6 @@ static int make_db(const char *path, int two, unsigned threads)
 	if (rc)
 		printf("  make_db: %s\n", diag.message);
 	return rc;
-}
-
-static uint8_t *slurp(const char *path, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	uint8_t *b = NULL;
-	long n;
-
-	*len = 0;
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	if (n >= 0 && (b = malloc((size_t)n + 1)) != NULL &&
-	    fread(b, 1, (size_t)n, fp) != (size_t)n) {
-		free(b);
-		b = NULL;
-	}
-	fclose(fp);
-	*len = b ? (size_t)n : 0;
-	return b;
 }
 
 /* 15 x 15 crossings of a 2/3 twill; ends 5..9 are silk (type 2). */
@@ -544,14 +512,10 @@ out:
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_material");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_material.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_material/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	if (make_db(tpath("one.ldb"), 0, 2) || make_db(tpath("two.ldb"), 1, 2)) {
 		printf("FAIL test_material/setup (cannot make the databases)\n");
 		return 1;
@@ -562,5 +526,6 @@ int main(void)
 	RUN(test_paint_fibre);
 	RUN(test_determinism);
 	RUN(test_errors);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

@@ -8,23 +8,13 @@
  * byte-identical.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 #include "test_scan_synth.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-static char tmpdir[4096];
-
-static const char *tmp(const char *name)
-{
-	static char p[8][4200];
-	static int k;
-	k = (k + 1) % 8;
-	snprintf(p[k], sizeof p[k], "%s/%s", tmpdir, name);
-	return p[k];
-}
 
 static const uint8_t TWILL23[25] = {1, 0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0,
                                     0, 0, 1, 1, 0, 0, 0, 0, 1, 1};
@@ -137,35 +127,35 @@ static void formats(void)
 	n = (size_t)s.nx * s.ny * s.nz;
 
 	/* 1. .vol uint8 density + float32 x3 orientation */
-	CHECK(write_vol(tmp("d8.vol"), v.density, &s, 1, LOOM_VOL_UINT8) == 0);
-	CHECK(write_vol(tmp("of.vol"), v.orient, &s, 3, LOOM_VOL_FLOAT32) == 0);
+	CHECK(write_vol(tpath("d8.vol"), v.density, &s, 1, LOOM_VOL_UINT8) == 0);
+	CHECK(write_vol(tpath("of.vol"), v.orient, &s, 3, LOOM_VOL_FLOAT32) == 0);
 	memset(&in, 0, sizeof in);
 	in.nx = s.nx;
 	in.ny = s.ny;
 	in.nz = s.nz;
-	CHECK_EQ_INT(loom_vol_read(tmp("d8.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_vol_read(tpath("d8.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
 	in.density = steal(b);
-	CHECK_EQ_INT(loom_vol_read(tmp("of.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_vol_read(tpath("of.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
 	in.orient = steal(b);
 	check_build(".vol u8 + orientation f32x3", &s, &in, truth, NULL);
 	loom_scan_volume_release(&in);
 
 	/* 2. .vol float32 density + quantized directions (encoding 4) */
-	CHECK(write_vol(tmp("df.vol"), v.density, &s, 1, LOOM_VOL_FLOAT32) == 0);
-	CHECK(write_vol(tmp("oq.vol"), v.orient, &s, 3, LOOM_VOL_QDIR) == 0);
+	CHECK(write_vol(tpath("df.vol"), v.density, &s, 1, LOOM_VOL_FLOAT32) == 0);
+	CHECK(write_vol(tpath("oq.vol"), v.orient, &s, 3, LOOM_VOL_QDIR) == 0);
 	in.nx = s.nx;
 	in.ny = s.ny;
 	in.nz = s.nz;
-	CHECK_EQ_INT(loom_vol_read(tmp("df.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_vol_read(tpath("df.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
 	in.density = steal(b);
-	CHECK_EQ_INT(loom_vol_read(tmp("oq.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_vol_read(tpath("oq.vol"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
 	in.orient = steal(b);
 	check_build(".vol f32 + orientation qdir", &s, &in, truth, NULL);
 	loom_scan_volume_release(&in);
 
 	/* 3. NRRD float density, orientation estimated */
 	{
-		FILE *fp = fopen(tmp("d.nrrd"), "wb");
+		FILE *fp = fopen(tpath("d.nrrd"), "wb");
 		CHECK(fp != NULL);
 		if (fp) {
 			fprintf(fp, "NRRD0004\ntype: float\ndimension: 3\nsizes: %u %u %u\n"
@@ -176,7 +166,7 @@ static void formats(void)
 		in.nx = s.nx;
 		in.ny = s.ny;
 		in.nz = s.nz;
-		CHECK_EQ_INT(loom_nrrd_read(tmp("d.nrrd"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_nrrd_read(tpath("d.nrrd"), SIZE_MAX, NULL, &b, &d), LOOM_OK);
 		in.density = steal(b);
 		in.orient = NULL;
 		check_build("NRRD f32, orientation estimated", &s, &in, truth, NULL);
@@ -187,7 +177,7 @@ static void formats(void)
 	{
 		loom_raw_params rp = LOOM_RAW_PARAMS_INIT;
 		uint16_t *u = malloc(n * sizeof *u);
-		FILE *fp = fopen(tmp("d16.raw"), "wb");
+		FILE *fp = fopen(tpath("d16.raw"), "wb");
 		CHECK(u && fp);
 		if (u && fp) {
 			for (size_t i = 0; i < n; i++)
@@ -205,7 +195,7 @@ static void formats(void)
 		in.nx = s.nx;
 		in.ny = s.ny;
 		in.nz = s.nz;
-		CHECK_EQ_INT(loom_raw_read(tmp("d16.raw"), &rp, SIZE_MAX, &b, &d), LOOM_OK);
+		CHECK_EQ_INT(loom_raw_read(tpath("d16.raw"), &rp, SIZE_MAX, &b, &d), LOOM_OK);
 		in.density = steal(b);
 		in.orient = NULL;
 		check_build("raw u16, orientation estimated", &s, &in, truth, NULL);
@@ -216,24 +206,6 @@ static void formats(void)
 }
 
 /* ---- database: create, append ------------------------------------------ */
-
-static uint8_t *slurp(const char *path, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	uint8_t *b = NULL;
-	long n;
-	*len = 0;
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	b = malloc(n > 0 ? (size_t)n : 1);
-	if (b && fread(b, 1, (size_t)n, fp) == (size_t)n)
-		*len = (size_t)n;
-	fclose(fp);
-	return b;
-}
 
 static uint64_t le64(const uint8_t *p)
 {
@@ -322,7 +294,7 @@ static void database_append(void)
 	loom_db_exemplar_info e;
 	loom_diag d = {0};
 	int appended = -1, rc;
-	const char *db = tmp("gen.ldb"), *copy = tmp("gen0.ldb");
+	const char *db = tpath("gen.ldb"), *copy = tpath("gen0.ldb");
 
 	CHECK(make_sheet(&s, -1.8f, 12, &v, &truth) == 0);
 	free(v.orient);
@@ -453,10 +425,10 @@ static void database_append(void)
 	CHECK(old && neu && old_len == new_len && memcmp(old, neu, new_len) == 0);
 
 	/* a new database */
-	rc = loom_scan_write_db(r, tmp("new.ldb"), &dp, &appended, &d);
+	rc = loom_scan_write_db(r, tpath("new.ldb"), &dp, &appended, &d);
 	CHECK_EQ_INT(rc, LOOM_OK);
 	CHECK_EQ_INT(appended, 0);
-	CHECK_EQ_INT(loom_db_open(tmp("new.ldb"), &a, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("new.ldb"), &a, &d), LOOM_OK);
 	if (a) {
 		loom_db_get_info(a, &ia);
 		CHECK_EQ_INT(ia.n_exemplars, 1);
@@ -473,16 +445,16 @@ static void database_append(void)
 	/* storage of a new database: version 3, density raw; the same voxels */
 	dp.db_version = 1;
 	dp.density_raw = 1;
-	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_scan_write_db(r, tpath("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
 	dp.db_version = 5;
 	dp.density_raw = 0;
-	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_scan_write_db(r, tpath("raw.ldb"), &dp, &appended, &d), LOOM_EINVAL);
 	dp.db_version = 3;
 	dp.density_raw = 1;
-	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_scan_write_db(r, tpath("raw.ldb"), &dp, &appended, &d), LOOM_OK);
 	a = b = NULL;
-	CHECK_EQ_INT(loom_db_open(tmp("new.ldb"), &a, &d), LOOM_OK);
-	CHECK_EQ_INT(loom_db_open(tmp("raw.ldb"), &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("new.ldb"), &a, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("raw.ldb"), &b, &d), LOOM_OK);
 	if (a && b) {
 		loom_db_get_info(b, &ib);
 		CHECK_EQ_INT(ib.version, 3);
@@ -496,22 +468,22 @@ static void database_append(void)
 	/* appending keeps a database's storage; asking for another is refused,
 	   the file untouched */
 	free(old);
-	old = slurp(tmp("new.ldb"), &old_len);
+	old = slurp(tpath("new.ldb"), &old_len);
 	dp.name = "again";
-	rc = loom_scan_write_db(r, tmp("new.ldb"), &dp, &appended, &d);
+	rc = loom_scan_write_db(r, tpath("new.ldb"), &dp, &appended, &d);
 	CHECK_EQ_INT(rc, LOOM_EMISMATCH);
 	CHECK_STR_CONTAINS(d.message, "density planes are compressed");
 	dp.density_raw = 0;
-	rc = loom_scan_write_db(r, tmp("new.ldb"), &dp, &appended, &d);
+	rc = loom_scan_write_db(r, tpath("new.ldb"), &dp, &appended, &d);
 	CHECK_EQ_INT(rc, LOOM_EMISMATCH);
 	CHECK_STR_CONTAINS(d.message, "format version 4, not 3");
 	free(neu);
-	neu = slurp(tmp("new.ldb"), &new_len);
+	neu = slurp(tpath("new.ldb"), &new_len);
 	CHECK(old && neu && old_len == new_len && memcmp(old, neu, new_len) == 0);
 	dp.db_version = 0;
-	CHECK_EQ_INT(loom_scan_write_db(r, tmp("raw.ldb"), &dp, &appended, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_scan_write_db(r, tpath("raw.ldb"), &dp, &appended, &d), LOOM_OK);
 	CHECK_EQ_INT(appended, 1);
-	CHECK_EQ_INT(loom_db_open(tmp("raw.ldb"), &b, &d), LOOM_OK);
+	CHECK_EQ_INT(loom_db_open(tpath("raw.ldb"), &b, &d), LOOM_OK);
 	if (b) {
 		loom_db_get_info(b, &ib);
 		CHECK_EQ_INT(ib.n_exemplars, 2);
@@ -584,16 +556,13 @@ static void sheet_truth_and_determinism(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
-
 	CHECK_MAIN_BEGIN("test_scan_io");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_scan_io.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_scan_io/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	RUN(sheet_truth_and_determinism);
 	RUN(formats);
 	RUN(database_append);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

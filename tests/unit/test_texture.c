@@ -9,12 +9,12 @@
  * where a test says so.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 #include "raise_block.h"
 #include "synth/fabric_internal.h"
 #include "texture/texture_internal.h"
 
-#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -22,7 +22,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static char tmpdir[4096];
 static char db_path[4200], db2_path[4200], db_np2_path[4200];
 
 static uint64_t mix(uint64_t x)
@@ -484,46 +483,15 @@ static uint64_t check_box(loom_texture *t, ref *r, const int64_t lo[3],
 	return bad;
 }
 
-/* The databases and fabrics the tests wrote, and their directory: removed
-   when every test passed, kept for a look otherwise. */
-static void remove_tmpdir(void)
-{
-	DIR *dir;
-	struct dirent *e;
-
-	if (!tmpdir[0])
-		return;
-	if (check_tests_failed) {
-		printf("  files kept in %s\n", tmpdir);
-		return;
-	}
-	dir = opendir(tmpdir);
-	if (!dir)
-		return;
-	while ((e = readdir(dir))) {
-		char path[8192];
-		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-			continue;
-		snprintf(path, sizeof path, "%s/%s", tmpdir, e->d_name);
-		CHECK(unlink(path) == 0);
-	}
-	closedir(dir);
-	CHECK(rmdir(tmpdir) == 0);
-}
-
 /* ---------------------------------------------------------------- tests */
 
 static void setup(void)
 {
 	const uint32_t brick[3] = {4, 4, 8};
 	const uint32_t brick_np2[3] = {3, 5, 7};
-	const char *base = getenv("LOOM_TEST_TMP");
 
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_texture.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
+	if (tmpdir_make())
 		return;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	snprintf(db2_path, sizeof db2_path, "%s/tiny2.ldb", tmpdir);
 	snprintf(db_np2_path, sizeof db_np2_path, "%s/np2.ldb", tmpdir);
@@ -2749,6 +2717,6 @@ int main(void)
 	loom_fabric_free(g_fab);
 	loom_design_free(g_design);
 	loom_db_close(g_db);
-	RUN(remove_tmpdir);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

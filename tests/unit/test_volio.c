@@ -4,6 +4,7 @@
  * or brute-force references; NRRD files come from Teem's unu.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <dirent.h>
@@ -12,38 +13,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static char tmpdir[1024];
-
-static const char *tpath(const char *name)
-{
-	static char buf[4][1200];
-	static int k;
-	k = (k + 1) & 3;
-	snprintf(buf[k], sizeof buf[k], "%s/%s", tmpdir, name);
-	return buf[k];
-}
-
-static int file_exists(const char *p)
-{
-	struct stat st;
-	return stat(p, &st) == 0;
-}
-
 /* Any "*.tmp.*" left in the scratch directory? */
-static int temp_files_left(void)
-{
-	DIR *d = opendir(tmpdir);
-	struct dirent *e;
-	int n = 0;
-	if (!d)
-		return 0;
-	while ((e = readdir(d)))
-		if (strstr(e->d_name, ".tmp."))
-			n++;
-	closedir(d);
-	return n;
-}
-
 static int write_bytes(const char *p, const void *data, size_t n)
 {
 	FILE *fp = fopen(p, "wb");
@@ -735,7 +705,7 @@ static int have_unu(void)
 static int sh(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 static int sh(const char *fmt, ...)
 {
-	char cmd[4096];
+	char cmd[sizeof tmpdir + 256];
 	va_list ap;
 	int rc;
 	va_start(ap, fmt);
@@ -962,7 +932,7 @@ static void nrrd_to_unu(void)
 	}
 	/* gzip made by the gzip tool (not by Teem), the way a user would */
 	{
-		char cmd[2048];
+		char cmd[sizeof tmpdir + 256];
 		int ok;
 		hl = (size_t)snprintf(hdr, sizeof hdr, "NRRD0004\ntype: short\ndimension: 3\n"
 		                      "sizes: 3 4 2\nendian: little\nencoding: gzip\n\n");
@@ -1082,11 +1052,10 @@ static void nrrd_malformed(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	CHECK_MAIN_BEGIN("test_volio");
-	snprintf(tmpdir, sizeof tmpdir, "%s/volio.%ld", base ? base : "/tmp",
-	         (long)getpid());
-	mkdir(tmpdir, 0777);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
+		return 1;
 	RUN(half_exhaustive);
 	RUN(half_rounding);
 	RUN(scalar_names);
@@ -1101,5 +1070,6 @@ int main(void)
 	RUN(nrrd_from_unu);
 	RUN(nrrd_to_unu);
 	RUN(nrrd_malformed);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }
