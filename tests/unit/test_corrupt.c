@@ -10,6 +10,7 @@
  * must be 0 (docs/formats.md lists the checks that make it so).
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <fcntl.h>
@@ -17,7 +18,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-static char tmpdir[512], db_path[600], fab_path[600], work_path[600];
+static char db_path[4200], fab_path[4200], work_path[4200];
 static loom_db *db;
 
 static int read_all(const char *path, uint8_t **buf, size_t *len)
@@ -175,7 +176,6 @@ static void loomf_sweep(void)
 
 int main(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	loom_exgen_params p;
 	loom_weave_params wp;
 	loom_design *d = NULL;
@@ -183,11 +183,9 @@ int main(void)
 	loom_diag diag = {0};
 
 	CHECK_MAIN_BEGIN("test_corrupt");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_corrupt.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("FAIL test_corrupt/setup (cannot create %s)\n", tmpdir);
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	snprintf(fab_path, sizeof fab_path, "%s/tiny.loomf", tmpdir);
 	snprintf(work_path, sizeof work_path, "%s/flipped", tmpdir);
@@ -213,9 +211,6 @@ int main(void)
 	RUN(ldb_sweep);
 	RUN(loomf_sweep);
 	loom_db_close(db);
-	unlink(work_path);
-	unlink(fab_path);
-	unlink(db_path);
-	rmdir(tmpdir);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

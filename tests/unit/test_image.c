@@ -7,6 +7,7 @@
  * interlaced, low bit depth) are written here with libpng directly.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <dirent.h>
@@ -15,24 +16,6 @@
 #include <unistd.h>
 
 #define S(lit) (const uint8_t *)(lit), sizeof(lit) - 1
-
-static char tmpdir[512];
-
-static const char *tmp(const char *name)
-{
-	static char buf[8][700];
-	static int k;
-	k = (k + 1) % 8;
-	snprintf(buf[k], sizeof buf[k], "%s/%s", tmpdir, name);
-	return buf[k];
-}
-
-static int make_tmpdir(void)
-{
-	const char *base = getenv("LOOM_TEST_TMP");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_image.XXXXXX", base ? base : "/tmp");
-	return mkdtemp(tmpdir) != NULL;
-}
 
 static size_t read_all(const char *path, uint8_t *buf, size_t cap)
 {
@@ -53,20 +36,6 @@ static int write_all(const char *path, const void *data, size_t n)
 		return 0;
 	ok = fwrite(data, 1, n, fp) == n;
 	return fclose(fp) == 0 && ok;
-}
-
-/* Count files in tmpdir whose name contains ".tmp." (left-over temps). */
-static int temp_files_left(void)
-{
-	DIR *d = opendir(tmpdir);
-	struct dirent *e;
-	int n = 0;
-	if (!d)
-		return -1;
-	while ((e = readdir(d)))
-		n += strstr(e->d_name, ".tmp.") != NULL;
-	closedir(d);
-	return n;
 }
 
 static int pixels_are(const loom_image *img, const uint8_t *want, size_t n)
@@ -111,15 +80,15 @@ static void pbm_roundtrip(void)
 	img->pixels[0] = img->pixels[2] = img->pixels[11] = 0;
 	for (int x = 3; x < 10; x++)
 		img->pixels[10 + x] = 0;
-	CHECK_EQ_INT(loom_image_write(tmp("r.pbm"), img, NULL), LOOM_OK);
-	n = read_all(tmp("r.pbm"), buf, sizeof buf);
+	CHECK_EQ_INT(loom_image_write(tpath("r.pbm"), img, NULL), LOOM_OK);
+	n = read_all(tpath("r.pbm"), buf, sizeof buf);
 	CHECK_EQ_INT(n, 12);
 	CHECK(memcmp(buf, "P4\n10 2\n", 8) == 0);
 	CHECK_EQ_INT(buf[8], 0xA0);  /* 1010 0000 */
 	CHECK_EQ_INT(buf[9], 0x00);  /* 00 + pad */
 	CHECK_EQ_INT(buf[10], 0x5F); /* 0101 1111 */
 	CHECK_EQ_INT(buf[11], 0xC0); /* 11 + pad */
-	CHECK_EQ_INT(loom_image_read(tmp("r.pbm"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("r.pbm"), &back, NULL), LOOM_OK);
 	CHECK(back && back->bilevel && pixels_are(back, img->pixels, 20));
 	loom_image_free(back);
 	/* set pad bits are ignored on reading */
@@ -169,24 +138,24 @@ static void pnm_write_roundtrip(void)
 
 	CHECK_EQ_INT(loom_image_new(2, 2, 1, &img), LOOM_OK);
 	memcpy(img->pixels, "\x00\x40\x80\xff", 4);
-	CHECK_EQ_INT(loom_image_write(tmp("g.pgm"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(read_all(tmp("g.pgm"), buf, sizeof buf), 15);
+	CHECK_EQ_INT(loom_image_write(tpath("g.pgm"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(read_all(tpath("g.pgm"), buf, sizeof buf), 15);
 	CHECK(memcmp(buf, "P5\n2 2\n255\n\x00\x40\x80\xff", 15) == 0);
 	/* a grey image written as .ppm is expanded */
-	CHECK_EQ_INT(loom_image_write(tmp("g.ppm"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(loom_image_read(tmp("g.ppm"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_write(tpath("g.ppm"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("g.ppm"), &back, NULL), LOOM_OK);
 	CHECK(back && back->channels == 3 && back->pixels[3] == 0x40 &&
 	      back->pixels[5] == 0x40 && back->pixels[11] == 0xff);
 	loom_image_free(back);
 	/* .pnm picks P5 or P6 */
-	CHECK_EQ_INT(loom_image_write(tmp("g.pnm"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(read_all(tmp("g.pnm"), buf, 2), 2);
+	CHECK_EQ_INT(loom_image_write(tpath("g.pnm"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(read_all(tpath("g.pnm"), buf, 2), 2);
 	CHECK(memcmp(buf, "P5", 2) == 0);
 	loom_image_free(img);
 	CHECK_EQ_INT(loom_image_new(2, 1, 3, &img), LOOM_OK);
 	memcpy(img->pixels, "\x01\x02\x03\x04\x05\x06", 6);
-	CHECK_EQ_INT(loom_image_write(tmp("c.pnm"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(loom_image_read(tmp("c.pnm"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_write(tpath("c.pnm"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("c.pnm"), &back, NULL), LOOM_OK);
 	CHECK(back && back->channels == 3 && pixels_are(back, img->pixels, 6));
 	loom_image_free(back);
 	loom_image_free(img);
@@ -339,8 +308,8 @@ static void png_palette(void)
 	packed[2] = 0x00;
 	packed[3] = 0x10;
 	s.rows = packed;
-	CHECK(write_png_raw(tmp("pal.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("pal.png"), &img, &d), LOOM_OK);
+	CHECK(write_png_raw(tpath("pal.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("pal.png"), &img, &d), LOOM_OK);
 	CHECK(img && img->channels == 3 && pixels_are(img, want, sizeof want));
 	CHECK(img && img->n_palette == 3 && img->palette &&
 	      memcmp(img->palette, "\xff\x00\x00\x00\x00\xff\x0a\x14\x1e", 9) == 0);
@@ -356,15 +325,15 @@ static void png_sixteen_bit(void)
 	              NULL, 0, NULL, 0};
 	loom_image *img = NULL;
 
-	CHECK(write_png_raw(tmp("g16.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("g16.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("g16.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("g16.png"), &img, NULL), LOOM_OK);
 	CHECK(img && img->channels == 1 && pixels_are(img, (const uint8_t *)"\x01\x80\xff", 3));
 	loom_image_free(img);
 	s.width = 1;
 	s.type = PNG_COLOR_TYPE_RGB;
 	s.rows = rgb;
-	CHECK(write_png_raw(tmp("c16.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("c16.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("c16.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("c16.png"), &img, NULL), LOOM_OK);
 	CHECK(img && img->channels == 3 && pixels_are(img, (const uint8_t *)"\x01\x02\x03", 3));
 	loom_image_free(img);
 }
@@ -379,14 +348,14 @@ static void png_alpha_lowbit_interlaced(void)
 	              NULL, 0, NULL, 0};
 	loom_image *img = NULL;
 
-	CHECK(write_png_raw(tmp("ga.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("ga.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("ga.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("ga.png"), &img, NULL), LOOM_OK);
 	CHECK(img && img->channels == 1 && pixels_are(img, (const uint8_t *)"\x0a\x14", 2));
 	loom_image_free(img);
 	s.type = PNG_COLOR_TYPE_RGB_ALPHA;
 	s.rows = rgba;
-	CHECK(write_png_raw(tmp("rgba.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("rgba.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("rgba.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("rgba.png"), &img, NULL), LOOM_OK);
 	CHECK(img && img->channels == 3 &&
 	      pixels_are(img, (const uint8_t *)"\x01\x02\x03\x04\x05\x06", 6));
 	loom_image_free(img);
@@ -394,8 +363,8 @@ static void png_alpha_lowbit_interlaced(void)
 	s.depth = 2;
 	s.type = PNG_COLOR_TYPE_GRAY;
 	s.rows = two_bit;
-	CHECK(write_png_raw(tmp("g2.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("g2.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("g2.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("g2.png"), &img, NULL), LOOM_OK);
 	CHECK(img && pixels_are(img, (const uint8_t *)"\x00\x55\xaa\xff", 4));
 	CHECK(img && img->bilevel == 0);
 	loom_image_free(img);
@@ -403,8 +372,8 @@ static void png_alpha_lowbit_interlaced(void)
 		big[k] = (uint8_t)(k * 7 + 3);
 	s = (png_spec){9, 9, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_ADAM7, big, NULL,
 	               0, NULL, 0};
-	CHECK(write_png_raw(tmp("adam7.png"), &s));
-	CHECK_EQ_INT(loom_image_read(tmp("adam7.png"), &img, NULL), LOOM_OK);
+	CHECK(write_png_raw(tpath("adam7.png"), &s));
+	CHECK_EQ_INT(loom_image_read(tpath("adam7.png"), &img, NULL), LOOM_OK);
 	CHECK(img && pixels_are(img, big, sizeof big));
 	loom_image_free(img);
 }
@@ -418,18 +387,18 @@ static void png_roundtrip(void)
 	CHECK_EQ_INT(loom_image_new(5, 3, 1, &img), LOOM_OK);
 	for (int k = 0; k < 15; k++)
 		img->pixels[k] = (uint8_t)(k * 17);
-	CHECK_EQ_INT(loom_image_write(tmp("g8.png"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(loom_image_read(tmp("g8.png"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_write(tpath("g8.png"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("g8.png"), &back, NULL), LOOM_OK);
 	CHECK(back && back->channels == 1 && !back->bilevel &&
 	      pixels_are(back, img->pixels, 15));
 	loom_image_free(back);
 	/* bilevel -> 1-bit grey PNG (IHDR bit depth byte 24) -> bilevel again */
 	img->bilevel = 1;
-	CHECK_EQ_INT(loom_image_write(tmp("g1.png"), img, NULL), LOOM_OK);
-	CHECK(read_all(tmp("g1.png"), buf, sizeof buf) > 26);
+	CHECK_EQ_INT(loom_image_write(tpath("g1.png"), img, NULL), LOOM_OK);
+	CHECK(read_all(tpath("g1.png"), buf, sizeof buf) > 26);
 	CHECK_EQ_INT(buf[24], 1);
 	CHECK_EQ_INT(buf[25], 0);
-	CHECK_EQ_INT(loom_image_read(tmp("g1.png"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("g1.png"), &back, NULL), LOOM_OK);
 	CHECK(back && back->bilevel == 1);
 	for (int k = 0; back && k < 15; k++)
 		CHECK_EQ_INT(back->pixels[k], img->pixels[k] < 128 ? 0 : 255);
@@ -439,11 +408,11 @@ static void png_roundtrip(void)
 	CHECK_EQ_INT(loom_image_new(3, 2, 3, &img), LOOM_OK);
 	for (int k = 0; k < 18; k++)
 		img->pixels[k] = (uint8_t)(250 - k * 13);
-	CHECK_EQ_INT(loom_image_write(tmp("c8.PNG"), img, NULL), LOOM_OK);
-	CHECK_EQ_INT(read_all(tmp("c8.PNG"), buf, sizeof buf) > 26, 1);
+	CHECK_EQ_INT(loom_image_write(tpath("c8.PNG"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(read_all(tpath("c8.PNG"), buf, sizeof buf) > 26, 1);
 	CHECK_EQ_INT(buf[24], 8);
 	CHECK_EQ_INT(buf[25], 2);
-	CHECK_EQ_INT(loom_image_read(tmp("c8.PNG"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_read(tpath("c8.PNG"), &back, NULL), LOOM_OK);
 	CHECK(back && back->channels == 3 && pixels_are(back, img->pixels, 18));
 	loom_image_free(back);
 	loom_image_free(img);
@@ -500,9 +469,9 @@ static void png_malformed(void)
 	CHECK_EQ_INT(loom_image_new(16, 16, 3, &img), LOOM_OK);
 	for (int k = 0; k < 16 * 16 * 3; k++)
 		img->pixels[k] = (uint8_t)(k * 31);
-	CHECK_EQ_INT(loom_image_write(tmp("m.png"), img, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_image_write(tpath("m.png"), img, NULL), LOOM_OK);
 	loom_image_free(img);
-	n = read_all(tmp("m.png"), good, sizeof good);
+	n = read_all(tpath("m.png"), good, sizeof good);
 	CHECK(n > 100 && n < sizeof good);
 	/* signature only */
 	CHECK_EQ_INT(loom_image_parse(good, 8, "m.png", &out, &d), LOOM_ETRUNCATED);
@@ -557,16 +526,16 @@ static void api_edges(void)
 	loom_image_free(NULL);
 	CHECK_EQ_INT(loom_image_parse(NULL, 3, "n", &img, &d), LOOM_EINVAL);
 	CHECK_EQ_INT(loom_image_parse(S("P1 1 1 1"), "n", NULL, &d), LOOM_EINVAL);
-	CHECK_EQ_INT(loom_image_read(tmp("does-not-exist.png"), &img, &d), LOOM_EIO);
+	CHECK_EQ_INT(loom_image_read(tpath("does-not-exist.png"), &img, &d), LOOM_EIO);
 	CHECK_STR_CONTAINS(d.message, "does-not-exist.png: cannot open");
 	CHECK_EQ_INT(loom_image_new(2, 2, 3, &img), LOOM_OK);
-	CHECK_EQ_INT(loom_image_write(tmp("x.gif"), img, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_image_write(tpath("x.gif"), img, &d), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(d.message, "unknown image extension '.gif' (expected .png, .pbm, .pgm, .ppm or .pnm)");
-	CHECK_EQ_INT(loom_image_write(tmp("noext"), img, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_image_write(tpath("noext"), img, &d), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(d.message, "unknown image extension ''");
-	CHECK_EQ_INT(loom_image_write(tmp("x.pgm"), img, &d), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_image_write(tpath("x.pgm"), img, &d), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(d.message, "cannot write an RGB image as PGM");
-	CHECK_EQ_INT(loom_image_write(tmp("no/such/dir/x.png"), img, &d), LOOM_EIO);
+	CHECK_EQ_INT(loom_image_write(tpath("no/such/dir/x.png"), img, &d), LOOM_EIO);
 	CHECK_STR_CONTAINS(d.message, "x.png: cannot create");
 	CHECK_EQ_INT(loom_image_write(NULL, img, &d), LOOM_EINVAL);
 	loom_image_free(img);
@@ -594,21 +563,21 @@ static void weave_write_pbm_png(void)
 	loom_diag dg = {0};
 
 	CHECK(d != NULL);
-	CHECK_EQ_INT(loom_weave_write(tmp("t.pbm"), d, NULL), LOOM_OK);
-	CHECK_EQ_INT(read_all(tmp("t.pbm"), buf, sizeof buf), sizeof want - 1);
+	CHECK_EQ_INT(loom_weave_write(tpath("t.pbm"), d, NULL), LOOM_OK);
+	CHECK_EQ_INT(read_all(tpath("t.pbm"), buf, sizeof buf), sizeof want - 1);
 	CHECK(memcmp(buf, want, sizeof want - 1) == 0);
-	CHECK_EQ_INT(loom_design_read(tmp("t.pbm"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_design_read(tpath("t.pbm"), &back, NULL), LOOM_OK);
 	CHECK(back && back->rows == 5 && back->cols == 5 &&
 	      memcmp(back->weave, d->weave, 25) == 0);
 	loom_design_free(back);
-	CHECK_EQ_INT(loom_weave_write(tmp("t.png"), d, NULL), LOOM_OK);
-	CHECK(read_all(tmp("t.png"), buf, sizeof buf) > 26);
+	CHECK_EQ_INT(loom_weave_write(tpath("t.png"), d, NULL), LOOM_OK);
+	CHECK(read_all(tpath("t.png"), buf, sizeof buf) > 26);
 	CHECK_EQ_INT(buf[24], 1); /* 1-bit */
 	CHECK_EQ_INT(buf[25], 0); /* grey */
-	CHECK_EQ_INT(loom_design_read(tmp("t.png"), &back, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_design_read(tpath("t.png"), &back, NULL), LOOM_OK);
 	CHECK(back && memcmp(back->weave, d->weave, 25) == 0);
 	loom_design_free(back);
-	CHECK_EQ_INT(loom_weave_write(tmp("t.jpg"), d, &dg), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_weave_write(tpath("t.jpg"), d, &dg), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(dg.message, "cannot write a weave as '.jpg': expected .pbm or .png");
 	loom_design_free(d);
 	CHECK_EQ_INT(temp_files_left(), 0);
@@ -620,41 +589,41 @@ static void weave_from_grey_images(void)
 	loom_diag dg = {0};
 
 	/* two levels: the darker (100) is warp over, whatever the threshold */
-	CHECK(write_all(tmp("two.pgm"), "P2 3 1 255 100 200 100", 22));
-	CHECK_EQ_INT(loom_design_read(tmp("two.pgm"), &d, &dg), LOOM_OK);
+	CHECK(write_all(tpath("two.pgm"), "P2 3 1 255 100 200 100", 22));
+	CHECK_EQ_INT(loom_design_read(tpath("two.pgm"), &d, &dg), LOOM_OK);
 	CHECK(d && d->rows == 1 && d->cols == 3 && d->weave[0] == 1 &&
 	      d->weave[1] == 0 && d->weave[2] == 1);
 	loom_design_free(d);
 	/* one level: dark means all over */
-	CHECK(write_all(tmp("one.pgm"), "P2 2 1 255 20 20", 16));
-	CHECK_EQ_INT(loom_design_read(tmp("one.pgm"), &d, &dg), LOOM_OK);
+	CHECK(write_all(tpath("one.pgm"), "P2 2 1 255 20 20", 16));
+	CHECK_EQ_INT(loom_design_read(tpath("one.pgm"), &d, &dg), LOOM_OK);
 	CHECK(d && d->weave[0] == 1 && d->weave[1] == 1);
 	loom_design_free(d);
-	CHECK(write_all(tmp("three.pgm"), "P2 2 2 255 0 255 255 57", 23));
-	CHECK_EQ_INT(loom_design_read(tmp("three.pgm"), &d, &dg), LOOM_EFORMAT);
+	CHECK(write_all(tpath("three.pgm"), "P2 2 2 255 0 255 255 57", 23));
+	CHECK_EQ_INT(loom_design_read(tpath("three.pgm"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "three.pgm: pixel x=1, y=1 has a third level "
 	                   "(grey level 57; the others are grey level 0 and grey "
 	                   "level 255): a weave image must be two-level");
 	CHECK(d == NULL);
 	/* two colours of equal darkness */
-	CHECK(write_all(tmp("eq.ppm"), "P3 2 1 255 255 0 0 255 0 0", 26));
-	CHECK_EQ_INT(loom_design_read(tmp("eq.ppm"), &d, &dg), LOOM_OK); /* one colour */
+	CHECK(write_all(tpath("eq.ppm"), "P3 2 1 255 255 0 0 255 0 0", 26));
+	CHECK_EQ_INT(loom_design_read(tpath("eq.ppm"), &d, &dg), LOOM_OK); /* one colour */
 	loom_design_free(d);
-	CHECK(write_all(tmp("eq2.ppm"), "P3 2 1 255 4 0 41 0 10 0", 24));
-	CHECK_EQ_INT(loom_design_read(tmp("eq2.ppm"), &d, &dg), LOOM_EFORMAT);
+	CHECK(write_all(tpath("eq2.ppm"), "P3 2 1 255 4 0 41 0 10 0", 24));
+	CHECK_EQ_INT(loom_design_read(tpath("eq2.ppm"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "equally dark");
 	/* an image extension with other content */
-	CHECK(write_all(tmp("fake.png"), "hello", 5));
-	CHECK_EQ_INT(loom_design_read(tmp("fake.png"), &d, &dg), LOOM_EFORMAT);
+	CHECK(write_all(tpath("fake.png"), "hello", 5));
+	CHECK_EQ_INT(loom_design_read(tpath("fake.png"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "fake.png: not a PBM, PGM, PPM or PNG image");
 	/* .wif goes to the WIF reader */
-	CHECK(write_all(tmp("x.wif"), "[WIF]\n", 6));
+	CHECK(write_all(tpath("x.wif"), "[WIF]\n", 6));
 	dg.message[0] = 0;
-	CHECK(loom_design_read(tmp("x.wif"), &d, &dg) != LOOM_OK || d != NULL);
+	CHECK(loom_design_read(tpath("x.wif"), &d, &dg) != LOOM_OK || d != NULL);
 	loom_design_free(d);
 	d = NULL;
 	CHECK_EQ_INT(loom_design_read(NULL, &d, &dg), LOOM_EINVAL);
-	CHECK_EQ_INT(loom_design_read(tmp("x.pbm"), NULL, &dg), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_design_read(tpath("x.pbm"), NULL, &dg), LOOM_EINVAL);
 }
 
 static void type_maps(void)
@@ -667,21 +636,21 @@ static void type_maps(void)
 	if (!d)
 		return;
 	memcpy(d->warp_type, "\x00\x01\x00\x01\x00\x01", 6);
-	CHECK_EQ_INT(loom_type_map_write(tmp("warp.pgm"), d, LOOM_MAP_WARP, NULL), LOOM_OK);
-	CHECK_EQ_INT(read_all(tmp("warp.pgm"), buf, sizeof buf), 17);
+	CHECK_EQ_INT(loom_type_map_write(tpath("warp.pgm"), d, LOOM_MAP_WARP, NULL), LOOM_OK);
+	CHECK_EQ_INT(read_all(tpath("warp.pgm"), buf, sizeof buf), 17);
 	CHECK(memcmp(buf, "P5\n3 2\n255\n\x00\x01\x00\x01\x00\x01", 17) == 0);
-	CHECK_EQ_INT(loom_type_map_write(tmp("weft.png"), d, LOOM_MAP_WEFT, NULL), LOOM_OK);
-	CHECK_EQ_INT(loom_type_map_write(tmp("weft.pbm"), d, LOOM_MAP_WEFT, &dg), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_type_map_write(tpath("weft.png"), d, LOOM_MAP_WEFT, NULL), LOOM_OK);
+	CHECK_EQ_INT(loom_type_map_write(tpath("weft.pbm"), d, LOOM_MAP_WEFT, &dg), LOOM_EINVAL);
 	CHECK_STR_CONTAINS(dg.message, "cannot write a type map as '.pbm': expected .pgm or .png");
-	CHECK_EQ_INT(loom_type_map_write(tmp("w.png"), d, 7, &dg), LOOM_EINVAL);
+	CHECK_EQ_INT(loom_type_map_write(tpath("w.png"), d, 7, &dg), LOOM_EINVAL);
 	/* read back: the weft map PNG into the warp map */
-	CHECK_EQ_INT(loom_type_map_read(tmp("weft.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
+	CHECK_EQ_INT(loom_type_map_read(tpath("weft.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
 	CHECK(memcmp(d->warp_type, d->weft_type, 6) == 0);
 	/* raw values: maxval 7 is not rescaled; IDs past the table extend it */
-	CHECK(write_all(tmp("ids.pgm"), "P2 3 2 7 0 1 2 3 4 5", 20));
+	CHECK(write_all(tpath("ids.pgm"), "P2 3 2 7 0 1 2 3 4 5", 20));
 	dg.warn = grab_warning;
 	n_warned = 0;
-	CHECK_EQ_INT(loom_type_map_read(tmp("ids.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_OK);
+	CHECK_EQ_INT(loom_type_map_read(tpath("ids.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_OK);
 	CHECK(memcmp(d->weft_type, "\x00\x01\x02\x03\x04\x05", 6) == 0);
 	CHECK_EQ_INT(d->n_types, 6);
 	CHECK_EQ_INT(n_warned, 1);
@@ -689,14 +658,14 @@ static void type_maps(void)
 	CHECK_STR_CONTAINS(d->types[5].name, "type5");
 	CHECK_EQ_INT(loom_design_validate(d, NULL), LOOM_OK);
 	/* errors leave the design unchanged */
-	CHECK(write_all(tmp("small.pgm"), "P2 2 2 7 0 1 2 3", 16));
-	CHECK_EQ_INT(loom_type_map_read(tmp("small.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EMISMATCH);
+	CHECK(write_all(tpath("small.pgm"), "P2 2 2 7 0 1 2 3", 16));
+	CHECK_EQ_INT(loom_type_map_read(tpath("small.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EMISMATCH);
 	CHECK_STR_CONTAINS(dg.message, "small.pgm: weft-type map is 2x2 (width x height) but the weave has 3 ends x 2 picks");
-	CHECK(write_all(tmp("col.ppm"), "P3 3 2 7 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0", 44));
-	CHECK_EQ_INT(loom_type_map_read(tmp("col.ppm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
+	CHECK(write_all(tpath("col.ppm"), "P3 3 2 7 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0", 44));
+	CHECK_EQ_INT(loom_type_map_read(tpath("col.ppm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "a weft-type map must be a grey image");
-	CHECK(write_all(tmp("big.pgm"), "P2 3 2 1000 0 1 2 3 4 300", 25));
-	CHECK_EQ_INT(loom_type_map_read(tmp("big.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
+	CHECK(write_all(tpath("big.pgm"), "P2 3 2 1000 0 1 2 3 4 300", 25));
+	CHECK_EQ_INT(loom_type_map_read(tpath("big.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "big.pgm: line 1: sample 300 is above 255 and cannot be a type ID");
 	CHECK(memcmp(d->weft_type, "\x00\x01\x02\x03\x04\x05", 6) == 0);
 	loom_design_free(d);
@@ -716,19 +685,19 @@ static void type_map_png_raw(void)
 	loom_diag dg = {0};
 
 	CHECK_EQ_INT(loom_design_new(1, 4, &d), LOOM_OK);
-	CHECK(write_png_raw(tmp("idx.png"), &s));
-	CHECK_EQ_INT(loom_type_map_read(tmp("idx.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
+	CHECK(write_png_raw(tpath("idx.png"), &s));
+	CHECK_EQ_INT(loom_type_map_read(tpath("idx.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
 	CHECK(memcmp(d->warp_type, "\x00\x01\x02\x03", 4) == 0);
 	s = (png_spec){4, 1, 4, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE, g4, NULL,
 	               0, NULL, 0};
-	CHECK(write_png_raw(tmp("g4.png"), &s));
-	CHECK_EQ_INT(loom_type_map_read(tmp("g4.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
+	CHECK(write_png_raw(tpath("g4.png"), &s));
+	CHECK_EQ_INT(loom_type_map_read(tpath("g4.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
 	CHECK(memcmp(d->warp_type, "\x00\x0f\x03\x07", 4) == 0);
 	CHECK_EQ_INT(d->n_types, 16);
 	s = (png_spec){4, 1, 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE, g16, NULL,
 	               0, NULL, 0};
-	CHECK(write_png_raw(tmp("g16m.png"), &s));
-	CHECK_EQ_INT(loom_type_map_read(tmp("g16m.png"), d, LOOM_MAP_WARP, &dg), LOOM_EFORMAT);
+	CHECK(write_png_raw(tpath("g16m.png"), &s));
+	CHECK_EQ_INT(loom_type_map_read(tpath("g16m.png"), d, LOOM_MAP_WARP, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "g16m.png: pixel x=1, y=0: sample 256 is above 255 and cannot be a type ID");
 	loom_design_free(d);
 }
@@ -736,10 +705,9 @@ static void type_map_png_raw(void)
 int main(void)
 {
 	CHECK_MAIN_BEGIN("test_image");
-	if (!make_tmpdir()) {
-		printf("FAIL test_image/tmpdir\n");
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	RUN(pbm_plain);
 	RUN(pbm_roundtrip);
 	RUN(pgm_ppm);
@@ -756,5 +724,6 @@ int main(void)
 	RUN(weave_from_grey_images);
 	RUN(type_maps);
 	RUN(type_map_png_raw);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

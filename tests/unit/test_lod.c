@@ -10,6 +10,7 @@
  * options.lod has no levels and sample_lod at level 0 is sample itself.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 #include "texture/texture_internal.h"
 
@@ -19,7 +20,7 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[4096], db_path[4200], db4_path[4200];
+static char db_path[4200], db4_path[4200];
 
 /* The old axis-only rule (before the direction fit), kept to show what
    the fit buys: the density d whose uniform box transmits as much along
@@ -540,14 +541,11 @@ out:
 int main(void)
 {
 	const uint32_t brick[3] = {8, 8, 16}, brick4[3] = {4, 4, 8};
-	const char *base = getenv("LOOM_TEST_TMP");
 
 	CHECK_MAIN_BEGIN("test_lod");
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_lod.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
+	RUN(tmpdir_setup);
+	if (!tmpdir[0])
 		return 1;
-	}
 	snprintf(db_path, sizeof db_path, "%s/b8.ldb", tmpdir);
 	snprintf(db4_path, sizeof db4_path, "%s/b4.ldb", tmpdir);
 	CHECK_EQ_INT(make_db(db_path, brick), LOOM_OK);
@@ -555,8 +553,6 @@ int main(void)
 	RUN(levels_8x8x16);
 	RUN(levels_4x4x8);
 	RUN(lookups_match_synthesized);
-	unlink(db_path);
-	unlink(db4_path);
-	rmdir(tmpdir);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

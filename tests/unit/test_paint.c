@@ -9,13 +9,14 @@
  */
 #include "loom.h"
 #include "check.h"
+#include "tmpdir.h"
 
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-static char tmpdir[512], db_path[600];
+static char db_path[4200];
 static loom_db *g_db;
 static loom_fabric *g_fab;
 static loom_texture *g_tex;
@@ -24,7 +25,6 @@ static uint32_t g_b[3];
 
 static void setup(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	loom_exgen_params p;
 	loom_diag d;
 	loom_design *des = NULL;
@@ -32,11 +32,8 @@ static void setup(void)
 	loom_fabric_db_identity id;
 
 	memset(&d, 0, sizeof d);
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_paint.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
+	if (tmpdir_make())
 		return;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	CHECK_EQ_INT(loom_exgen_preset("tiny", &p), LOOM_OK);
 	p.seed = 5;
@@ -741,7 +738,6 @@ int main(void)
 	loom_texture_close(g_tex);
 	loom_fabric_free(g_fab);
 	loom_db_close(g_db);
-	remove(db_path);
-	remove(tmpdir);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

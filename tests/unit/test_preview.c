@@ -6,6 +6,7 @@
  */
 #include "loom.h"
 #include "check.h"
+#include "tmpdir.h"
 
 #include <errno.h>
 #include <math.h>
@@ -13,7 +14,7 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[4096], db_path[4200];
+static char db_path[4200];
 static loom_db *g_db;
 static loom_design *g_design;
 static loom_fabric *g_fab;
@@ -33,18 +34,13 @@ static uint64_t mix(uint64_t x)
 
 static void setup(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	loom_exgen_params p;
 	loom_diag d = {0};
 	loom_fabric_db_identity id;
 	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
 
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_preview.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
-		CHECK(0);
+	if (tmpdir_make())
 		return;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	CHECK_EQ_INT(loom_exgen_preset("tiny", &p), LOOM_OK);
 	p.seed = 5;
@@ -598,9 +594,6 @@ int main(void)
 	loom_fabric_free(g_fab);
 	loom_design_free(g_design);
 	loom_db_close(g_db);
-	if (tmpdir[0]) {
-		unlink(db_path);
-		rmdir(tmpdir);
-	}
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

@@ -24,6 +24,7 @@
  */
 #include "loom.h"
 #include "check.h"
+#include "tmpdir.h"
 #include "raise_block.h"
 #include "render/render_internal.h"
 #include "synth/fabric_internal.h"
@@ -34,7 +35,7 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[4096], db_path[4200];
+static char db_path[4200];
 static loom_db *g_db;
 static loom_design *g_design;
 static loom_fabric *g_fab;
@@ -279,18 +280,13 @@ static void test_dda_skip(void)
 
 static void setup(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	loom_exgen_params p;
 	loom_diag d = {0};
 	loom_fabric_db_identity id;
 	loom_texture_options o = LOOM_TEXTURE_OPTIONS_INIT;
 
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_render_grid.XXXXXX", base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
-		CHECK(0);
+	if (tmpdir_make())
 		return;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	CHECK_EQ_INT(loom_exgen_preset("tiny", &p), LOOM_OK);
 	p.seed = 9;
@@ -948,9 +944,6 @@ int main(void)
 	loom_fabric_free(g_fab);
 	loom_design_free(g_design);
 	loom_db_close(g_db);
-	if (tmpdir[0]) {
-		unlink(db_path);
-		rmdir(tmpdir);
-	}
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

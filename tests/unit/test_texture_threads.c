@@ -12,6 +12,7 @@
  * LOOM_TEXTURE_TEST_OPS lengthens the hammering.
  */
 #include "check.h"
+#include "tmpdir.h"
 #include "loom.h"
 
 #include <errno.h>
@@ -21,7 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-static char tmpdir[4096], db_path[4200];
+static char db_path[4200];
 static loom_db *g_db;
 static loom_fabric *g_fab;
 static int g_ok;
@@ -75,7 +76,6 @@ static size_t min_budget(unsigned threads)
 
 static void setup(void)
 {
-	const char *base = getenv("LOOM_TEST_TMP");
 	const char *ops = getenv("LOOM_TEXTURE_TEST_OPS");
 	loom_exgen_params p;
 	loom_design *d = NULL;
@@ -86,13 +86,8 @@ static void setup(void)
 
 	if (ops)
 		g_ops = (unsigned)strtoul(ops, NULL, 0);
-	snprintf(tmpdir, sizeof tmpdir, "%s/test_texture_threads.XXXXXX",
-	         base ? base : "/tmp");
-	if (!mkdtemp(tmpdir)) {
-		printf("  mkdtemp: %s\n", strerror(errno));
-		CHECK(0);
+	if (tmpdir_make())
 		return;
-	}
 	snprintf(db_path, sizeof db_path, "%s/tiny.ldb", tmpdir);
 	CHECK_EQ_INT(loom_exgen_preset("tiny", &p), LOOM_OK);
 	p.brick[0] = 4, p.brick[1] = 4, p.brick[2] = 8;
@@ -521,5 +516,6 @@ int main(void)
 	free(R_d), free(R_k), free(R_t), free(R_l), free(R_o);
 	loom_fabric_free(g_fab);
 	loom_db_close(g_db);
+	RUN(tmpdir_remove);
 	CHECK_MAIN_END();
 }

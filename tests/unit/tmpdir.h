@@ -64,7 +64,8 @@ static inline int file_exists(const char *p)
 	return stat(p, &st) == 0;
 }
 
-/* Files in tmpdir whose name has ".tmp." (a writer's temporary). */
+/* Files in tmpdir whose name has ".tmp." (a writer's temporary); -1 when
+   tmpdir cannot be read. */
 static inline int temp_files_left(void)
 {
 	DIR *d = opendir(tmpdir);
@@ -72,7 +73,7 @@ static inline int temp_files_left(void)
 	int n = 0;
 
 	if (!d)
-		return 0;
+		return -1;
 	while ((e = readdir(d)))
 		if (strstr(e->d_name, ".tmp."))
 			n++;
