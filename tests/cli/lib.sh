@@ -6,7 +6,15 @@ T=$(mktemp -d "$LOOM_TEST_TMP/$(basename "$0" .sh).XXXXXX")
 DATA=$LOOM_TOP/tests/data
 
 pass() { echo "PASS $SUITE/$1"; }
-fail() { echo "FAIL $SUITE/$1: $2"; }
+fail() { echo "FAIL $SUITE/$1: $2"; : >"$T/.failed" 2>/dev/null; }
+
+# cleanup_tmp: at exit, $T goes unless a check failed (its files are then
+# kept, and named, for a look).  A suite with its own EXIT trap calls it
+# from there.
+cleanup_tmp() {
+	if [ -e "$T/.failed" ]; then echo "  files kept in $T"; else rm -rf "$T"; fi
+}
+trap cleanup_tmp EXIT
 
 # expect_ok NAME CMD...: command exits 0
 expect_ok() {

@@ -161,7 +161,7 @@ then pass export_defects_density; else fail export_defects_density "density unch
 # far from it is the same
 SERVER=""
 stop_server() { [ -n "$SERVER" ] && kill "$SERVER" 2>/dev/null && wait "$SERVER" 2>/dev/null; SERVER=""; }
-trap stop_server EXIT
+trap 'stop_server; cleanup_tmp' EXIT
 serve_tiles() { # NAME FABRIC [drawdown]: tiles near and far into $T/NAME-near.png, -far.png
 	"$LOOM" serve "$2" --port 0 --budget 64 --cache "$T/cache-$1" >"$T/$1.out" 2>"$T/$1.err" &
 	SERVER=$!

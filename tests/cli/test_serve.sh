@@ -11,7 +11,7 @@ export PYTHONPATH="$LOOM_TOP/tests/cli"
 HB=$LOOM_TOP/data/herringbone-8.wif
 SERVER=""
 stop_server() { [ -n "$SERVER" ] && kill "$SERVER" 2>/dev/null && wait "$SERVER" 2>/dev/null; SERVER=""; }
-trap stop_server EXIT
+trap 'stop_server; cleanup_tmp' EXIT
 
 # start_server NAME ARGS...: run loom serve, wait for its URL line
 start_server() {
