@@ -719,7 +719,7 @@ static void shift_vals(wif_parser *p, wif_list *l)
 	l->has_zero_val = 0;
 }
 
-static void normalise_numbers(wif_parser *p)
+static int normalise_numbers(wif_parser *p)
 {
 	wif_list *L = p->list;
 	int picks = L[L_LIFTPLAN].n > 0 ? L_LIFTPLAN : L_TREADLING;
@@ -786,6 +786,23 @@ static void normalise_numbers(wif_parser *p)
 		}
 		l->n = m;
 	}
+	/* Read one higher, a number written as the largest allowed is one
+	   above it. */
+	for (int li = 0; li < L_COUNT; li++) {
+		const wif_list *l = &L[li];
+		int vals = lists[li].kind == K_INTS || lists[li].kind == K_ONE;
+		if (l->max_key > lists[li].key_max)
+			return perr(p, l->max_key_line, LOOM_ERANGE, "%s: %s number %u (%u "
+			            "as written, the draft counting from 0) too large (at "
+			            "most %u)", lists[li].section, lists[li].key_what,
+			            l->max_key, l->max_key - 1, lists[li].key_max);
+		if (vals && l->max_val > lists[li].val_max)
+			return perr(p, l->max_val_line, LOOM_ERANGE, "%s: %s %u (%u as "
+			            "written, the draft counting from 0) too large (at most "
+			            "%u)", lists[li].section, lists[li].val_what, l->max_val,
+			            l->max_val - 1, lists[li].val_max);
+	}
+	return LOOM_OK;
 }
 
 /* WIF booleans: true/yes/on/1 and false/no/off/0 (any case). */
@@ -875,9 +892,7 @@ static void untied_treadles(wif_parser *p, const wif_build *b, uint32_t rows,
                             uint32_t ntr)
 {
 	const wif_list *tr = &p->list[L_TREADLING];
-	/* treadle numbers go up to WIF_MAX_TREADLES as written, one more in a
-	   draft counted from 0 (normalise_numbers reads it one higher) */
-	uint8_t seen[WIF_MAX_TREADLES + 2];
+	uint8_t seen[WIF_MAX_TREADLES + 1]; /* normalise_numbers keeps t in range */
 	uint32_t warned = 0;
 
 	memset(seen, 0, sizeof seen);
@@ -1462,7 +1477,8 @@ static int build(wif_parser *p, loom_design **out)
 	char s[64];
 
 	memset(&b, 0, sizeof b);
-	normalise_numbers(p);
+	if ((rc = normalise_numbers(p)))
+		return rc;
 	use_lift = lp->n > 0;
 	pk = use_lift ? lp : tr;
 	if (p->version.s && p->version.n && !(p->version.n >= 2 &&
