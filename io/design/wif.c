@@ -786,8 +786,9 @@ static int normalise_numbers(wif_parser *p)
 		}
 		l->n = m;
 	}
-	/* Read one higher, a number written as the largest allowed is one
-	   above it. */
+	/* Every number was checked against its limit as written, so only a
+	   draft read one higher gets here: its largest allowed number, written,
+	   is one above the limit now. */
 	for (int li = 0; li < L_COUNT; li++) {
 		const wif_list *l = &L[li];
 		int vals = lists[li].kind == K_INTS || lists[li].kind == K_ONE;

@@ -21,36 +21,6 @@
 static char db_path[4200], fab_path[4200], work_path[4200];
 static loom_db *db;
 
-static int read_all(const char *path, uint8_t **buf, size_t *len)
-{
-	FILE *fp = fopen(path, "rb");
-	long n;
-
-	if (!fp)
-		return -1;
-	fseek(fp, 0, SEEK_END);
-	n = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	*buf = malloc(n > 0 ? (size_t)n : 1);
-	*len = (size_t)n;
-	if (!*buf || fread(*buf, 1, *len, fp) != *len) {
-		fclose(fp);
-		return -1;
-	}
-	fclose(fp);
-	return 0;
-}
-
-static int write_all(const char *path, const uint8_t *buf, size_t len)
-{
-	FILE *fp = fopen(path, "wb");
-	int ok = fp && fwrite(buf, 1, len, fp) == len;
-
-	if (fp && fclose(fp) != 0)
-		ok = 0;
-	return ok ? 0 : -1;
-}
-
 /* 1 if the reader accepts the file at path (a silent corruption) */
 static int accepts_ldb(const char *path)
 {
@@ -104,7 +74,7 @@ static void sweep(const char *what, const uint8_t *orig, size_t len,
 			for (size_t k = i; k < len; k++) {
 				int a;
 				buf[k] ^= 0xff;
-				if (write_all(work_path, buf, len) != 0)
+				if (!spit(work_path, buf, len))
 					_exit(3);
 				a = accepts(work_path);
 				buf[k] ^= 0xff;
@@ -146,7 +116,7 @@ static void ldb_sweep(void)
 	size_t len;
 	unsigned c[3];
 
-	CHECK(read_all(db_path, &orig, &len) == 0);
+	CHECK((orig = slurp(db_path, &len)) != NULL);
 	if (check_fail_count)
 		return;
 	CHECK(accepts_ldb(db_path) == 1); /* the sweep means nothing otherwise */
@@ -163,7 +133,7 @@ static void loomf_sweep(void)
 	size_t len;
 	unsigned c[3];
 
-	CHECK(read_all(fab_path, &orig, &len) == 0);
+	CHECK((orig = slurp(fab_path, &len)) != NULL);
 	if (check_fail_count)
 		return;
 	CHECK(accepts_loomf(fab_path) == 1);

@@ -17,16 +17,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static void spit(const char *path, const uint8_t *b, size_t n)
-{
-	FILE *fp = fopen(path, "wb");
-	if (fp) {
-		if (n)
-			fwrite(b, 1, n, fp);
-		fclose(fp);
-	}
-}
-
 /* Recompute the header CRC, metadata CRC, content hash and trailer CRC of
    an edited database image, so that a deliberate inconsistency reaches the
    check behind them. */

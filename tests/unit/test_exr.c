@@ -11,7 +11,6 @@
 #include "tmpdir.h"
 #include "loom.h"
 
-#include <dirent.h>
 #include <math.h>
 #include <sys/stat.h>
 #include <unistd.h>

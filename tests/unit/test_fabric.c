@@ -19,16 +19,6 @@
 static char db_path[4200], db2_path[4200], db3_path[4200];
 static loom_db *db, *db2, *db3;   /* tiny; tiny with another seed; 12 weaves */
 
-static void spit(const char *path, const uint8_t *b, size_t n)
-{
-	FILE *fp = fopen(path, "wb");
-	if (fp) {
-		if (n)
-			fwrite(b, 1, n, fp);
-		fclose(fp);
-	}
-}
-
 static uint32_t le32(const uint8_t *p)
 {
 	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 |

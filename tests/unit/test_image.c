@@ -10,7 +10,6 @@
 #include "tmpdir.h"
 #include "loom.h"
 
-#include <dirent.h>
 #include <png.h>
 #include <stdlib.h>
 #include <unistd.h>
@@ -26,16 +25,6 @@ static size_t read_all(const char *path, uint8_t *buf, size_t cap)
 	n = fread(buf, 1, cap, fp);
 	fclose(fp);
 	return n;
-}
-
-static int write_all(const char *path, const void *data, size_t n)
-{
-	FILE *fp = fopen(path, "wb");
-	int ok;
-	if (!fp)
-		return 0;
-	ok = fwrite(data, 1, n, fp) == n;
-	return fclose(fp) == 0 && ok;
 }
 
 static int pixels_are(const loom_image *img, const uint8_t *want, size_t n)
@@ -589,35 +578,35 @@ static void weave_from_grey_images(void)
 	loom_diag dg = {0};
 
 	/* two levels: the darker (100) is warp over, whatever the threshold */
-	CHECK(write_all(tpath("two.pgm"), "P2 3 1 255 100 200 100", 22));
+	CHECK(spit(tpath("two.pgm"), "P2 3 1 255 100 200 100", 22));
 	CHECK_EQ_INT(loom_design_read(tpath("two.pgm"), &d, &dg), LOOM_OK);
 	CHECK(d && d->rows == 1 && d->cols == 3 && d->weave[0] == 1 &&
 	      d->weave[1] == 0 && d->weave[2] == 1);
 	loom_design_free(d);
 	/* one level: dark means all over */
-	CHECK(write_all(tpath("one.pgm"), "P2 2 1 255 20 20", 16));
+	CHECK(spit(tpath("one.pgm"), "P2 2 1 255 20 20", 16));
 	CHECK_EQ_INT(loom_design_read(tpath("one.pgm"), &d, &dg), LOOM_OK);
 	CHECK(d && d->weave[0] == 1 && d->weave[1] == 1);
 	loom_design_free(d);
-	CHECK(write_all(tpath("three.pgm"), "P2 2 2 255 0 255 255 57", 23));
+	CHECK(spit(tpath("three.pgm"), "P2 2 2 255 0 255 255 57", 23));
 	CHECK_EQ_INT(loom_design_read(tpath("three.pgm"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "three.pgm: pixel x=1, y=1 has a third level "
 	                   "(grey level 57; the others are grey level 0 and grey "
 	                   "level 255): a weave image must be two-level");
 	CHECK(d == NULL);
 	/* two colours of equal darkness */
-	CHECK(write_all(tpath("eq.ppm"), "P3 2 1 255 255 0 0 255 0 0", 26));
+	CHECK(spit(tpath("eq.ppm"), "P3 2 1 255 255 0 0 255 0 0", 26));
 	CHECK_EQ_INT(loom_design_read(tpath("eq.ppm"), &d, &dg), LOOM_OK); /* one colour */
 	loom_design_free(d);
-	CHECK(write_all(tpath("eq2.ppm"), "P3 2 1 255 4 0 41 0 10 0", 24));
+	CHECK(spit(tpath("eq2.ppm"), "P3 2 1 255 4 0 41 0 10 0", 24));
 	CHECK_EQ_INT(loom_design_read(tpath("eq2.ppm"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "equally dark");
 	/* an image extension with other content */
-	CHECK(write_all(tpath("fake.png"), "hello", 5));
+	CHECK(spit(tpath("fake.png"), "hello", 5));
 	CHECK_EQ_INT(loom_design_read(tpath("fake.png"), &d, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "fake.png: not a PBM, PGM, PPM or PNG image");
 	/* .wif goes to the WIF reader */
-	CHECK(write_all(tpath("x.wif"), "[WIF]\n", 6));
+	CHECK(spit(tpath("x.wif"), "[WIF]\n", 6));
 	dg.message[0] = 0;
 	CHECK(loom_design_read(tpath("x.wif"), &d, &dg) != LOOM_OK || d != NULL);
 	loom_design_free(d);
@@ -647,7 +636,7 @@ static void type_maps(void)
 	CHECK_EQ_INT(loom_type_map_read(tpath("weft.png"), d, LOOM_MAP_WARP, &dg), LOOM_OK);
 	CHECK(memcmp(d->warp_type, d->weft_type, 6) == 0);
 	/* raw values: maxval 7 is not rescaled; IDs past the table extend it */
-	CHECK(write_all(tpath("ids.pgm"), "P2 3 2 7 0 1 2 3 4 5", 20));
+	CHECK(spit(tpath("ids.pgm"), "P2 3 2 7 0 1 2 3 4 5", 20));
 	dg.warn = grab_warning;
 	n_warned = 0;
 	CHECK_EQ_INT(loom_type_map_read(tpath("ids.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_OK);
@@ -658,13 +647,13 @@ static void type_maps(void)
 	CHECK_STR_CONTAINS(d->types[5].name, "type5");
 	CHECK_EQ_INT(loom_design_validate(d, NULL), LOOM_OK);
 	/* errors leave the design unchanged */
-	CHECK(write_all(tpath("small.pgm"), "P2 2 2 7 0 1 2 3", 16));
+	CHECK(spit(tpath("small.pgm"), "P2 2 2 7 0 1 2 3", 16));
 	CHECK_EQ_INT(loom_type_map_read(tpath("small.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EMISMATCH);
 	CHECK_STR_CONTAINS(dg.message, "small.pgm: weft-type map is 2x2 (width x height) but the weave has 3 ends x 2 picks");
-	CHECK(write_all(tpath("col.ppm"), "P3 3 2 7 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0", 44));
+	CHECK(spit(tpath("col.ppm"), "P3 3 2 7 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0 0", 44));
 	CHECK_EQ_INT(loom_type_map_read(tpath("col.ppm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "a weft-type map must be a grey image");
-	CHECK(write_all(tpath("big.pgm"), "P2 3 2 1000 0 1 2 3 4 300", 25));
+	CHECK(spit(tpath("big.pgm"), "P2 3 2 1000 0 1 2 3 4 300", 25));
 	CHECK_EQ_INT(loom_type_map_read(tpath("big.pgm"), d, LOOM_MAP_WEFT, &dg), LOOM_EFORMAT);
 	CHECK_STR_CONTAINS(dg.message, "big.pgm: line 1: sample 300 is above 255 and cannot be a type ID");
 	CHECK(memcmp(d->weft_type, "\x00\x01\x02\x03\x04\x05", 6) == 0);

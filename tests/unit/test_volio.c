@@ -7,38 +7,12 @@
 #include "tmpdir.h"
 #include "loom.h"
 
-#include <dirent.h>
 #include <stdarg.h>
 #include <math.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 /* Any "*.tmp.*" left in the scratch directory? */
-static int write_bytes(const char *p, const void *data, size_t n)
-{
-	FILE *fp = fopen(p, "wb");
-	int ok = fp && fwrite(data, 1, n, fp) == n;
-	if (fp)
-		fclose(fp);
-	return ok;
-}
-
-static uint8_t *read_bytes(const char *p, size_t *n)
-{
-	FILE *fp = fopen(p, "rb");
-	uint8_t *b;
-	long len;
-	if (!fp)
-		return NULL;
-	fseek(fp, 0, SEEK_END);
-	len = ftell(fp);
-	fseek(fp, 0, SEEK_SET);
-	b = malloc((size_t)len + 1);
-	*n = fread(b, 1, (size_t)len, fp);
-	fclose(fp);
-	return b;
-}
-
 static uint64_t rng_state;
 static uint64_t rnd(void)
 {
@@ -176,7 +150,7 @@ static void vol_bytes_exact(void)
 	CHECK_EQ_INT(loom_vol_writer_put_slices(w, v, 1, &d), LOOM_OK);
 	CHECK_EQ_INT(loom_vol_writer_put_voxels(w, v + 2, 2, &d), LOOM_OK);
 	CHECK_EQ_INT(loom_vol_writer_finish(w, &d), LOOM_OK);
-	got = read_bytes(p, &n);
+	got = slurp(p, &n);
 	CHECK(got != NULL);
 	CHECK_EQ_INT(n, sizeof want);
 	CHECK(got && n == sizeof want && memcmp(got, want, n) == 0);
@@ -367,7 +341,7 @@ static void vol_round_trips(void)
 				/* memory parse gives the same */
 				{
 					size_t n = 0;
-					uint8_t *b = read_bytes(tpath(name), &n);
+					uint8_t *b = slurp(tpath(name), &n);
 					loom_volbuf *v2 = NULL;
 					CHECK_EQ_INT(loom_vol_parse(b, n, name, 0, NULL, &v2, &d), LOOM_OK);
 					CHECK(v2 && memcmp(v2->data, v->data, nval * 4) == 0);
@@ -466,7 +440,7 @@ static void vol_malformed(void)
 		CHECK_STR_CONTAINS(d.message, cases[i].what); /* the name */
 		CHECK(v == NULL);
 		/* the same through a file */
-		write_bytes(tpath("bad.vol"), buf, len);
+		spit(tpath("bad.vol"), buf, len);
 		v = NULL;
 		CHECK_EQ_INT(loom_vol_read(tpath("bad.vol"), 0, NULL, &v, &d), cases[i].code);
 		CHECK_STR_CONTAINS(d.message, cases[i].frag);
@@ -528,7 +502,7 @@ static void vol_writer_errors(void)
 	CHECK(!file_exists(p));
 	CHECK_EQ_INT(temp_files_left(), 0);
 	/* an existing file survives a failed rewrite */
-	write_bytes(p, "old", 3);
+	spit(p, "old", 3);
 	CHECK_EQ_INT(loom_vol_writer_open(p, &h, &w, &d), LOOM_OK);
 	for (int z = 0; z < 5; z++)
 		CHECK_EQ_INT(loom_vol_writer_put_slices(w, slice, 1, &d), LOOM_OK);
@@ -538,7 +512,7 @@ static void vol_writer_errors(void)
 	CHECK_EQ_INT(loom_vol_writer_finish(w, &d), LOOM_EUNUSABLE);
 	{
 		size_t n = 0;
-		uint8_t *b = read_bytes(p, &n);
+		uint8_t *b = slurp(p, &n);
 		CHECK(b && n == 3 && memcmp(b, "old", 3) == 0);
 		free(b);
 	}
@@ -615,7 +589,7 @@ static void raw_round_trips(void)
 				CHECK(v->spacing[2] == 0.25 && v->source_type == type && v->channels == 2);
 			loom_volbuf_free(v);
 			/* through a file, whole and by slices */
-			write_bytes(tpath("r.raw"), buf, off + n * es);
+			spit(tpath("r.raw"), buf, off + n * es);
 			v = NULL;
 			CHECK_EQ_INT(loom_raw_read(tpath("r.raw"), &p, 0, &v, &d), LOOM_OK);
 			bad = 0;
@@ -755,10 +729,10 @@ static void nrrd_from_unu(void)
 	}
 	for (int i = 0; i < 3 * N; i++)
 		f3[i] = (float)i * 0.25f - 7.0f;
-	write_bytes(tpath("u8.bin"), u8, N);
-	write_bytes(tpath("u16le.bin"), u16le, 2 * N); /* x86: little-endian */
-	write_bytes(tpath("u16be.bin"), u16be, 2 * N);
-	write_bytes(tpath("f3.bin"), f3, sizeof f3);
+	spit(tpath("u8.bin"), u8, N);
+	spit(tpath("u16le.bin"), u16le, 2 * N); /* x86: little-endian */
+	spit(tpath("u16be.bin"), u16be, 2 * N);
+	spit(tpath("f3.bin"), f3, sizeof f3);
 
 	/* the command of the brief: uchar raw, attached */
 	CHECK_EQ_INT(sh("cd %s && teem-unu make -i u8.bin -t uchar -s 4 5 6 -e raw -o x.nrrd", dir), 0);
@@ -846,7 +820,7 @@ static void nrrd_from_unu(void)
 		memcpy(blob, "skip me\nxy", 10);
 		blob[10] = 0x55;
 		memcpy(blob + 11, u16le, 2 * N);
-		write_bytes(tpath("skip.bin"), blob, sizeof blob);
+		spit(tpath("skip.bin"), blob, sizeof blob);
 		CHECK_EQ_INT(sh("cd %s && teem-unu make -h -i skip.bin -t ushort -s 4 5 6 -en little -e raw -ls 1 -bs 3 -o skip.nhdr", dir), 0);
 		CHECK_EQ_INT(loom_nrrd_read(tpath("skip.nhdr"), 0, &info, &v, &d), LOOM_OK);
 		if (v)
@@ -894,7 +868,7 @@ static void nrrd_to_unu(void)
 		file[hl + 2 * i] = (uint8_t)((uint16_t)vals[i] >> 8);
 		file[hl + 2 * i + 1] = (uint8_t)vals[i];
 	}
-	write_bytes(tpath("hand.nrrd"), file, hl + 2 * N);
+	spit(tpath("hand.nrrd"), file, hl + 2 * N);
 	CHECK_EQ_INT(loom_nrrd_read(tpath("hand.nrrd"), 0, NULL, &ours, &d), LOOM_OK);
 	CHECK_EQ_INT(sh("cd %s && teem-unu convert -i hand.nrrd -t float | teem-unu save -f nrrd -e raw -en little -o hand_unu.nrrd", dir), 0);
 	CHECK_EQ_INT(loom_nrrd_read(tpath("hand_unu.nrrd"), 0, NULL, &theirs, &d), LOOM_OK);
@@ -916,7 +890,7 @@ static void nrrd_to_unu(void)
 	{
 		const char *t = "NRRD0002\ntype: double\ndimension: 2\nsizes: 3 2\n"
 		                "spacings: 1.5 2.5\nencoding: txt\n\n1.5, -2 3e2\n4\n5 6.25\n";
-		write_bytes(tpath("a.nrrd"), t, strlen(t));
+		spit(tpath("a.nrrd"), t, strlen(t));
 		CHECK_EQ_INT(loom_nrrd_read(tpath("a.nrrd"), 0, NULL, &ours, &d), LOOM_OK);
 		CHECK_EQ_INT(sh("cd %s && teem-unu convert -i a.nrrd -t float | teem-unu save -f nrrd -e raw -en little -o a_unu.nrrd", dir), 0);
 		CHECK_EQ_INT(loom_nrrd_read(tpath("a_unu.nrrd"), 0, NULL, &theirs, &d), LOOM_OK);
@@ -936,8 +910,8 @@ static void nrrd_to_unu(void)
 		int ok;
 		hl = (size_t)snprintf(hdr, sizeof hdr, "NRRD0004\ntype: short\ndimension: 3\n"
 		                      "sizes: 3 4 2\nendian: little\nencoding: gzip\n\n");
-		write_bytes(tpath("g.raw"), vals, sizeof vals);
-		write_bytes(tpath("g.hdr"), hdr, hl);
+		spit(tpath("g.raw"), vals, sizeof vals);
+		spit(tpath("g.hdr"), hdr, hl);
 		snprintf(cmd, sizeof cmd, "cd %s && gzip -c g.raw > g.gz && cat g.hdr g.gz > g.nrrd", dir);
 		ok = system(cmd) == 0;
 		CHECK(ok);
@@ -1031,7 +1005,7 @@ static void nrrd_malformed(void)
 		                "data file: nothere.raw\n";
 		loom_diag d = {0};
 		loom_volbuf *v = NULL;
-		write_bytes(tpath("lost.nhdr"), t, strlen(t));
+		spit(tpath("lost.nhdr"), t, strlen(t));
 		CHECK_EQ_INT(loom_nrrd_read(tpath("lost.nhdr"), 0, NULL, &v, &d), LOOM_EIO);
 		CHECK_STR_CONTAINS(d.message, "nothere.raw: cannot open");
 	}

@@ -1,7 +1,7 @@
 /*
  * tests/unit/tmpdir.h - a unit test program's scratch directory: made as
  * PROGRAM.XXXXXX under $LOOM_TEST_TMP (tests/run.sh sets it; /tmp
- * otherwise), paths in it, whole-file reads, and its removal as the
+ * otherwise), paths in it, whole-file reads and writes, and its removal as the
  * program's last test (kept, with a line saying where, when a test
  * failed, so the files can be looked at).
  */
@@ -104,6 +104,18 @@ static inline uint8_t *slurp(const char *path, size_t *len)
 	}
 	fclose(fp);
 	return b;
+}
+
+/* Write n bytes to path (replacing it): 1 when written and closed, else
+   0. */
+static inline int spit(const char *path, const void *data, size_t n)
+{
+	FILE *fp = fopen(path, "wb");
+	int ok = fp && fwrite(data, 1, n, fp) == n;
+
+	if (fp && fclose(fp) != 0)
+		ok = 0;
+	return ok;
 }
 
 static inline int tmpdir_rm_one(const char *path, const struct stat *st, int flag,
