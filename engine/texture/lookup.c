@@ -25,8 +25,10 @@
  *   Step 4.  Source voxel (x0 + lx, y0 + ly, z - w) of the block's
  *            exemplar (outside [0, b3): empty); when f > 0 also voxel
  *            z - w - 1, and steps 5-6 for both, blended (raw_blend:
- *            the nearer voxel's planes; its density blended, or empty
- *            where the nearer voxel is empty).
+ *            the nearer voxel's planes and density, or empty where the
+ *            nearer voxel is empty; the density blended with the empty
+ *            farther voxel only at the top of the nearer one's segment,
+ *            read from the brick line's bytes above it, pair_top).
  *   Step 5.  Brick id of that voxel.  The thread's current brick (memo)
  *            answers without a cache call when the id matches; otherwise
  *            the memo's pin is released and the brick is taken from the
@@ -613,6 +615,59 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	return LOOM_OK;
 }
 
+/* Whether the nearer voxel of the blended pair a = zu - 1, b = zu of
+   source column (sx, sy) of crossing e is the top of its segment
+   (dens_blend), when the pair is a surface (else 0, and nothing is
+   read).  The bytes above zu in the segment come from the slot's brick
+   when it is zu's and holds them all (the pair's readers read zu last:
+   always so with the default brick height), else voxel by voxel through
+   src_raw (ch: the caller's planes).  A voxel there that fails to read
+   sets *rc (the caller's voxel is then empty, as any voxel whose source
+   fails) and gives 0. */
+static inline int pair_top(loom_texture *t, struct tslot *s, const struct xent *e,
+                           uint32_t sx, uint32_t sy, const rawvox *a, const rawvox *b, int f,
+                           int64_t zu, unsigned ch, int *rc)
+{
+	uint32_t end;
+
+	if (!dens_surface(a->d, b->d, f))
+		return 0;
+	if ((uint64_t)zu >= t->b3)
+		return 1; /* the nearer is the block's top voxel */
+	end = seg_end((uint32_t)zu - (2 * f > DZ_SUB), t->b3);
+	if ((uint32_t)zu + 1 >= end)
+		return 1; /* no voxel above zu in the segment */
+	if (s->memo && (s->memo_id & ~DUNIT_TAG) == src_brick(t, e, sx, sy, (uint32_t)zu) &&
+	    brick_of(t, 2, end - 1) == brick_of(t, 2, (uint32_t)zu))
+		return bytes_clear(s->memo + src_index(t, sx, sy, (uint32_t)zu) + 1,
+		                   end - (uint32_t)zu - 1);
+	for (uint32_t z = (uint32_t)zu + 1; z < end; z++) {
+		rawvox r;
+		int e2 = src_raw(t, s, e, sx, sy, z, ch, &r);
+		if (e2 != LOOM_OK) {
+			*rc = e2;
+			return 0;
+		}
+		if (r.d)
+			return 0;
+	}
+	return 1;
+}
+
+/* The same for the density bytes of a brick line holding every voxel of
+   the segment (t->seg_brick): cu at source voxel zu, zu - 1 at cu[-1];
+   the blended density. */
+static inline uint8_t dens_pair(const loom_texture *t, const uint8_t *cu, uint32_t zu, int f)
+{
+	int top = 0;
+
+	if (dens_surface(cu[-1], cu[0], f)) {
+		uint32_t end = seg_end(zu - (2 * f > DZ_SUB), t->b3);
+		top = zu + 1 >= end || bytes_clear(cu + 1, end - zu - 1);
+	}
+	return dens_blend(cu[-1], cu[0], f, top);
+}
+
 /* Step 2 for output column (x, y): the crossing entry (the slot's current
    one when it holds the column) and the column's source (sx, sy). */
 static inline struct xent *xent_at(loom_texture *t, struct tslot *s, int64_t x, int64_t y,
@@ -790,10 +845,13 @@ static inline int voxel_raw_w(loom_texture *t, struct tslot *s, int64_t x, int64
 	} else {
 		rc = src_raw(t, s, e, sx, sy, z - w - 1, ch, &a);
 		rc2 = src_raw(t, s, e, sx, sy, z - w, ch, &b);
-		if (rc == LOOM_OK && rc2 == LOOM_OK) /* a failed voxel stays empty */
-			raw_blend(&a, &b, f, r);
-		else if (rc == LOOM_OK)
+		if (rc == LOOM_OK && rc2 == LOOM_OK) { /* a failed voxel stays empty */
+			int top = pair_top(t, s, e, sx, sy, &a, &b, f, z - w, ch, &rc);
+			if (rc == LOOM_OK)
+				raw_blend(&a, &b, f, top, r);
+		} else if (rc == LOOM_OK) {
 			rc = rc2;
+		}
 	}
 	if (walk)
 		walk_next(t, s, x, y, ch);
@@ -877,13 +935,27 @@ static inline int pair_raw(loom_texture *t, struct tslot *s, int64_t x, int64_t 
 		if (in1)
 			rc[2] = src_raw(t, s, e, sx, sy, z - w + 1, ch, &v[2]);
 	}
-	if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK)
-		raw_blend(&v[0], &v[1], f, &r[0]);
-	if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK)
-		raw_blend(&v[1], &v[2], f, &r[1]);
-	if (in0 && (rc[0] != LOOM_OK || rc[1] != LOOM_OK))
-		return rc[0] != LOOM_OK ? rc[0] : rc[1];
-	return rc[1] != LOOM_OK ? rc[1] : rc[2];
+	{
+		/* the segments above: a failure there empties that voxel only */
+		int rt[2] = {LOOM_OK, LOOM_OK}, top;
+		if (in0 && rc[0] == LOOM_OK && rc[1] == LOOM_OK) {
+			top = pair_top(t, s, e, sx, sy, &v[0], &v[1], f, z - w, ch, &rt[0]);
+			if (rt[0] == LOOM_OK)
+				raw_blend(&v[0], &v[1], f, top, &r[0]);
+		}
+		if (in1 && rc[1] == LOOM_OK && rc[2] == LOOM_OK) {
+			top = pair_top(t, s, e, sx, sy, &v[1], &v[2], f, z - w + 1, ch, &rt[1]);
+			if (rt[1] == LOOM_OK)
+				raw_blend(&v[1], &v[2], f, top, &r[1]);
+		}
+		if (in0 && (rc[0] != LOOM_OK || rc[1] != LOOM_OK))
+			return rc[0] != LOOM_OK ? rc[0] : rc[1];
+		if (in0 && rt[0] != LOOM_OK)
+			return rt[0];
+		if (in1 && (rc[1] != LOOM_OK || rc[2] != LOOM_OK))
+			return rc[1] != LOOM_OK ? rc[1] : rc[2];
+		return rt[1];
+	}
 }
 
 /* The texel of raw voxel r, the fields of the channels outside ch zero
@@ -1043,7 +1115,8 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 		zl = z - w - (f != 0);
 		zh = z + 1 - w;
 		if (z < 0 || (uint64_t)(z + 1) >= t->b3 || zl < 0 || (uint64_t)zh >= t->b3 ||
-		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh)) {
+		    brick_of(t, 2, (uint32_t)zl) != brick_of(t, 2, (uint32_t)zh) ||
+		    (f && !t->seg_brick)) {
 			rawvox r[2];
 			e2 = pair_raw(t, s, x, y, z, CH_D, r);
 			d[2 * k] = r[0].d;
@@ -1072,8 +1145,8 @@ static inline int tri_dens(loom_texture *t, struct tslot *s, const int64_t i0[3]
 			d[2 * k] = c[0];
 			d[2 * k + 1] = c[1];
 		} else {
-			d[2 * k] = dens_blend(c[-1], c[0], f);
-			d[2 * k + 1] = dens_blend(c[0], c[1], f);
+			d[2 * k] = dens_pair(t, c, sz, f);
+			d[2 * k + 1] = dens_pair(t, c + 1, sz + 1, f);
 		}
 	}
 	if (one) /* the last column read was column 2: (sx, sy) = corner + (0, 1) */

@@ -11,11 +11,12 @@
  *   beyond the source block is filled with zeros.  A column whose offset
  *   has a fraction is copied like a whole-voxel column with its nearer
  *   whole offset (the other planes are then final), the one source voxel
- *   past its run read in the same brick pass; after the pass its copied
- *   densities are blended in place (blend_col: 16 voxels at a time, SSE2
- *   or SSSE3 PMADDUBSW, runs under 16 through a 32-byte line; raw_blend's
- *   density rule in one place), only between the first and last stored
- *   brick the pass read (an empty nearer voxel stays empty).
+ *   past its run read in the same brick pass, with whether the segment
+ *   of its last voxel goes on above it with density; after the pass the
+ *   top voxel of each segment of its copied densities is blended in place
+ *   (blend_col, raw_blend's density rule in one place), only between the
+ *   first and last stored brick the pass read (an empty nearer voxel
+ *   stays empty).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -273,187 +274,59 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 
 /* ------------------------------------------- the sub-voxel density blend */
 
-/* raw_blend's density rule for region reads, in one place: a column whose
-   offset has a fraction is first copied like a whole-voxel column with
-   its nearer whole offset (every plane the nearer voxel's, as raw_blend
-   keeps them); then blend_col rewrites its densities in place, each from
-   its nearer density n (the voxel itself) and its farther density o (the
-   copied voxel above or below it, or the end voxel past the run): n where
-   n is empty or o is not, else the linear blend (DZ_SUB - g) n + g o,
-   rounded (o = 0 there), g the farther voxel's weight.  blend1 is the
-   scalar form, blend16 the same for 16 voxels (SSE2, or SSSE3 PMADDUBSW
-   and PMULHRSW where the CPU has it); a change of raw_blend's density rule
-   is a change of these two. */
-
-_Static_assert(DZ_SUB == 16, "region blends assume 1/16-voxel offsets");
+/* raw_blend's density rule for region reads: a column whose offset has a
+   fraction is first copied like a whole-voxel column with its nearer
+   whole offset (every plane the nearer voxel's, as raw_blend keeps
+   them).  Only the top voxel of each segment of the nearer voxels
+   (SEG_Z, texture_impl.h) can differ from that copy: blend_col finds
+   each segment's top and blends that one voxel with its farther voxel
+   where the farther is empty (blend1, dens_blend's arithmetic). */
 
 static inline uint8_t blend1(unsigned n, unsigned o, unsigned g)
 {
 	return (uint8_t)(n && !o ? (g * o + (DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB : n);
 }
 
-#ifdef __SSE2__
-/* 16 blends of nearer densities n and farther o with weights w: for the
-   SSSE3 form, (DZ_SUB - g, g) byte pairs; for the SSE2 form, 16-bit
-   DZ_SUB - g (w) and g (w2).  Returns them; *any: some voxel changed
-   (n non-empty over an empty o), else the result is n. */
-static inline __m128i blend16_sse2(__m128i n, __m128i o, __m128i w, __m128i w2, int *any)
+/* The highest i in [a, b) with d[i] != 0, or SIZE_MAX (8 bytes at a time
+   from the top on little-endian machines). */
+static inline size_t last_set(const uint8_t *d, size_t a, size_t b)
 {
-	const __m128i zero = _mm_setzero_si128(), h = _mm_set1_epi16(DZ_SUB / 2);
-	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(n, zero), _mm_cmpeq_epi8(o, zero));
-	__m128i lo, hi, v;
-
-	*any = _mm_movemask_epi8(m);
-	if (!*any)
-		return n;
-	lo = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpacklo_epi8(n, zero), w),
-	                                 _mm_mullo_epi16(_mm_unpacklo_epi8(o, zero), w2)),
-	                   h);
-	hi = _mm_add_epi16(_mm_add_epi16(_mm_mullo_epi16(_mm_unpackhi_epi8(n, zero), w),
-	                                 _mm_mullo_epi16(_mm_unpackhi_epi8(o, zero), w2)),
-	                   h);
-	v = _mm_packus_epi16(_mm_srli_epi16(lo, 4), _mm_srli_epi16(hi, 4));
-	return _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, n));
-}
-#endif
-
-#ifdef HAVE_KT_SSSE3
-/* The same with PMADDUBSW ((n, o) byte pairs times (DZ_SUB - g, g) summed
-   in one instruction) and PMULHRSW by 2^11, which gives (s + 8) >> 4
-   exactly for s <= 255 * 16; w2 unused. */
-__attribute__((target("ssse3"))) static inline __m128i
-blend16_ssse3(__m128i n, __m128i o, __m128i w, __m128i w2, int *any)
-{
-	const __m128i zero = _mm_setzero_si128(), r = _mm_set1_epi16(1 << 11);
-	__m128i m = _mm_andnot_si128(_mm_cmpeq_epi8(n, zero), _mm_cmpeq_epi8(o, zero));
-	__m128i lo, hi, v;
-
-	(void)w2;
-	*any = _mm_movemask_epi8(m);
-	if (!*any)
-		return n;
-	lo = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpacklo_epi8(n, o), w), r);
-	hi = _mm_mulhrs_epi16(_mm_maddubs_epi16(_mm_unpackhi_epi8(n, o), w), r);
-	v = _mm_packus_epi16(lo, hi);
-	return _mm_or_si128(_mm_and_si128(m, v), _mm_andnot_si128(m, n));
-}
-#endif
-
-/* The in-place pass of blend_col over L >= 16 densities d[0 .. L) with
-   the 16-voxel blend B, farther voxel d[i + dir] (dir -1 or +1) and, past
-   the ends, edge.  Every blend is computed from the copied densities:
-   dir +1 ascends, reading d[i + 1 ..] before it is stored; dir -1 carries
-   the last copied voxel of the previous 16 in a register; the last 16
-   (overlapping the one before when 16 does not divide L) are computed
-   first and stored last. */
-#define BLEND_COL_BODY(B)                                                               \
-	do {                                                                            \
-		__m128i e = _mm_slli_si128(_mm_cvtsi32_si128((int)edge), 15);           \
-		__m128i nt = _mm_loadu_si128((const __m128i *)(d + L - 16)), ot, tv;    \
-		int tany, any;                                                          \
-		size_t i = 0;                                                           \
-		if (dir > 0) {                                                          \
-			ot = _mm_or_si128(_mm_srli_si128(nt, 1), e);                    \
-			tv = B(nt, ot, w, w2, &tany);                                   \
-			for (; i + 16 < L; i += 16) {                                   \
-				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
-				__m128i o = _mm_loadu_si128((const __m128i *)(d + i + 1)); \
-				__m128i v = B(n, o, w, w2, &any);                       \
-				if (any)                                                \
-					_mm_storeu_si128((__m128i *)(d + i), v);        \
-			}                                                               \
-		} else {                                                                \
-			__m128i prev = e;                                               \
-			ot = L > 16 ? _mm_loadu_si128((const __m128i *)(d + L - 17))    \
-			            : _mm_or_si128(_mm_slli_si128(nt, 1), _mm_srli_si128(e, 15)); \
-			tv = B(nt, ot, w, w2, &tany);                                   \
-			for (; i + 16 < L; i += 16) {                                   \
-				__m128i n = _mm_loadu_si128((const __m128i *)(d + i));  \
-				__m128i o = _mm_or_si128(_mm_slli_si128(n, 1),          \
-				                         _mm_srli_si128(prev, 15));     \
-				__m128i v = B(n, o, w, w2, &any);                       \
-				prev = n;                                               \
-				if (any)                                                \
-					_mm_storeu_si128((__m128i *)(d + i), v);        \
-			}                                                               \
-		}                                                                       \
-		if (tany)                                                               \
-			_mm_storeu_si128((__m128i *)(d + L - 16), tv);                  \
-	} while (0)
-
-#ifdef __SSE2__
-static void blend_col_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
-{
-	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
-	BLEND_COL_BODY(blend16_sse2);
-}
-#endif
-
-#ifdef __SSE2__
-/* blend_col of L < 16 densities: the run and the edge voxel put into a
-   zeroed 32-byte line (the run at 1 .. L, the edge at 0 or L + 1, where
-   its farther voxel is), blended 16 at once and the L bytes stored back
-   (a zero nearer voxel past the run stays zero).  It replaced a scalar
-   loop, which ran for most runs of the x-fastest read: its 64-row slabs,
-   cut at brick boundaries, make runs short. */
-static void blend_short_sse2(uint8_t *d, size_t L, int dir, unsigned g, unsigned edge)
-{
-	const __m128i w = _mm_set1_epi16((short)(DZ_SUB - g)), w2 = _mm_set1_epi16((short)g);
-	uint8_t tmp[32] = {0};
-	__m128i v;
-	int any;
-
-	copy_small(tmp + 1, d, L);
-	tmp[dir > 0 ? L + 1 : 0] = (uint8_t)edge;
-	v = blend16_sse2(_mm_loadu_si128((const __m128i *)(tmp + 1)),
-	                 _mm_loadu_si128((const __m128i *)(tmp + 1 + dir)), w, w2, &any);
-	if (any) {
-		_mm_storeu_si128((__m128i *)tmp, v);
-		copy_small(d, tmp, L);
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+	while (b - a >= 8) {
+		uint64_t v;
+		memcpy(&v, d + b - 8, 8);
+		if (v)
+			return b - 8 + (size_t)(63 - __builtin_clzll(v)) / 8;
+		b -= 8;
 	}
-}
 #endif
-
-#ifdef HAVE_KT_SSSE3
-__attribute__((target("ssse3"))) static void blend_col_ssse3(uint8_t *d, size_t L, int dir,
-                                                              unsigned g, unsigned edge)
-{
-	const __m128i w = _mm_set1_epi16((short)((g << 8) | (DZ_SUB - g))); /* n, o */
-	const __m128i w2 = w;
-	BLEND_COL_BODY(blend16_ssse3);
+	while (b > a)
+		if (d[--b])
+			return b;
+	return SIZE_MAX;
 }
-#endif
 
-/* Blend the L >= 1 copied densities d[0 .. L) of a fractional column in
-   place: voxel i's farther density is d[i + dir] (dir -1: below, +1:
-   above), past the ends edge (the source voxel beyond the run, 0 outside
-   the block), weight g / DZ_SUB (1 .. DZ_SUB / 2). */
-static void blend_col(const loom_texture *t, uint8_t *d, size_t L, int dir, unsigned g,
-                      unsigned edge)
+/* Blend the copied densities d[0 .. L) of a fractional column in place:
+   voxel i's nearer source voxel is zs + i, its farther d[i + dir] (dir -1:
+   below, +1: above), past the ends edge (the source voxel beyond the run,
+   0 outside the block), weight g / DZ_SUB (1 .. DZ_SUB / 2).  Only
+   d[i0 .. i1) can have density (the rest lies in bricks stored as
+   nothing, or failed); above: the segment of the run's last voxel goes
+   on above the run (past the box) and has a voxel of density there, so
+   that segment's top is not in the run. */
+static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, int dir,
+                      unsigned g, unsigned edge, int above)
 {
-#ifdef __SSE2__
-	if (L >= 16) {
-#ifdef HAVE_KT_SSSE3
-		if (t->ssse3) {
-			blend_col_ssse3(d, L, dir, g, edge);
-			return;
+	for (size_t i = L; i > i0;) {
+		uint64_t z = (uint64_t)zs + (i - 1), s0 = z - z % SEG_Z; /* the segment's first voxel */
+		size_t a = s0 <= (uint64_t)zs + i0 ? i0 : (size_t)(s0 - (uint64_t)zs);
+		size_t j = a < i1 ? last_set(d, a, i < i1 ? i : i1) : SIZE_MAX;
+		if (j != SIZE_MAX && !(above && i == L)) {
+			unsigned o = dir > 0 ? (j + 1 < L ? d[j + 1] : edge) : (j ? d[j - 1] : edge);
+			d[j] = blend1(d[j], o, g);
 		}
-#endif
-		blend_col_sse2(d, L, dir, g, edge);
-		return;
+		i = a;
 	}
-	if (L) {
-		blend_short_sse2(d, L, dir, g, edge);
-		return;
-	}
-#endif
-	(void)t;
-	if (dir > 0) /* ascending: d[i + 1] not yet blended */
-		for (size_t i = 0; i < L; i++)
-			d[i] = blend1(d[i], i + 1 < L ? d[i + 1] : edge, g);
-	else /* descending: d[i - 1] not yet blended */
-		for (size_t i = L; i-- > 0;)
-			d[i] = blend1(d[i], i ? d[i - 1] : edge, g);
 }
 
 /* Columns handled together by group_fill at most. */
@@ -468,6 +341,10 @@ struct fcol {
 	int64_t xz;    /* source z of the end voxel, below the run for dir -1,
 	                  above it for dir +1 (-1: outside the block) */
 	int64_t xk;    /* the brick (z index) holding it; -1: none */
+	int64_t az;    /* source z of the first voxel above the run in the
+	                  segment of its last voxel; -1: the segment ends there */
+	uint32_t an;   /* how many voxels from az to the segment's end */
+	uint8_t above; /* one of those has density (blend_col) */
 };
 
 /*
@@ -482,8 +359,9 @@ struct fcol {
  * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
  * output voxel whose nearer voxel lies outside the block is empty.  With
  * density wanted, the one source voxel past its run on the farther side
- * (the end voxel) is read in the same brick pass, and after the pass its
- * copied densities are blended in place (blend_col); fraction 0 is the
+ * (the end voxel) and whether the segment of its last voxel has density
+ * above the run are read in the same brick pass, and after the pass the
+ * segments' top voxels are blended in place (blend_col); fraction 0 is the
  * whole-voxel path unchanged.  Voxels whose brick fails are empty (or
  * blended with empty); the first error is returned.
  */
@@ -514,6 +392,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			f = 0; /* the bench's whole-voxel peer: the nearer copy only */
 		F->dir = 0;
 		F->xk = -1;
+		F->az = -1;
+		F->above = 0;
 		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
@@ -550,6 +430,15 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			} else {
 				F->xz = -1;
 			}
+			if (sb[c] < b3) { /* the run's top segment may go on past it */
+				uint32_t end = seg_end((uint32_t)(sb[c] - 1), (uint32_t)b3);
+				if (end > sb[c]) { /* read in the pass */
+					F->az = sb[c];
+					F->an = end - (uint32_t)sb[c];
+					if (end > smax)
+						smax = end;
+				}
+			}
 		}
 	}
 	if (smin >= smax)
@@ -577,6 +466,13 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			size_t o;
 			if (F->xk == kz && p) /* the end voxel is in this brick */
 				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
+			if (F->az >= 0 && F->az < z1 && F->az + F->an > z0 && p) {
+				/* the rest of the top segment (in this brick) */
+				int64_t u = F->az > z0 ? F->az : z0, v = F->az + F->an;
+				v = v < z1 ? v : z1;
+				F->above |= !bytes_clear(p + col + (size_t)c * bz + (size_t)(u - z0),
+				                         (uint32_t)(v - u));
+			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
@@ -596,20 +492,11 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		for (uint32_t c = 0; c < n; c++) {
 			const struct fcol *F = &fc[c];
 			int64_t bl = sa[c] > slo ? sa[c] : slo, bh = sb[c] < shi ? sb[c] : shi;
-			uint8_t *d;
-			size_t i0, i1, L;
-			unsigned edge;
 			if (!F->dir || bl >= bh)
 				continue;
-			d = D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za);
-			L = (size_t)(sb[c] - sa[c]);
-			i0 = (size_t)(bl - sa[c]);
-			i1 = (size_t)(bh - sa[c]);
-			if (F->dir > 0)
-				edge = i1 < L ? d[i1] : F->edge;
-			else
-				edge = i0 > 0 ? d[i0 - 1] : F->edge;
-			blend_col(t, d + i0, i1 - i0, F->dir, F->g, edge);
+			blend_col(D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za),
+			          (size_t)(sb[c] - sa[c]), (size_t)(bl - sa[c]), (size_t)(bh - sa[c]),
+			          sa[c], F->dir, F->g, F->edge, F->above);
 		}
 	return rc;
 }

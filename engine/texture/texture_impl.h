@@ -185,6 +185,8 @@ struct loom_texture {
 	uint32_t bs[3];          /* brick shape */
 	uint32_t sh[3], mk[3];   /* shifts and masks when pow2 */
 	int pow2;                /* every brick side a power of two */
+	int seg_brick;           /* the brick height a multiple of SEG_Z: a
+	                            segment lies in one brick line */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
@@ -501,33 +503,73 @@ typedef struct rawvox {
    1 - f/DZ_SUB).  The nearer one (b when f <= DZ_SUB/2) decides: where it
    is empty the voxel is empty; otherwise the voxel has the nearer one's
    planes (orientation, label, kind, type), and its density too, except
-   at a surface, where the farther one is empty: there the density byte
-   is blended linearly with the empty voxel and rounded, in integer
-   arithmetic, ((DZ_SUB - g) n + DZ_SUB/2) / DZ_SUB, g the farther
-   voxel's weight (g <= DZ_SUB/2: at least half the nearer's density, and
-   at least 1).  So every density is the woven cloth's own at one of the
-   two heights, or a surface voxel at half its density or more, as the
-   generator makes them (it fills a voxel whose centre is inside a yarn,
-   at half density or more at its edge); never the faint voxel a blend
-   with the air beyond a surface makes, nor the average of two fibres
-   (docs/fidelity.md, "Densities at the floor").  The surface still moves
-   with f (a surface voxel's density falls as its farther weight grows; a
-   voxel appears, at half density or more, where it becomes the nearer).
-   Only the density plane needs both source voxels. */
-static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f)
+   at the top of a segment's surface: where the farther one is empty and
+   no voxel above the nearer one in its segment (SEG_Z below) has
+   density, the density byte is blended linearly with the empty voxel and
+   rounded, in integer arithmetic, ((DZ_SUB - g) n + DZ_SUB/2) / DZ_SUB, g
+   the farther voxel's weight (g <= DZ_SUB/2: at least half the nearer's
+   density, and at least 1).  So every density is the woven cloth's own at
+   one of the two heights, or a column's top voxel at half its density or
+   more, as the generator makes them (it fills a voxel whose centre is
+   inside a yarn, at half density or more at its edge); never the faint
+   voxel a blend with the air beyond a surface makes, nor the average of
+   two fibres, nor a fibre halved over the gap below it inside the yarn
+   (docs/fidelity.md, "Densities at the floor" and "Blending the top
+   voxel only").  The top surface still moves with f (the top voxel's
+   density falls as its farther weight grows; a voxel appears, at half
+   density or more, where it becomes the nearer).  Only the density plane
+   needs both source voxels, and the segment's only for a surface. */
+
+/* A segment: the voxels of a source column from a multiple of SEG_Z to
+   the next (cut at the block's top); "the top of the segment" is its
+   highest voxel of non-zero density.  Fibre cloth has a surface over
+   every gap between fibres; blending each of them halved fibre voxels at
+   every depth, which the woven cloth does not do.  The segment bounds the
+   search for a voxel above to 15 bytes, of the brick line the lookup
+   holds when the brick height is a multiple of SEG_Z (t->seg_brick; the
+   default 64 is); the voxels are the same for every brick shape.  A
+   column's top voxel is always the top of its segment. */
+#define SEG_Z 16
+
+/* The end (exclusive) of the segment of source voxel z, z < b3. */
+static inline uint32_t seg_end(uint32_t z, uint32_t b3)
 {
-	uint8_t n = 2 * f > DZ_SUB ? a : b, o = 2 * f > DZ_SUB ? b : a;
-	uint8_t d = (uint8_t)(((unsigned)a * (unsigned)f + (unsigned)b * (unsigned)(DZ_SUB - f) +
-	                       DZ_SUB / 2) / DZ_SUB);
-	return n && !o ? d : n;
+	uint32_t e = (z / SEG_Z + 1) * SEG_Z;
+	return e < b3 ? e : b3;
+}
+
+/* 1 when the n density bytes p[0 .. n) are all 0. */
+static inline int bytes_clear(const uint8_t *p, uint32_t n)
+{
+	uint8_t any = 0;
+	for (uint32_t i = 0; i < n; i++)
+		any |= p[i];
+	return !any;
+}
+
+/* The density of the voxel blended from a = z - w - 1 and b = z - w with
+   fraction f (as above): top is whether the nearer voxel is the top of
+   its segment, which only matters (and is only computed by the callers)
+   where dens_surface holds. */
+static inline int dens_surface(uint8_t a, uint8_t b, int f)
+{
+	return 2 * f > DZ_SUB ? a && !b : b && !a;
+}
+static inline uint8_t dens_blend(uint8_t a, uint8_t b, int f, int top)
+{
+	uint8_t n = 2 * f > DZ_SUB ? a : b;
+	if (!top || !dens_surface(a, b, f))
+		return n;
+	return (uint8_t)(((unsigned)a * (unsigned)f + (unsigned)b * (unsigned)(DZ_SUB - f) +
+	                  DZ_SUB / 2) / DZ_SUB);
 }
 
 /* The whole voxel: every plane the nearer source voxel's, the density
    by dens_blend. */
-static inline void raw_blend(const rawvox *a, const rawvox *b, int f, rawvox *r)
+static inline void raw_blend(const rawvox *a, const rawvox *b, int f, int top, rawvox *r)
 {
 	*r = *(2 * f > DZ_SUB ? a : b);
-	r->d = dens_blend(a->d, b->d, f);
+	r->d = dens_blend(a->d, b->d, f, top);
 }
 
 /* Brick coordinates: split v along axis a into brick index and offset. */

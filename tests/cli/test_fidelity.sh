@@ -347,9 +347,11 @@ expect_err_contains vol_boxes_msg "0,0,0:128,72,12"
 # that closed the seams gave 0.70 here), and the block-offset SD and the
 # debiased height RMSE stay within 20 % of those without the fix (0.188 and
 # 0.535 against 0.128 and 0.398 before the calibration).  The sub-voxel
-# blend keeps the woven densities ("Densities at the floor"): the density
-# histogram L1 stays within 1.5 times that without the fix (0.042 against
-# 0.036; the linear blend gave 0.092, blending two yarn voxels 0.059).
+# blend keeps the woven densities ("Densities at the floor", "Blending the
+# top voxel only"): the density histogram L1 stays within 1.1 times that
+# without the fix (0.037 against 0.036; the floor, a second weaving, is
+# 0.033; blending every surface voxel gave 0.042, the linear blend 0.092,
+# blending two yarn voxels 0.059).
 expect_ok cal_db "$LOOM" exemplar generate --preset tiny --seed 1 -q -o "$T/cal.ldb"
 expect_ok cal_pattern "$LOOM" pattern make herringbone --size 24x24 -q -o "$T/cal.pbm"
 expect_ok cal_gt "$LOOM" exemplar generate --design "$T/cal.pbm" --like "$T/cal.ldb" \
@@ -368,6 +370,6 @@ r = f["seam_ratio_b"] / f["seam_ratio_a"]
 assert 0.8 <= r <= 1.2, ("seam ratio against the reference's", r, f)
 assert f["block_offset_sd"] <= 1.2 * z["block_offset_sd"], (f, z)
 assert f["height_rmse_debiased"] <= 1.2 * z["height_rmse_debiased"], (f, z)
-assert f["histogram_l1"] <= 1.5 * z["histogram_l1"], ("histogram", f, z)
+assert f["histogram_l1"] <= 1.1 * z["histogram_l1"], ("histogram", f, z)
 PY
 then pass cal_seams_as_woven; else fail cal_seams_as_woven "$(head -c 900 "$T/py")"; fi

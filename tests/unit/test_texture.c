@@ -376,6 +376,21 @@ static void ref_dz_block(const ref *r, int64_t I, int64_t J, float *dz)
 				ref_corner_dz(r, I, J, k);
 }
 
+/* Whether source voxel zn of the column is the top of its segment: no
+   voxel above it with density up to the next multiple of 16 or the
+   block's top, whichever comes first (docs/engine.md), whatever the brick
+   shape. */
+static int ref_seg_top(ref *r, int64_t I, int64_t J, uint32_t lx, uint32_t ly, int64_t zn)
+{
+	int64_t end = (zn / 16 + 1) * 16;
+	if (r->b3 < end)
+		end = r->b3;
+	for (int64_t z = zn + 1; z < end; z++)
+		if (ref_src(r, I, J, lx, ly, z).d)
+			return 0;
+	return 1;
+}
+
 static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 {
 	rv v = {0, 0, 0, 0, 0}, a, b;
@@ -404,13 +419,14 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 		return b;
 	a = ref_src(r, I, J, lx, ly, z - w - 1);
 	/* the nearer voxel (b on a tie) decides: empty where it is empty;
-	   else its planes and density, but where the other is empty (a
+	   else its planes and density, but where the other is empty and
+	   nothing lies above the nearer in its segment (the top of a
 	   surface) the density is the linear blend, rounded */
 	{
 		rv near = f > 8 ? a : b, other = f > 8 ? b : a;
 		uint8_t d = (uint8_t)((a.d * f + b.d * (16 - f) + 8) / 16);
 		v = near;
-		if (near.d && !other.d)
+		if (near.d && !other.d && ref_seg_top(r, I, J, lx, ly, f > 8 ? z - w - 1 : z - w))
 			v.d = d;
 	}
 	return v;
