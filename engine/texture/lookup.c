@@ -27,8 +27,9 @@
  *            z - w - 1, and steps 5-6 for both, blended (raw_blend:
  *            the nearer voxel's planes and density, or empty where the
  *            nearer voxel is empty; the density blended with the empty
- *            farther voxel only at the top of the nearer one's segment,
- *            read from the brick line's bytes above it, pair_top).
+ *            farther voxel only where no voxel above the nearer one in
+ *            its segment is solid, read from the brick line's bytes
+ *            above it, pair_top).
  *   Step 5.  Brick id of that voxel.  The thread's current brick (memo)
  *            answers without a cache call when the id matches; otherwise
  *            the memo's pin is released and the brick is taken from the
@@ -615,8 +616,8 @@ static inline int src_raw(loom_texture *t, struct tslot *s, const struct xent *e
 	return LOOM_OK;
 }
 
-/* Whether the nearer voxel of the blended pair a = zu - 1, b = zu of
-   source column (sx, sy) of crossing e is the top of its segment
+/* Whether no voxel above the nearer one of the blended pair a = zu - 1,
+   b = zu of source column (sx, sy) of crossing e in its segment is solid
    (dens_blend), when the pair is a surface (else 0, and nothing is
    read).  The bytes above zu in the segment come from the slot's brick
    when it is zu's and holds them all (the pair's readers read zu last:
@@ -636,11 +637,11 @@ static inline int pair_top(loom_texture *t, struct tslot *s, const struct xent *
 		return 1; /* the nearer is the block's top voxel */
 	end = seg_end((uint32_t)zu - (2 * f > DZ_SUB), t->b3);
 	if ((uint32_t)zu + 1 >= end)
-		return 1; /* no voxel above zu in the segment */
+		return 1; /* no voxel above the nearer in the segment */
 	if (s->memo && (s->memo_id & ~DUNIT_TAG) == src_brick(t, e, sx, sy, (uint32_t)zu) &&
 	    brick_of(t, 2, end - 1) == brick_of(t, 2, (uint32_t)zu))
-		return bytes_clear(s->memo + src_index(t, sx, sy, (uint32_t)zu) + 1,
-		                   end - (uint32_t)zu - 1);
+		return none_solid(s->memo + src_index(t, sx, sy, (uint32_t)zu) + 1,
+		                  end - (uint32_t)zu - 1, t->solid);
 	for (uint32_t z = (uint32_t)zu + 1; z < end; z++) {
 		rawvox r;
 		int e2 = src_raw(t, s, e, sx, sy, z, ch, &r);
@@ -648,7 +649,7 @@ static inline int pair_top(loom_texture *t, struct tslot *s, const struct xent *
 			*rc = e2;
 			return 0;
 		}
-		if (r.d)
+		if (r.d >= t->solid)
 			return 0;
 	}
 	return 1;
@@ -663,7 +664,7 @@ static inline uint8_t dens_pair(const loom_texture *t, const uint8_t *cu, uint32
 
 	if (dens_surface(cu[-1], cu[0], f)) {
 		uint32_t end = seg_end(zu - (2 * f > DZ_SUB), t->b3);
-		top = zu + 1 >= end || bytes_clear(cu + 1, end - zu - 1);
+		top = zu + 1 >= end || none_solid(cu + 1, end - zu - 1, t->solid);
 	}
 	return dens_blend(cu[-1], cu[0], f, top);
 }

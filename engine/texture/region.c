@@ -12,8 +12,8 @@
  *   has a fraction is copied like a whole-voxel column with its nearer
  *   whole offset (the other planes are then final), the one source voxel
  *   past its run read in the same brick pass, with whether the segment
- *   of its last voxel goes on above it with density; after the pass the
- *   top voxel of each segment of its copied densities is blended in place
+ *   of its last voxel goes on above it with a solid voxel; after the pass
+ *   the top voxels of each segment of its copied densities are blended in place
  *   (blend_col, raw_blend's density rule in one place), only between the
  *   first and last stored brick the pass read (an empty nearer voxel
  *   stays empty).
@@ -277,10 +277,11 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
 /* raw_blend's density rule for region reads: a column whose offset has a
    fraction is first copied like a whole-voxel column with its nearer
    whole offset (every plane the nearer voxel's, as raw_blend keeps
-   them).  Only the top voxel of each segment of the nearer voxels
-   (SEG_Z, texture_impl.h) can differ from that copy: blend_col finds
-   each segment's top and blends that one voxel with its farther voxel
-   where the farther is empty (blend1, dens_blend's arithmetic). */
+   them).  Only voxels at or above the highest solid voxel of their
+   segment (SEG_Z, texture_impl.h) can differ from that copy: blend_col
+   finds each segment's highest non-empty voxel and its highest solid
+   one, and blends the surface voxels from the latter up (blend1,
+   dens_blend's arithmetic). */
 
 static inline uint8_t blend1(unsigned n, unsigned o, unsigned g)
 {
@@ -312,18 +313,24 @@ static inline size_t last_set(const uint8_t *d, size_t a, size_t b)
    0 outside the block), weight g / DZ_SUB (1 .. DZ_SUB / 2).  Only
    d[i0 .. i1) can have density (the rest lies in bricks stored as
    nothing, or failed); above: the segment of the run's last voxel goes
-   on above the run (past the box) and has a voxel of density there, so
-   that segment's top is not in the run. */
+   on above the run (past the box) with a solid voxel there, so none of
+   that segment's voxels in the run is blended.  A blend keeps a voxel
+   non-empty, so each test of a farther voxel for 0 reads the same
+   answer before and after its own blend: any order will do. */
 static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, int dir,
-                      unsigned g, unsigned edge, int above)
+                      unsigned g, unsigned edge, int above, uint8_t solid)
 {
 	for (size_t i = L; i > i0;) {
 		uint64_t z = (uint64_t)zs + (i - 1), s0 = z - z % SEG_Z; /* the segment's first voxel */
 		size_t a = s0 <= (uint64_t)zs + i0 ? i0 : (size_t)(s0 - (uint64_t)zs);
-		size_t j = a < i1 ? last_set(d, a, i < i1 ? i : i1) : SIZE_MAX;
+		size_t j = a < i1 ? last_set(d, a, i < i1 ? i : i1) : SIZE_MAX, h;
 		if (j != SIZE_MAX && !(above && i == L)) {
-			unsigned o = dir > 0 ? (j + 1 < L ? d[j + 1] : edge) : (j ? d[j - 1] : edge);
-			d[j] = blend1(d[j], o, g);
+			for (h = j; h > a && d[h] < solid; h--) /* the highest solid voxel, or a */
+				;
+			for (size_t k = h; k <= j; k++) {
+				unsigned o = dir > 0 ? (k + 1 < L ? d[k + 1] : edge) : (k ? d[k - 1] : edge);
+				d[k] = blend1(d[k], o, g);
+			}
 		}
 		i = a;
 	}
@@ -344,7 +351,7 @@ struct fcol {
 	int64_t az;    /* source z of the first voxel above the run in the
 	                  segment of its last voxel; -1: the segment ends there */
 	uint32_t an;   /* how many voxels from az to the segment's end */
-	uint8_t above; /* one of those has density (blend_col) */
+	uint8_t above; /* one of those is solid (blend_col) */
 };
 
 /*
@@ -359,9 +366,9 @@ struct fcol {
  * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
  * output voxel whose nearer voxel lies outside the block is empty.  With
  * density wanted, the one source voxel past its run on the farther side
- * (the end voxel) and whether the segment of its last voxel has density
- * above the run are read in the same brick pass, and after the pass the
- * segments' top voxels are blended in place (blend_col); fraction 0 is the
+ * (the end voxel) and whether the segment of its last voxel has a solid
+ * voxel above the run are read in the same brick pass, and after the pass
+ * the segments' top voxels are blended in place (blend_col); fraction 0 is the
  * whole-voxel path unchanged.  Voxels whose brick fails are empty (or
  * blended with empty); the first error is returned.
  */
@@ -470,8 +477,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				/* the rest of the top segment (in this brick) */
 				int64_t u = F->az > z0 ? F->az : z0, v = F->az + F->an;
 				v = v < z1 ? v : z1;
-				F->above |= !bytes_clear(p + col + (size_t)c * bz + (size_t)(u - z0),
-				                         (uint32_t)(v - u));
+				F->above |= !none_solid(p + col + (size_t)c * bz + (size_t)(u - z0),
+				                        (uint32_t)(v - u), t->solid);
 			}
 			if (a >= b)
 				continue;
@@ -496,7 +503,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 				continue;
 			blend_col(D + off + c * cstride + (size_t)(sa[c] + dzs[c] - za),
 			          (size_t)(sb[c] - sa[c]), (size_t)(bl - sa[c]), (size_t)(bh - sa[c]),
-			          sa[c], F->dir, F->g, F->edge, F->above);
+			          sa[c], F->dir, F->g, F->edge, F->above, t->solid);
 		}
 	return rc;
 }

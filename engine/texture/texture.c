@@ -597,6 +597,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	memcpy(t->bs, g.brick, sizeof t->bs);
 	t->pow2 = is_pow2(t->bs[0]) && is_pow2(t->bs[1]) && is_pow2(t->bs[2]);
 	t->seg_brick = t->bs[2] % SEG_Z == 0;
+	t->solid = g.top_threshold ? g.top_threshold : 1;
 	loom__texture_simd(t, 1); /* CPU check for the region reads */
 	for (int a = 0; a < 3; a++) {
 		t->sh[a] = log2u(t->bs[a]);

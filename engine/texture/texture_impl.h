@@ -187,6 +187,8 @@ struct loom_texture {
 	int pow2;                /* every brick side a power of two */
 	int seg_brick;           /* the brick height a multiple of SEG_Z: a
 	                            segment lies in one brick line */
+	uint8_t solid;           /* a solid density byte is >= this: the
+	                            database's top_threshold (at least 1) */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
@@ -503,32 +505,36 @@ typedef struct rawvox {
    1 - f/DZ_SUB).  The nearer one (b when f <= DZ_SUB/2) decides: where it
    is empty the voxel is empty; otherwise the voxel has the nearer one's
    planes (orientation, label, kind, type), and its density too, except
-   at the top of a segment's surface: where the farther one is empty and
-   no voxel above the nearer one in its segment (SEG_Z below) has
-   density, the density byte is blended linearly with the empty voxel and
-   rounded, in integer arithmetic, ((DZ_SUB - g) n + DZ_SUB/2) / DZ_SUB, g
-   the farther voxel's weight (g <= DZ_SUB/2: at least half the nearer's
-   density, and at least 1).  So every density is the woven cloth's own at
-   one of the two heights, or a column's top voxel at half its density or
-   more, as the generator makes them (it fills a voxel whose centre is
-   inside a yarn, at half density or more at its edge); never the faint
-   voxel a blend with the air beyond a surface makes, nor the average of
-   two fibres, nor a fibre halved over the gap below it inside the yarn
-   (docs/fidelity.md, "Densities at the floor" and "Blending the top
-   voxel only").  The top surface still moves with f (the top voxel's
-   density falls as its farther weight grows; a voxel appears, at half
-   density or more, where it becomes the nearer).  Only the density plane
-   needs both source voxels, and the segment's only for a surface. */
+   at the top of a surface: where the farther one is empty and no voxel
+   above the nearer one in its segment (SEG_Z below) is *solid* (density
+   byte at least the database's top-surface threshold, t->solid), the
+   density byte is blended linearly with the empty voxel and rounded, in
+   integer arithmetic, ((DZ_SUB - g) n + DZ_SUB/2) / DZ_SUB, g the farther
+   voxel's weight (g <= DZ_SUB/2: at least half the nearer's density, and
+   at least 1).  So every density is the woven cloth's own at one of the
+   two heights, or a voxel of the top surface (or of the loose fibres over
+   it) at half its density or more, as the generator makes them (it fills
+   a voxel whose centre is inside a yarn, at half density or more at its
+   edge); never the faint voxel a blend with the air beyond a surface
+   makes, nor the average of two fibres, nor a fibre halved over the gap
+   below it inside the yarn (docs/fidelity.md, "Densities at the floor"
+   and "Blending the top voxel only").  The top surface still moves with
+   f (its voxel's density falls as its farther weight grows; a voxel
+   appears, at half density or more, where it becomes the nearer).  Only
+   the density plane needs both source voxels, and the segment's only
+   for a surface. */
 
 /* A segment: the voxels of a source column from a multiple of SEG_Z to
-   the next (cut at the block's top); "the top of the segment" is its
-   highest voxel of non-zero density.  Fibre cloth has a surface over
+   the next (cut at the block's top).  Fibre cloth has a surface over
    every gap between fibres; blending each of them halved fibre voxels at
-   every depth, which the woven cloth does not do.  The segment bounds the
-   search for a voxel above to 15 bytes, of the brick line the lookup
-   holds when the brick height is a multiple of SEG_Z (t->seg_brick; the
-   default 64 is); the voxels are the same for every brick shape.  A
-   column's top voxel is always the top of its segment. */
+   every depth, which the woven cloth does not do.  Solid, not merely
+   non-empty: the loose fibre ends over a yarn (faint voxels) must not
+   keep its surface voxel from moving (they did, and the seams and
+   corners measured on the top surface jumped more).  The segment bounds
+   the search for a solid voxel above to 15 bytes, of the brick line the
+   lookup holds when the brick height is a multiple of SEG_Z
+   (t->seg_brick; the default 64 is); the voxels are the same for every
+   brick shape. */
 #define SEG_Z 16
 
 /* The end (exclusive) of the segment of source voxel z, z < b3. */
@@ -538,19 +544,19 @@ static inline uint32_t seg_end(uint32_t z, uint32_t b3)
 	return e < b3 ? e : b3;
 }
 
-/* 1 when the n density bytes p[0 .. n) are all 0. */
-static inline int bytes_clear(const uint8_t *p, uint32_t n)
+/* 1 when none of the n density bytes p[0 .. n) is at least solid (>= 1). */
+static inline int none_solid(const uint8_t *p, uint32_t n, uint8_t solid)
 {
-	uint8_t any = 0;
 	for (uint32_t i = 0; i < n; i++)
-		any |= p[i];
-	return !any;
+		if (p[i] >= solid)
+			return 0;
+	return 1;
 }
 
 /* The density of the voxel blended from a = z - w - 1 and b = z - w with
-   fraction f (as above): top is whether the nearer voxel is the top of
-   its segment, which only matters (and is only computed by the callers)
-   where dens_surface holds. */
+   fraction f (as above): top is whether no voxel above the nearer one in
+   its segment is solid, which only matters (and is only computed by the
+   callers) where dens_surface holds. */
 static inline int dens_surface(uint8_t a, uint8_t b, int f)
 {
 	return 2 * f > DZ_SUB ? a && !b : b && !a;

@@ -349,7 +349,7 @@ expect_err_contains vol_boxes_msg "0,0,0:128,72,12"
 # 0.535 against 0.128 and 0.398 before the calibration).  The sub-voxel
 # blend keeps the woven densities ("Densities at the floor", "Blending the
 # top voxel only"): the density histogram L1 stays within 1.1 times that
-# without the fix (0.037 against 0.036; the floor, a second weaving, is
+# without the fix (0.038 against 0.036; the floor, a second weaving, is
 # 0.033; blending every surface voxel gave 0.042, the linear blend 0.092,
 # blending two yarn voxels 0.059).
 expect_ok cal_db "$LOOM" exemplar generate --preset tiny --seed 1 -q -o "$T/cal.ldb"

@@ -140,6 +140,7 @@ typedef struct ref {
 	const loom_db *db;
 	const loom_design *d;
 	uint32_t b1, b2, b3, n_ex;
+	uint32_t solid;      /* top_threshold, at least 1 */
 	loom_synth_set *set;
 	uint16_t *base;
 	loom_synth_lookup lk;
@@ -170,6 +171,7 @@ static int ref_init(ref *r, const loom_fabric *f, const loom_db *db)
 	r->b1 = info.block[0];
 	r->b2 = info.block[1];
 	r->b3 = info.block[2];
+	r->solid = info.top_threshold ? info.top_threshold : 1;
 	r->n_ex = info.n_exemplars;
 	r->ex = calloc(r->n_ex, sizeof *r->ex);
 	se = calloc(r->n_ex, sizeof *se);
@@ -376,17 +378,17 @@ static void ref_dz_block(const ref *r, int64_t I, int64_t J, float *dz)
 				ref_corner_dz(r, I, J, k);
 }
 
-/* Whether source voxel zn of the column is the top of its segment: no
-   voxel above it with density up to the next multiple of 16 or the
-   block's top, whichever comes first (docs/engine.md), whatever the brick
-   shape. */
+/* Whether no voxel above source voxel zn of the column up to the next
+   multiple of 16 or the block's top, whichever comes first, is solid
+   (density byte at least the database's top_threshold; docs/engine.md),
+   whatever the brick shape. */
 static int ref_seg_top(ref *r, int64_t I, int64_t J, uint32_t lx, uint32_t ly, int64_t zn)
 {
 	int64_t end = (zn / 16 + 1) * 16;
 	if (r->b3 < end)
 		end = r->b3;
 	for (int64_t z = zn + 1; z < end; z++)
-		if (ref_src(r, I, J, lx, ly, z).d)
+		if (ref_src(r, I, J, lx, ly, z).d >= r->solid)
 			return 0;
 	return 1;
 }
@@ -420,7 +422,7 @@ static rv ref_raw(ref *r, int64_t x, int64_t y, int64_t z)
 	a = ref_src(r, I, J, lx, ly, z - w - 1);
 	/* the nearer voxel (b on a tie) decides: empty where it is empty;
 	   else its planes and density, but where the other is empty and
-	   nothing lies above the nearer in its segment (the top of a
+	   nothing solid lies above the nearer in its segment (the top of a
 	   surface) the density is the linear blend, rounded */
 	{
 		rv near = f > 8 ? a : b, other = f > 8 ? b : a;
