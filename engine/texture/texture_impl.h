@@ -31,6 +31,9 @@
 #include <pthread.h>
 #include <stdatomic.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define XENT_WAYS 4         /* crossing entries per set (LRU inside a set) */
 #define XENT_MAX 256        /* crossing entries per thread slot, at most */
@@ -551,6 +554,21 @@ static inline int none_solid(const uint8_t *p, uint32_t n, uint8_t solid)
 		if (p[i] >= solid)
 			return 0;
 	return 1;
+}
+
+/* The same for bytes lo .. hi - 1 (lo <= hi <= SEG_Z) of a segment whose
+   SEG_Z bytes from seg on are all readable (a brick line, t->seg_brick):
+   one load and one compare. */
+static inline int seg_none_solid(const uint8_t *seg, uint32_t lo, uint32_t hi, uint8_t solid)
+{
+#ifdef __SSE2__
+	__m128i v = _mm_loadu_si128((const __m128i *)seg);
+	unsigned m = (unsigned)_mm_movemask_epi8(
+		_mm_cmpeq_epi8(_mm_max_epu8(v, _mm_set1_epi8((char)solid)), v));
+	return !(m & ((1u << hi) - 1u) & ~((1u << lo) - 1u));
+#else
+	return none_solid(seg + lo, hi - lo, solid);
+#endif
 }
 
 /* The density of the voxel blended from a = z - w - 1 and b = z - w with
