@@ -639,14 +639,9 @@ static inline int pair_top(loom_texture *t, struct tslot *s, const struct xent *
 	if ((uint32_t)zu + 1 >= end)
 		return 1; /* no voxel above the nearer in the segment */
 	if (s->memo && (s->memo_id & ~DUNIT_TAG) == src_brick(t, e, sx, sy, (uint32_t)zu) &&
-	    brick_of(t, 2, end - 1) == brick_of(t, 2, (uint32_t)zu)) {
-		const uint8_t *p = s->memo + src_index(t, sx, sy, (uint32_t)zu);
-		uint32_t s0 = (end - 1) / SEG_Z * SEG_Z; /* the segment's first voxel */
-		if (t->seg_brick)
-			return seg_none_solid(p - ((uint32_t)zu - s0), (uint32_t)zu + 1 - s0, end - s0,
-			                      t->solid);
-		return none_solid(p + 1, end - (uint32_t)zu - 1, t->solid);
-	}
+	    brick_of(t, 2, end - 1) == brick_of(t, 2, (uint32_t)zu))
+		return line_none_solid(t, s->memo + src_index(t, sx, sy, (uint32_t)zu),
+		                       (uint32_t)zu, (uint32_t)zu + 1, end);
 	for (uint32_t z = (uint32_t)zu + 1; z < end; z++) {
 		rawvox r;
 		int e2 = src_raw(t, s, e, sx, sy, z, ch, &r);
@@ -667,11 +662,8 @@ static inline uint8_t dens_pair(const loom_texture *t, const uint8_t *cu, uint32
 {
 	int top = 0;
 
-	if (dens_surface(cu[-1], cu[0], f)) {
-		uint32_t end = seg_end(zu - (2 * f > DZ_SUB), t->b3), s0 = (end - 1) / SEG_Z * SEG_Z;
-		top = zu + 1 >= end ||
-		      seg_none_solid(cu - (zu - s0), zu + 1 - s0, end - s0, t->solid);
-	}
+	if (dens_surface(cu[-1], cu[0], f))
+		top = line_none_solid(t, cu, zu, zu + 1, seg_end(zu - (2 * f > DZ_SUB), t->b3));
 	return dens_blend(cu[-1], cu[0], f, top);
 }
 

@@ -13,10 +13,10 @@
  *   whole offset (the other planes are then final), the one source voxel
  *   past its run read in the same brick pass, with whether the segment
  *   of its last voxel goes on above it with a solid voxel; after the pass
- *   the top voxels of each segment of its copied densities are blended in place
- *   (blend_col, raw_blend's density rule in one place), only between the
- *   first and last stored brick the pass read (an empty nearer voxel
- *   stays empty).
+ *   the surface voxels of each segment from its highest solid voxel up
+ *   are blended in place (blend_col, raw_blend's density rule in one
+ *   place), only between the first and last stored brick the pass read
+ *   (an empty nearer voxel stays empty).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -279,14 +279,9 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
    whole offset (every plane the nearer voxel's, as raw_blend keeps
    them).  Only voxels at or above the highest solid voxel of their
    segment (SEG_Z, texture_impl.h) can differ from that copy: blend_col
-   finds each segment's highest non-empty voxel and its highest solid
-   one, and blends the surface voxels from the latter up (blend1,
-   dens_blend's arithmetic). */
-
-static inline uint8_t blend1(unsigned n, unsigned o, unsigned g)
-{
-	return (uint8_t)(n && !o ? (g * o + (DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB : n);
-}
+   blends, segment by segment, the surface voxels from there up
+   (blend_seg16, or byte by byte with dens_blend's arithmetic without
+   SSE2). */
 
 #ifdef __SSE2__
 /* Lane masks: lanes_ge[k] has lanes k .. 15 set (k = 0 .. 16). */
@@ -356,15 +351,20 @@ static inline __m128i blend_seg16(__m128i v, __m128i o, unsigned lo, unsigned hi
 static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, int dir,
                       unsigned g, unsigned edge, int above, uint8_t solid)
 {
-	int64_t first, last, n, wmin, wmax;
+	int64_t first, last, n;
+#ifdef __SSE2__
+	int64_t wmin, wmax;
+#endif
 
 	if (i0 >= i1)
 		return;
 	first = (int64_t)i0 - (int64_t)(((uint64_t)zs + i0) % SEG_Z);
 	last = (int64_t)(i1 - 1) - (int64_t)(((uint64_t)zs + i1 - 1) % SEG_Z);
 	n = (last - first) / SEG_Z + 1;
+#ifdef __SSE2__
 	wmin = dir < 0 ? 1 : 0;                           /* windows w: d[w + dir] and */
 	wmax = (int64_t)L - SEG_Z - (dir > 0 ? 1 : 0);    /* d[w + 15 + dir] in the run */
+#endif
 	for (int64_t q = 0; q < n; q++) {
 		int64_t sg = dir > 0 ? first + SEG_Z * q : last - SEG_Z * q;
 		int64_t lo = sg > (int64_t)i0 ? sg : (int64_t)i0;
@@ -409,7 +409,8 @@ static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, in
 			for (k = h; k <= j; k++) {
 				unsigned o = dir > 0 ? (k + 1 < (int64_t)L ? d[k + 1] : edge)
 				                     : (k ? d[k - 1] : edge);
-				d[k] = blend1(d[k], o, g);
+				if (d[k] && !o) /* dens_blend's arithmetic, o = 0 */
+					d[k] = (uint8_t)(((DZ_SUB - g) * d[k] + DZ_SUB / 2) / DZ_SUB);
 			}
 		}
 #endif
@@ -448,8 +449,9 @@ struct fcol {
  * density wanted, the one source voxel past its run on the farther side
  * (the end voxel) and whether the segment of its last voxel has a solid
  * voxel above the run are read in the same brick pass, and after the pass
- * the segments' top voxels are blended in place (blend_col); fraction 0 is the
- * whole-voxel path unchanged.  Voxels whose brick fails are empty (or
+ * the surface voxels with no solid voxel above them in their segment are
+ * blended in place (blend_col); fraction 0 is the whole-voxel path
+ * unchanged.  Voxels whose brick fails are empty (or
  * blended with empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
@@ -556,15 +558,9 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			if (F->az >= 0 && F->az < z1 && F->az + F->an > z0 && p) {
 				/* the rest of the top segment (in this brick) */
 				int64_t u = F->az > z0 ? F->az : z0, v = F->az + F->an;
-				const uint8_t *q = p + col + (size_t)c * bz;
 				v = v < z1 ? v : z1;
-				if (t->seg_brick) { /* the whole segment is in this line */
-					int64_t s0 = (v - 1) / SEG_Z * SEG_Z;
-					F->above |= !seg_none_solid(q + (s0 - z0), (uint32_t)(u - s0),
-					                            (uint32_t)(v - s0), t->solid);
-				} else {
-					F->above |= !none_solid(q + (u - z0), (uint32_t)(v - u), t->solid);
-				}
+				F->above |= !line_none_solid(t, p + col + (size_t)c * bz, (uint32_t)z0,
+				                             (uint32_t)u, (uint32_t)v);
 			}
 			if (a >= b)
 				continue;

@@ -571,6 +571,22 @@ static inline int seg_none_solid(const uint8_t *seg, uint32_t lo, uint32_t hi, u
 #endif
 }
 
+/* 1 when none of source voxels u .. v - 1 (u <= v, one segment) of a
+   brick line is solid; line points at the line's voxel z (any voxel of
+   the line).  With t->seg_brick the segment's SEG_Z bytes all lie in the
+   line: one load (seg_none_solid); else byte by byte. */
+static inline int line_none_solid(const loom_texture *t, const uint8_t *line, uint32_t z,
+                                  uint32_t u, uint32_t v)
+{
+	if (u >= v)
+		return 1;
+	if (t->seg_brick) {
+		uint32_t s0 = (v - 1) / SEG_Z * SEG_Z; /* the segment's first voxel */
+		return seg_none_solid(line + ((int64_t)s0 - (int64_t)z), u - s0, v - s0, t->solid);
+	}
+	return none_solid(line + (u - z), v - u, t->solid);
+}
+
 /* The density of the voxel blended from a = z - w - 1 and b = z - w with
    fraction f (as above): top is whether no voxel above the nearer one in
    its segment is solid, which only matters (and is only computed by the
