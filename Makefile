@@ -6,6 +6,7 @@
 #   make test       build with -Werror and run every test; ends "N passed, N failed"
 #   make sanitize   the same suite under AddressSanitizer + UBSan
 #   make tsan       the same suite under ThreadSanitizer
+#   make test-portable  the texture tests built without SSE2 (generic C)
 #   make test-slurm export and scan job arrays on a private Slurm (root)
 #   make fuzz       libFuzzer targets (clang); make fuzz-run SECONDS=N runs them
 #   make bench      run the benchmarks (figures, never pass/fail)
@@ -107,11 +108,11 @@ DEFAULT_DB := $(DATA_DIR)/default.ldb
 WEB_OK     := $(DATA_DIR)/web/.made
 
 .SECONDARY:
-.PHONY: all demo gallery test check sanitize tsan bench install uninstall clean help fuzz fuzz-run test-slurm fidelity fidelity-draws
+.PHONY: all demo gallery test check sanitize tsan test-portable bench install uninstall clean help fuzz fuzz-run test-slurm fidelity fidelity-draws
 all: $(STATIC) $(SHARED) $(LOOM) $(VDB_PLUGIN) $(DATA) $(DEFAULT_DB) $(WEB_OK)
 
 help:
-	@sed -n '3,16p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '3,17p' Makefile | sed 's/^# \{0,1\}//'
 
 $(DEPS_OK): tools/deps.sh
 	@mkdir -p $(@D)
@@ -260,6 +261,21 @@ sanitize:
 tsan:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/tsan OPT=-O1 \
 	    SAN="-fsanitize=thread" test
+
+# The texture's generic C paths (what a host without SSE2, ARM or RISC-V,
+# compiles; x86-64 always has SSE2, so nothing else runs them): the texture
+# unit tests built with __SSE2__ undefined (region reads and lookups against
+# brute-force point lookups).
+PORTABLE_TESTS := test_texture test_texture_threads test_voxel
+test-portable:
+	$(Q)$(MAKE) --no-print-directory BUILD=build/portable SAN="-U__SSE2__" \
+	    $(PORTABLE_TESTS:%=build/portable/tests/%)
+	$(Q)rm -rf build/portable/test-tmp && mkdir -p build/portable/test-tmp && \
+	for t in $(PORTABLE_TESTS); do \
+	    LOOM_TEST_TMP=$$PWD/build/portable/test-tmp build/portable/tests/$$t \
+	        > build/portable/$$t.log 2>&1 || { tail -n 40 build/portable/$$t.log; exit 1; }; \
+	    echo "  ok   $$t ($$(grep -c '^PASS ' build/portable/$$t.log)), no SSE2"; \
+	done
 
 # The peer benchmark (bench/bench_vdb.cpp, the only C++ in bench/): built
 # with g++ against OpenVDB and NanoVDB (no .pc file, so the libraries are

@@ -102,6 +102,11 @@ static inline void copy_run(uint8_t *restrict d, const uint8_t *restrict s, size
 		                 _mm_loadu_si128((const __m128i *)(s + n - 16)));
 		return;
 	}
+#else
+	if (n >= 16) { /* copy_small moves fewer than 16 bytes only */
+		memcpy(d, s, n);
+		return;
+	}
 #endif
 	copy_small(d, s, n);
 }
