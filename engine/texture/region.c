@@ -385,6 +385,19 @@ static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, in
 			                        &any);
 			if (any)
 				_mm_storeu_si128((__m128i *)(d + w), r);
+		} else if (L >= SEG_Z) {
+			/* the run's end on the farther side (the window there holds
+			   the segment's part): the farther voxels are the window's
+			   own, shifted by a lane, with edge past the end */
+			__m128i v, o, e = _mm_cvtsi32_si128((int)edge), r;
+			w = dir > 0 ? (int64_t)L - SEG_Z : 0;
+			v = _mm_loadu_si128((const __m128i *)(d + w));
+			o = dir > 0 ? _mm_or_si128(_mm_srli_si128(v, 1), _mm_slli_si128(e, 15))
+			            : _mm_or_si128(_mm_slli_si128(v, 1), e);
+			r = blend_seg16(v, o, (unsigned)(lo - w), (unsigned)(hi - w), blocked, solid, g,
+			                &any);
+			if (any)
+				_mm_storeu_si128((__m128i *)(d + w), r);
 		} else { /* through a line: lanes lo .. hi - 1 from d, the rest 0 */
 			uint8_t t[48], out[16];
 			memset(t, 0, sizeof t);
