@@ -349,8 +349,9 @@ static inline __m128i blend_seg16(__m128i v, __m128i o, unsigned lo, unsigned hi
    its segment), with SSE2 16 voxels at a time: a window of the run that
    holds the segment's part and whose farther voxels lie in the run too
    (at the run's ends, shifted inwards, the lanes outside the segment
-   kept), or, where none does (runs under 17 voxels, and the run's end on
-   the farther side), a small line; upwards when the farther voxel is
+   kept); at the run's end on the farther side the window there, its
+   farther voxels its own shifted by a lane with edge shifted in; in
+   runs under 16 voxels a small line; upwards when the farther voxel is
    above, downwards when below, so that the voxels a window reads as
    farther ones are not yet blended. */
 static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, int dir,
