@@ -378,23 +378,22 @@ static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, in
 		int blocked = above && sg + SEG_Z > (int64_t)L;
 #ifdef __SSE2__
 		int64_t w = sg < wmin ? wmin : sg > wmax ? wmax : sg;
-		int any;
-		if (wmin <= wmax && w <= lo && hi <= w + SEG_Z) {
-			__m128i r = blend_seg16(_mm_loadu_si128((const __m128i *)(d + w)),
-			                        _mm_loadu_si128((const __m128i *)(d + w + dir)),
-			                        (unsigned)(lo - w), (unsigned)(hi - w), blocked, solid, g,
-			                        &any);
-			if (any)
-				_mm_storeu_si128((__m128i *)(d + w), r);
-		} else if (L >= SEG_Z) {
-			/* the run's end on the farther side (the window there holds
-			   the segment's part): the farther voxels are the window's
-			   own, shifted by a lane, with edge past the end */
-			__m128i v, o, e = _mm_cvtsi32_si128((int)edge), r;
-			w = dir > 0 ? (int64_t)L - SEG_Z : 0;
-			v = _mm_loadu_si128((const __m128i *)(d + w));
-			o = dir > 0 ? _mm_or_si128(_mm_srli_si128(v, 1), _mm_slli_si128(e, 15))
-			            : _mm_or_si128(_mm_slli_si128(v, 1), e);
+		int any, inside = wmin <= wmax && w <= lo && hi <= w + SEG_Z;
+		if (inside || L >= SEG_Z) {
+			__m128i v, o, r;
+			if (inside) {
+				v = _mm_loadu_si128((const __m128i *)(d + w));
+				o = _mm_loadu_si128((const __m128i *)(d + w + dir));
+			} else { /* the run's end on the farther side (the window
+			            there holds the segment's part): the farther
+			            voxels are the window's own, shifted by a lane,
+			            with edge past the end */
+				__m128i e = _mm_cvtsi32_si128((int)edge);
+				w = dir > 0 ? (int64_t)L - SEG_Z : 0;
+				v = _mm_loadu_si128((const __m128i *)(d + w));
+				o = dir > 0 ? _mm_or_si128(_mm_srli_si128(v, 1), _mm_slli_si128(e, 15))
+				            : _mm_or_si128(_mm_slli_si128(v, 1), e);
+			}
 			r = blend_seg16(v, o, (unsigned)(lo - w), (unsigned)(hi - w), blocked, solid, g,
 			                &any);
 			if (any)
