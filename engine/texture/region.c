@@ -10,13 +10,18 @@
  *   then each column's z-run in that brick is copied; z above, below or
  *   beyond the source block is filled with zeros.  A column whose offset
  *   has a fraction is copied like a whole-voxel column with its nearer
- *   whole offset (the other planes are then final), the one source voxel
- *   past its run read in the same brick pass, with whether the segment
- *   of its last voxel goes on above it with a solid voxel; after the pass
- *   the surface voxels of each segment from its highest solid voxel up
- *   are blended in place (blend_col, raw_blend's density rule in one
- *   place), only between the first and last stored brick the pass read
- *   (an empty nearer voxel stays empty).
+ *   whole offset (the other planes are then final); the surface voxels
+ *   of each segment from its highest solid voxel up are then blended in
+ *   place (raw_blend's density rule).  With SSE2 and bricks whose height
+ *   is a multiple of SEG_Z, at most 64 (the default 64; no segment then
+ *   crosses a brick), right after each brick line's copy, from 64-bit
+ *   masks of the line (line_blend; the voxel beyond the line's end
+ *   carried to the next line of the pass).  Otherwise the one source
+ *   voxel past the run is read in the same brick pass, with whether the
+ *   segment of its last voxel goes on above it with a solid voxel, and
+ *   after the pass the column is blended segment by segment (blend_col),
+ *   only between the first and last stored brick the pass read (an empty
+ *   nearer voxel stays empty).
  *   label -> kind / type
  *   16 voxels at a time with PSHUFB where the CPU has SSSE3 (checked at
  *   open) and the exemplar's labels with a kind are below 128
@@ -283,10 +288,12 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
    fraction is first copied like a whole-voxel column with its nearer
    whole offset (every plane the nearer voxel's, as raw_blend keeps
    them).  Only voxels at or above the highest solid voxel of their
-   segment (SEG_Z, texture_impl.h) can differ from that copy: blend_col
-   blends, segment by segment, the surface voxels from there up
-   (blend_seg16, or byte by byte with dens_blend's arithmetic without
-   SSE2). */
+   segment (SEG_Z, texture_impl.h) can differ from that copy.  Two forms:
+   line_blend, brick line by brick line in the pass (SSE2, brick heights
+   a multiple of SEG_Z up to 64), and blend_col after the pass, segment by
+   segment (blend_seg16, or byte by byte with dens_blend's arithmetic
+   without SSE2); test_texture's region_blend_edges holds both to the
+   reference. */
 
 #ifdef __SSE2__
 /* Lane masks: lanes_ge[k] has lanes k .. 15 set (k = 0 .. 16). */
@@ -435,6 +442,66 @@ static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, in
 	}
 }
 
+#ifdef __SSE2__
+/* The non-empty voxels of a brick line's first 16 nvec voxels (bit i:
+   voxel i), and in *sol its solid ones. */
+static inline __attribute__((always_inline)) uint64_t
+line_masks(const uint8_t *line, unsigned nvec, uint8_t solid, uint64_t *sol)
+{
+	const __m128i zero = _mm_setzero_si128(), sv = _mm_set1_epi8((char)solid);
+	__m128i v[4];
+	uint64_t nz = 0, so = 0;
+
+	for (unsigned j = 0; j < nvec; j++) {
+		v[j] = _mm_loadu_si128((const __m128i *)(line + SEG_Z * j));
+		nz |= (uint64_t)(~(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v[j], zero)) & 0xffffu)
+		      << (SEG_Z * j);
+	}
+	for (unsigned j = 0; j < nvec; j++)
+		so |= (uint64_t)(unsigned)_mm_movemask_epi8(
+			      _mm_cmpeq_epi8(_mm_max_epu8(v[j], sv), v[j]))
+		      << (SEG_Z * j);
+	*sol = so;
+	return nz;
+}
+
+/* The brick-line form of blend_col, when the brick height is a multiple
+   of SEG_Z and at most 64 (t->seg_brick; the default 64): segments then
+   never cross a brick, so the whole rule is a question about one brick
+   line, the source column's bz voxels of the brick, with one voxel of the
+   neighbouring brick at each end.  Bit i of a mask is the line's voxel i:
+   nz its non-empty voxels (the first nv of them: the rest lies above the
+   block), sol its solid ones.  Returns the voxels in bits lo .. hi - 1
+   to blend: non-empty over an empty farther voxel (nz shifted by one;
+   past the line's lower end pn, the voxel below it; past its upper end
+   treated as empty here, see group_fill), and no solid voxel above them
+   in their segment (a 16-bit lane of sol, smeared downwards inside the
+   lane). */
+static inline uint64_t line_blend_mask(const uint8_t *line, unsigned bz, unsigned nv, int dir,
+                                       uint64_t pn, unsigned lo, unsigned hi, uint8_t solid)
+{
+	const uint64_t m1 = 0x7fff7fff7fff7fffull, m2 = 0x3fff3fff3fff3fffull,
+	               m4 = 0x0fff0fff0fff0fffull, m8 = 0x00ff00ff00ff00ffull;
+	uint64_t nz, sol, up, keep, cand;
+
+	nz = bz == 64 ? line_masks(line, 4, solid, &sol) : line_masks(line, bz / SEG_Z, solid, &sol);
+	if (nv < 64) {
+		nz &= ((uint64_t)1 << nv) - 1;
+		sol &= ((uint64_t)1 << nv) - 1;
+	}
+	keep = (hi >= 64 ? ~(uint64_t)0 : ((uint64_t)1 << hi) - 1) & ~(((uint64_t)1 << lo) - 1);
+	cand = nz & ~(dir > 0 ? nz >> 1 : nz << 1 | pn) & keep;
+	if (!cand)
+		return 0;
+	up = (sol >> 1) & m1; /* a solid voxel above, in the lane */
+	up |= (up >> 1) & m1;
+	up |= (up >> 2) & m2;
+	up |= (up >> 4) & m4;
+	up |= (up >> 8) & m8;
+	return cand & ~up;
+}
+#endif
+
 /* Columns handled together by group_fill at most. */
 #define GMAX 64
 
@@ -451,7 +518,50 @@ struct fcol {
 	                  segment of its last voxel; -1: the segment ends there */
 	uint32_t an;   /* how many voxels from az to the segment's end */
 	uint8_t above; /* one of those is solid (blend_col) */
+	uint8_t pn;    /* line path: the previous brick line's top voxel is
+	                  not empty */
+	uint8_t pv;    /* line path: the source density of *pend */
+	uint8_t *pend; /* line path: a voxel to blend when the next brick
+	                  line's first voxel is empty */
 };
+
+/* dens_blend's arithmetic for a voxel of density n over an empty
+   farther voxel of weight g / DZ_SUB. */
+static inline uint8_t dens_far_empty(unsigned n, unsigned g)
+{
+	return (uint8_t)(((DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB);
+}
+
+#ifdef __SSE2__
+/* The line path of group_fill: blend the voxels lo .. hi - 1 of brick
+   line `line` (nv of its bz voxels in the block), just copied to out
+   (out[0]: voxel lo); pn: the voxel below the line is not empty.  The
+   line's top voxel, when it is a candidate and a brick line follows
+   (more), waits in F->pend for that line's first voxel. */
+static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned bz,
+                              unsigned lo, unsigned hi, unsigned nv, int more, unsigned pn,
+                              uint8_t solid)
+{
+	uint64_t m = line_blend_mask(line, bz, nv, F->dir, pn, lo, hi, solid);
+
+	if (F->dir > 0 && more && (m >> (bz - 1) & 1)) {
+		m &= ~((uint64_t)1 << (bz - 1));
+		F->pend = out + (bz - 1 - lo);
+		F->pv = line[bz - 1];
+	}
+	{ /* one voxel or none in 96 % of the lines (the paper database): the
+	     first without a branch, into a scratch byte when there is none */
+		unsigned i = (unsigned)__builtin_ctzll(m | (uint64_t)1 << (bz - 1));
+		uint8_t scratch, *q = m ? out + (i - lo) : &scratch;
+		*q = dens_far_empty(line[i], F->g);
+		m &= m - 1;
+	}
+	for (; __builtin_expect(m != 0, 0); m &= m - 1) {
+		unsigned i = (unsigned)__builtin_ctzll(m);
+		out[i - lo] = dens_far_empty(line[i], F->g);
+	}
+}
+#endif
 
 /*
  * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
@@ -487,6 +597,12 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	size_t col;
 	int rc = LOOM_OK, nfrac = 0;
 	uint8_t *D = k->raw ? k->rd : k->d;
+#ifdef __SSE2__
+	/* the brick-line form of the blend (line_blend_mask) */
+	const int lpath = D && t->seg_brick && bz <= 64;
+#else
+	const int lpath = 0;
+#endif
 
 	for (uint32_t c = 0; c < n; c++) {
 		int f;
@@ -501,6 +617,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 		F->xk = -1;
 		F->az = -1;
 		F->above = 0;
+		F->pn = 0;
+		F->pend = NULL;
 		dz += far_up; /* the nearer whole offset */
 		/* voxels with 0 <= z < b3 and 0 <= z - dz < b3 */
 		if (va < dz)
@@ -526,10 +644,13 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			F->g = (uint8_t)(far_up ? DZ_SUB - f : f);
 			F->dir = (int8_t)(far_up ? 1 : -1);
 			F->edge = 0;
-			/* the farther voxel of the run's end voxel, when in the block */
+			/* the farther voxel of the run's end voxel, when in the block:
+			   its brick is read in the pass (the line path reads it and
+			   the rest of the top segment in the brick lines; the other
+			   path keeps it in F->edge) */
 			F->xz = far_up ? sb[c] : sa[c] - 1;
 			if (F->xz >= 0 && F->xz < b3) {
-				F->xk = brick_of(t, 2, (uint32_t)F->xz);
+				F->xk = lpath ? -1 : (int64_t)brick_of(t, 2, (uint32_t)F->xz);
 				if (F->xz < smin)
 					smin = F->xz;
 				if (F->xz + 1 > smax)
@@ -537,7 +658,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			} else {
 				F->xz = -1;
 			}
-			if (sb[c] < b3) { /* the run's top segment may go on past it */
+			if (!lpath && sb[c] < b3) { /* the run's top segment may go on past it */
 				uint32_t end = seg_end((uint32_t)(sb[c] - 1), (uint32_t)b3);
 				if (end > sb[c]) { /* read in the pass */
 					F->az = sb[c];
@@ -571,24 +692,51 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			int64_t a = sa[c] > z0 ? sa[c] : z0, b = sb[c] < z1 ? sb[c] : z1;
 			struct fcol *F = &fc[c];
 			size_t o;
-			if (F->xk == kz && p) /* the end voxel is in this brick */
-				F->edge = p[col + (size_t)c * bz + (size_t)(F->xz - z0)];
-			if (F->az >= 0 && F->az < z1 && F->az + F->an > z0 && p) {
-				/* the rest of the top segment (in this brick) */
-				int64_t u = F->az > z0 ? F->az : z0, v = F->az + F->an;
-				v = v < z1 ? v : z1;
-				F->above |= !line_none_solid(t, p + col + (size_t)c * bz, (uint32_t)z0,
-				                             (uint32_t)u, (uint32_t)v);
+			const uint8_t *line = p ? p + col + (size_t)c * bz : NULL;
+			unsigned pn = 0;
+			if (F->dir && lpath) {
+				if (F->pend) { /* the last line's top voxel, over this one's first */
+					if (!line || !line[0])
+						*F->pend = dens_far_empty(F->pv, F->g);
+					F->pend = NULL;
+				}
+				pn = F->pn;
+				F->pn = line && line[bz - 1];
+			} else if (F->dir) {
+				if (F->xk == kz && line) /* the end voxel is in this brick */
+					F->edge = line[F->xz - z0];
+				if (F->az >= 0 && F->az < z1 && F->az + F->an > z0 && line) {
+					/* the rest of the top segment (in this brick) */
+					int64_t u = F->az > z0 ? F->az : z0, v = F->az + F->an;
+					v = v < z1 ? v : z1;
+					F->above |= !line_none_solid(t, line, (uint32_t)z0, (uint32_t)u,
+					                             (uint32_t)v);
+				}
 			}
 			if (a >= b)
 				continue;
 			o = off + c * cstride + (size_t)(a + dzs[c] - za);
-			if (p)
-				sink_run(t, k, o, p + col + (size_t)c * bz + (size_t)(a - z0),
-				         (size_t)(b - a));
-			else
+			if (!line) {
 				sink_empty(k, o, (size_t)(b - a));
+				continue;
+			}
+			sink_run(t, k, o, line + (a - z0), (size_t)(b - a));
+#ifdef __SSE2__
+			if (lpath && F->dir)
+				line_blend(F, D + o, line, (unsigned)bz, (unsigned)(a - z0),
+				           (unsigned)(b - z0), z1 > b3 ? (unsigned)(b3 - z0) : (unsigned)bz,
+				           z1 < b3, pn, t->solid);
+#else
+			(void)pn;
+#endif
 		}
+	}
+	if (lpath) { /* a line's top voxel with no line after it (none
+	                is left: the pass reads the end voxel's brick) */
+		for (uint32_t c = 0; c < n; c++)
+			if (fc[c].pend)
+				*fc[c].pend = dens_far_empty(fc[c].pv, fc[c].g);
+		return rc;
 	}
 	/* the fractional columns' densities, from the copied ones, only
 	   between the first and last stored brick read: bricks stored as
