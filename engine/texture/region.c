@@ -52,6 +52,10 @@
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
 #include <tmmintrin.h> /* SSSE3, used under a target attribute after a CPU check */
 #define HAVE_KT_SSSE3 1
+#if defined(__x86_64__)
+#include <immintrin.h> /* AVX-512BW, the same way (line_masks_512) */
+#define HAVE_LINE_512 1
+#endif
 #endif
 
 /* ------------------------------------------------------------ region reads */
@@ -477,13 +481,32 @@ line_masks(const uint8_t *line, unsigned nvec, uint8_t solid, uint64_t *sol)
    treated as empty here, see group_fill), and no solid voxel above them
    in their segment (a 16-bit lane of sol, smeared downwards inside the
    lane). */
+#ifdef HAVE_LINE_512
+/* line_masks of a 64-voxel line in one load and two compares. */
+__attribute__((target("avx512bw"), noinline)) static uint64_t
+line_masks_512(const uint8_t *line, uint8_t solid, uint64_t *sol)
+{
+	__m512i v = _mm512_loadu_si512((const void *)line);
+	*sol = _mm512_cmpge_epu8_mask(v, _mm512_set1_epi8((char)solid));
+	return _mm512_test_epi8_mask(v, v);
+}
+#endif
+
 static inline uint64_t line_blend_mask(const uint8_t *line, unsigned bz, unsigned nv, int dir,
-                                       uint64_t pn, unsigned lo, unsigned hi, uint8_t solid)
+                                       uint64_t pn, unsigned lo, unsigned hi, uint8_t solid,
+                                       int avx512)
 {
 	const uint64_t m1 = 0x7fff7fff7fff7fffull, m2 = 0x3fff3fff3fff3fffull,
 	               m4 = 0x0fff0fff0fff0fffull, m8 = 0x00ff00ff00ff00ffull;
 	uint64_t nz, sol, up, keep, cand;
 
+#ifdef HAVE_LINE_512
+	if (avx512 && bz == 64)
+		nz = line_masks_512(line, solid, &sol);
+	else
+#else
+	(void)avx512;
+#endif
 	nz = bz == 64 ? line_masks(line, 4, solid, &sol) : line_masks(line, bz / SEG_Z, solid, &sol);
 	if (nv < 64) {
 		nz &= ((uint64_t)1 << nv) - 1;
@@ -491,8 +514,6 @@ static inline uint64_t line_blend_mask(const uint8_t *line, unsigned bz, unsigne
 	}
 	keep = (hi >= 64 ? ~(uint64_t)0 : ((uint64_t)1 << hi) - 1) & ~(((uint64_t)1 << lo) - 1);
 	cand = nz & ~(dir > 0 ? nz >> 1 : nz << 1 | pn) & keep;
-	if (!cand)
-		return 0;
 	up = (sol >> 1) & m1; /* a solid voxel above, in the lane */
 	up |= (up >> 1) & m1;
 	up |= (up >> 2) & m2;
@@ -540,9 +561,9 @@ static inline uint8_t dens_far_empty(unsigned n, unsigned g)
    (more), waits in F->pend for that line's first voxel. */
 static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned bz,
                               unsigned lo, unsigned hi, unsigned nv, int more, unsigned pn,
-                              uint8_t solid)
+                              uint8_t solid, int avx512)
 {
-	uint64_t m = line_blend_mask(line, bz, nv, F->dir, pn, lo, hi, solid);
+	uint64_t m = line_blend_mask(line, bz, nv, F->dir, pn, lo, hi, solid, avx512);
 
 	if (F->dir > 0 && more && (m >> (bz - 1) & 1)) {
 		m &= ~((uint64_t)1 << (bz - 1));
@@ -725,7 +746,7 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 			if (lpath && F->dir)
 				line_blend(F, D + o, line, (unsigned)bz, (unsigned)(a - z0),
 				           (unsigned)(b - z0), z1 > b3 ? (unsigned)(b3 - z0) : (unsigned)bz,
-				           z1 < b3, pn, t->solid);
+				           z1 < b3, pn, t->solid, t->avx512);
 #else
 			(void)pn;
 #endif
@@ -1547,10 +1568,14 @@ void loom__texture_simd(loom_texture *t, int on)
 	if (!t)
 		return;
 	t->ssse3 = 0;
+	t->avx512 = 0;
 #ifdef HAVE_KT_SSSE3
 	if (on) {
 		__builtin_cpu_init();
 		t->ssse3 = __builtin_cpu_supports("ssse3") != 0;
+#ifdef HAVE_LINE_512
+		t->avx512 = __builtin_cpu_supports("avx512bw") != 0;
+#endif
 	}
 #else
 	(void)on;

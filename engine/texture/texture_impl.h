@@ -193,6 +193,7 @@ struct loom_texture {
 	uint8_t solid;           /* a solid density byte is >= this: the
 	                            database's top_threshold (at least 1) */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
+	int avx512;              /* the CPU has AVX-512BW (region.c's line masks) */
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
 	                            whole-voxel peer; loom__texture_region_whole) */

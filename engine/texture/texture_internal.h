@@ -46,7 +46,9 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
 /* Region reads map labels to kinds and yarn types 16 voxels at a time
    with SSSE3 (PSHUFB) when the CPU has it (checked at open) and the
    exemplar's labels with a kind are below 128; otherwise through 256-entry
-   tables.  on = 0 forces the tables, 1 restores the default.  For tests
+   tables; and build the sub-voxel blend's line masks with AVX-512BW when
+   the CPU has it, else with SSE2.  on = 0 forces the tables and SSE2, 1
+   restores the default.  For tests
    (both paths must give the same bytes); not thread-safe against reads
    in flight on t.  NULL: no-op. */
 void loom__texture_simd(loom_texture *t, int on);

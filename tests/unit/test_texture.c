@@ -1471,11 +1471,13 @@ static void region_sub_voxel(void)
 
 /* The sub-voxel blend at brick boundaries and run ends (a fractional
    column's copied runs from several bricks; the end voxel past the
-   column's run): on bricks 8, 7, 32 and 16 high (the tiny and np2
-   databases, and region_sub_voxel's 150 voxels thick; the last 160 thick,
-   so the cloth crosses the brick boundary at z = 80: 32 and 16 go through
-   region.c's brick lines, which carry the voxel below a line and the
-   candidate at its top to the next line, 8 and 7 through blend_col),
+   column's run): on bricks 8, 7, 32, 16 and 64 high (the tiny and np2
+   databases, region_sub_voxel's 150 voxels thick, then 160 and 128
+   thick, so the cloth crosses the brick boundary at z = 80 and 64: 32,
+   16 and 64 go through region.c's brick lines, which carry the voxel
+   below a line and the candidate at its top to the next line, 64 with
+   AVX-512 where the CPU has it, and SSE2 too; 8 and 7 through
+   blend_col),
    boxes whose z range starts
    and ends at z = 0, at the top of the block, inside the cloth, just
    below, at and above brick boundaries, runs of odd lengths below and
@@ -1488,21 +1490,24 @@ static void region_blend_edges(void)
 {
 	const uint32_t block[3] = {40, 6, 150}, brick[3] = {16, 2, 32}, brick16[3] = {16, 2, 16};
 	const uint32_t block160[3] = {40, 6, 160}; /* the cloth across z = 80 */
+	const uint32_t brick64[3] = {16, 2, 64}, block128[3] = {40, 6, 128}; /* across 64 */
 	static const unsigned masks[3] = {1, 3, 31};
-	const int64_t bzs[4] = {8, 7, 32, 16};
+	const int64_t bzs[5] = {8, 7, 32, 16, 64};
 	uint64_t bad = 0, boxes = 0;
 
 	if (!g_ok)
 		return;
-	for (int d = 0; d < 4; d++) {
+	for (int d = 0; d < 5; d++) {
 		loom_db *db = NULL;
 		loom_fabric *f = NULL;
 		loom_texture *t = NULL;
 		ref r;
 		int64_t bz = bzs[d], b3;
 		if (d >= 2) {
-			if (block_fixture(d == 2 ? "thick.ldb" : "thick16.ldb", d == 2 ? brick : brick16,
-			                  11, d == 2 ? block : block160, &db, &f, &r) != 0) {
+			static const char *const names[3] = {"thick.ldb", "thick16.ldb", "thick64.ldb"};
+			const uint32_t *bk = d == 2 ? brick : d == 3 ? brick16 : brick64;
+			const uint32_t *bl = d == 2 ? block : d == 3 ? block160 : block128;
+			if (block_fixture(names[d - 2], bk, 11, bl, &db, &f, &r) != 0) {
 				CHECK(0);
 				continue;
 			}
