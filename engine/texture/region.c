@@ -595,13 +595,14 @@ static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line,
  * copied the same way with its nearer whole offset wn (w, or w + 1 when
  * f > DZ_SUB/2): every plane is the nearer voxel's (raw_blend), and an
  * output voxel whose nearer voxel lies outside the block is empty.  With
- * density wanted, the one source voxel past its run on the farther side
- * (the end voxel) and whether the segment of its last voxel has a solid
- * voxel above the run are read in the same brick pass, and after the pass
- * the surface voxels with no solid voxel above them in their segment are
- * blended in place (blend_col); fraction 0 is the whole-voxel path
- * unchanged.  Voxels whose brick fails are empty (or
- * blended with empty); the first error is returned.
+ * density wanted, the surface voxels with no solid voxel above them in
+ * their segment are blended in place: line by line right after each
+ * copy (line_blend, lpath), or after the pass (blend_col), for which the
+ * one source voxel past the run on the farther side (the end voxel) and
+ * whether the segment of its last voxel has a solid voxel above the run
+ * are read in the same brick pass.  Fraction 0 is the whole-voxel path
+ * unchanged.  Voxels whose brick fails are empty (or blended with
+ * empty); the first error is returned.
  */
 static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t lx0,
                       uint32_t ly, uint32_t n, int64_t za, int64_t zb, const struct sink *k,
