@@ -299,6 +299,13 @@ static inline void sink_run(const loom_texture *t, const struct sink *k, size_t 
    without SSE2); test_texture's region_blend_edges holds both to the
    reference. */
 
+/* dens_blend's arithmetic for a voxel of density n over an empty
+   farther voxel of weight g / DZ_SUB. */
+static inline uint8_t dens_far_empty(unsigned n, unsigned g)
+{
+	return (uint8_t)(((DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB);
+}
+
 #ifdef __SSE2__
 /* Lane masks: lanes_ge[k] has lanes k .. 15 set (k = 0 .. 16). */
 static const uint8_t lanes_ge[17][16] = {
@@ -438,8 +445,8 @@ static void blend_col(uint8_t *d, size_t L, size_t i0, size_t i1, int64_t zs, in
 			for (k = h; k <= j; k++) {
 				unsigned o = dir > 0 ? (k + 1 < (int64_t)L ? d[k + 1] : edge)
 				                     : (k ? d[k - 1] : edge);
-				if (d[k] && !o) /* dens_blend's arithmetic, o = 0 */
-					d[k] = (uint8_t)(((DZ_SUB - g) * d[k] + DZ_SUB / 2) / DZ_SUB);
+				if (d[k] && !o)
+					d[k] = dens_far_empty(d[k], g);
 			}
 		}
 #endif
@@ -469,6 +476,17 @@ line_masks(const uint8_t *line, unsigned nvec, uint8_t solid, uint64_t *sol)
 	return nz;
 }
 
+#ifdef HAVE_LINE_512
+/* line_masks of a 64-voxel line in one load and two compares. */
+__attribute__((target("avx512bw"), noinline)) static uint64_t
+line_masks_512(const uint8_t *line, uint8_t solid, uint64_t *sol)
+{
+	__m512i v = _mm512_loadu_si512((const void *)line);
+	*sol = _mm512_cmpge_epu8_mask(v, _mm512_set1_epi8((char)solid));
+	return _mm512_test_epi8_mask(v, v);
+}
+#endif
+
 /* The brick-line form of blend_col, when the brick height is a multiple
    of SEG_Z and at most 64 (t->seg_brick; the default 64): segments then
    never cross a brick, so the whole rule is a question about one brick
@@ -481,17 +499,6 @@ line_masks(const uint8_t *line, unsigned nvec, uint8_t solid, uint64_t *sol)
    treated as empty here, see group_fill), and no solid voxel above them
    in their segment (a 16-bit lane of sol, smeared downwards inside the
    lane). */
-#ifdef HAVE_LINE_512
-/* line_masks of a 64-voxel line in one load and two compares. */
-__attribute__((target("avx512bw"), noinline)) static uint64_t
-line_masks_512(const uint8_t *line, uint8_t solid, uint64_t *sol)
-{
-	__m512i v = _mm512_loadu_si512((const void *)line);
-	*sol = _mm512_cmpge_epu8_mask(v, _mm512_set1_epi8((char)solid));
-	return _mm512_test_epi8_mask(v, v);
-}
-#endif
-
 static inline uint64_t line_blend_mask(const uint8_t *line, unsigned bz, unsigned nv, int dir,
                                        uint64_t pn, unsigned lo, unsigned hi, uint8_t solid,
                                        int avx512)
@@ -507,6 +514,7 @@ static inline uint64_t line_blend_mask(const uint8_t *line, unsigned bz, unsigne
 #else
 	(void)avx512;
 #endif
+	/* the constant 4 lets the default height's loop unroll */
 	nz = bz == 64 ? line_masks(line, 4, solid, &sol) : line_masks(line, bz / SEG_Z, solid, &sol);
 	if (nv < 64) {
 		nz &= ((uint64_t)1 << nv) - 1;
@@ -545,13 +553,6 @@ struct fcol {
 	uint8_t *pend; /* line path: a voxel to blend when the next brick
 	                  line's first voxel is empty */
 };
-
-/* dens_blend's arithmetic for a voxel of density n over an empty
-   farther voxel of weight g / DZ_SUB. */
-static inline uint8_t dens_far_empty(unsigned n, unsigned g)
-{
-	return (uint8_t)(((DZ_SUB - g) * n + DZ_SUB / 2) / DZ_SUB);
-}
 
 #ifdef __SSE2__
 /* The line path of group_fill: blend the voxels lo .. hi - 1 of brick
@@ -753,13 +754,9 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 #endif
 		}
 	}
-	if (lpath) { /* a line's top voxel with no line after it (none
-	                is left: the pass reads the end voxel's brick) */
-		for (uint32_t c = 0; c < n; c++)
-			if (fc[c].pend)
-				*fc[c].pend = dens_far_empty(fc[c].pv, fc[c].g);
+	if (lpath) /* blended in the pass: a top voxel left waiting always
+	              had its next line read (the end voxel's brick is) */
 		return rc;
-	}
 	/* the fractional columns' densities, from the copied ones, only
 	   between the first and last stored brick read: bricks stored as
 	   nothing (or failed) gave empty voxels, and an empty nearer voxel

@@ -1477,10 +1477,9 @@ static void region_sub_voxel(void)
    16 and 64 go through region.c's brick lines, which carry the voxel
    below a line and the candidate at its top to the next line, 64 with
    AVX-512 where the CPU has it, and SSE2 too; 8 and 7 through
-   blend_col),
-   boxes whose z range starts
-   and ends at z = 0, at the top of the block, inside the cloth, just
-   below, at and above brick boundaries, runs of odd lengths below and
+   blend_col), boxes whose z range starts and ends at z = 0, at the top
+   of the block, inside the cloth, just below, at and above brick
+   boundaries, runs of odd lengths below and
    above 16 and runs across two, three and all bricks; density alone, with
    orientation and with every channel, both layouts, SSSE3 and SSE2
    blends, against the reference.  (Written for a blend fused into the
