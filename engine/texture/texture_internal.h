@@ -69,6 +69,21 @@ void loom__texture_simd(loom_texture *t, int on);
    NULL: no-op. */
 void loom__texture_region_whole(loom_texture *t, int on);
 
+/* One brick line through region.c's line blend, for the tests: path 0
+   line_blend with SSE2 masks, 1 with AVX-512BW masks, 2 the fused copy and
+   blend of density-only reads (line_copy_blend_512); bz the brick height
+   (a multiple of 16 up to 64; 64 for paths 1 and 2), line its bz density
+   bytes, lo .. hi - 1 the voxels copied and blended into out[0 ..
+   hi - lo), nv the line's voxels inside the block, dir -1 / +1 the farther
+   voxel's side and g (1 .. DZ_SUB / 2) its weight, pn the voxel below the
+   line is not empty, more: another brick line follows.  Returns 1 when
+   the line's top voxel is a candidate left waiting for the next line
+   (not written), 0 when not, -1 when the path is not available here
+   (no SSE2, no AVX-512BW) or an argument is out of range. */
+int loom__texture_line_blend(int path, unsigned bz, const uint8_t *line, unsigned lo,
+                             unsigned hi, unsigned nv, int dir, unsigned g, unsigned pn,
+                             int more, unsigned solid, uint8_t *out);
+
 /* on = 0: region reads of t bound their output rows by the stored bricks
    alone, without the every-plane occupancy table (the bench's peer and the
    tests' check that the table changes no byte); 1 (the default) restores
