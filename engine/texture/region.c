@@ -604,8 +604,8 @@ _Static_assert(1 << DZ_SHIFT == DZ_SUB, "DZ_SHIFT is log2 DZ_SUB");
    one 64-byte load and one masked store.  line_blend_mask's rule with the
    solid voxels above smeared in the vector (each 16-byte lane of
    _mm512_bsrli_epi128 is a segment), no trip through general registers
-   but for the line's top voxel; measured 1.07-1.13 times the speed of
-   sink_run + line_blend (docs/performance.md). */
+   but for the line's top voxel (docs/performance.md, "One load and one
+   masked store"). */
 __attribute__((target("avx512bw,bmi2"), noinline)) static void
 line_copy_blend_512(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned lo, unsigned hi,
                     unsigned nv, int more, unsigned pn, uint8_t solid)
@@ -788,8 +788,9 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 					F->pend = NULL;
 				}
 				pn = F->pn;
-				/* below the next line: only when it is in the run (the
-				   lines of the group's other columns are not loaded) */
+				/* the voxel below the next line, for a column moved
+				   down whose run goes on into it: lines outside the
+				   column's run (but in the group's) are not loaded */
 				F->pn = F->dir < 0 && line && (a < b || sa[c] == z1) && line[bz - 1];
 			} else if (F->dir) {
 				if (F->xk == kz && line) /* the end voxel is in this brick */
