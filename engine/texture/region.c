@@ -563,6 +563,21 @@ struct fcol {
 	                  line's first voxel is empty */
 };
 
+/* The line paths' blend set m of a line copied to out (out[0]: voxel
+   lo) without its top voxel `top` when that is a candidate of a column
+   moved up and another brick line follows (more): it waits in F->pend
+   for that line's first voxel (group_fill). */
+static inline uint64_t line_top_waits(struct fcol *F, uint64_t m, uint8_t *out,
+                                      const uint8_t *line, unsigned top, unsigned lo, int more)
+{
+	if (F->dir > 0 && more && (m >> top & 1)) {
+		m &= ~((uint64_t)1 << top);
+		F->pend = out + (top - lo);
+		F->pv = line[top];
+	}
+	return m;
+}
+
 #ifdef __SSE2__
 /* The line path of group_fill: blend the voxels lo .. hi - 1 of brick
    line `line` (nv of its bz voxels in the block), just copied to out
@@ -575,11 +590,7 @@ static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line,
 {
 	uint64_t m = line_blend_mask(line, bz, nv, F->dir, pn, lo, hi, solid, avx512);
 
-	if (F->dir > 0 && more && (m >> (bz - 1) & 1)) {
-		m &= ~((uint64_t)1 << (bz - 1));
-		F->pend = out + (bz - 1 - lo);
-		F->pv = line[bz - 1];
-	}
+	m = line_top_waits(F, m, out, line, bz - 1, lo, more);
 	{ /* one voxel or none in 96 % of the lines (the paper database): the
 	     first without a branch, into a scratch byte when there is none */
 		unsigned i = (unsigned)__builtin_ctzll(m | (uint64_t)1 << (bz - 1));
@@ -595,6 +606,13 @@ static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line,
 #endif
 
 #ifdef HAVE_LINE_512
+/* The CPU runs the AVX-512BW line paths (BMI2 too, for their bzhi). */
+static int cpu_line512(void)
+{
+	__builtin_cpu_init();
+	return __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("bmi2");
+}
+
 #define DZ_SHIFT 4 /* log2 DZ_SUB: dens_far_empty's division as a shift */
 _Static_assert(1 << DZ_SHIFT == DZ_SUB, "DZ_SHIFT is log2 DZ_SUB");
 
@@ -626,11 +644,7 @@ line_copy_blend_512(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned 
 	y = _mm512_or_si512(y, _mm512_bsrli_epi128(y, 4));
 	y = _mm512_or_si512(y, _mm512_bsrli_epi128(y, 8));
 	m = nz & ~(F->dir > 0 ? nz >> 1 : nz << 1 | pn) & keep & _mm512_testn_epi8_mask(y, y);
-	if (F->dir > 0 && more && (m >> 63 & 1)) { /* waits for the next line */
-		m &= ~((uint64_t)1 << 63);
-		F->pend = out + (63 - lo);
-		F->pv = line[63];
-	}
+	m = line_top_waits(F, m, out, line, 63, lo, more);
 	/* dens_far_empty of every voxel in 16-bit lanes (unpacked and packed
 	   back inside each 128-bit lane: the order is kept) */
 	a = _mm512_unpacklo_epi8(v, zero);
@@ -1628,8 +1642,7 @@ int loom__texture_line_blend(int path, unsigned bz, const uint8_t *line, unsigne
 	    g > DZ_SUB / 2 || !solid || solid > 255 || path < 0 || path > 2)
 		return -1;
 #ifdef HAVE_LINE_512
-	__builtin_cpu_init();
-	avx512 = __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("bmi2");
+	avx512 = cpu_line512();
 #endif
 	if (path && (!avx512 || bz != 64))
 		return -1;
@@ -1683,7 +1696,7 @@ void loom__texture_simd(loom_texture *t, int on)
 		__builtin_cpu_init();
 		t->ssse3 = __builtin_cpu_supports("ssse3") != 0;
 #ifdef HAVE_LINE_512
-		t->avx512 = __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("bmi2");
+		t->avx512 = cpu_line512();
 #endif
 	}
 #else
