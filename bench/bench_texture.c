@@ -36,7 +36,7 @@
  *   build/bench/bench_texture --vdb-child ...   bench_vdb's loom child (below)
  */
 #include "loom.h"
-#include "texture/texture_internal.h" /* loom__texture_region_whole */
+#include "texture/texture_internal.h" /* loom__texture_region_whole, _simd */
 
 #include <math.h>
 #include <pthread.h>
@@ -57,7 +57,9 @@ static const char USAGE[] =
 	"cold per budget, 4 peak memory of `loom sample`, 5 streamed regions.\n"
 	"  PARTS      digits of the parts to run (default 12345)\n"
 	"Environment: LOOM_PAPER_DB (default $BUILD/bench/paper.ldb, generated when\n"
-	"missing), BENCH_TEXTURE_SCALE=F (0.2: short), BUILD (default build).\n";
+	"missing), BENCH_TEXTURE_SCALE=F (0.2: short), BUILD (default build),\n"
+	"BENCH_TEXTURE_SIMD=avx2|ssse3 (parts 1-2 as a host with AVX2 but not AVX-512,\n"
+	"or SSSE3 but not AVX2, runs them).\n";
 
 #define MIB ((size_t)1 << 20)
 #define REPS 3
@@ -1000,9 +1002,19 @@ int main(int argc, char **argv)
 	loom_db_info info;
 	struct stat st;
 	double t0;
+	int simd = 0;
 
 	if (sc)
 		g_scale = atof(sc) > 0 ? atof(sc) : 1.0;
+	if (getenv("BENCH_TEXTURE_SIMD")) { /* loom__texture_simd's levels */
+		const char *v = getenv("BENCH_TEXTURE_SIMD");
+		simd = !strcmp(v, "avx2") ? 2 : !strcmp(v, "ssse3") ? 3 : 0;
+		if (!simd) {
+			fprintf(stderr, "bench_texture: BENCH_TEXTURE_SIMD=%s: expected avx2 or ssse3\n",
+			        v);
+			return 2;
+		}
+	}
 	snprintf(loomp, sizeof loomp, "%s/loom", build);
 	if (paper && *paper)
 		snprintf(dbp, sizeof dbp, "%s", paper);
@@ -1068,6 +1080,11 @@ int main(int argc, char **argv)
 		if (loom_texture_open(f, db, &o, &t, &diag) != LOOM_OK) {
 			printf("bench_texture: %s\n", diag.message);
 			return 0;
+		}
+		if (simd) {
+			loom__texture_simd(t, simd);
+			printf("lookups and region reads as on a host with %s\n",
+			       simd == 2 ? "AVX2 but not AVX-512" : "SSSE3 but not AVX2");
 		}
 		if (dense_build(t, d, lo, hi) != 0) {
 			printf("bench_texture: cannot materialise the window\n");

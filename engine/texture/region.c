@@ -18,7 +18,9 @@
  *   masks of the line (line_blend; the voxel beyond the line's end
  *   carried to the next line of the pass); a density-only read with
  *   AVX-512BW copies and blends each line in one load and one masked
- *   store (line_copy_blend_512).  Otherwise the one source
+ *   store (line_copy_blend_512), with AVX2 alone in two loads, the
+ *   masks and the smear in the vector as well (line_copy_blend_256).
+ *   Otherwise the one source
  *   voxel past the run is read in the same brick pass, with whether the
  *   segment of its last voxel goes on above it with a solid voxel, and
  *   after the pass the column is blended segment by segment (blend_col),
@@ -563,6 +565,24 @@ struct fcol {
 	                  line's first voxel is empty */
 };
 
+/* Blend the voxels of set m (bits below bz) of brick line `line`, copied
+   to out (out[0]: voxel lo), from the brick bytes. */
+static inline void line_blend_bits(const struct fcol *F, uint8_t *out, const uint8_t *line,
+                                   uint64_t m, unsigned lo, unsigned bz)
+{
+	{ /* one voxel or none in 96 % of the lines (the paper database): the
+	     first without a branch, into a scratch byte when there is none */
+		unsigned i = (unsigned)__builtin_ctzll(m | (uint64_t)1 << (bz - 1));
+		uint8_t scratch, *q = m ? out + (i - lo) : &scratch;
+		*q = dens_far_empty(line[i], F->g);
+		m &= m - 1;
+	}
+	for (; __builtin_expect(m != 0, 0); m &= m - 1) {
+		unsigned i = (unsigned)__builtin_ctzll(m);
+		out[i - lo] = dens_far_empty(line[i], F->g);
+	}
+}
+
 /* The line paths' blend set m of a line copied to out (out[0]: voxel
    lo) without its top voxel `top` when that is a candidate of a column
    moved up and another brick line follows (more): it waits in F->pend
@@ -590,18 +610,7 @@ static inline void line_blend(struct fcol *F, uint8_t *out, const uint8_t *line,
 {
 	uint64_t m = line_blend_mask(line, bz, nv, F->dir, pn, lo, hi, solid, avx512);
 
-	m = line_top_waits(F, m, out, line, bz - 1, lo, more);
-	{ /* one voxel or none in 96 % of the lines (the paper database): the
-	     first without a branch, into a scratch byte when there is none */
-		unsigned i = (unsigned)__builtin_ctzll(m | (uint64_t)1 << (bz - 1));
-		uint8_t scratch, *q = m ? out + (i - lo) : &scratch;
-		*q = dens_far_empty(line[i], F->g);
-		m &= m - 1;
-	}
-	for (; __builtin_expect(m != 0, 0); m &= m - 1) {
-		unsigned i = (unsigned)__builtin_ctzll(m);
-		out[i - lo] = dens_far_empty(line[i], F->g);
-	}
+	line_blend_bits(F, out, line, line_top_waits(F, m, out, line, bz - 1, lo, more), lo, bz);
 }
 #endif
 
@@ -657,6 +666,81 @@ line_copy_blend_512(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned 
 }
 #endif
 
+#ifdef HAVE_LINE_512
+/* The CPU runs the AVX2 line path (BMI2 too, for its bzhi). */
+static int cpu_line256(void)
+{
+	__builtin_cpu_init();
+	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
+}
+
+/* line_copy_blend_512 for hosts with AVX2 but not AVX-512BW (no byte-masked
+   store there): the line's masks from two 32-byte loads, the solid voxels
+   above smeared in the vector as line_copy_blend_512 does them (each
+   16-byte lane of _mm256_bsrli_epi128 is a segment), the copy as two
+   32-byte stores when the line is copied whole (else copy_run), and the
+   chosen voxels blended after it as line_blend blends them
+   (docs/performance.md, "Hosts with AVX2"). */
+__attribute__((target("avx2,bmi2"), noinline)) static void
+line_copy_blend_256(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned lo, unsigned hi,
+                    unsigned nv, int more, unsigned pn, uint8_t solid)
+{
+	const uint64_t ones = ~(uint64_t)0;
+	const __m256i idx = _mm256_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15,
+	                                     16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28,
+	                                     29, 30, 31),
+	              sv = _mm256_set1_epi8((char)solid), zero = _mm256_setzero_si256();
+	__m256i v0 = _mm256_loadu_si256((const __m256i *)line),
+	        v1 = _mm256_loadu_si256((const __m256i *)(line + 32)), y0, y1;
+	/* the voxels inside the block: byte i of the line below nv (nv <= 64,
+	   so both differences fit a signed byte) */
+	__m256i n0 = _mm256_cmpgt_epi8(_mm256_set1_epi8((char)nv), idx),
+	        n1 = _mm256_cmpgt_epi8(_mm256_set1_epi8((char)((int)nv - 32)), idx);
+	uint64_t keep = _bzhi_u64(ones, hi) & ~_bzhi_u64(ones, lo), nz, m;
+
+	nz = ~((uint64_t)(uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi8(v0, zero)) |
+	       (uint64_t)(uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi8(v1, zero)) << 32) &
+	     _bzhi_u64(ones, nv);
+	/* a solid voxel above in the segment: the solid bytes moved down one
+	   and smeared downwards inside each lane */
+	y0 = _mm256_and_si256(_mm256_cmpeq_epi8(_mm256_max_epu8(v0, sv), v0), n0);
+	y1 = _mm256_and_si256(_mm256_cmpeq_epi8(_mm256_max_epu8(v1, sv), v1), n1);
+	y0 = _mm256_bsrli_epi128(y0, 1);
+	y1 = _mm256_bsrli_epi128(y1, 1);
+	y0 = _mm256_or_si256(y0, _mm256_bsrli_epi128(y0, 1));
+	y1 = _mm256_or_si256(y1, _mm256_bsrli_epi128(y1, 1));
+	y0 = _mm256_or_si256(y0, _mm256_bsrli_epi128(y0, 2));
+	y1 = _mm256_or_si256(y1, _mm256_bsrli_epi128(y1, 2));
+	y0 = _mm256_or_si256(y0, _mm256_bsrli_epi128(y0, 4));
+	y1 = _mm256_or_si256(y1, _mm256_bsrli_epi128(y1, 4));
+	y0 = _mm256_or_si256(y0, _mm256_bsrli_epi128(y0, 8));
+	y1 = _mm256_or_si256(y1, _mm256_bsrli_epi128(y1, 8));
+	m = nz & ~(F->dir > 0 ? nz >> 1 : nz << 1 | pn) & keep &
+	    ~((uint64_t)(uint32_t)_mm256_movemask_epi8(y0) |
+	      (uint64_t)(uint32_t)_mm256_movemask_epi8(y1) << 32);
+	/* the copy: the line's bytes lo .. hi - 1 in two overlapping moves
+	   (inside the line's 64 bytes; copy_run's loop became a memmove call
+	   under this target) */
+	if (hi - lo == 64) {
+		_mm256_storeu_si256((__m256i *)out, v0);
+		_mm256_storeu_si256((__m256i *)(out + 32), v1);
+	} else if (hi - lo >= 32) {
+		__m256i p = _mm256_loadu_si256((const __m256i *)(line + lo)),
+		        q = _mm256_loadu_si256((const __m256i *)(line + hi - 32));
+		_mm256_storeu_si256((__m256i *)out, p);
+		_mm256_storeu_si256((__m256i *)(out + (hi - lo) - 32), q);
+	} else if (hi - lo >= 16) {
+		__m128i p = _mm_loadu_si128((const __m128i *)(line + lo)),
+		        q = _mm_loadu_si128((const __m128i *)(line + hi - 16));
+		_mm_storeu_si128((__m128i *)out, p);
+		_mm_storeu_si128((__m128i *)(out + (hi - lo) - 16), q);
+	} else {
+		copy_small(out, line + lo, hi - lo);
+	}
+	line_blend_bits(F, out, line, line_top_waits(F, m, out, line, 63, lo, more), lo, 64);
+}
+#endif
+
 /*
  * The z-range [za, zb) of n (1..GMAX) consecutive output columns (lx0 + c,
  * ly), c < n, of crossing e whose source columns lie in one brick column
@@ -700,9 +784,10 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 #endif
 #ifdef HAVE_LINE_512
 	/* density alone, 64-high bricks, AVX-512BW: line_copy_blend_512 */
-	const int l512 = lpath && bz == 64 && t->avx512 &&
-	                 (k->raw ? !k->rlo && !k->rl && !k->rk && !k->rt
-	                         : !k->o && !k->l && !k->k && !k->ty);
+	const int ldens = lpath && bz == 64 &&
+	                  (k->raw ? !k->rlo && !k->rl && !k->rk && !k->rt
+	                          : !k->o && !k->l && !k->k && !k->ty);
+	const int l512 = ldens && t->avx512, l256 = ldens && !t->avx512 && t->avx2;
 #endif
 
 	for (uint32_t c = 0; c < n; c++) {
@@ -827,6 +912,12 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 #ifdef HAVE_LINE_512
 			if (l512 && F->dir) {
 				line_copy_blend_512(F, D + o, line, (unsigned)(a - z0), (unsigned)(b - z0),
+				                    z1 > b3 ? (unsigned)(b3 - z0) : (unsigned)bz, z1 < b3, pn,
+				                    t->solid);
+				continue;
+			}
+			if (l256 && F->dir) {
+				line_copy_blend_256(F, D + o, line, (unsigned)(a - z0), (unsigned)(b - z0),
 				                    z1 > b3 ? (unsigned)(b3 - z0) : (unsigned)bz, z1 < b3, pn,
 				                    t->solid);
 				continue;
@@ -1636,21 +1727,24 @@ int loom__texture_line_blend(int path, unsigned bz, const uint8_t *line, unsigne
 {
 #ifdef __SSE2__
 	struct fcol F = {0};
-	int avx512 = 0;
+	int avx512 = 0, avx2 = 0;
 
 	if (bz % SEG_Z || bz > 64 || !bz || lo >= hi || hi > nv || nv > bz || !dir || !g ||
-	    g > DZ_SUB / 2 || !solid || solid > 255 || path < 0 || path > 2)
+	    g > DZ_SUB / 2 || !solid || solid > 255 || path < 0 || path > 3)
 		return -1;
 #ifdef HAVE_LINE_512
 	avx512 = cpu_line512();
+	avx2 = cpu_line256();
 #endif
-	if (path && (!avx512 || bz != 64))
+	if (path == 3 ? !avx2 || bz != 64 : path && (!avx512 || bz != 64))
 		return -1;
 	F.dir = (int8_t)(dir > 0 ? 1 : -1);
 	F.g = (uint8_t)g;
 #ifdef HAVE_LINE_512
 	if (path == 2)
 		line_copy_blend_512(&F, out, line, lo, hi, nv, more, pn != 0, (uint8_t)solid);
+	else if (path == 3)
+		line_copy_blend_256(&F, out, line, lo, hi, nv, more, pn != 0, (uint8_t)solid);
 	else
 #endif
 	{
@@ -1691,12 +1785,14 @@ void loom__texture_simd(loom_texture *t, int on)
 		return;
 	t->ssse3 = 0;
 	t->avx512 = 0;
+	t->avx2 = 0;
 #ifdef HAVE_KT_SSSE3
 	if (on) {
 		__builtin_cpu_init();
 		t->ssse3 = __builtin_cpu_supports("ssse3") != 0;
 #ifdef HAVE_LINE_512
-		t->avx512 = cpu_line512();
+		t->avx512 = on == 1 && cpu_line512();
+		t->avx2 = on <= 2 && cpu_line256();
 #endif
 	}
 #else

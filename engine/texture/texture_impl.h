@@ -194,6 +194,8 @@ struct loom_texture {
 	                            database's top_threshold (at least 1) */
 	int ssse3;               /* the CPU has SSSE3 (kind_type) */
 	int avx512;              /* the CPU has AVX-512BW (region.c's line masks) */
+	int avx2;                /* the CPU has AVX2 (region.c's line path
+	                            for density alone without AVX-512BW) */
 	int region_whole;        /* region reads copy every column with its
 	                            nearer whole offset, no blend (the bench's
 	                            whole-voxel peer; loom__texture_region_whole) */

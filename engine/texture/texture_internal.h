@@ -47,8 +47,10 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
    with SSSE3 (PSHUFB) when the CPU has it (checked at open) and the
    exemplar's labels with a kind are below 128; otherwise through 256-entry
    tables; and build the sub-voxel blend's line masks with AVX-512BW when
-   the CPU has it, else with SSE2.  on = 0 forces the tables and SSE2, 1
-   restores the default.  For tests
+   the CPU has it, else with AVX2 (density-only reads) or SSE2.  on = 0
+   forces the tables and SSE2, 2 what a host with AVX2 but not AVX-512
+   would run, 3 a host with SSSE3 but neither, 1 restores the default.
+   For tests and benches
    (both paths must give the same bytes); not thread-safe against reads
    in flight on t.  NULL: no-op. */
 void loom__texture_simd(loom_texture *t, int on);
@@ -71,15 +73,16 @@ void loom__texture_region_whole(loom_texture *t, int on);
 
 /* One brick line through region.c's line blend, for the tests: path 0
    line_blend with SSE2 masks, 1 with AVX-512BW masks, 2 the fused copy and
-   blend of density-only reads (line_copy_blend_512); bz the brick height
-   (a multiple of 16 up to 64; 64 for paths 1 and 2), line its bz density
+   blend of density-only reads (line_copy_blend_512), 3 their AVX2 form
+   (line_copy_blend_256); bz the brick height (a multiple of 16 up to 64;
+   64 for paths 1-3), line its bz density
    bytes, lo .. hi - 1 the voxels copied and blended into out[0 ..
    hi - lo), nv the line's voxels inside the block, dir -1 / +1 the farther
    voxel's side and g (1 .. DZ_SUB / 2) its weight, pn the voxel below the
    line is not empty, more: another brick line follows.  Returns 1 when
    the line's top voxel is a candidate left waiting for the next line
    (not written), 0 when not, -1 when the path is not available here
-   (no SSE2, no AVX-512BW) or an argument is out of range. */
+   (no SSE2, no AVX-512BW, no AVX2) or an argument is out of range. */
 int loom__texture_line_blend(int path, unsigned bz, const uint8_t *line, unsigned lo,
                              unsigned hi, unsigned nv, int dir, unsigned g, unsigned pn,
                              int more, unsigned solid, uint8_t *out);
