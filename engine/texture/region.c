@@ -622,6 +622,13 @@ static int cpu_line512(void)
 	return __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("bmi2");
 }
 
+/* The CPU runs the AVX2 line path (BMI2 too, for its bzhi). */
+static int cpu_line256(void)
+{
+	__builtin_cpu_init();
+	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
+}
+
 #define DZ_SHIFT 4 /* log2 DZ_SUB: dens_far_empty's division as a shift */
 _Static_assert(1 << DZ_SHIFT == DZ_SUB, "DZ_SHIFT is log2 DZ_SUB");
 
@@ -664,22 +671,13 @@ line_copy_blend_512(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned 
 	_mm512_mask_storeu_epi8((void *)((uintptr_t)out - lo), keep,
 	                        _mm512_mask_mov_epi8(v, m, _mm512_packus_epi16(a, b)));
 }
-#endif
-
-#ifdef HAVE_LINE_512
-/* The CPU runs the AVX2 line path (BMI2 too, for its bzhi). */
-static int cpu_line256(void)
-{
-	__builtin_cpu_init();
-	return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
-}
 
 /* line_copy_blend_512 for hosts with AVX2 but not AVX-512BW (no byte-masked
    store there): the line's masks from two 32-byte loads, the solid voxels
    above smeared in the vector as line_copy_blend_512 does them (each
    16-byte lane of _mm256_bsrli_epi128 is a segment), the copy as two
-   32-byte stores when the line is copied whole (else copy_run), and the
-   chosen voxels blended after it as line_blend blends them
+   overlapping moves, and the chosen voxels blended after it as
+   line_blend blends them
    (docs/performance.md, "Hosts with AVX2"). */
 __attribute__((target("avx2,bmi2"), noinline)) static void
 line_copy_blend_256(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned lo, unsigned hi,
@@ -721,10 +719,7 @@ line_copy_blend_256(struct fcol *F, uint8_t *out, const uint8_t *line, unsigned 
 	/* the copy: the line's bytes lo .. hi - 1 in two overlapping moves
 	   (inside the line's 64 bytes; copy_run's loop became a memmove call
 	   under this target) */
-	if (hi - lo == 64) {
-		_mm256_storeu_si256((__m256i *)out, v0);
-		_mm256_storeu_si256((__m256i *)(out + 32), v1);
-	} else if (hi - lo >= 32) {
+	if (hi - lo >= 32) {
 		__m256i p = _mm256_loadu_si256((const __m256i *)(line + lo)),
 		        q = _mm256_loadu_si256((const __m256i *)(line + hi - 32));
 		_mm256_storeu_si256((__m256i *)out, p);
@@ -783,7 +778,8 @@ static int group_fill(loom_texture *t, struct tslot *s, struct xent *e, uint32_t
 	const int lpath = 0;
 #endif
 #ifdef HAVE_LINE_512
-	/* density alone, 64-high bricks, AVX-512BW: line_copy_blend_512 */
+	/* density alone, 64-high bricks: line_copy_blend_512 with AVX-512BW,
+	   else line_copy_blend_256 with AVX2 */
 	const int ldens = lpath && bz == 64 &&
 	                  (k->raw ? !k->rlo && !k->rl && !k->rk && !k->rt
 	                          : !k->o && !k->l && !k->k && !k->ty);
