@@ -16,7 +16,8 @@
 #   two weavings, docs/fidelity.md "Paper preset"; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
 #   generation: give the fibre the database DB was made with;
 #   FIDELITY_REUSE=1 keeps the references already in WORKDIR, to compare
-#   another database against the same ones)
+#   another database against the same ones; FIDELITY_SYNTH="--edge-fix full"
+#   adds options to the synthesis, e.g. the exact edge fix)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
@@ -52,7 +53,8 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		# shellcheck disable=SC2086
 		"$LOOM" exemplar generate --design "$f" --like "$DB" --seed $seed $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt$seed.ldb"
 	done
-	"$LOOM" synth "$f" --db "$DB" --json -o "$W/$d.loomf" >"$W/$d-synth.json"
+	# shellcheck disable=SC2086
+	"$LOOM" synth "$f" --db "$DB" ${FIDELITY_SYNTH:-} --json -o "$W/$d.loomf" >"$W/$d-synth.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
 	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")
 	[ -n "$win" ] && rows="$rows ($WIN x $WIN compared)"
@@ -60,7 +62,7 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 	for pair in floor synth rank0; do
 		case $pair in
 		floor) b="$W/$d-gt2.ldb#0"; label="seed 2 vs seed 1 (floor)" ;;
-		synth) b="$W/$d.loomf"; label="synthesized, rank 15" ;;
+		synth) b="$W/$d.loomf"; label="synthesized, ${FIDELITY_SYNTH:-rank 15}" ;;
 		rank0) b="$W/$d-r0.loomf"; label="synthesized, no edge fix" ;;
 		esac
 		pics=""

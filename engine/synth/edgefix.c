@@ -121,6 +121,7 @@ LOOM_API void loom_edgefix_free(loom_edgefix *ef)
 	free(ef->basis_v);
 	free(ef->mean_h);
 	free(ef->mean_v);
+	free(ef->pre);
 	free(ef);
 }
 
@@ -144,11 +145,14 @@ static loom_edgefix *ef_alloc(uint32_t b1, uint32_t b2, uint32_t K,
 	ef->basis_v = malloc(sizeof(float) * ((size_t)(b2 - 2) * rv + 1));
 	ef->mean_h = malloc(sizeof(float) * b1);
 	ef->mean_v = malloc(sizeof(float) * (b2 - 2));
+	ef->pre = malloc((size_t)b1 + b2);
 	if (!ef->coef || !ef->field_h || !ef->field_v || !ef->basis_h ||
-	    !ef->basis_v || !ef->mean_h || !ef->mean_v) {
+	    !ef->basis_v || !ef->mean_h || !ef->mean_v || !ef->pre) {
 		loom_edgefix_free(ef);
 		return NULL;
 	}
+	memset(ef->pre, (int)rh, b2); /* every rank until loom__edgefix_finish */
+	memset(ef->pre + b2, (int)rv, b1);
 	return ef;
 }
 
@@ -221,33 +225,120 @@ static void gram(const loom_edge_profiles *p, int j0, int j1, uint32_t off,
 			G[(size_t)a * n + b] = G[(size_t)b * n + a];
 }
 
-/* Solve the basis problems: fields of columns of B (n x r, double). */
+/* Solve the basis problems: fields of columns of B (n x r, double), in
+   groups of FIELD_GROUP columns (each field's arithmetic does not depend
+   on the others, so the same values as one solve of all of them) so the
+   work space stays small at full rank: 8050 cells x 115 fields of
+   doubles would be 7.4 MB at the paper's block size. */
+#define FIELD_GROUP 8u
+static void fields_of(const lap *L, const double *B, uint32_t n, uint32_t r,
+                      int ns, float *f, double *out, double *g, double *v)
+{
+	size_t cells = (size_t)L->b1 * L->b2;
+	for (uint32_t k0 = 0; k0 < r; k0 += FIELD_GROUP) {
+		uint32_t c = r - k0 < FIELD_GROUP ? r - k0 : FIELD_GROUP;
+		for (uint32_t i = 0; i < n; i++)
+			for (uint32_t j = 0; j < c; j++)
+				v[(size_t)i * c + j] = B[(size_t)i * r + k0 + j];
+		if (ns)
+			loom__lap_solve_ns(L, v, NULL, c, out, g);
+		else
+			loom__lap_solve_we(L, v, NULL, c, out, g);
+		for (size_t q = 0; q < cells; q++)
+			for (uint32_t j = 0; j < c; j++)
+				f[q * r + k0 + j] = (float)out[q * c + j];
+	}
+}
+
 int loom__edgefix_fields(const lap *L, const double *Bh, uint32_t rh,
                          const double *Bv, uint32_t rv, float *fh, float *fv)
 {
 	size_t cells = (size_t)L->b1 * L->b2;
-	uint32_t rmax = rh > rv ? rh : rv;
 	uint32_t nmax = L->nx > L->ny ? L->nx : L->ny;
-	double *out = malloc(sizeof(double) * cells * (rmax ? rmax : 1));
-	double *g = malloc(sizeof(double) * 2 * nmax * (rmax ? rmax : 1));
-	if (!out || !g) {
+	uint32_t rows = L->b1 > L->b2 ? L->b1 : L->b2;
+	double *out = malloc(sizeof(double) * cells * FIELD_GROUP);
+	double *g = malloc(sizeof(double) * 2 * nmax * FIELD_GROUP);
+	double *v = malloc(sizeof(double) * rows * FIELD_GROUP);
+	if (!out || !g || !v) {
 		free(out);
 		free(g);
+		free(v);
 		return LOOM_ENOMEM;
 	}
-	if (rh) {
-		loom__lap_solve_ns(L, Bh, NULL, rh, out, g);
-		for (size_t k = 0; k < cells * rh; k++)
-			fh[k] = (float)out[k];
-	}
-	if (rv) {
-		loom__lap_solve_we(L, Bv, NULL, rv, out, g);
-		for (size_t k = 0; k < cells * rv; k++)
-			fv[k] = (float)out[k];
-	}
+	if (rh)
+		fields_of(L, Bh, L->b1, rh, 1, fh, out, g, v);
+	if (rv)
+		fields_of(L, Bv, L->b2 - 2, rv, 0, fv, out, g, v);
 	free(out);
 	free(g);
+	free(v);
 	return LOOM_OK;
+}
+
+/* The basis of a side at full rank (n x n, column k of row i at
+   B[i*n + k]): the orthonormal sine modes sqrt(2 / (m + 1)) sin(pi k' i' /
+   (m + 1)) over the side's interior samples, lowest frequency first, and
+   with corners (the N/S sides: samples 0 and n-1 are the block corners,
+   which no interior equation reads) one unit vector each, last.  It spans
+   every profile as the eigenvectors do, so the fix is the exact solve; but
+   the solution of mode k is sin x phi_k(y), which falls below float
+   resolution within a few voxels of its edge for all but the lowest
+   modes, so a lookup inside the block sums a short prefix of the ranks
+   (loom_texture's dz_eval). */
+static void exact_basis(uint32_t n, int corners, double *B)
+{
+	uint32_t m = corners ? n - 2 : n; /* interior samples */
+	double c = sqrt(2.0 / (m + 1));
+	memset(B, 0, sizeof(double) * n * n);
+	for (uint32_t i = 0; i < m; i++)
+		for (uint32_t k = 0; k < m; k++)
+			B[(size_t)(i + (corners ? 1 : 0)) * n + k] =
+			    c * sin(M_PI * (double)(k + 1) * (i + 1) / (m + 1));
+	if (corners) {
+		B[n - 2] = 1;                       /* row 0, column n-2 */
+		B[(size_t)(n - 1) * n + n - 1] = 1; /* row n-1, column n-1 */
+	}
+}
+
+/* Values of the full-rank fields below 2^-30 (far below a voxel's float
+   resolution, whatever the coefficients) to exactly 0, so lookups may
+   skip them: dz_eval sums each row's prefix of non-zero ranks, and every
+   other reader still sums them all, to the same value. */
+static void flush_tail(float *f, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		if (fabsf(f[i]) < 0x1p-30f)
+			f[i] = 0;
+}
+
+void loom__edgefix_finish(loom_edgefix *ef)
+{
+	uint32_t b1 = ef->b1, b2 = ef->b2, rh = ef->rh, rv = ef->rv;
+	for (uint32_t y = 0; y < b2; y++) {
+		uint32_t n = 0;
+		for (uint32_t x = 0; x < b1; x++)
+			for (uint32_t k = rh; k > n; k--)
+				if (ef->field_h[((size_t)y * b1 + x) * rh + k - 1] != 0) {
+					n = k;
+					break;
+				}
+		ef->pre[y] = (uint8_t)n;
+	}
+	for (uint32_t x = 0; x < b1; x++) {
+		uint32_t n = 0;
+		for (uint32_t y = 0; y < b2; y++)
+			for (uint32_t k = rv; k > n; k--)
+				if (ef->field_v[((size_t)y * b1 + x) * rv + k - 1] != 0) {
+					n = k;
+					break;
+				}
+		ef->pre[b2 + x] = (uint8_t)n;
+	}
+}
+
+const uint8_t *loom__edgefix_prefixes(const loom_edgefix *ef)
+{
+	return ef->pre;
 }
 
 LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
@@ -300,11 +391,17 @@ LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
 	rc = LOOM_ENOMEM;
 	if (!ef || !G || !mh || !mv || !Bh || !Bv)
 		goto done;
+	/* a basis of every profile (rank at the side's dimension): the sine
+	   modes, whose solutions decay fastest to zero (below) */
 	gram(p, 0, 1, 0, b1, mh, G);
-	if (rh && loom__top_eigen(G, b1, rh, Bh))
+	if (rh == b1 && b1 >= 3)
+		exact_basis(b1, 1, Bh);
+	else if (rh && loom__top_eigen(G, b1, rh, Bh))
 		goto done;
 	gram(p, 2, 3, 1, nv, mv, G);
-	if (rv && loom__top_eigen(G, nv, rv, Bv))
+	if (rv == nv && nv >= 1)
+		exact_basis(nv, 0, Bv);
+	else if (rv && loom__top_eigen(G, nv, rv, Bv))
 		goto done;
 	for (uint32_t i = 0; i < b1; i++) {
 		ef->mean_h[i] = (float)mh[i];
@@ -337,6 +434,11 @@ LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
 	}
 	if (loom__edgefix_fields(&L, Bh, rh, Bv, rv, ef->field_h, ef->field_v))
 		goto done;
+	if (rh == b1 && b1 >= 3)
+		flush_tail(ef->field_h, (size_t)b1 * b2 * rh);
+	if (rv == nv && nv >= 1)
+		flush_tail(ef->field_v, (size_t)b1 * b2 * rv);
+	loom__edgefix_finish(ef);
 	rc = LOOM_OK;
 done:
 	loom__lap_free(&L);
@@ -362,7 +464,8 @@ LOOM_API size_t loom_edgefix_bytes(const loom_edgefix *ef)
 	cells = (size_t)ef->b1 * ef->b2;
 	return sizeof *ef + sizeof(float) * ((size_t)ef->K * (2 * ef->rh + 2 * ef->rv) +
 	                                     cells * (ef->rh + ef->rv) + ef->b1 * ef->rh +
-	                                     (ef->b2 - 2) * ef->rv + ef->b1 + ef->b2 - 2);
+	                                     (ef->b2 - 2) * ef->rv + ef->b1 + ef->b2 - 2) +
+	       ef->b1 + ef->b2; /* pre */
 }
 
 /* ---- evaluation ---------------------------------------------------------- */
@@ -392,6 +495,19 @@ LOOM_API float loom_edgefix_at(const loom_edgefix *ef,
 		return 0;
 	ef_avec(ef, nb, &a);
 	return ef_eval(ef, &a, x, y);
+}
+
+void loom__edgefix_side(const loom_edgefix *ef, const loom_synth_nbhd *nb, int side,
+                        float *out)
+{
+	avec a;
+	uint32_t n = side < 2 ? ef->b1 : ef->b2;
+	ef_avec(ef, nb, &a);
+	for (uint32_t i = 0; i < n; i++) {
+		uint32_t x = side < 2 ? i : side == 2 ? 0 : ef->b1 - 1;
+		uint32_t y = side >= 2 ? i : side == 0 ? 0 : ef->b2 - 1;
+		out[i] = ef_eval(ef, &a, x, y);
+	}
 }
 
 /* ---- tables -------------------------------------------------------------- */
@@ -468,6 +584,7 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
 	memcpy(a[4], t->basis_v, sizeof(float) * (t->b2 - 2) * t->rank_v);
 	memcpy(a[5], t->mean_h, sizeof(float) * t->b1);
 	memcpy(a[6], t->mean_v, sizeof(float) * (t->b2 - 2));
+	loom__edgefix_finish(ef);
 	*out = ef;
 	return LOOM_OK;
 }

@@ -26,6 +26,10 @@ struct loom_edgefix {
 	float *basis_v;   /* (b2-2)*rv */
 	float *mean_h;    /* b1 */
 	float *mean_v;    /* b2-2 */
+	uint8_t *pre;     /* b2 + b1: the ranks ef_eval sums along each row
+	                     (N/S fields), then each column (W/E fields): the
+	                     fields past them are exactly 0 there
+	                     (loom__edgefix_finish; the whole ranks until then) */
 };
 
 struct loom_edgefix_paper {
@@ -135,10 +139,13 @@ static inline float ef_eval(const loom_edgefix *ef, const avec *a, uint32_t x,
                             uint32_t y)
 {
 	uint32_t b1 = ef->b1, b2 = ef->b2, rh = ef->rh, rv = ef->rv;
-	return dot(a->n, ef->field_h + ((size_t)y * b1 + x) * rh, rh) +
-	       dot(a->s, ef->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh, rh) +
-	       dot(a->w, ef->field_v + ((size_t)y * b1 + x) * rv, rv) +
-	       dot(a->e, ef->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv, rv);
+	const uint8_t *pre = ef->pre;
+	/* the terms past each prefix are +-0: the same sums as over the ranks */
+	return dot(a->n, ef->field_h + ((size_t)y * b1 + x) * rh, pre[y]) +
+	       dot(a->s, ef->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh, pre[b2 - 1 - y]) +
+	       dot(a->w, ef->field_v + ((size_t)y * b1 + x) * rv, pre[b2 + x]) +
+	       dot(a->e, ef->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv,
+	           pre[b2 + b1 - 1 - x]);
 }
 
 #endif /* LOOM_EDGEFIX_IMPL_H */

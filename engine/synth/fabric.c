@@ -682,6 +682,17 @@ static float dz_at_ij(const loom_fabric *f, int64_t I, int64_t J,
 	return k >= 0 ? loom__fabric_corner_dz(f, I, J, k) : loom_edgefix_at(f->ef, nb, x, y);
 }
 
+/* dz_at_ij with the edge fix's value v of column (x, y) already known. */
+static float corner_or(const loom_fabric *f, int64_t I, int64_t J, uint32_t x, uint32_t y,
+                       float v)
+{
+	int k = loom__fabric_corner_of(f, x, y);
+	return k >= 0 ? loom__fabric_corner_dz(f, I, J, k) : v;
+}
+
+/* Sides up to this many columns are evaluated a side at a time. */
+#define SEAM_SIDE 1024u
+
 /* The seam metric of the fabric as it is looked up: |height jump| across
    the S and E edges of blocks, without the fix (profiles alone) and with
    the offsets a lookup applies (the edge fix and the corner term).  The
@@ -702,6 +713,28 @@ static void fabric_seam_one(const loom_fabric *f, int64_t I, int64_t J,
 	hs = f->heights + (size_t)a.self * LOOM_EDGE_RECORD(b1, b2);
 	hb = f->heights + (size_t)below.self * LOOM_EDGE_RECORD(b1, b2);
 	hr = f->heights + (size_t)right.self * LOOM_EDGE_RECORD(b1, b2);
+	if (b1 <= SEAM_SIDE && b2 <= SEAM_SIDE && f->ef) {
+		/* each side's offsets from one coefficient vector (the same
+		   values), the corner columns from the corner term */
+		float s0[SEAM_SIDE], s1[SEAM_SIDE];
+		loom__edgefix_side(f->ef, &a, 1, s0);
+		loom__edgefix_side(f->ef, &below, 0, s1);
+		for (uint32_t x = 0; x < b1; x++) {
+			double h0 = hs[LOOM_EDGE_S(b1, b2) + x], h1 = hb[LOOM_EDGE_N(b1, b2) + x];
+			double d0 = corner_or(f, I, J, x, b2 - 1, s0[x]);
+			double d1 = corner_or(f, I + 1, J, x, 0, s1[x]);
+			loom__seam_add(se, h0 - h1, (h0 + d0) - (h1 + d1), 0);
+		}
+		loom__edgefix_side(f->ef, &a, 3, s0);
+		loom__edgefix_side(f->ef, &right, 2, s1);
+		for (uint32_t y = 0; y < b2; y++) {
+			double h0 = hs[LOOM_EDGE_E(b1, b2) + y], h1 = hr[LOOM_EDGE_W(b1, b2) + y];
+			double d0 = corner_or(f, I, J, b1 - 1, y, s0[y]);
+			double d1 = corner_or(f, I, J + 1, 0, y, s1[y]);
+			loom__seam_add(ee, h0 - h1, (h0 + d0) - (h1 + d1), y == 0 || y == b2 - 1);
+		}
+		return;
+	}
 	for (uint32_t x = 0; x < b1; x++) {
 		double h0 = hs[LOOM_EDGE_S(b1, b2) + x], h1 = hb[LOOM_EDGE_N(b1, b2) + x];
 		double d0 = dz_at_ij(f, I, J, &a, x, b2 - 1);

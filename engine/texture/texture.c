@@ -612,6 +612,7 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->field_h = tb.field_h;
 	t->field_v = tb.field_v;
 	field_ranges(t);
+	t->rpre = loom__edgefix_prefixes(fabric->ef);
 	for (uint32_t k = 0; k < fabric->design->n_types && k < LOOM_MAX_YARN_TYPES; k++) {
 		memcpy(t->albedo[k], fabric->design->types[k].albedo, sizeof t->albedo[k]);
 		t->align[k] = fabric->design->types[k].alignment;

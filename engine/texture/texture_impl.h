@@ -204,6 +204,9 @@ struct loom_texture {
 	size_t bv;               /* voxels per brick (plane size) */
 	uint32_t rh, rv;         /* edge-fix ranks */
 	const float *coef, *field_h, *field_v; /* the fabric's tables */
+	const uint8_t *rpre;     /* ranks dz_eval sums: b2 rows (N/S fields),
+	                            then b1 columns (W/E); the fabric's
+	                            (loom__edgefix_prefixes) */
 	float frange[4][4 * LOOM_EDGEFIX_MAX_RANK]; /* min, max of each basis
 	                            field (2 rh, then 2 rv) over the block's
 	                            first row, last row, first column, last
@@ -438,25 +441,32 @@ static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
 	const float *fw = t->field_v + ((size_t)y * b1 + x) * rv;
 	const float *fe = t->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv;
 	const float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
+	/* each sum over the ranks whose fields are not 0 along this row or
+	   column (t->rpre): the terms left out are +-0 */
+	uint32_t pn = t->rpre[y], ps = t->rpre[b2 - 1 - y];
+	uint32_t pw = t->rpre[b2 + x], pe = t->rpre[b2 + b1 - 1 - x];
 	float sn = 0, ss = 0, sw = 0, se = 0;
-	uint32_t k = 0, m = rh < rv ? rh : rv;
+	uint32_t k = 0, m = pn < ps ? pn : ps;
 
-	/* the four dot products interleaved: independent chains, each summed
-	   in k order, so the same values as four separate loops */
+	m = m < pw ? m : pw;
+	m = m < pe ? m : pe;
+	/* the four dot products interleaved while all four run: independent
+	   chains, each summed in k order, so the same values as four separate
+	   loops */
 	for (; k < m; k++) {
 		sn += an[k] * fn[k];
 		ss += as[k] * fs[k];
 		sw += aw[k] * fw[k];
 		se += ae[k] * fe[k];
 	}
-	for (uint32_t j = k; j < rh; j++) {
+	for (uint32_t j = k; j < pn; j++)
 		sn += an[j] * fn[j];
+	for (uint32_t j = k; j < ps; j++)
 		ss += as[j] * fs[j];
-	}
-	for (uint32_t j = k; j < rv; j++) {
+	for (uint32_t j = k; j < pw; j++)
 		sw += aw[j] * fw[j];
+	for (uint32_t j = k; j < pe; j++)
 		se += ae[j] * fe[j];
-	}
 	return sn + ss + sw + se;
 }
 

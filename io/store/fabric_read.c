@@ -743,10 +743,12 @@ static int parse_edge(fab_reader *r, loom_fabric *f)
 		}
 	}
 	free(p);
-	if (rc)
+	if (rc) {
 		loom_edgefix_free(ef);
-	else
+	} else {
+		loom__edgefix_finish(ef);
 		f->ef = ef;
+	}
 	return rc;
 }
 

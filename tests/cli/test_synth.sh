@@ -90,6 +90,24 @@ then pass synth_rank0_no_fix; else fail synth_rank0_no_fix "$(head -c 600 "$T/py
 expect_ok synth_rank0_info "$LOOM" info "$T/r0.loomf"
 expect_out_contains synth_rank0_info_rank "rank 0"
 expect_ok synth_rank0_preview "$LOOM" preview "$T/r0.loomf" --width 64 -q -o "$T/r0.png"
+# --edge-fix full: the exact fix (each side at its whole rank: the default
+# database's 24 x 16 blocks give 24 and 14), the same bytes as --rank 128,
+# its seams closer than without a fix; not with --rank
+expect_ok synth_edge_full "$LOOM" synth "$WIF" --edge-fix full --json -o "$T/full.loomf"
+cp "$T/out" "$T/full.json"
+expect_ok synth_rank128 "$LOOM" synth "$WIF" --rank 128 --quiet -o "$T/r128.loomf"
+expect_same synth_edge_full_is_rank128 "$T/full.loomf" "$T/r128.loomf"
+if python3 - "$T/full.json" "$T/r0.json" >"$T/py" 2>&1 <<'EOF'
+import json, sys
+j = json.load(open(sys.argv[1]))
+r0 = json.load(open(sys.argv[2]))
+assert j["rank"] == 128 and j["rank_h"] == 24 and j["rank_v"] == 14, j
+assert j["seam_after"] < 0.7 * r0["seam_after"], (j["seam_after"], r0["seam_after"])
+EOF
+then pass synth_edge_full_ranks; else fail synth_edge_full_ranks "$(head -c 600 "$T/py")"; fi
+expect_exit synth_edge_full_rank 2 "$LOOM" synth "$WIF" --edge-fix full --rank 5 -o "$T/x.loomf"
+expect_err_contains synth_edge_full_rank_msg "no --rank"
+expect_ok synth_edge_full_preview "$LOOM" preview "$T/full.loomf" --width 64 -q -o "$T/full.png"
 expect_ok synth_other_seed "$LOOM" synth "$WIF" --seed 2 --quiet -o "$T/h8s2.loomf"
 if cmp -s "$T/h8.loomf" "$T/h8s2.loomf"; then fail seed_changes_bytes "same bytes"; else pass seed_changes_bytes; fi
 

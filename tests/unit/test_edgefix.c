@@ -309,6 +309,88 @@ static void full_rank_is_exact_and_truncation(void)
 	free(h);
 }
 
+/* One side's dot product over every rank, in rank order (ef_eval's
+   order without its prefixes). */
+static float full_dot(const float *a, const float *f, uint32_t r)
+{
+	float s = 0;
+	for (uint32_t k = 0; k < r; k++)
+		s += a[k] * f[k];
+	return s;
+}
+
+/* Full rank at the paper's block size: the sine basis.  The tables equal
+   the exact solve, their fields are exactly 0 past a short prefix of ranks
+   in the block's interior (so lookups sum only that prefix), and skipping
+   them changes no bit: every offset equals the sum over every rank of the
+   tables, computed here without the prefixes. */
+static void full_rank_sine_basis(void)
+{
+	const uint32_t b1 = 115, b2 = 70;
+	loom_edge_profiles p;
+	loom_edgefix *ef = NULL, *ef2 = NULL;
+	loom_edgefix_tables t;
+	float *h, *a = malloc(sizeof(float) * b1 * b2), *b = malloc(sizeof(float) * b1 * b2);
+	double worst = 0;
+	uint64_t zero_tail = 0, diff = 0;
+
+	rng_state = check_seed() + 11;
+	h = profiles(60, b1, b2, &p); /* 2K >= b1: not clipped */
+	CHECK_EQ_INT(loom_edgefix_build(&p, LOOM_EDGEFIX_MAX_RANK, &ef, NULL), LOOM_OK);
+	if (!ef || !a || !b)
+		goto done;
+	CHECK_EQ_INT(loom_edgefix_get_tables(ef, &t), LOOM_OK);
+	CHECK_EQ_INT(t.rank_h, b1);
+	CHECK_EQ_INT(t.rank_v, b2 - 2);
+	/* the middle row: every N/S field past rank 40 is exactly 0 there */
+	for (uint32_t x = 0; x < b1; x++)
+		for (uint32_t k = 40; k < t.rank_h; k++)
+			zero_tail += t.field_h[((size_t)(b2 / 2) * b1 + x) * t.rank_h + k] == 0;
+	CHECK_EQ_INT(zero_tail, (uint64_t)b1 * (t.rank_h - 40));
+	/* and not at the edge: the first row has every mode */
+	CHECK(t.field_h[((size_t)0 * b1 + b1 / 2) * t.rank_h + t.rank_h - 3] != 0);
+	CHECK_EQ_INT(loom_edgefix_from_tables(&t, &ef2, NULL), LOOM_OK);
+	for (int trial = 0; trial < 6 && ef2; trial++) {
+		loom_synth_nbhd nb = random_nb(60);
+		uint32_t rh = t.rank_h, rv = t.rank_v, st = 2 * rh + 2 * rv;
+		const float *cs = t.coef + (size_t)nb.self * st, *cn = t.coef + (size_t)nb.n * st;
+		const float *css = t.coef + (size_t)nb.s * st, *cw = t.coef + (size_t)nb.w * st;
+		const float *ce = t.coef + (size_t)nb.e * st;
+		float an[128], as[128], aw[128], ae[128];
+		for (uint32_t k = 0; k < rh; k++) {
+			an[k] = 0.5f * (cn[rh + k] - cs[k]);
+			as[k] = 0.5f * (css[k] - cs[rh + k]);
+		}
+		for (uint32_t k = 0; k < rv; k++) {
+			aw[k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
+			ae[k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
+		}
+		loom_edgefix_block(ef, &nb, a);
+		loom_edgefix_exact(&p, &nb, b);
+		for (uint32_t y = 0; y < b2; y++)
+			for (uint32_t x = 0; x < b1; x++) {
+				float v = full_dot(an, t.field_h + ((size_t)y * b1 + x) * rh, rh) +
+				          full_dot(as, t.field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh, rh) +
+				          full_dot(aw, t.field_v + ((size_t)y * b1 + x) * rv, rv) +
+				          full_dot(ae, t.field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv, rv);
+				float u = a[(size_t)y * b1 + x];
+				double d = fabs((double)u - b[(size_t)y * b1 + x]);
+				diff += memcmp(&u, &v, sizeof u) != 0;
+				diff += loom_edgefix_at(ef2, &nb, x, y) != u;
+				worst = d > worst ? d : worst;
+			}
+	}
+	printf("  %ux%u, full rank: max |tables - exact| = %.3g voxels\n", b1, b2, worst);
+	CHECK_EQ_INT(diff, 0);
+	CHECK(worst < 1e-4);
+done:
+	loom_edgefix_free(ef);
+	loom_edgefix_free(ef2);
+	free(a);
+	free(b);
+	free(h);
+}
+
 static void at_equals_block_and_tables(void)
 {
 	loom_edge_profiles p;
@@ -669,6 +751,7 @@ int main(void)
 	RUN(raised_border_sinks_inside);
 	RUN(exact_boundary_and_residual);
 	RUN(full_rank_is_exact_and_truncation);
+	RUN(full_rank_sine_basis);
 	RUN(at_equals_block_and_tables);
 	RUN(paper_equivalence);
 	RUN(seams_meet_after_exact_fix);

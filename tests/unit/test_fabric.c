@@ -278,7 +278,7 @@ static void test_rebuild_tables(void)
 		goto done;
 	CHECK_EQ_INT(loom_fabric_save(fs, tpath("st.loomf"), &bs, &diag), LOOM_OK);
 	CHECK_EQ_INT(loom_fabric_save(fr, tpath("rb.loomf"), &br, &diag), LOOM_OK);
-	CHECK(br + 4000 < bs); /* the tables: 22 KB raw, 6.4 KB deflated here */
+	CHECK(br + 2000 < bs); /* the tables: 22 KB raw, 3.3 KB deflated here */
 	CHECK_EQ_INT(loom_fabric_open(tpath("rb.loomf"), db, 0, &g, &diag), LOOM_OK);
 	if (g) {
 		loom_fabric_get_params(g, &p);

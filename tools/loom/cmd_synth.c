@@ -4,7 +4,7 @@
  *
  *   loom synth DESIGN [--db DB | --fibre F[,F]] [--yarn-fibre TYPE=F ...]
  *              [--algo dp|greedy|naive] [--seed N]
- *              [--rank R] [--edge-fix on|off] [--identity] [--group M] [--map MAPFILE] [--warp-map F]
+ *              [--rank R] [--edge-fix on|off|full] [--identity] [--group M] [--map MAPFILE] [--warp-map F]
  *              [--weft-map F] -o FABRIC [--json] [--assignment-map PNG]
  *              [--seam-map PNG] [--edge-tables auto|store|rebuild] [--quiet]
  */
@@ -33,7 +33,7 @@ static const char about[] =
 static const opt_choice algo_names[] = {
 	{"dp", LOOM_SYNTH_DP}, {"greedy", LOOM_SYNTH_GREEDY}, {"naive", LOOM_SYNTH_NAIVE},
 	{NULL, 0}};
-static const opt_choice onoff_names[] = {{"on", 1}, {"off", 0}, {NULL, 0}};
+static const opt_choice edge_fix_names[] = {{"on", 1}, {"off", 0}, {"full", 2}, {NULL, 0}};
 static const opt_choice edge_names[] = {
 	{"auto", LOOM_FABRIC_EDGE_AUTO}, {"store", LOOM_FABRIC_EDGE_STORE},
 	{"rebuild", LOOM_FABRIC_EDGE_REBUILD}, {NULL, 0}};
@@ -540,8 +540,11 @@ int cmd_synth(int argc, char **argv)
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
 		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
 		        "edge-fix rank, %r (default 15; 0 = no edge fix)"),
-		OPT_ENUM(0, "edge-fix", &edge_fix, "on|off", onoff_names, "on (default) or "
-		         "off: no edge fix, the same as --rank 0 (to see what the fix does)"),
+		OPT_ENUM(0, "edge-fix", &edge_fix, "on|off|full", edge_fix_names, "on "
+		         "(default: rank --rank), off: no edge fix, the same as --rank 0 (to "
+		         "see what the fix does), or full: the exact fix, every edge "
+		         "sample matched (the rank of each side's whole profile; closest "
+		         "to the woven cloth's seams, larger tables: docs/fidelity.md)"),
 		OPT_U32(0, "group", &o.group, "M", 0, 65536, "randomisation group side m^, %r "
 		        "(default 3; 0 = no randomisation)"),
 		OPT_FLAG(0, "identity", &identity, "copy the ground truth block by block: "
@@ -571,8 +574,13 @@ int cmd_synth(int argc, char **argv)
 	if (!out)
 		opts_usage(&c, "missing -o FABRIC");
 	o.edge_storage = (uint32_t)edge;
+	if (edge_fix == 2 && opt_given(&c, &o.rank))
+		opts_usage(&c, "--edge-fix full sets the rank (every side's whole "
+		           "profile): no --rank");
 	if (!edge_fix)
 		o.rank = 0;
+	else if (edge_fix == 2)
+		o.rank = LOOM_EDGEFIX_MAX_RANK;
 	if (identity) {
 		if (opt_given(&c, &o.algo) || (opt_given(&c, &o.rank) && o.rank) ||
 		    (opt_given(&c, &o.group) && o.group))
