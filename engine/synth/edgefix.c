@@ -311,29 +311,28 @@ static void flush_tail(float *f, size_t n)
 			f[i] = 0;
 }
 
+/* How many leading ranks of the fields f (rank r) are not all exactly 0
+   over the n cells c0, c0 + step, ... */
+static uint8_t nonzero_ranks(const float *f, uint32_t r, size_t c0, size_t step,
+                             uint32_t n)
+{
+	uint32_t p = 0;
+	for (uint32_t i = 0; i < n; i++)
+		for (uint32_t k = r; k > p; k--)
+			if (f[(c0 + i * step) * r + k - 1] != 0) {
+				p = k;
+				break;
+			}
+	return (uint8_t)p;
+}
+
 void loom__edgefix_finish(loom_edgefix *ef)
 {
-	uint32_t b1 = ef->b1, b2 = ef->b2, rh = ef->rh, rv = ef->rv;
-	for (uint32_t y = 0; y < b2; y++) {
-		uint32_t n = 0;
-		for (uint32_t x = 0; x < b1; x++)
-			for (uint32_t k = rh; k > n; k--)
-				if (ef->field_h[((size_t)y * b1 + x) * rh + k - 1] != 0) {
-					n = k;
-					break;
-				}
-		ef->pre[y] = (uint8_t)n;
-	}
-	for (uint32_t x = 0; x < b1; x++) {
-		uint32_t n = 0;
-		for (uint32_t y = 0; y < b2; y++)
-			for (uint32_t k = rv; k > n; k--)
-				if (ef->field_v[((size_t)y * b1 + x) * rv + k - 1] != 0) {
-					n = k;
-					break;
-				}
-		ef->pre[b2 + x] = (uint8_t)n;
-	}
+	uint32_t b1 = ef->b1, b2 = ef->b2;
+	for (uint32_t y = 0; y < b2; y++) /* N/S fields along row y */
+		ef->pre[y] = nonzero_ranks(ef->field_h, ef->rh, (size_t)y * b1, 1, b1);
+	for (uint32_t x = 0; x < b1; x++) /* W/E fields along column x */
+		ef->pre[b2 + x] = nonzero_ranks(ef->field_v, ef->rv, x, b1, b2);
 }
 
 const uint8_t *loom__edgefix_prefixes(const loom_edgefix *ef)
