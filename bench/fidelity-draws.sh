@@ -12,7 +12,7 @@
 #   FIDELITY_DB_SEEDS="1 2 3" (default) the database seeds;
 #   FIDELITY_PRESET=small (default) the databases' preset;
 #   FIDELITY_DB_OPTS="..." more options of loom exemplar generate;
-#   FIDELITY_DESIGNS, FIDELITY_SIZE, FIDELITY_GEN, FIDELITY_REUSE as in
+#   FIDELITY_DESIGNS, FIDELITY_SIZE, FIDELITY_GEN, FIDELITY_SYNTH, FIDELITY_REUSE as in
 #   bench/fidelity.sh (FIDELITY_REUSE=1 also keeps databases already made)
 set -eu
 case ${1:-} in
@@ -79,7 +79,8 @@ print("|---|---|" + "---|" * len(keys))
 for d in designs:
     floor = json.load(open(os.path.join(d0, d + "-floor.json")))
     print("| %s | floor | " % d + " | ".join("%.3f" % val(floor, k) for k, _ in keys) + " |")
-    for pair, label in (("synth", "rank 15"), ("rank0", "no edge fix")):
+    for pair, label in (("synth", os.environ.get("FIDELITY_SYNTH") or "rank 15"),
+                        ("rank0", "no edge fix")):
         vs = []
         for s in seeds:
             p = os.path.join(w, "seed-" + s, "%s-%s.json" % (d, pair))
