@@ -57,12 +57,10 @@ struct loom_edgefix_tables;
 struct loom_edgefix;
 int loom__edgefix_alloc(const struct loom_edgefix_tables *t, struct loom_edgefix **out,
                         float *arrays[7], loom_diag *diag);
-/* After the arrays are filled: find where the fields are exactly 0 (the
-   ranks each row and column sums; edgefix.c). */
+/* After the arrays are filled (whole): find where the fields are exactly 0
+   (the ranks each row and column stores and sums) and compact them
+   (loom_edgefix_tables; edgefix.c). */
 void loom__edgefix_finish(struct loom_edgefix *ef);
-/* Those ranks: b2 bytes for the rows (N/S fields), then b1 for the columns
-   (W/E fields); valid while ef lives. */
-const uint8_t *loom__edgefix_prefixes(const struct loom_edgefix *ef);
 /* The offsets along one side of a block whose sources are nb (side 0: row
    0, b1 values; 1: row b2-1; 2: column 0, b2 values; 3: column b1-1), as
    loom_edgefix_at gives them one by one (edgefix.c). */

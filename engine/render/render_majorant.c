@@ -202,11 +202,11 @@ static int mj_geometry(const loom_fabric *f, loom_majorant **out, loom_diag *dia
 			goto fail;
 		}
 		for (uint32_t k = 0; k < rh + rv; k++) {
-			const float *fld = k < rh ? m->ef.field_h : m->ef.field_v;
-			uint32_t r = k < rh ? rh : rv, kk = k < rh ? k : k - rh;
+			int vert = k >= rh;
+			uint32_t kk = vert ? k - rh : k;
 			float lo = INFINITY, hi = -INFINITY;
 			for (uint32_t c = 0; c < m->b1 * m->b2; c++) {
-				float v = fld[(size_t)c * r + kk];
+				float v = loom_edgefix_field(&m->ef, vert, c % m->b1, c / m->b1, kk);
 				lo = v < lo ? v : lo;
 				hi = v > hi ? v : hi;
 			}
@@ -351,16 +351,25 @@ static float dz_at(const loom_edgefix_tables *t, const float *a, uint32_t x,
                    uint32_t y)
 {
 	uint32_t b1 = t->b1, b2 = t->b2, rh = t->rank_h, rv = t->rank_v;
-	const float *fn = t->field_h + ((size_t)y * b1 + x) * rh;
-	const float *fs = t->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh;
-	const float *fw = t->field_v + ((size_t)y * b1 + x) * rv;
-	const float *fe = t->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv;
+	uint32_t ys = b2 - 1 - y, xe = b1 - 1 - x;
+	const uint8_t *pre = t->pre;
+	size_t row_v = (size_t)y * t->off[b2 + b1];
+	const float *fn = t->field_h + t->off[y] + (size_t)x * pre[y];
+	const float *fs = t->field_h + t->off[ys] + (size_t)x * pre[ys];
+	const float *fw = t->field_v + row_v + t->off[b2 + x];
+	const float *fe = t->field_v + row_v + t->off[b2 + xe];
 	float v = 0;
 
-	for (uint32_t k = 0; k < rh; k++)
-		v += a[k] * fn[k] + a[rh + k] * fs[k];
-	for (uint32_t k = 0; k < rv; k++)
-		v += a[2 * rh + k] * fw[k] + a[2 * rh + rv + k] * fe[k];
+	/* the ranks the compact tables store along this row and column (the
+	   rest are 0) */
+	for (uint32_t k = 0; k < pre[y]; k++)
+		v += a[k] * fn[k];
+	for (uint32_t k = 0; k < pre[ys]; k++)
+		v += a[rh + k] * fs[k];
+	for (uint32_t k = 0; k < pre[b2 + x]; k++)
+		v += a[2 * rh + k] * fw[k];
+	for (uint32_t k = 0; k < pre[b2 + xe]; k++)
+		v += a[2 * rh + rv + k] * fe[k];
 	return v;
 }
 

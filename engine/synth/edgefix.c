@@ -122,7 +122,35 @@ LOOM_API void loom_edgefix_free(loom_edgefix *ef)
 	free(ef->mean_h);
 	free(ef->mean_v);
 	free(ef->pre);
+	free(ef->off);
 	free(ef);
+}
+
+/* ef->off from ef->pre: row y's N/S fields start at b1 * (pre[0] + ... +
+   pre[y-1]); a row of W/E fields holds pre[b2] + ... + pre[b2+b1-1]
+   floats, column x's from the sum of the columns before it.  With every
+   prefix at its rank this is the whole layout. */
+static void set_offsets(loom_edgefix *ef)
+{
+	uint32_t b1 = ef->b1, b2 = ef->b2, s = 0;
+	for (uint32_t y = 0; y < b2; y++) {
+		ef->off[y] = s;
+		s += b1 * ef->pre[y];
+	}
+	s = 0;
+	for (uint32_t x = 0; x < b1; x++) {
+		ef->off[b2 + x] = s;
+		s += ef->pre[b2 + x];
+	}
+	ef->off[b2 + b1] = s;
+}
+
+/* Floats the compact fields hold: N/S (*nh) and W/E (*nv). */
+static void field_sizes(const loom_edgefix *ef, size_t *nh, size_t *nv)
+{
+	uint32_t b2 = ef->b2;
+	*nh = (size_t)ef->off[b2 - 1] + (size_t)ef->b1 * ef->pre[b2 - 1];
+	*nv = (size_t)b2 * ef->off[b2 + ef->b1];
 }
 
 static loom_edgefix *ef_alloc(uint32_t b1, uint32_t b2, uint32_t K,
@@ -146,13 +174,16 @@ static loom_edgefix *ef_alloc(uint32_t b1, uint32_t b2, uint32_t K,
 	ef->mean_h = malloc(sizeof(float) * b1);
 	ef->mean_v = malloc(sizeof(float) * (b2 - 2));
 	ef->pre = malloc((size_t)b1 + b2);
+	ef->off = malloc(sizeof(uint32_t) * ((size_t)b1 + b2 + 1));
 	if (!ef->coef || !ef->field_h || !ef->field_v || !ef->basis_h ||
-	    !ef->basis_v || !ef->mean_h || !ef->mean_v || !ef->pre) {
+	    !ef->basis_v || !ef->mean_h || !ef->mean_v || !ef->pre || !ef->off) {
 		loom_edgefix_free(ef);
 		return NULL;
 	}
-	memset(ef->pre, (int)rh, b2); /* every rank until loom__edgefix_finish */
+	/* every rank everywhere (the whole layout) until loom__edgefix_finish */
+	memset(ef->pre, (int)rh, b2);
 	memset(ef->pre + b2, (int)rv, b1);
+	set_offsets(ef);
 	return ef;
 }
 
@@ -300,10 +331,11 @@ static void exact_basis(uint32_t n, int corners, double *B)
 	}
 }
 
-/* Values of the full-rank fields below 2^-30 (far below a voxel's float
-   resolution, whatever the coefficients) to exactly 0, so lookups may
-   skip them: dz_eval sums each row's prefix of non-zero ranks, and every
-   other reader still sums them all, to the same value. */
+/* Values of the full-rank fields below 2^-30 to exactly 0, so the tables
+   need not store them nor lookups sum them (loom__edgefix_finish).  A
+   term dropped is at most 2^-30 times its coefficient: below 1e-6 voxel
+   for coefficients up to 1000, and a block's coefficients are projections
+   of its edge heights, a few hundred voxels at most. */
 static void flush_tail(float *f, size_t n)
 {
 	for (size_t i = 0; i < n; i++)
@@ -311,33 +343,84 @@ static void flush_tail(float *f, size_t n)
 			f[i] = 0;
 }
 
-/* How many leading ranks of the fields f (rank r) are not all exactly 0
-   over the n cells c0, c0 + step, ... */
-static uint8_t nonzero_ranks(const float *f, uint32_t r, size_t c0, size_t step,
-                             uint32_t n)
+/* Field k of cell (x, y) in ef's current layout (0 past the prefix). */
+static float field_at(const loom_edgefix *ef, int vertical, uint32_t x, uint32_t y,
+                      uint32_t k)
 {
-	uint32_t p = 0;
-	for (uint32_t i = 0; i < n; i++)
+	uint32_t b1 = ef->b1, b2 = ef->b2;
+	if (vertical)
+		return k < ef->pre[b2 + x] ?
+		       ef->field_v[(size_t)y * ef->off[b2 + b1] + ef->off[b2 + x] + k] : 0.0f;
+	return k < ef->pre[y] ? ef->field_h[ef->off[y] + (size_t)x * ef->pre[y] + k] : 0.0f;
+}
+
+/* How many leading ranks of the fields are not all exactly 0 (-0 counts
+   as 0) along row y (vertical 0: N/S fields) or column x (1: W/E). */
+static uint8_t nonzero_ranks(const loom_edgefix *ef, int vertical, uint32_t i)
+{
+	uint32_t n = vertical ? ef->b2 : ef->b1, p = 0;
+	uint32_t r = vertical ? ef->pre[ef->b2 + i] : ef->pre[i];
+	for (uint32_t j = 0; j < n; j++)
 		for (uint32_t k = r; k > p; k--)
-			if (f[(c0 + i * step) * r + k - 1] != 0) {
+			if (field_at(ef, vertical, vertical ? i : j, vertical ? j : i, k - 1) != 0) {
 				p = k;
 				break;
 			}
 	return (uint8_t)p;
 }
 
+/* Shrink an array to n floats (kept as it is if realloc fails). */
+static float *shrink(float *f, size_t n)
+{
+	float *g = realloc(f, sizeof(float) * (n + 1));
+	return g ? g : f;
+}
+
+/*
+ * The prefixes from the fields, then the fields compacted to them, in
+ * place: the layouts run in the same order (rows, then cells, then ranks)
+ * and no value moves up, so each is written at or below where it is read,
+ * after everything below it was read.
+ */
 void loom__edgefix_finish(loom_edgefix *ef)
 {
 	uint32_t b1 = ef->b1, b2 = ef->b2;
-	for (uint32_t y = 0; y < b2; y++) /* N/S fields along row y */
-		ef->pre[y] = nonzero_ranks(ef->field_h, ef->rh, (size_t)y * b1, 1, b1);
-	for (uint32_t x = 0; x < b1; x++) /* W/E fields along column x */
-		ef->pre[b2 + x] = nonzero_ranks(ef->field_v, ef->rv, x, b1, b2);
-}
+	uint8_t *np = malloc((size_t)b1 + b2);
+	uint32_t *noff = malloc(sizeof(uint32_t) * ((size_t)b1 + b2 + 1));
+	size_t nh, nv;
 
-const uint8_t *loom__edgefix_prefixes(const loom_edgefix *ef)
-{
-	return ef->pre;
+	if (!np || !noff) { /* keep the current layout: still exact */
+		free(np);
+		free(noff);
+		return;
+	}
+	for (uint32_t y = 0; y < b2; y++)
+		np[y] = nonzero_ranks(ef, 0, y);
+	for (uint32_t x = 0; x < b1; x++)
+		np[b2 + x] = nonzero_ranks(ef, 1, x);
+	{ /* the new offsets (set_offsets on a copy) */
+		loom_edgefix tmp = *ef;
+		tmp.pre = np;
+		tmp.off = noff;
+		set_offsets(&tmp);
+	}
+	for (uint32_t y = 0; y < b2; y++)
+		for (uint32_t x = 0; x < b1; x++)
+			for (uint32_t k = 0; k < np[y]; k++)
+				ef->field_h[noff[y] + (size_t)x * np[y] + k] =
+				    ef->field_h[ef->off[y] + (size_t)x * ef->pre[y] + k];
+	for (uint32_t y = 0; y < b2; y++)
+		for (uint32_t x = 0; x < b1; x++)
+			for (uint32_t k = 0; k < np[b2 + x]; k++)
+				ef->field_v[(size_t)y * noff[b2 + b1] + noff[b2 + x] + k] =
+				    ef->field_v[(size_t)y * ef->off[b2 + b1] + ef->off[b2 + x] + k];
+	free(ef->pre);
+	free(ef->off);
+	ef->pre = np;
+	ef->off = noff;
+	field_sizes(ef, &nh, &nv);
+	ef->field_h = shrink(ef->field_h, nh);
+	ef->field_v = shrink(ef->field_v, nv);
 }
 
 LOOM_API int loom_edgefix_build(const loom_edge_profiles *p, uint32_t rank,
@@ -457,14 +540,14 @@ done:
 
 LOOM_API size_t loom_edgefix_bytes(const loom_edgefix *ef)
 {
-	size_t cells;
+	size_t nh, nv;
 	if (!ef)
 		return 0;
-	cells = (size_t)ef->b1 * ef->b2;
+	field_sizes(ef, &nh, &nv);
 	return sizeof *ef + sizeof(float) * ((size_t)ef->K * (2 * ef->rh + 2 * ef->rv) +
-	                                     cells * (ef->rh + ef->rv) + ef->b1 * ef->rh +
+	                                     nh + nv + ef->b1 * ef->rh +
 	                                     (ef->b2 - 2) * ef->rv + ef->b1 + ef->b2 - 2) +
-	       ef->b1 + ef->b2; /* pre */
+	       ef->b1 + ef->b2 + sizeof(uint32_t) * (ef->b1 + ef->b2 + 1); /* pre, off */
 }
 
 /* ---- evaluation ---------------------------------------------------------- */
@@ -528,6 +611,8 @@ LOOM_API int loom_edgefix_get_tables(const loom_edgefix *ef,
 	t->basis_v = ef->basis_v;
 	t->mean_h = ef->mean_h;
 	t->mean_v = ef->mean_v;
+	t->pre = ef->pre;
+	t->off = ef->off;
 	return LOOM_OK;
 }
 
@@ -563,7 +648,7 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
 {
 	loom_edgefix *ef;
 	float *a[7];
-	size_t cells;
+	size_t cells, nh, nv;
 	int rc;
 
 	if (!out)
@@ -576,9 +661,25 @@ LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
 	if (rc)
 		return rc;
 	cells = (size_t)t->b1 * t->b2;
+	nh = cells * t->rank_h;
+	nv = cells * t->rank_v;
+	if (t->pre) { /* compact: the prefixes first (each at most its rank) */
+		for (uint32_t i = 0; i < t->b1 + t->b2; i++)
+			if (t->pre[i] > (i < t->b2 ? t->rank_h : t->rank_v)) {
+				uint32_t r = i < t->b2 ? t->rank_h : t->rank_v;
+				loom_edgefix_free(ef);
+				return loom__fail(diag, LOOM_EINVAL, "edge fix tables: %s %u's "
+				                  "prefix %u above the rank %u", i < t->b2 ?
+				                  "row" : "column", i < t->b2 ? i : i - t->b2,
+				                  t->pre[i], r);
+			}
+		memcpy(ef->pre, t->pre, (size_t)t->b1 + t->b2);
+		set_offsets(ef);
+		field_sizes(ef, &nh, &nv);
+	}
 	memcpy(a[0], t->coef, sizeof(float) * t->n_blocks * (2 * (size_t)t->rank_h + 2 * t->rank_v));
-	memcpy(a[1], t->field_h, sizeof(float) * cells * t->rank_h);
-	memcpy(a[2], t->field_v, sizeof(float) * cells * t->rank_v);
+	memcpy(a[1], t->field_h, sizeof(float) * nh);
+	memcpy(a[2], t->field_v, sizeof(float) * nv);
 	memcpy(a[3], t->basis_h, sizeof(float) * t->b1 * t->rank_h);
 	memcpy(a[4], t->basis_v, sizeof(float) * (t->b2 - 2) * t->rank_v);
 	memcpy(a[5], t->mean_h, sizeof(float) * t->b1);

@@ -20,16 +20,21 @@
 struct loom_edgefix {
 	uint32_t b1, b2, K, rh, rv;
 	float *coef;      /* K * (2 rh + 2 rv) */
-	float *field_h;   /* b1*b2*rh */
-	float *field_v;   /* b1*b2*rv */
+	float *field_h;   /* compact (loom_edgefix_tables): row y's b1 cells
+	                     of pre[y] ranks from off[y] */
+	float *field_v;   /* compact: cell (x, y)'s pre[b2 + x] ranks from
+	                     y*off[b2 + b1] + off[b2 + x] */
 	float *basis_h;   /* b1*rh */
 	float *basis_v;   /* (b2-2)*rv */
 	float *mean_h;    /* b1 */
 	float *mean_v;    /* b2-2 */
-	uint8_t *pre;     /* b2 + b1: the ranks ef_eval sums along each row
-	                     (N/S fields), then each column (W/E fields): the
-	                     fields past them are exactly 0 there
-	                     (loom__edgefix_finish; the whole ranks until then) */
+	uint8_t *pre;     /* b2 + b1: the ranks stored and summed along each
+	                     row (N/S fields), then each column (W/E fields):
+	                     the fields past them are exactly 0 there
+	                     (loom__edgefix_finish; the whole ranks until then,
+	                     when the compact layout is the whole one) */
+	uint32_t *off;    /* b2 + b1 + 1: the offsets of the compact layout
+	                     (set_offsets in edgefix.c) */
 };
 
 struct loom_edgefix_paper {
@@ -138,14 +143,16 @@ static inline float dot(const float *a, const float *b, uint32_t n)
 static inline float ef_eval(const loom_edgefix *ef, const avec *a, uint32_t x,
                             uint32_t y)
 {
-	uint32_t b1 = ef->b1, b2 = ef->b2, rh = ef->rh, rv = ef->rv;
+	uint32_t b1 = ef->b1, b2 = ef->b2, ys = b2 - 1 - y, xe = b1 - 1 - x;
 	const uint8_t *pre = ef->pre;
-	/* the terms past each prefix are +-0: the same sums as over the ranks */
-	return dot(a->n, ef->field_h + ((size_t)y * b1 + x) * rh, pre[y]) +
-	       dot(a->s, ef->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh, pre[b2 - 1 - y]) +
-	       dot(a->w, ef->field_v + ((size_t)y * b1 + x) * rv, pre[b2 + x]) +
-	       dot(a->e, ef->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv,
-	           pre[b2 + b1 - 1 - x]);
+	const uint32_t *off = ef->off;
+	size_t row_v = (size_t)y * off[b2 + b1];
+	/* the ranks stored along each row and column: those past them are
+	   +-0, so the same sums as over every rank */
+	return dot(a->n, ef->field_h + off[y] + (size_t)x * pre[y], pre[y]) +
+	       dot(a->s, ef->field_h + off[ys] + (size_t)x * pre[ys], pre[ys]) +
+	       dot(a->w, ef->field_v + row_v + off[b2 + x], pre[b2 + x]) +
+	       dot(a->e, ef->field_v + row_v + off[b2 + xe], pre[b2 + xe]);
 }
 
 #endif /* LOOM_EDGEFIX_IMPL_H */

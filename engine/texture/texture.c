@@ -390,11 +390,11 @@ static int load_exemplars(loom_texture *t, loom_diag *diag)
 /* t->frange: the least and greatest value of each edge-fix basis field
    over each side of the block (row 0, row b2 - 1, column 0, column
    b1 - 1), for each crossing's offset bound (lookup.c xent_bound). */
-static void field_ranges(loom_texture *t)
+static void field_ranges(loom_texture *t, const loom_edgefix_tables *tb)
 {
 	for (uint32_t k = 0; k < t->rh + t->rv; k++) {
-		const float *f = k < t->rh ? t->field_h + k : t->field_v + (k - t->rh);
-		uint32_t r = k < t->rh ? t->rh : t->rv;
+		int vert = k >= t->rh;
+		uint32_t kk = vert ? k - t->rh : k;
 		for (int side = 0; side < 4; side++) {
 			/* side 0, 1: a row (x varies); 2, 3: a column (y varies) */
 			uint32_t n = side < 2 ? t->b1 : t->b2;
@@ -402,7 +402,7 @@ static void field_ranges(loom_texture *t)
 			for (uint32_t i = 0; i < n; i++) {
 				uint32_t x = side < 2 ? i : side == 2 ? 0 : t->b1 - 1;
 				uint32_t y = side >= 2 ? i : side == 0 ? 0 : t->b2 - 1;
-				float v = f[((size_t)y * t->b1 + x) * r];
+				float v = loom_edgefix_field(tb, vert, x, y, kk);
 				lo = v < lo ? v : lo;
 				hi = v > hi ? v : hi;
 			}
@@ -611,8 +611,9 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->coef = tb.coef;
 	t->field_h = tb.field_h;
 	t->field_v = tb.field_v;
-	field_ranges(t);
-	t->rpre = loom__edgefix_prefixes(fabric->ef);
+	t->rpre = tb.pre;
+	t->roff = tb.off;
+	field_ranges(t, &tb);
 	for (uint32_t k = 0; k < fabric->design->n_types && k < LOOM_MAX_YARN_TYPES; k++) {
 		memcpy(t->albedo[k], fabric->design->types[k].albedo, sizeof t->albedo[k]);
 		t->align[k] = fabric->design->types[k].alignment;

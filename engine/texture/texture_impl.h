@@ -204,9 +204,10 @@ struct loom_texture {
 	size_t bv;               /* voxels per brick (plane size) */
 	uint32_t rh, rv;         /* edge-fix ranks */
 	const float *coef, *field_h, *field_v; /* the fabric's tables */
-	const uint8_t *rpre;     /* ranks dz_eval sums: b2 rows (N/S fields),
-	                            then b1 columns (W/E); the fabric's
-	                            (loom__edgefix_prefixes) */
+	const uint8_t *rpre;     /* ranks stored and summed: b2 rows (N/S
+	                            fields), then b1 columns (W/E) */
+	const uint32_t *roff;    /* offsets of the compact fields (the
+	                            fabric's loom_edgefix_tables pre, off) */
 	float frange[4][4 * LOOM_EDGEFIX_MAX_RANK]; /* min, max of each basis
 	                            field (2 rh, then 2 rv) over the block's
 	                            first row, last row, first column, last
@@ -436,15 +437,17 @@ static inline float dz_eval(const loom_texture *t, const float *a, uint32_t x,
                             uint32_t y)
 {
 	uint32_t b1 = t->b1, b2 = t->b2, rh = t->rh, rv = t->rv;
-	const float *fn = t->field_h + ((size_t)y * b1 + x) * rh;
-	const float *fs = t->field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh;
-	const float *fw = t->field_v + ((size_t)y * b1 + x) * rv;
-	const float *fe = t->field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv;
+	uint32_t ys = b2 - 1 - y, xe = b1 - 1 - x;
 	const float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
-	/* each sum over the ranks whose fields are not 0 along this row or
-	   column (t->rpre): the terms left out are +-0 */
-	uint32_t pn = t->rpre[y], ps = t->rpre[b2 - 1 - y];
-	uint32_t pw = t->rpre[b2 + x], pe = t->rpre[b2 + b1 - 1 - x];
+	/* each sum over the ranks stored along this row or column (t->rpre):
+	   the terms left out are +-0 */
+	uint32_t pn = t->rpre[y], ps = t->rpre[ys];
+	uint32_t pw = t->rpre[b2 + x], pe = t->rpre[b2 + xe];
+	size_t row_v = (size_t)y * t->roff[b2 + b1];
+	const float *fn = t->field_h + t->roff[y] + (size_t)x * pn;
+	const float *fs = t->field_h + t->roff[ys] + (size_t)x * ps;
+	const float *fw = t->field_v + row_v + t->roff[b2 + x];
+	const float *fe = t->field_v + row_v + t->roff[b2 + xe];
 	float sn = 0, ss = 0, sw = 0, se = 0;
 	uint32_t k = 0, m = pn < ps ? pn : ps;
 

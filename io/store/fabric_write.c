@@ -237,6 +237,16 @@ static uint8_t *build_yarn(const loom_design *d, size_t *len)
 	return p;
 }
 
+/* Value i of the fields as the file stores them, whole ((y*b1 + x) * rank
+   + k), from the compact tables (their zeros written out). */
+static float field_whole(const loom_edgefix_tables *t, int vertical, size_t i)
+{
+	uint32_t r = vertical ? t->rank_v : t->rank_h;
+	size_t cell = i / r;
+	return loom_edgefix_field(t, vertical, (uint32_t)(cell % t->b1),
+	                          (uint32_t)(cell / t->b1), (uint32_t)(i % r));
+}
+
 static uint8_t *build_edge(const loom_fabric *f, size_t *len)
 {
 	loom_edgefix_tables t;
@@ -254,8 +264,7 @@ static uint8_t *build_edge(const loom_fabric *f, size_t *len)
 	n[5] = t.b1;
 	n[6] = t.b2 - 2;
 	arr[0] = t.coef;
-	arr[1] = t.field_h;
-	arr[2] = t.field_v;
+	arr[1] = arr[2] = NULL; /* field_whole */
 	arr[3] = t.basis_h;
 	arr[4] = t.basis_v;
 	arr[5] = t.mean_h;
@@ -276,7 +285,7 @@ static uint8_t *build_edge(const loom_fabric *f, size_t *len)
 	if (f->params.edge_stored)
 		for (int k = 0; k < 7; k++)
 			for (size_t i = 0; i < n[k]; i++, q += 4)
-				putf(q, arr[k][i]);
+				putf(q, k == 1 || k == 2 ? field_whole(&t, k == 2, i) : arr[k][i]);
 	*len = FAB_EDGE_HEADER + 4 * total;
 	return p;
 }

@@ -328,28 +328,62 @@ static void full_rank_sine_basis(void)
 {
 	const uint32_t b1 = 115, b2 = 70;
 	loom_edge_profiles p;
-	loom_edgefix *ef = NULL, *ef2 = NULL;
-	loom_edgefix_tables t;
+	loom_edgefix *ef = NULL, *ef2 = NULL, *ef3 = NULL;
+	loom_edgefix_tables t, w, t3;
+	size_t cells = (size_t)b1 * b2, stored = 0;
 	float *h, *a = malloc(sizeof(float) * b1 * b2), *b = malloc(sizeof(float) * b1 * b2);
+	float *dh = malloc(sizeof(float) * cells * b1), *dv = malloc(sizeof(float) * cells * b2);
 	double worst = 0;
 	uint64_t zero_tail = 0, diff = 0;
 
 	rng_state = check_seed() + 11;
 	h = profiles(60, b1, b2, &p); /* 2K >= b1: not clipped */
 	CHECK_EQ_INT(loom_edgefix_build(&p, LOOM_EDGEFIX_MAX_RANK, &ef, NULL), LOOM_OK);
-	if (!ef || !a || !b)
+	if (!ef || !a || !b || !dh || !dv)
 		goto done;
 	CHECK_EQ_INT(loom_edgefix_get_tables(ef, &t), LOOM_OK);
 	CHECK_EQ_INT(t.rank_h, b1);
 	CHECK_EQ_INT(t.rank_v, b2 - 2);
+	/* the fields whole (as a fabric file stores them), from the compact
+	   tables; the compact layout holds exactly the prefixes */
+	for (uint32_t y = 0; y < b2; y++)
+		for (uint32_t x = 0; x < b1; x++) {
+			for (uint32_t k = 0; k < t.rank_h; k++)
+				dh[((size_t)y * b1 + x) * t.rank_h + k] = loom_edgefix_field(&t, 0, x, y, k);
+			for (uint32_t k = 0; k < t.rank_v; k++)
+				dv[((size_t)y * b1 + x) * t.rank_v + k] = loom_edgefix_field(&t, 1, x, y, k);
+		}
+	for (uint32_t y = 0; y < b2; y++)
+		stored += (size_t)b1 * t.pre[y];
+	CHECK_EQ_INT(t.off[b2 - 1] + (size_t)b1 * t.pre[b2 - 1], stored);
+	/* the compact fields take well under half of the whole ones */
+	stored += (size_t)b2 * t.off[b2 + b1];
+	printf("  %ux%u, full rank: %zu of %zu field values stored\n", b1, b2, stored,
+	       cells * (t.rank_h + t.rank_v));
+	CHECK(stored < cells * (t.rank_h + t.rank_v) / 2);
+	CHECK(loom_edgefix_bytes(ef) < sizeof(float) * cells * (t.rank_h + t.rank_v) / 2);
 	/* the middle row: every N/S field past rank 40 is exactly 0 there */
 	for (uint32_t x = 0; x < b1; x++)
 		for (uint32_t k = 40; k < t.rank_h; k++)
-			zero_tail += t.field_h[((size_t)(b2 / 2) * b1 + x) * t.rank_h + k] == 0;
+			zero_tail += dh[((size_t)(b2 / 2) * b1 + x) * t.rank_h + k] == 0;
 	CHECK_EQ_INT(zero_tail, (uint64_t)b1 * (t.rank_h - 40));
+	CHECK(t.pre[b2 / 2] <= 40);
 	/* and not at the edge: the first row has every mode */
-	CHECK(t.field_h[((size_t)0 * b1 + b1 / 2) * t.rank_h + t.rank_h - 3] != 0);
+	CHECK(dh[((size_t)0 * b1 + b1 / 2) * t.rank_h + t.rank_h - 3] != 0);
+	CHECK_EQ_INT(t.pre[0], t.rank_h);
+	/* round trips: the compact tables, and the whole ones (pre NULL) */
 	CHECK_EQ_INT(loom_edgefix_from_tables(&t, &ef2, NULL), LOOM_OK);
+	w = t;
+	w.pre = NULL;
+	w.off = NULL;
+	w.field_h = dh;
+	w.field_v = dv;
+	CHECK_EQ_INT(loom_edgefix_from_tables(&w, &ef3, NULL), LOOM_OK);
+	if (ef3 && loom_edgefix_get_tables(ef3, &t3) == LOOM_OK) {
+		CHECK(!memcmp(t3.pre, t.pre, (size_t)b1 + b2));
+		CHECK(!memcmp(t3.field_h, t.field_h, sizeof(float) * (stored - (size_t)b2 * t.off[b2 + b1])));
+		CHECK(!memcmp(t3.field_v, t.field_v, sizeof(float) * b2 * t.off[b2 + b1]));
+	}
 	for (int trial = 0; trial < 6 && ef2; trial++) {
 		loom_synth_nbhd nb = random_nb(60);
 		uint32_t rh = t.rank_h, rv = t.rank_v, st = 2 * rh + 2 * rv;
@@ -369,14 +403,15 @@ static void full_rank_sine_basis(void)
 		loom_edgefix_exact(&p, &nb, b);
 		for (uint32_t y = 0; y < b2; y++)
 			for (uint32_t x = 0; x < b1; x++) {
-				float v = full_dot(an, t.field_h + ((size_t)y * b1 + x) * rh, rh) +
-				          full_dot(as, t.field_h + ((size_t)(b2 - 1 - y) * b1 + x) * rh, rh) +
-				          full_dot(aw, t.field_v + ((size_t)y * b1 + x) * rv, rv) +
-				          full_dot(ae, t.field_v + ((size_t)y * b1 + (b1 - 1 - x)) * rv, rv);
+				float v = full_dot(an, dh + ((size_t)y * b1 + x) * rh, rh) +
+				          full_dot(as, dh + ((size_t)(b2 - 1 - y) * b1 + x) * rh, rh) +
+				          full_dot(aw, dv + ((size_t)y * b1 + x) * rv, rv) +
+				          full_dot(ae, dv + ((size_t)y * b1 + (b1 - 1 - x)) * rv, rv);
 				float u = a[(size_t)y * b1 + x];
 				double d = fabs((double)u - b[(size_t)y * b1 + x]);
 				diff += memcmp(&u, &v, sizeof u) != 0;
 				diff += loom_edgefix_at(ef2, &nb, x, y) != u;
+				diff += ef3 && loom_edgefix_at(ef3, &nb, x, y) != u;
 				worst = d > worst ? d : worst;
 			}
 	}
@@ -386,8 +421,11 @@ static void full_rank_sine_basis(void)
 done:
 	loom_edgefix_free(ef);
 	loom_edgefix_free(ef2);
+	loom_edgefix_free(ef3);
 	free(a);
 	free(b);
+	free(dh);
+	free(dv);
 	free(h);
 }
 

@@ -118,16 +118,20 @@ static int same_design(const loom_design *a, const loom_design *b)
 static int same_tables(const loom_edgefix *a, const loom_edgefix *b)
 {
 	loom_edgefix_tables x, y;
-	size_t cells;
+	size_t nh, nv;
 	loom_edgefix_get_tables(a, &x);
 	loom_edgefix_get_tables(b, &y);
 	if (x.b1 != y.b1 || x.b2 != y.b2 || x.n_blocks != y.n_blocks ||
 	    x.rank_h != y.rank_h || x.rank_v != y.rank_v)
 		return 0;
-	cells = (size_t)x.b1 * x.b2;
+	/* the compact fields: the same prefixes, then the same values */
+	if (memcmp(x.pre, y.pre, (size_t)x.b1 + x.b2))
+		return 0;
+	nh = (size_t)x.off[x.b2 - 1] + (size_t)x.b1 * x.pre[x.b2 - 1];
+	nv = (size_t)x.b2 * x.off[x.b2 + x.b1];
 	return !memcmp(x.coef, y.coef, 4 * (size_t)x.n_blocks * (2 * x.rank_h + 2 * x.rank_v)) &&
-	       !memcmp(x.field_h, y.field_h, 4 * cells * x.rank_h) &&
-	       !memcmp(x.field_v, y.field_v, 4 * cells * x.rank_v) &&
+	       !memcmp(x.field_h, y.field_h, 4 * nh) &&
+	       !memcmp(x.field_v, y.field_v, 4 * nv) &&
 	       !memcmp(x.basis_h, y.basis_h, 4 * (size_t)x.b1 * x.rank_h) &&
 	       !memcmp(x.basis_v, y.basis_v, 4 * (size_t)(x.b2 - 2) * x.rank_v) &&
 	       !memcmp(x.mean_h, y.mean_h, 4 * (size_t)x.b1) &&

@@ -446,26 +446,59 @@ LOOM_API float loom_edgefix_at(const loom_edgefix *ef,
 LOOM_API int loom_edgefix_exact(const loom_edge_profiles *p,
                                 const loom_synth_nbhd *nb, float *dz);
 
-/* The tables as plain arrays (for a fabric file); pointers into ef. */
+/*
+ * The tables as plain arrays; pointers into ef.  The basis fields are
+ * stored compactly: along each row y the N/S fields of ranks pre[y] and
+ * above are exactly 0 (they decay away from their edge), and so are the
+ * W/E fields of ranks pre[b2 + x] and above along each column x; those
+ * zeros are not stored.  Field k of (x, y) is
+ *   N/S: field_h[off[y] + x*pre[y] + k]                      (k < pre[y])
+ *   W/E: field_v[y*off[b2 + b1] + off[b2 + x] + k]           (k < pre[b2 + x])
+ * and 0 for the ranks past the prefix; loom_edgefix_field reads it.
+ * field_h holds b1 * (pre[0] + ... + pre[b2-1]) floats, field_v
+ * b2 * off[b2 + b1].  A fabric file stores the fields whole (every rank
+ * of every cell, the zeros included).
+ */
 typedef struct loom_edgefix_tables {
 	uint32_t b1, b2, n_blocks;
 	uint32_t rank_h, rank_v;  /* ranks of the N/S and W/E bases */
 	const float *coef;        /* per block: cN[rank_h] cS[rank_h]
 	                             cW[rank_v] cE[rank_v] */
-	const float *field_h;     /* b1*b2*rank_h: N-edge basis solution k at
-	                             (x, y) is field_h[(y*b1 + x)*rank_h + k] */
-	const float *field_v;     /* b1*b2*rank_v: W-edge basis solutions */
+	const float *field_h;     /* N-edge basis solutions (compact, above) */
+	const float *field_v;     /* W-edge basis solutions (compact, above) */
 	const float *basis_h;     /* b1*rank_h: basis_h[x*rank_h + k] */
 	const float *basis_v;     /* (b2-2)*rank_v: basis_v[(y-1)*rank_v + k] */
 	const float *mean_h;      /* b1: mean N/S profile */
 	const float *mean_v;      /* b2-2: mean W/E profile (interior) */
+	const uint8_t *pre;       /* b2 + b1 prefixes (above); NULL for
+	                             loom_edgefix_from_tables: the fields are
+	                             whole, field_h[(y*b1 + x)*rank_h + k] and
+	                             field_v[(y*b1 + x)*rank_v + k] */
+	const uint32_t *off;      /* b2 + b1 + 1 offsets (above); derived from
+	                             pre, ignored by loom_edgefix_from_tables */
 } loom_edgefix_tables;
+
+/* Field k of cell (x, y) of tables t: the N/S field (vertical 0, k <
+   rank_h) or the W/E field (vertical 1, k < rank_v), compact (t->pre
+   set) or whole. */
+static inline float loom_edgefix_field(const loom_edgefix_tables *t, int vertical,
+                                       uint32_t x, uint32_t y, uint32_t k)
+{
+	if (!t->pre)
+		return vertical ? t->field_v[((size_t)y * t->b1 + x) * t->rank_v + k] :
+		                  t->field_h[((size_t)y * t->b1 + x) * t->rank_h + k];
+	if (vertical)
+		return k < t->pre[t->b2 + x] ?
+		       t->field_v[(size_t)y * t->off[t->b2 + t->b1] + t->off[t->b2 + x] + k] : 0.0f;
+	return k < t->pre[y] ? t->field_h[t->off[y] + (size_t)x * t->pre[y] + k] : 0.0f;
+}
 
 LOOM_API int loom_edgefix_get_tables(const loom_edgefix *ef,
                                      loom_edgefix_tables *t);
 
-/* Rebuild an edge-fix object from tables (copied).  LOOM_OK, LOOM_EINVAL
-   (NULL or inconsistent sizes), LOOM_ENOMEM. */
+/* Rebuild an edge-fix object from tables (copied; compact when t->pre is
+   set, whole when it is NULL).  LOOM_OK, LOOM_EINVAL (NULL, inconsistent
+   sizes or a prefix above its rank), LOOM_ENOMEM. */
 LOOM_API int loom_edgefix_from_tables(const loom_edgefix_tables *t,
                                       loom_edgefix **out, loom_diag *diag);
 
