@@ -31,7 +31,8 @@
  *     handle, its current brick, its error message, the region gather
  *     buffer (6 planes of RCOLS x RZ bytes) and n_ent crossing entries
  *     (coefficients, label -> type table; n_ent = 4 .. 256, the most
- *     whose total stays within budget / 32),
+ *     whose total stays within budget / 32, or budget / 8 up to 256:
+ *     ent_fit),
  *     and the shared offset maps (below; 4 .. the most within another
  *     budget / 32);
  *   - the brick cache, opened with budget - (that block): frames,
@@ -445,6 +446,18 @@ static size_t maps_bytes(uint32_t n, size_t map_words)
 	       (size_t)n * map_words * sizeof(uint64_t);
 }
 
+/* Whether n crossing entries per slot (T + 1 slots) of ent_bytes each fit
+   their share of the budget: 1/32 of it; up to 1/8 for the first 256 a
+   slot, whose coefficients grow with the edge fix's rank (1.8 KB an entry
+   at the full rank of the paper's block size against 0.6 KB at rank 15),
+   so that a full-rank fix keeps a 16 x 16-crossing working set set up
+   instead of rebuilding an entry at most lookups. */
+static int ent_fit(unsigned T, uint32_t n, size_t ent_bytes, size_t budget)
+{
+	size_t bytes = (size_t)(T + 1) * n * ent_bytes;
+	return bytes <= budget / 32 || (n <= 256 && bytes <= budget / 8);
+}
+
 /* The fixed part of the budget with n_ent crossing entries per slot and
    n_maps shared offset maps (the header and the block allocated at open);
    *slot_bytes: one slot. */
@@ -556,11 +569,10 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	}
 	/* more entries only while the smallest cache still fits beside them
 	   (so the minimum budget reported above always opens) */
-	if ((size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 ||
+	if (ent_fit(T, 2 * n_ent, ent_bytes, o.budget_bytes) ||
 	    maps_bytes(2 * n_maps, map_words) <= o.budget_bytes / 32) {
 		size_t cmin = cache_min_budget(&co), sb, f2;
-		while (n_ent < XENT_MAX &&
-		       (size_t)(T + 1) * 2 * n_ent * ent_bytes <= o.budget_bytes / 32 &&
+		while (n_ent < XENT_MAX && ent_fit(T, 2 * n_ent, ent_bytes, o.budget_bytes) &&
 		       (f2 = fab + fixed_bytes(T, 2 * n_ent, ent_bytes, ex_bytes, n_maps,
 		                               map_words, &sb)) + cmin <= o.budget_bytes) {
 			n_ent *= 2;

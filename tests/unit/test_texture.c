@@ -1151,6 +1151,32 @@ static void wide_blocks_region_rank(uint32_t rank)
 	}
 	CHECK_EQ_INT(bad, 0);
 	loom_texture_close(t);
+	t = NULL;
+	/* full rank: an entry's coefficients take 8 (70 + 3) bytes; 256 of
+	   them a slot still fit an 8 MiB budget (texture.c ent_fit), so warm
+	   random lookups over a 16 x 16-crossing tile set each crossing up
+	   once (with entries held to 1/32 of the budget: 128, and crossings
+	   set up again on most passes) */
+	if (rank)
+		t = open_tex(f, db, 8u << 20, 1);
+	if (t) {
+		loom_texture_stats st;
+		uint64_t wrong = 0;
+		for (int pass = 0; pass < 4; pass++)
+			for (int64_t c = 0; c < 256; c++) {
+				int64_t I = -7 + c / 16, J = 3 + c % 16;
+				int64_t x = J * 70 + rnd_range(0, 70), y = I * 5 + rnd_range(0, 5);
+				int64_t z = rnd_range(0, r.b3);
+				loom_texel a, b = ref_texel(&r, x, y, z);
+				wrong += loom_texture_voxel(t, x, y, z, &a) != LOOM_OK || !texel_eq(&a, &b);
+			}
+		CHECK_EQ_INT(wrong, 0);
+		CHECK_EQ_INT(loom_texture_get_stats(t, &st), LOOM_OK);
+		printf("  full rank, 8 MiB: %llu crossings set up for 1024 lookups over 256\n",
+		       (unsigned long long)st.crossings);
+		CHECK_EQ_INT(st.crossings, 256);
+		loom_texture_close(t);
+	}
 	ref_free(&r);
 	loom_fabric_free(f);
 	loom_db_close(db);
