@@ -90,8 +90,9 @@ static const char USAGE[] =
 	"(the paper database in format version 2 or 3 instead of the default 4,\n"
 	"$BUILD/bench/paper[-XxYxZ]-vN.ldb: density deflated, 3 in segments),\n"
 	"BENCH_VDB_DENSITY=raw (the density planes stored raw, loom exemplar generate\n"
-	"--raw-density: paper[-XxYxZ][-vN]-rawd.ldb), BENCH_VDB_EDGE=full (the fabric\n"
-	"with loom synth --edge-fix full, the exact edge fix; default: rank 15),\n"
+	"--raw-density: paper[-XxYxZ][-vN]-rawd.ldb), BENCH_VDB_EDGE=full|rank15|default\n"
+	"(the fabric with loom synth --edge-fix full, the exact edge fix, or --rank 15,\n"
+	"the default before 2026-12-07; default: the library's default, full rank),\n"
 	"LOOM_PAPER_DB,\n"
 	"BUILD (default build).\n";
 
@@ -225,7 +226,8 @@ struct Setup {
 	unsigned brick[3] = {0, 0, 0}; /* BENCH_VDB_BRICK, 0: the preset's */
 	unsigned format = 4;           /* BENCH_VDB_FORMAT: the database's version */
 	bool raw_density = false;      /* BENCH_VDB_DENSITY=raw */
-	bool edge_full = false;        /* BENCH_VDB_EDGE=full */
+	int edge_rank = 0;             /* BENCH_VDB_EDGE: 128 full, 15 rank15,
+	                                  0 the library's default */
 };
 
 /* Open (making when missing) the database and the fabric. */
@@ -289,8 +291,8 @@ bool setup_open(Setup &S)
 	       "--preset paper, docs/exemplars.md)");
 	loom_design *d = S.check ? jacquard(60, 80) : jacquard(900, 1500);
 	loom_fabric_options fo = LOOM_FABRIC_OPTIONS_INIT;
-	if (S.edge_full)
-		fo.rank = LOOM_EDGEFIX_MAX_RANK; /* loom synth --edge-fix full */
+	if (S.edge_rank)
+		fo.rank = (uint32_t)S.edge_rank; /* loom synth --edge-fix full / --rank 15 */
 	if (!d || loom_fabric_synthesize(d, S.db, S.dbp.c_str(), &fo, &S.fab, &diag) != LOOM_OK) {
 		printf("bench_vdb: synthesis: %s\n", diag.message);
 		return false;
@@ -951,12 +953,14 @@ int main(int argc, char **argv)
 	}
 	const char *ev = getenv("BENCH_VDB_EDGE");
 	if (ev && *ev) {
-		if (strcmp(ev, "full") != 0 && strcmp(ev, "default") != 0) {
-			fprintf(stderr, "bench_vdb: BENCH_VDB_EDGE='%s': expected full or "
+		if (strcmp(ev, "full") != 0 && strcmp(ev, "rank15") != 0 &&
+		    strcmp(ev, "default") != 0) {
+			fprintf(stderr, "bench_vdb: BENCH_VDB_EDGE='%s': expected full, rank15 or "
 			        "default\n", ev);
 			return 2;
 		}
-		S.edge_full = strcmp(ev, "full") == 0;
+		S.edge_rank = strcmp(ev, "full") == 0 ? LOOM_EDGEFIX_MAX_RANK :
+		              strcmp(ev, "rank15") == 0 ? 15 : 0;
 	}
 	S.xings = S.check ? 3 : 16;
 	if (xs && atoi(xs) > 0)
@@ -966,7 +970,8 @@ int main(int argc, char **argv)
 	std::string shape = S.check ? std::string() :
 	                    (S.brick[0] ? std::string("-") + bs : std::string()) +
 	                    (S.format != 4 ? "-v" + std::to_string(S.format) : std::string()) +
-	                    (S.raw_density ? "-rawd" : "") + (S.edge_full ? "-full" : "");
+	                    (S.raw_density ? "-rawd" : "") +
+	                    (S.edge_rank ? "-r" + std::to_string(S.edge_rank) : std::string());
 	S.fabp = S.build + (S.check ? "/bench/vdb-check.loomf" : "/bench/vdb-paper" + shape + ".loomf");
 	S.vdbp = S.build + (S.check ? "/bench/vdb-check.vdb" : "/bench/vdb-paper" + shape + ".vdb");
 	mkdir((S.build + "/bench").c_str(), 0777);

@@ -79,7 +79,7 @@ print("|---|---|" + "---|" * len(keys))
 for d in designs:
     floor = json.load(open(os.path.join(d0, d + "-floor.json")))
     print("| %s | floor | " % d + " | ".join("%.3f" % val(floor, k) for k, _ in keys) + " |")
-    for pair, label in (("synth", os.environ.get("FIDELITY_SYNTH") or "rank 15"),
+    for pair, label in (("synth", os.environ.get("FIDELITY_SYNTH") or "full rank (default)"),
                         ("rank0", "no edge fix")):
         vs = []
         for s in seeds:

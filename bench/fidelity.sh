@@ -4,7 +4,7 @@
 # whole design as one exemplar (loom exemplar generate --design, the
 # database's geometry, seed 1), the same with seed 2 (the floor: how far
 # two weavings of the same design differ), synthesize the design from the
-# default database with the edge fix (rank 15) and without (rank 0), and
+# default database with the edge fix (the default rank, full) and without (rank 0), and
 # compare each with the seed-1 reference.  The sample WIFs of data/ are
 # woven as their first WINDOW x WINDOW crossings (--window; default 96) and
 # compared over that corner of the synthesized whole design.  Prints a
@@ -16,8 +16,8 @@
 #   two weavings, docs/fidelity.md "Paper preset"; FIDELITY_GEN="--fibre cotton" adds options to the ground truth's
 #   generation: give the fibre the database DB was made with;
 #   FIDELITY_REUSE=1 keeps the references already in WORKDIR, to compare
-#   another database against the same ones; FIDELITY_SYNTH="--edge-fix full"
-#   adds options to the synthesis, e.g. the exact edge fix)
+#   another database against the same ones; FIDELITY_SYNTH="--rank 15"
+#   adds options to the synthesis, e.g. the smaller rank of the former default)
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
@@ -62,7 +62,7 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 	for pair in floor synth rank0; do
 		case $pair in
 		floor) b="$W/$d-gt2.ldb#0"; label="seed 2 vs seed 1 (floor)" ;;
-		synth) b="$W/$d.loomf"; label="synthesized, ${FIDELITY_SYNTH:-rank 15}" ;;
+		synth) b="$W/$d.loomf"; label="synthesized, ${FIDELITY_SYNTH:-full rank (default)}" ;;
 		rank0) b="$W/$d-r0.loomf"; label="synthesized, no edge fix" ;;
 		esac
 		pics=""

@@ -193,7 +193,7 @@ static void test_roundtrip(void)
 	CHECK(!memcmp(&pf, &pg, sizeof pf));
 	CHECK_EQ_INT(pg.seed, 5);
 	CHECK_EQ_INT(pg.group, 3);
-	CHECK_EQ_INT(pg.rank, 15);
+	CHECK_EQ_INT(pg.rank, LOOM_EDGEFIX_DEFAULT_RANK);
 	CHECK_EQ_INT(pg.edge_stored, 1);
 	CHECK_EQ_INT(pg.base_width, 1);
 	loom_fabric_get_db_identity(f, &idf);

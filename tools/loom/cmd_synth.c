@@ -539,12 +539,14 @@ int cmd_synth(int argc, char **argv)
 		OPT_ENUM(0, "algo", &o.algo, "A", algo_names, "dp (default), greedy or naive"),
 		OPT_SEED(&o.seed, "N", "random seed (default 1)"),
 		OPT_U32(0, "rank", &o.rank, "R", 0, LOOM_EDGEFIX_MAX_RANK,
-		        "edge-fix rank, %r (default 15; 0 = no edge fix)"),
+		        "edge-fix rank, %r (default 128: each side at its whole profile's "
+		        "rank, the exact fix; 0 = no edge fix; 15 = the smaller tables of "
+		        "the default before 2026-12-07)"),
 		OPT_ENUM(0, "edge-fix", &edge_fix, "on|off|full", edge_fix_names, "on "
 		         "(default: rank --rank), off: no edge fix, the same as --rank 0 (to "
 		         "see what the fix does), or full: the exact fix, every edge "
-		         "sample matched (the rank of each side's whole profile; closest "
-		         "to the woven cloth's seams, larger tables: docs/fidelity.md)"),
+		         "sample matched (the rank of each side's whole profile, the "
+		         "default; closest to the woven cloth's seams: docs/fidelity.md)"),
 		OPT_U32(0, "group", &o.group, "M", 0, 65536, "randomisation group side m^, %r "
 		        "(default 3; 0 = no randomisation)"),
 		OPT_FLAG(0, "identity", &identity, "copy the ground truth block by block: "

@@ -387,7 +387,11 @@ typedef struct loom_edge_profiles {
 #define LOOM_EDGE_W(b1, b2) (2u * (b1))
 #define LOOM_EDGE_E(b1, b2) (2u * (b1) + (b2))
 
-#define LOOM_EDGEFIX_DEFAULT_RANK 15
+/* The default rank: full, each side at its whole profile's rank (the
+   exact fix; docs/fidelity.md, "Full rank by default").  Rank 15 was the
+   default before 2026-12-07: smaller tables, but at the paper's block
+   size it cannot follow fibre-scale heights along an edge. */
+#define LOOM_EDGEFIX_DEFAULT_RANK 128
 #define LOOM_EDGEFIX_MAX_RANK 128
 
 typedef struct loom_edgefix loom_edgefix; /* opaque, immutable */
