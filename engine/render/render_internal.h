@@ -275,4 +275,9 @@ static inline void loom__texel_medium(const loom_texel *tx, loom_medium_sample *
    levels: floor(log2 fp) clamped to [0, levels] (render_texture.c). */
 unsigned loom__lod_level(double fp, unsigned levels);
 
+/* Whether majorant m reads its crossings' border offsets from the edge
+   data (full rank, border_value in render_majorant.c) rather than the
+   tables' dot products: for tests. */
+int loom__majorant_border_data(const struct loom_majorant *m);
+
 #endif /* LOOM_RENDER_INTERNAL_H */

@@ -19,7 +19,8 @@
  * (docs/synthesis.md), so its positive maximum and negative minimum lie
  * on the block's border (maximum principle) and the interior between 0
  * and the border's values: only the 2 (b1 + b2) - 4 border columns are
- * evaluated, not the b1 b2 of the map, and the range is widened to hold 0
+ * evaluated, not the b1 b2 of the map (at full rank from the edge data,
+ * border_value, not the tables), and the range is widened to hold 0
  * (the corner term replaces the four corner columns, which no interior
  * value depends on: their values, loom_fabric_corner_dz, widen the
  * range); a margin covers
@@ -85,7 +86,12 @@ struct loom_majorant {
 	loom_edgefix_tables ef;   /* the fabric's edge fix (ef.coef NULL:
 	                             none) */
 	float *frange;            /* min, max of each field: 2 rh, then 2 rv */
+	loom_edge_profiles tp;    /* full rank (tp.heights not NULL): the
+	                             fabric's edge profiles, whose targets
+	                             (target) the fix matches (border_range) */
 };
+
+static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag);
 
 typedef struct mj_entry {
 	int64_t I, J;
@@ -213,6 +219,8 @@ static int mj_geometry(const loom_fabric *f, loom_majorant **out, loom_diag *dia
 			m->frange[2 * k] = lo;
 			m->frange[2 * k + 1] = hi;
 		}
+		if ((rc = border_init(m, f, diag)) != LOOM_OK)
+			goto fail;
 	} else {
 		memset(&m->ef, 0, sizeof m->ef);
 	}
@@ -374,6 +382,85 @@ static float dz_at(const loom_edgefix_tables *t, const float *a, uint32_t x,
 }
 
 
+/* Profile j (0 N, 1 S, 2 W, 3 E) of block b as the edge fix matches it
+   (loom__edgefix_targets in edgefix.c: a block's N and W profiles are
+   the S and E profiles of the blocks above and left of it in its
+   exemplar, where there are some: the fix keeps the exemplars' own
+   seams). */
+static const float *target(const loom_majorant *m, uint32_t b, int j)
+{
+	const loom_edge_profiles *p = &m->tp;
+	uint32_t b1 = m->b1, b2 = m->b2, K = p->n_blocks;
+	size_t rec = LOOM_EDGE_RECORD(b1, b2);
+
+	if (p->set && (j == 0 || j == 2)) {
+		loom_synth_block sb;
+		loom_synth_block_info(p->set, b, &sb);
+		if (j == 0 && sb.up < K)
+			return p->heights + (size_t)sb.up * rec + LOOM_EDGE_S(b1, b2);
+		if (j == 2 && sb.left < K)
+			return p->heights + (size_t)sb.left * rec + LOOM_EDGE_E(b1, b2);
+	}
+	return p->heights + (size_t)b * rec +
+	       (j == 0 ? LOOM_EDGE_N(b1, b2) : j == 1 ? LOOM_EDGE_S(b1, b2) :
+	        j == 2 ? LOOM_EDGE_W(b1, b2) : LOOM_EDGE_E(b1, b2));
+}
+
+/* The offset at border sample (x, y) of a crossing whose sources are nb,
+   at full rank: there the fix matches the edge data exactly, so it is
+   half the data's jump across that edge (the basis is complete and
+   orthonormal, B B^t = 1: docs/synthesis.md), with no dot product over
+   the ranks.  The corners belong to the N and S edges. */
+static double border_value(const loom_majorant *m, const loom_synth_nbhd *nb, uint32_t x,
+                           uint32_t y)
+{
+	if (y == 0)
+		return 0.5 * ((double)target(m, nb->n, 1)[x] - target(m, nb->self, 0)[x]);
+	if (y == m->b2 - 1)
+		return 0.5 * ((double)target(m, nb->s, 0)[x] - target(m, nb->self, 1)[x]);
+	if (x == 0)
+		return 0.5 * ((double)target(m, nb->w, 3)[y] - target(m, nb->self, 2)[y]);
+	return 0.5 * ((double)target(m, nb->e, 2)[y] - target(m, nb->self, 3)[y]);
+}
+
+/* The least and greatest offset along the border of the crossing whose
+   sources are nb: border_values at full rank (m->tp set), else the
+   tables' dot products (a: its coefficient vectors). */
+static void border_range(const loom_majorant *m, const loom_synth_nbhd *nb, const float *a,
+                         double *lo, double *hi)
+{
+	uint32_t b1 = m->b1, b2 = m->b2;
+	double l = INFINITY, h = -INFINITY;
+
+	if (m->tp.heights) { /* border_value, its profiles looked up once */
+		const float *p[4][2] = {
+			{target(m, nb->n, 1), target(m, nb->self, 0)},
+			{target(m, nb->s, 0), target(m, nb->self, 1)},
+			{target(m, nb->w, 3), target(m, nb->self, 2)},
+			{target(m, nb->e, 2), target(m, nb->self, 3)},
+		};
+		for (int j = 0; j < 4; j++) {
+			uint32_t i0 = j < 2 ? 0 : 1, i1 = j < 2 ? b1 : b2 - 1;
+			for (uint32_t i = i0; i < i1; i++) {
+				double v = 0.5 * ((double)p[j][0][i] - p[j][1][i]);
+				l = v < l ? v : l;
+				h = v > h ? v : h;
+			}
+		}
+	} else {
+		for (uint32_t x = 0; x < b1; x++) {
+			uint32_t ystep = (x == 0 || x == b1 - 1) ? 1 : b2 - 1;
+			for (uint32_t y = 0; y < b2; y += ystep) {
+				double v = dz_at(&m->ef, a, x, y);
+				l = v < l ? v : l;
+				h = v > h ? v : h;
+			}
+		}
+	}
+	*lo = l;
+	*hi = h;
+}
+
 /*
  * [*dlo, *dhi] holds every rounded edge-fix offset of the crossing whose
  * sources are nb (maximum principle: only the border columns are
@@ -384,7 +471,6 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 {
 	const loom_edgefix_tables *t = &m->ef;
 	uint32_t rh = t->rank_h, rv = t->rank_v, stride = 2 * rh + 2 * rv;
-	uint32_t b1 = m->b1, b2 = m->b2;
 	const float *cs, *cn, *css, *cw, *ce;
 	double lo = INFINITY, hi = -INFINITY, mag = 0, margin;
 
@@ -417,14 +503,7 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 		mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) *
 		       fmax(fabs(fr[0]), fabs(fr[1]));
 	}
-	for (uint32_t x = 0; x < b1; x++) {
-		uint32_t ystep = (x == 0 || x == b1 - 1) ? 1 : b2 - 1;
-		for (uint32_t y = 0; y < b2; y += ystep) {
-			double v = dz_at(t, a, x, y);
-			lo = v < lo ? v : lo;
-			hi = v > hi ? v : hi;
-		}
-	}
+	border_range(m, nb, a, &lo, &hi);
 	/* float dot products of 4r terms, float basis fields: errors far
 	   below 1e-4 of the sum of magnitudes */
 	margin = 1e-3 + 1e-4 * mag;
@@ -439,6 +518,108 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 	hi = hi < -4096.0 ? -4096.0 : hi > 4096.0 ? 4096.0 : hi;
 	*dlo = (int64_t)floor(lo);
 	*dhi = (int64_t)ceil(hi);
+}
+
+/*
+ * m->tp at full rank: the fabric's edge profiles, whose targets (target)
+ * the fix matches, so that dz_range reads
+ * the border offsets from it (border_value).  Checked against the tables:
+ * every block's coefficients must give back its edge data, and the
+ * border of up to 16 blocks with made-up neighbours must agree with the
+ * tables' dot products, within dz_range's margin; if not (tables edited,
+ * or from other profiles), m->tp stays unset and the tables are used.
+ */
+static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag)
+{
+	const loom_edge_profiles *p = &f->prof;
+	const loom_edgefix_tables *t = &m->ef;
+	uint32_t K = t->n_blocks, rh = t->rank_h, rv = t->rank_v;
+	float *a;
+	int ok = 1;
+
+	memset(&m->tp, 0, sizeof m->tp);
+	if (rh != m->b1 || rv != m->b2 - 2 || !p->heights || p->n_blocks != K ||
+	    p->b1 != m->b1 || p->b2 != m->b2 || (p->set && loom_synth_set_blocks(p->set) != K))
+		return LOOM_OK;
+	m->tp = *p; /* the fabric's: it outlives the majorant */
+	a = malloc(sizeof(float) * (2u * (rh + rv) + 1u));
+	if (!a)
+		return loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+	/* every block's coefficients give back its edge data (so the border
+	   identity holds for any neighbours: it is linear in them) */
+	for (uint32_t b = 0; b < K && ok; b++) {
+		const float *c = t->coef + (size_t)b * (2 * rh + 2 * rv);
+		for (int j = 0; j < 4 && ok; j++) {
+			uint32_t n = j < 2 ? m->b1 : m->b2 - 2, r = j < 2 ? rh : rv;
+			const float *B = j < 2 ? t->basis_h : t->basis_v, *mean = j < 2 ? t->mean_h : t->mean_v;
+			const float *cj = c + (j == 0 ? 0 : j == 1 ? rh : j == 2 ? 2 * rh : 2 * rh + rv);
+			const float *v = target(m, b, j) + (j < 2 ? 0 : 1); /* W/E: interior */
+			for (uint32_t i = 0; i < n && ok; i++) {
+				double sum = mean[i], mg = fabs(mean[i]);
+				for (uint32_t k = 0; k < r; k++) {
+					sum += (double)B[(size_t)i * r + k] * cj[k];
+					mg += fabs((double)B[(size_t)i * r + k] * cj[k]);
+				}
+				if (fabs(sum - v[i]) > 0.25e-3 + 0.25e-4 * mg)
+					ok = 0;
+			}
+		}
+	}
+	/* and the tables' fields on the border are the basis (16 blocks with
+	   made-up neighbours, through the tables' own dot products) */
+	for (uint32_t b = 0; b < K && b < 16 && ok; b++) {
+		loom_synth_nbhd nb = {0};
+		const float *c[5];
+		uint32_t st = 2 * rh + 2 * rv;
+		double mag = 0;
+		nb.self = b;
+		nb.n = (b + 1) % K;
+		nb.s = (b + 2) % K;
+		nb.w = (b + 3) % K;
+		nb.e = (b + 4) % K;
+		c[0] = t->coef + (size_t)nb.self * st;
+		c[1] = t->coef + (size_t)nb.n * st;
+		c[2] = t->coef + (size_t)nb.s * st;
+		c[3] = t->coef + (size_t)nb.w * st;
+		c[4] = t->coef + (size_t)nb.e * st;
+		for (uint32_t k = 0; k < rh; k++) {
+			a[k] = 0.5f * (c[1][rh + k] - c[0][k]);
+			a[rh + k] = 0.5f * (c[2][k] - c[0][rh + k]);
+			mag += (fabs(a[k]) + fabs(a[rh + k])) *
+			       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
+		}
+		for (uint32_t k = 0; k < rv; k++) {
+			const float *fr = m->frange + 2 * (rh + k);
+			a[2 * rh + k] = 0.5f * (c[3][2 * rh + rv + k] - c[0][2 * rh + k]);
+			a[2 * rh + rv + k] = 0.5f * (c[4][2 * rh + k] - c[0][2 * rh + rv + k]);
+			mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) * fmax(fabs(fr[0]), fabs(fr[1]));
+		}
+		{ /* each sample, and the range dz_range reads */
+			double tol = 0.5e-3 + 0.5e-4 * mag, lo = INFINITY, hi = -INFINITY, blo, bhi;
+			for (uint32_t x = 0; x < m->b1 && ok; x++) {
+				uint32_t ystep = (x == 0 || x == m->b1 - 1) ? 1 : m->b2 - 1;
+				for (uint32_t y = 0; y < m->b2; y += ystep) {
+					double v = dz_at(t, a, x, y);
+					lo = v < lo ? v : lo;
+					hi = v > hi ? v : hi;
+					if (fabs(border_value(m, &nb, x, y) - v) > tol)
+						ok = 0;
+				}
+			}
+			border_range(m, &nb, a, &blo, &bhi);
+			if (fabs(blo - lo) > tol || fabs(bhi - hi) > tol)
+				ok = 0;
+		}
+	}
+	free(a);
+	if (!ok)
+		memset(&m->tp, 0, sizeof m->tp);
+	return LOOM_OK;
+}
+
+int loom__majorant_border_data(const loom_majorant *m)
+{
+	return m && m->tp.heights != NULL;
 }
 
 /* The source block's cell layers and the edge-fix offset range of

@@ -373,6 +373,10 @@ static void test_majorant_bounds(void)
 	CHECK_EQ_INT(loom_majorant_build(g_fab, &m, &d), LOOM_OK);
 	if (!m)
 		return;
+	/* the default fabric has the full-rank fix: its border offsets come
+	   from the edge data (checked against the tables at build), and the
+	   bounds below hold with them */
+	CHECK_EQ_INT(loom__majorant_border_data(m), 1);
 	loom_majorant_cell_size(m, cell);
 	/* cells tile a crossing: at most 8 voxels across (docs/rendering.md) */
 	CHECK(cell[0] >= 1 && cell[0] <= 8 && B[0] % cell[0] == 0);
