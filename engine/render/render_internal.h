@@ -276,7 +276,7 @@ static inline void loom__texel_medium(const loom_texel *tx, loom_medium_sample *
 unsigned loom__lod_level(double fp, unsigned levels);
 
 /* Whether majorant m reads its crossings' border offsets from the edge
-   data (full rank, border_value in render_majorant.c) rather than the
+   data (full rank, side_profiles in render_majorant.c) rather than the
    tables' dot products: for tests. */
 int loom__majorant_border_data(const struct loom_majorant *m);
 

@@ -20,7 +20,7 @@
  * on the block's border (maximum principle) and the interior between 0
  * and the border's values: only the 2 (b1 + b2) - 4 border columns are
  * evaluated, not the b1 b2 of the map (at full rank from the edge data,
- * border_value, not the tables), and the range is widened to hold 0
+ * side_profiles, not the tables), and the range is widened to hold 0
  * (the corner term replaces the four corner columns, which no interior
  * value depends on: their values, loom_fabric_corner_dz, widen the
  * range); a margin covers
@@ -406,55 +406,92 @@ static const float *target(const loom_majorant *m, uint32_t b, int j)
 	        j == 2 ? LOOM_EDGE_W(b1, b2) : LOOM_EDGE_E(b1, b2));
 }
 
-/* The offset at border sample (x, y) of a crossing whose sources are nb,
-   at full rank: there the fix matches the edge data exactly, so it is
-   half the data's jump across that edge (the basis is complete and
-   orthonormal, B B^t = 1: docs/synthesis.md), with no dot product over
-   the ranks.  The corners belong to the N and S edges. */
-static double border_value(const loom_majorant *m, const loom_synth_nbhd *nb, uint32_t x,
-                           uint32_t y)
+/* The coefficient vectors a (2 (rh + rv) floats) of a crossing whose
+   sources are nb, the same combinations as the edge fix's, and the sum
+   of magnitudes sum_k |a_k| max |F_k| that dz_range's margin scales
+   with. */
+static double coef_vectors(const loom_majorant *m, const loom_synth_nbhd *nb, float *a)
 {
-	if (y == 0)
-		return 0.5 * ((double)target(m, nb->n, 1)[x] - target(m, nb->self, 0)[x]);
-	if (y == m->b2 - 1)
-		return 0.5 * ((double)target(m, nb->s, 0)[x] - target(m, nb->self, 1)[x]);
-	if (x == 0)
-		return 0.5 * ((double)target(m, nb->w, 3)[y] - target(m, nb->self, 2)[y]);
-	return 0.5 * ((double)target(m, nb->e, 2)[y] - target(m, nb->self, 3)[y]);
+	const loom_edgefix_tables *t = &m->ef;
+	uint32_t rh = t->rank_h, rv = t->rank_v, stride = 2 * rh + 2 * rv;
+	const float *cs = t->coef + (size_t)nb->self * stride;
+	const float *cn = t->coef + (size_t)nb->n * stride;
+	const float *css = t->coef + (size_t)nb->s * stride;
+	const float *cw = t->coef + (size_t)nb->w * stride;
+	const float *ce = t->coef + (size_t)nb->e * stride;
+	double mag = 0;
+
+	for (uint32_t k = 0; k < rh; k++) {
+		a[k] = 0.5f * (cn[rh + k] - cs[k]);
+		a[rh + k] = 0.5f * (css[k] - cs[rh + k]);
+		mag += (fabs(a[k]) + fabs(a[rh + k])) *
+		       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
+	}
+	for (uint32_t k = 0; k < rv; k++) {
+		const float *fr = m->frange + 2 * (rh + k);
+		a[2 * rh + k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
+		a[2 * rh + rv + k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
+		mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) *
+		       fmax(fabs(fr[0]), fabs(fr[1]));
+	}
+	return mag;
+}
+
+/* At full rank the fix matches the edge data exactly on the border, so
+   the offset at a border sample is half the data's jump across that edge
+   (the basis is complete and orthonormal, B B^t = 1: docs/synthesis.md),
+   with no dot product over the ranks.  Side j (0 N: row 0, 1 S: row
+   b2 - 1, 2 W: column 0, 3 E: column b1 - 1) of a crossing whose sources
+   are nb: sample i's offset is (p[j][0][i] - p[j][1][i]) / 2, for i in
+   0 .. b1 - 1 on N and S and 1 .. b2 - 2 on W and E (the corners belong
+   to the N and S edges). */
+static void side_profiles(const loom_majorant *m, const loom_synth_nbhd *nb,
+                          const float *p[4][2])
+{
+	p[0][0] = target(m, nb->n, 1), p[0][1] = target(m, nb->self, 0);
+	p[1][0] = target(m, nb->s, 0), p[1][1] = target(m, nb->self, 1);
+	p[2][0] = target(m, nb->w, 3), p[2][1] = target(m, nb->self, 2);
+	p[3][0] = target(m, nb->e, 2), p[3][1] = target(m, nb->self, 3);
+}
+
+/* The offset at border sample i of side j, from side_profiles' p. */
+static inline double side_value(const float *const p[4][2], int j, uint32_t i)
+{
+	return 0.5 * ((double)p[j][0][i] - p[j][1][i]);
+}
+
+/* Border sample i of side j (as side_profiles numbers them) as a column
+   (*x, *y) of the block. */
+static void side_sample(const loom_majorant *m, int j, uint32_t i, uint32_t *x, uint32_t *y)
+{
+	*x = j < 2 ? i : j == 2 ? 0 : m->b1 - 1;
+	*y = j >= 2 ? i : j == 0 ? 0 : m->b2 - 1;
 }
 
 /* The least and greatest offset along the border of the crossing whose
-   sources are nb: border_values at full rank (m->tp set), else the
-   tables' dot products (a: its coefficient vectors). */
+   sources are nb: from the edge data at full rank (m->tp set,
+   side_profiles), else the tables' dot products (a: its coefficient
+   vectors). */
 static void border_range(const loom_majorant *m, const loom_synth_nbhd *nb, const float *a,
                          double *lo, double *hi)
 {
-	uint32_t b1 = m->b1, b2 = m->b2;
 	double l = INFINITY, h = -INFINITY;
+	const float *p[4][2];
 
-	if (m->tp.heights) { /* border_value, its profiles looked up once */
-		const float *p[4][2] = {
-			{target(m, nb->n, 1), target(m, nb->self, 0)},
-			{target(m, nb->s, 0), target(m, nb->self, 1)},
-			{target(m, nb->w, 3), target(m, nb->self, 2)},
-			{target(m, nb->e, 2), target(m, nb->self, 3)},
-		};
-		for (int j = 0; j < 4; j++) {
-			uint32_t i0 = j < 2 ? 0 : 1, i1 = j < 2 ? b1 : b2 - 1;
-			for (uint32_t i = i0; i < i1; i++) {
-				double v = 0.5 * ((double)p[j][0][i] - p[j][1][i]);
-				l = v < l ? v : l;
-				h = v > h ? v : h;
+	if (m->tp.heights)
+		side_profiles(m, nb, p);
+	for (int j = 0; j < 4; j++) {
+		uint32_t i0 = j < 2 ? 0 : 1, i1 = j < 2 ? m->b1 : m->b2 - 1, x, y;
+		for (uint32_t i = i0; i < i1; i++) {
+			double v;
+			if (m->tp.heights) {
+				v = side_value(p, j, i);
+			} else {
+				side_sample(m, j, i, &x, &y);
+				v = dz_at(&m->ef, a, x, y);
 			}
-		}
-	} else {
-		for (uint32_t x = 0; x < b1; x++) {
-			uint32_t ystep = (x == 0 || x == b1 - 1) ? 1 : b2 - 1;
-			for (uint32_t y = 0; y < b2; y += ystep) {
-				double v = dz_at(&m->ef, a, x, y);
-				l = v < l ? v : l;
-				h = v > h ? v : h;
-			}
+			l = v < l ? v : l;
+			h = v > h ? v : h;
 		}
 	}
 	*lo = l;
@@ -470,9 +507,7 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
                      int64_t *dlo, int64_t *dhi)
 {
 	const loom_edgefix_tables *t = &m->ef;
-	uint32_t rh = t->rank_h, rv = t->rank_v, stride = 2 * rh + 2 * rv;
-	const float *cs, *cn, *css, *cw, *ce;
-	double lo = INFINITY, hi = -INFINITY, mag = 0, margin;
+	double lo = INFINITY, hi = -INFINITY, mag, margin;
 
 	if (!t->coef) { /* no edge fix: no offset */
 		*dlo = *dhi = 0;
@@ -484,25 +519,7 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 		*dhi = 4096;
 		return;
 	}
-	cs = t->coef + (size_t)nb->self * stride;
-	cn = t->coef + (size_t)nb->n * stride;
-	css = t->coef + (size_t)nb->s * stride;
-	cw = t->coef + (size_t)nb->w * stride;
-	ce = t->coef + (size_t)nb->e * stride;
-	/* the same coefficient combinations as the edge fix */
-	for (uint32_t k = 0; k < rh; k++) {
-		a[k] = 0.5f * (cn[rh + k] - cs[k]);
-		a[rh + k] = 0.5f * (css[k] - cs[rh + k]);
-		mag += (fabs(a[k]) + fabs(a[rh + k])) *
-		       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
-	}
-	for (uint32_t k = 0; k < rv; k++) {
-		const float *fr = m->frange + 2 * (rh + k);
-		a[2 * rh + k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
-		a[2 * rh + rv + k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
-		mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) *
-		       fmax(fabs(fr[0]), fabs(fr[1]));
-	}
+	mag = coef_vectors(m, nb, a);
 	border_range(m, nb, a, &lo, &hi);
 	/* float dot products of 4r terms, float basis fields: errors far
 	   below 1e-4 of the sum of magnitudes */
@@ -522,8 +539,8 @@ static void dz_range(const loom_majorant *m, const loom_synth_nbhd *nb, float *a
 
 /*
  * m->tp at full rank: the fabric's edge profiles, whose targets (target)
- * the fix matches, so that dz_range reads
- * the border offsets from it (border_value).  Checked against the tables:
+ * the fix matches, so that dz_range reads the border offsets from them
+ * (side_profiles).  Checked against the tables:
  * every block's coefficients must give back its edge data, and the
  * border of up to 16 blocks with made-up neighbours must agree with the
  * tables' dot products, within dz_range's margin; if not (tables edited,
@@ -565,50 +582,26 @@ static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag)
 			}
 		}
 	}
-	/* and the tables' fields on the border are the basis (16 blocks with
-	   made-up neighbours, through the tables' own dot products) */
+	/* and the tables' dot products on the border give the same offsets
+	   (16 blocks with made-up neighbours) */
 	for (uint32_t b = 0; b < K && b < 16 && ok; b++) {
 		loom_synth_nbhd nb = {0};
-		const float *c[5];
-		uint32_t st = 2 * rh + 2 * rv;
-		double mag = 0;
+		const float *sp[4][2];
+		double tol;
 		nb.self = b;
 		nb.n = (b + 1) % K;
 		nb.s = (b + 2) % K;
 		nb.w = (b + 3) % K;
 		nb.e = (b + 4) % K;
-		c[0] = t->coef + (size_t)nb.self * st;
-		c[1] = t->coef + (size_t)nb.n * st;
-		c[2] = t->coef + (size_t)nb.s * st;
-		c[3] = t->coef + (size_t)nb.w * st;
-		c[4] = t->coef + (size_t)nb.e * st;
-		for (uint32_t k = 0; k < rh; k++) {
-			a[k] = 0.5f * (c[1][rh + k] - c[0][k]);
-			a[rh + k] = 0.5f * (c[2][k] - c[0][rh + k]);
-			mag += (fabs(a[k]) + fabs(a[rh + k])) *
-			       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
-		}
-		for (uint32_t k = 0; k < rv; k++) {
-			const float *fr = m->frange + 2 * (rh + k);
-			a[2 * rh + k] = 0.5f * (c[3][2 * rh + rv + k] - c[0][2 * rh + k]);
-			a[2 * rh + rv + k] = 0.5f * (c[4][2 * rh + k] - c[0][2 * rh + rv + k]);
-			mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) * fmax(fabs(fr[0]), fabs(fr[1]));
-		}
-		{ /* each sample, and the range dz_range reads */
-			double tol = 0.5e-3 + 0.5e-4 * mag, lo = INFINITY, hi = -INFINITY, blo, bhi;
-			for (uint32_t x = 0; x < m->b1 && ok; x++) {
-				uint32_t ystep = (x == 0 || x == m->b1 - 1) ? 1 : m->b2 - 1;
-				for (uint32_t y = 0; y < m->b2; y += ystep) {
-					double v = dz_at(t, a, x, y);
-					lo = v < lo ? v : lo;
-					hi = v > hi ? v : hi;
-					if (fabs(border_value(m, &nb, x, y) - v) > tol)
-						ok = 0;
-				}
+		tol = 0.5e-3 + 0.5e-4 * coef_vectors(m, &nb, a);
+		side_profiles(m, &nb, sp);
+		for (int j = 0; j < 4 && ok; j++) {
+			uint32_t i0 = j < 2 ? 0 : 1, i1 = j < 2 ? m->b1 : m->b2 - 1, x, y;
+			for (uint32_t i = i0; i < i1; i++) {
+				side_sample(m, j, i, &x, &y);
+				if (fabs(side_value(sp, j, i) - dz_at(t, a, x, y)) > tol)
+					ok = 0;
 			}
-			border_range(m, &nb, a, &blo, &bhi);
-			if (fabs(blo - lo) > tol || fabs(bhi - hi) > tol)
-				ok = 0;
 		}
 	}
 	free(a);

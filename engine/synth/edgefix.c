@@ -343,26 +343,16 @@ static void flush_tail(float *f, size_t n)
 			f[i] = 0;
 }
 
-/* Field k of cell (x, y) in ef's current layout (0 past the prefix). */
-static float field_at(const loom_edgefix *ef, int vertical, uint32_t x, uint32_t y,
-                      uint32_t k)
+/* How many leading ranks of the fields of tables t (ef's current layout)
+   are not all exactly 0 (-0 counts as 0) along row i (vertical 0: N/S
+   fields) or column i (1: W/E). */
+static uint8_t nonzero_ranks(const loom_edgefix_tables *t, int vertical, uint32_t i)
 {
-	uint32_t b1 = ef->b1, b2 = ef->b2;
-	if (vertical)
-		return k < ef->pre[b2 + x] ?
-		       ef->field_v[(size_t)y * ef->off[b2 + b1] + ef->off[b2 + x] + k] : 0.0f;
-	return k < ef->pre[y] ? ef->field_h[ef->off[y] + (size_t)x * ef->pre[y] + k] : 0.0f;
-}
-
-/* How many leading ranks of the fields are not all exactly 0 (-0 counts
-   as 0) along row y (vertical 0: N/S fields) or column x (1: W/E). */
-static uint8_t nonzero_ranks(const loom_edgefix *ef, int vertical, uint32_t i)
-{
-	uint32_t n = vertical ? ef->b2 : ef->b1, p = 0;
-	uint32_t r = vertical ? ef->pre[ef->b2 + i] : ef->pre[i];
+	uint32_t n = vertical ? t->b2 : t->b1, p = 0;
+	uint32_t r = vertical ? t->pre[t->b2 + i] : t->pre[i];
 	for (uint32_t j = 0; j < n; j++)
 		for (uint32_t k = r; k > p; k--)
-			if (field_at(ef, vertical, vertical ? i : j, vertical ? j : i, k - 1) != 0) {
+			if (loom_edgefix_field(t, vertical, vertical ? i : j, vertical ? j : i, k - 1) != 0) {
 				p = k;
 				break;
 			}
@@ -387,6 +377,7 @@ void loom__edgefix_finish(loom_edgefix *ef)
 	uint32_t b1 = ef->b1, b2 = ef->b2;
 	uint8_t *np = malloc((size_t)b1 + b2);
 	uint32_t *noff = malloc(sizeof(uint32_t) * ((size_t)b1 + b2 + 1));
+	loom_edgefix_tables t;
 	size_t nh, nv;
 
 	if (!np || !noff) { /* keep the current layout: still exact */
@@ -394,10 +385,11 @@ void loom__edgefix_finish(loom_edgefix *ef)
 		free(noff);
 		return;
 	}
+	loom_edgefix_get_tables(ef, &t);
 	for (uint32_t y = 0; y < b2; y++)
-		np[y] = nonzero_ranks(ef, 0, y);
+		np[y] = nonzero_ranks(&t, 0, y);
 	for (uint32_t x = 0; x < b1; x++)
-		np[b2 + x] = nonzero_ranks(ef, 1, x);
+		np[b2 + x] = nonzero_ranks(&t, 1, x);
 	{ /* the new offsets (set_offsets on a copy) */
 		loom_edgefix tmp = *ef;
 		tmp.pre = np;
