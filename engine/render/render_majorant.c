@@ -89,6 +89,12 @@ struct loom_majorant {
 	loom_edge_profiles tp;    /* full rank (tp.heights not NULL): the
 	                             fabric's edge profiles, whose targets
 	                             (target) the fix matches (border_range) */
+	uint32_t *dslot;          /* with tp: 2 per block (N, W), where the
+	                             block's target starts in dbuf, or
+	                             UINT32_MAX (read in place: target) */
+	float *dbuf;              /* the targets of blocks that borrow a
+	                             donor's seam (loom__edgefix_target) */
+	size_t dfloats;           /* floats in dbuf */
 };
 
 static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag);
@@ -327,6 +333,8 @@ LOOM_API void loom_majorant_free(loom_majorant *m)
 	free(m->layer);
 	free(m->span);
 	free(m->frange);
+	free(m->dslot);
+	free(m->dbuf);
 	free(m);
 }
 
@@ -343,6 +351,7 @@ LOOM_API size_t loom_majorant_bytes(const loom_majorant *m, uint32_t threads)
 		per_thread += EXACT_ENTRIES * x_bytes(m) + (size_t)m->sx * m->sy * m->b3;
 	return sizeof *m + 2u * (m->n_exemplars + 1u) * sizeof(uint32_t) +
 	       (m->frange ? 2u * (m->ef.rank_h + m->ef.rank_v + 1u) * sizeof(float) : 0) +
+	       (m->dslot ? 2u * (size_t)m->n_blocks * sizeof(uint32_t) : 0) + m->dfloats * sizeof(float) +
 	       (size_t)m->n_blocks * m->nsub * (m->b3 + 2u * sizeof *m->span) + (size_t)threads * per_thread;
 }
 
@@ -383,10 +392,10 @@ static float dz_at(const loom_edgefix_tables *t, const float *a, uint32_t x,
 
 
 /* Profile j (0 N, 1 S, 2 W, 3 E) of block b as the edge fix matches it
-   (loom__edgefix_targets in edgefix.c: a block's N and W profiles are
-   the S and E profiles of the blocks above and left of it in its
-   exemplar, where there are some: the fix keeps the exemplars' own
-   seams). */
+   (loom__edgefix_target: a block's N and W profiles are the S and E
+   profiles of the blocks above and left of it in its exemplar, where
+   there are some, else its own plus a donor's woven jump, precomputed in
+   m->dbuf: the fix keeps the exemplars' own seams). */
 static const float *target(const loom_majorant *m, uint32_t b, int j)
 {
 	const loom_edge_profiles *p = &m->tp;
@@ -395,6 +404,8 @@ static const float *target(const loom_majorant *m, uint32_t b, int j)
 
 	if (p->set && (j == 0 || j == 2)) {
 		loom_synth_block sb;
+		if (m->dslot && m->dslot[2 * (size_t)b + (j == 2)] != UINT32_MAX)
+			return m->dbuf + m->dslot[2 * (size_t)b + (j == 2)];
 		loom_synth_block_info(p->set, b, &sb);
 		if (j == 0 && sb.up < K)
 			return p->heights + (size_t)sb.up * rec + LOOM_EDGE_S(b1, b2);
@@ -404,6 +415,43 @@ static const float *target(const loom_majorant *m, uint32_t b, int j)
 	return p->heights + (size_t)b * rec +
 	       (j == 0 ? LOOM_EDGE_N(b1, b2) : j == 1 ? LOOM_EDGE_S(b1, b2) :
 	        j == 2 ? LOOM_EDGE_W(b1, b2) : LOOM_EDGE_E(b1, b2));
+}
+
+/* m->dslot and m->dbuf: the targets of the blocks whose N or W seam is a
+   donor's (loom__edgefix_donor neither the block nor none). */
+static int donor_init(loom_majorant *m)
+{
+	const loom_edge_profiles *p = &m->tp;
+	uint32_t K = p->n_blocks;
+	size_t n = 0;
+
+	if (!p->set)
+		return LOOM_OK;
+	for (uint32_t b = 0; b < K; b++)
+		for (int j = 0; j <= 2; j += 2) {
+			uint32_t d = loom__edgefix_donor(p->set, b, j);
+			if (d != b && d != LOOM_SYNTH_NONE)
+				n += j ? m->b2 : m->b1;
+		}
+	if (!n)
+		return LOOM_OK;
+	m->dslot = malloc(sizeof(uint32_t) * 2 * (size_t)K);
+	m->dbuf = malloc(sizeof(float) * n);
+	if (!m->dslot || !m->dbuf)
+		return LOOM_ENOMEM;
+	m->dfloats = n;
+	n = 0;
+	for (uint32_t b = 0; b < K; b++)
+		for (int j = 0; j <= 2; j += 2) {
+			uint32_t d = loom__edgefix_donor(p->set, b, j);
+			m->dslot[2 * (size_t)b + (j == 2)] = UINT32_MAX;
+			if (d != b && d != LOOM_SYNTH_NONE) {
+				loom__edgefix_target(p, b, j, m->dbuf + n);
+				m->dslot[2 * (size_t)b + (j == 2)] = (uint32_t)n;
+				n += j ? m->b2 : m->b1;
+			}
+		}
+	return LOOM_OK;
 }
 
 /* The coefficient vectors a (2 (rh + rv) floats) of a crossing whose
@@ -560,8 +608,10 @@ static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag)
 		return LOOM_OK;
 	m->tp = *p; /* the fabric's: it outlives the majorant */
 	a = malloc(sizeof(float) * (2u * (rh + rv) + 1u));
-	if (!a)
+	if (!a || donor_init(m) != LOOM_OK) {
+		free(a);
 		return loom__fail(diag, LOOM_ENOMEM, "majorant: out of memory");
+	}
 	/* every block's coefficients give back its edge data (so the border
 	   identity holds for any neighbours: it is linear in them) */
 	for (uint32_t b = 0; b < K && ok; b++) {
@@ -605,8 +655,14 @@ static int border_init(loom_majorant *m, const loom_fabric *f, loom_diag *diag)
 		}
 	}
 	free(a);
-	if (!ok)
+	if (!ok) {
 		memset(&m->tp, 0, sizeof m->tp);
+		free(m->dslot);
+		free(m->dbuf);
+		m->dslot = NULL;
+		m->dbuf = NULL;
+		m->dfloats = 0;
+	}
 	return LOOM_OK;
 }
 

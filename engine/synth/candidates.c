@@ -6,6 +6,7 @@
  * the assignment reads.  assign.c explains what the lists are for.
  */
 #include "assign_impl.h"
+#include "fabric_internal.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -441,6 +442,27 @@ LOOM_API int loom_synth_block_info(const loom_synth_set *s, uint32_t t,
 	out->right = s->right[t];
 	out->n_sym = s->ex[s->blk_ex[t]].n_sym;
 	return LOOM_OK;
+}
+
+uint32_t loom__edgefix_donor(const loom_synth_set *s, uint32_t t, int j)
+{
+	const ex_info *e;
+	uint32_t r0, c0;
+
+	if (!s || t >= s->K)
+		return NONE;
+	if ((j == 0 ? s->up[t] : s->left[t]) != NONE)
+		return t;
+	e = &s->ex[s->blk_ex[t]];
+	r0 = s->blk_r[t];
+	c0 = s->blk_c[t];
+	for (uint32_t k = 1; k < e->n_sym; k++) { /* sym[0] is (0, 0) */
+		uint32_t r = (r0 + e->sym[2 * k]) % e->rows;
+		uint32_t c = (c0 + e->sym[2 * k + 1]) % e->cols;
+		if (j == 0 ? r > 0 : c > 0)
+			return e->base + r * e->cols + c;
+	}
+	return NONE;
 }
 
 LOOM_API int loom_synth_symmetries(const loom_synth_set *s, uint32_t u,

@@ -67,8 +67,13 @@
  *     the output seam's jump equal to the jump t had across that edge in its
  *     exemplar: one sample of the woven cloth's own jump for the same
  *     neighbourhood (the assignment matches the codes), not zero.  On the
- *     exemplar's top row and left column t keeps its own profile (the seam
- *     is closed there, as before).  Without a set: the profiles as given.
+ *     exemplar's top row and left column, where t has no such seam, it
+ *     borrows its donor's: t's own profile plus the jump of its nearest
+ *     image under the exemplar's symmetries that has a block above (left
+ *     of) it (loom__edgefix_donor, loom__edgefix_target); only in an
+ *     exemplar without symmetries does t keep its own profile (the seam is
+ *     closed there; it was on every top row and left column before
+ *     2026-12-07).  Without a set: the profiles as given.
  *   - Screening.  dz solves (4 + kappa) u = the sum of its four neighbours
  *     instead of Laplace's equation, kappa = 1 / l^2, l = min(b1, b2) / 8:
  *     a seam's correction decays by about e over l voxels (two at the small
@@ -83,6 +88,7 @@
  * is a large part of n.
  */
 #include "edgefix_impl.h"
+#include "fabric_internal.h"
 
 /* ---- building the tables ------------------------------------------------- */
 
@@ -187,6 +193,27 @@ static loom_edgefix *ef_alloc(uint32_t b1, uint32_t b2, uint32_t K,
 	return ef;
 }
 
+void loom__edgefix_target(const loom_edge_profiles *p, uint32_t t, int j, float *out)
+{
+	uint32_t b1 = p->b1, b2 = p->b2, n = j < 2 ? b1 : b2, d;
+	int opp = j == 0 ? 1 : j == 1 ? 0 : j == 2 ? 3 : 2;
+	loom_synth_block b;
+
+	d = p->set && (j == 0 || j == 2) ? loom__edgefix_donor(p->set, t, j) : LOOM_SYNTH_NONE;
+	if (d == t) { /* the woven neighbour's side */
+		loom_synth_block_info(p->set, t, &b);
+		memcpy(out, prof(p, j == 0 ? b.up : b.left, opp), sizeof(float) * n);
+	} else if (d != LOOM_SYNTH_NONE) { /* t's side plus the donor's woven jump */
+		const float *own = prof(p, t, j), *dn = prof(p, d, j), *nb;
+		loom_synth_block_info(p->set, d, &b);
+		nb = prof(p, j == 0 ? b.up : b.left, opp);
+		for (uint32_t i = 0; i < n; i++)
+			out[i] = own[i] + (nb[i] - dn[i]);
+	} else {
+		memcpy(out, prof(p, t, j), sizeof(float) * n);
+	}
+}
+
 int loom__edgefix_targets(const loom_edge_profiles *p, loom_edge_profiles *q,
                           float **buf)
 {
@@ -206,15 +233,11 @@ int loom__edgefix_targets(const loom_edge_profiles *p, loom_edge_profiles *q,
 		return LOOM_ENOMEM;
 	memcpy(h, p->heights, sizeof(float) * rec * K);
 	for (uint32_t t = 0; t < K; t++) {
-		/* N and W: the S (E) profile of the block above (left of) t in its
-		   exemplar, where there is one; S, E and the border: t's own */
-		loom_synth_block sb;
+		/* N and W: the woven seam's other side (loom__edgefix_target);
+		   S, E: t's own */
 		float *o = h + (size_t)t * rec;
-		loom_synth_block_info(p->set, t, &sb);
-		if (sb.up < K)
-			memcpy(o + LOOM_EDGE_N(b1, b2), prof(p, sb.up, 1), sizeof(float) * b1);
-		if (sb.left < K)
-			memcpy(o + LOOM_EDGE_W(b1, b2), prof(p, sb.left, 3), sizeof(float) * b2);
+		loom__edgefix_target(p, t, 0, o + LOOM_EDGE_N(b1, b2));
+		loom__edgefix_target(p, t, 2, o + LOOM_EDGE_W(b1, b2));
 	}
 	q->heights = h;
 	*buf = h;

@@ -37,6 +37,28 @@
 
 #include "core/internal.h"
 
+/*
+ * The edge fix's targets (engine/synth/edgefix.c, "Calibration"; the
+ * render majorant reads them too).  A block's N (j = 0) and W (j = 2)
+ * data is the other side of the seam it had in its woven exemplar, so the
+ * fix keeps that seam's jump instead of closing it.  A block on its
+ * exemplar's top row (left column) has no such seam; it borrows the one
+ * of its donor: its nearest image under the exemplar's translational
+ * symmetries that has a block above (left of) it, i.e. the same
+ * neighbourhood woven one repeat further in.
+ *
+ * loom__edgefix_donor: t itself when t has a block above (j = 0) or left
+ * of (j = 2) it in its exemplar; else the donor; LOOM_SYNTH_NONE when no
+ * image has one (an exemplar without symmetries: the seam is closed).
+ * loom__edgefix_target: profile j of block t as the fix matches it (b1
+ * floats for N/S, b2 for W/E) into out: S and E t's own; N (W) the S (E)
+ * profile of the block above (left of) t, or t's own N (W) plus the
+ * donor's woven jump (the S (E) profile above (left of) the donor minus
+ * the donor's N (W)), or t's own without a set or a donor.
+ */
+uint32_t loom__edgefix_donor(const loom_synth_set *s, uint32_t t, int j);
+void loom__edgefix_target(const loom_edge_profiles *p, uint32_t t, int j, float *out);
+
 /* Bytes the fabric holds in memory: the design (3 per crossing), the base
    assignment (2 per crossing), the edge-fix tables and the per-block tables
    (not the database or the synthesis set, which hold no per-crossing data).

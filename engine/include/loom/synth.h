@@ -377,7 +377,9 @@ typedef struct loom_edge_profiles {
 	   With it, the N (W) data of block t is the S (E) profile of the block
 	   above (left of) t in its own exemplar, where t has one, so the fix
 	   keeps the jump t had across that edge in the woven exemplar instead
-	   of closing the seam (engine/synth/edgefix.c, "Calibration"). */
+	   of closing the seam; on the exemplar's top row (left column) t's
+	   own profile plus the jump of the same neighbourhood one repeat
+	   further in (engine/synth/edgefix.c, "Calibration"). */
 	const loom_synth_set *set;
 } loom_edge_profiles;
 
