@@ -460,25 +460,15 @@ static int donor_init(loom_majorant *m)
    with. */
 static double coef_vectors(const loom_majorant *m, const loom_synth_nbhd *nb, float *a)
 {
-	const loom_edgefix_tables *t = &m->ef;
-	uint32_t rh = t->rank_h, rv = t->rank_v, stride = 2 * rh + 2 * rv;
-	const float *cs = t->coef + (size_t)nb->self * stride;
-	const float *cn = t->coef + (size_t)nb->n * stride;
-	const float *css = t->coef + (size_t)nb->s * stride;
-	const float *cw = t->coef + (size_t)nb->w * stride;
-	const float *ce = t->coef + (size_t)nb->e * stride;
+	uint32_t rh = m->ef.rank_h, rv = m->ef.rank_v;
 	double mag = 0;
 
-	for (uint32_t k = 0; k < rh; k++) {
-		a[k] = 0.5f * (cn[rh + k] - cs[k]);
-		a[rh + k] = 0.5f * (css[k] - cs[rh + k]);
+	loom__edgefix_combine(m->ef.coef, rh, rv, nb, a);
+	for (uint32_t k = 0; k < rh; k++)
 		mag += (fabs(a[k]) + fabs(a[rh + k])) *
 		       fmax(fabs(m->frange[2 * k]), fabs(m->frange[2 * k + 1]));
-	}
 	for (uint32_t k = 0; k < rv; k++) {
 		const float *fr = m->frange + 2 * (rh + k);
-		a[2 * rh + k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
-		a[2 * rh + rv + k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
 		mag += (fabs(a[2 * rh + k]) + fabs(a[2 * rh + rv + k])) *
 		       fmax(fabs(fr[0]), fabs(fr[1]));
 	}

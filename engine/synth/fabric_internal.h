@@ -59,6 +59,33 @@
 uint32_t loom__edgefix_donor(const loom_synth_set *s, uint32_t t, int j);
 void loom__edgefix_target(const loom_edge_profiles *p, uint32_t t, int j, float *out);
 
+/* The edge-fix coefficient vectors of a crossing whose sources are nb,
+   from the tables' per-block coefficients coef (2 rh + 2 rv floats a
+   block: cN cS cW cE), as the edge fix combines them (half the
+   difference of the two sides' profile coefficients on each edge): a[0,
+   rh) N, a[rh, 2 rh) S, a[2 rh, 2 rh + rv) W, then E.  The texture's
+   crossing entries and the render majorant read them. */
+static inline void loom__edgefix_combine(const float *coef, uint32_t rh, uint32_t rv,
+                                         const loom_synth_nbhd *nb, float *a)
+{
+	uint32_t st = 2 * rh + 2 * rv;
+	const float *cs = coef + (size_t)nb->self * st;
+	const float *cn = coef + (size_t)nb->n * st;
+	const float *css = coef + (size_t)nb->s * st;
+	const float *cw = coef + (size_t)nb->w * st;
+	const float *ce = coef + (size_t)nb->e * st;
+	float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
+
+	for (uint32_t k = 0; k < rh; k++) {
+		an[k] = 0.5f * (cn[rh + k] - cs[k]);
+		as[k] = 0.5f * (css[k] - cs[rh + k]);
+	}
+	for (uint32_t k = 0; k < rv; k++) {
+		aw[k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
+		ae[k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
+	}
+}
+
 /* Bytes the fabric holds in memory: the design (3 per crossing), the base
    assignment (2 per crossing), the edge-fix tables and the per-block tables
    (not the database or the synthesis set, which hold no per-crossing data).

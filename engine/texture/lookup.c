@@ -116,22 +116,7 @@ void loom__orient_blend(unsigned n, const float *w, const float (*v)[3],
    coefficients on each edge). */
 static void xent_coef(const loom_texture *t, const loom_synth_nbhd *nb, float *a)
 {
-	uint32_t rh = t->rh, rv = t->rv, st = 2 * rh + 2 * rv;
-	const float *cs = t->coef + (size_t)nb->self * st;
-	const float *cn = t->coef + (size_t)nb->n * st;
-	const float *css = t->coef + (size_t)nb->s * st;
-	const float *cw = t->coef + (size_t)nb->w * st;
-	const float *ce = t->coef + (size_t)nb->e * st;
-	float *an = a, *as = a + rh, *aw = a + 2 * rh, *ae = a + 2 * rh + rv;
-
-	for (uint32_t k = 0; k < rh; k++) {
-		an[k] = 0.5f * (cn[rh + k] - cs[k]);
-		as[k] = 0.5f * (css[k] - cs[rh + k]);
-	}
-	for (uint32_t k = 0; k < rv; k++) {
-		aw[k] = 0.5f * (cw[2 * rh + rv + k] - cs[2 * rh + k]);
-		ae[k] = 0.5f * (ce[2 * rh + k] - cs[2 * rh + rv + k]);
-	}
+	loom__edgefix_combine(t->coef, t->rh, t->rv, nb, a);
 }
 
 /* The whole-voxel bound [e->wlo, e->whi] of the offsets dz_eval gives
