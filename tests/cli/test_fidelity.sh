@@ -100,7 +100,9 @@ expect_exit id_with_rank 2 "$LOOM" synth "$T/hb.pbm" --db "$T/gt.ldb" --identity
 
 # ---- loom compare ----
 expect_exit cmp_no_args 2 "$LOOM" compare
-expect_exit cmp_one_arg 2 "$LOOM" compare "$T/id.loomf"
+expect_exit cmp_one_arg_pictures 2 "$LOOM" compare "$T/id.loomf" --pictures "$T/pp"
+expect_err_contains cmp_one_arg_pictures_msg "give B"
+expect_exit cmp_three_args 2 "$LOOM" compare "$T/id.loomf" "$T/id.loomf" "$T/id.loomf"
 expect_exit cmp_bad_region 2 "$LOOM" compare "$T/id.loomf" "$T/id.loomf" --region 5,5:1,1
 expect_exit cmp_missing 1 "$LOOM" compare "$T/nope.loomf" "$T/id.loomf"
 expect_err_contains cmp_missing_msg "nope.loomf"
@@ -152,6 +154,22 @@ expect_ok cmp_synth_gt "$LOOM" compare "$T/syn.loomf" "$T/id.loomf" --json \
 cp "$T/out" "$T/syn.json"
 expect_ok cmp_table "$LOOM" compare "$T/syn.loomf" "$T/gt.ldb#design"
 expect_out_contains cmp_table_text "block offset SD"
+# one input: its own figures, the same as its _a figures against another
+# (which the brute-force check below verifies)
+expect_ok cmp_alone "$LOOM" compare "$T/syn.loomf" --json
+cp "$T/out" "$T/alone.json"
+if python3 - "$T/alone.json" "$T/syn.json" >"$T/py" 2>&1 <<'PY'
+import json, sys
+a, j = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert sorted(a) == sorted(["coverage", "seam_ratio", "corner_seam_ratio", "corner_pairs",
+                            "coverage_seam_ratio", "voxels", "seconds"]), sorted(a)
+for k in ("coverage", "seam_ratio", "corner_seam_ratio", "corner_pairs", "coverage_seam_ratio"):
+    assert a[k] == j[k + "_a"], (k, a[k], j[k + "_a"])
+assert a["seam_ratio"] > 0 and a["voxels"] == j["voxels"], a
+PY
+then pass cmp_alone_equals_a; else fail cmp_alone_equals_a "$(head -c 600 "$T/py")"; fi
+expect_ok cmp_alone_table "$LOOM" compare "$T/gt.ldb#design"
+expect_out_contains cmp_alone_table_text "seam ratio"
 for f in syn id; do
 	expect_ok "cmp_export_$f" "$LOOM" export "$T/$f.loomf" --all --format nrrd \
 		--channels density,kind --tile 1000,1000 --quiet -o "$T/x_$f"

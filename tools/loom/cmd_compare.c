@@ -1,8 +1,9 @@
 /*
  * tools/loom/cmd_compare.c - `loom compare A B`: how close two cloths are,
- * column by column (docs/fidelity.md).
+ * column by column (docs/fidelity.md); `loom compare A`: A's own figures
+ * (coverage and seam ratios), read as A against itself.
  *
- *   loom compare A B [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]
+ *   loom compare A [B] [--region X0,Y0:X1,Y1 | X0,Y0,Z0:X1,Y1,Z1]
  *                [--threshold D] [--json] [--pictures DIR] [--budget MB]
  *
  * A and B are fabrics (.loomf, read through the virtual texture's region
@@ -38,6 +39,9 @@ static const char about[] =
 	"(NAME.density.vol or .nrrd, with NAME.kind.vol or .nrrd beside it, as\n"
 	"`loom export` writes the density and kind channels, placed by their\n"
 	"origin); they must have the same voxel size, block size and extent.\n"
+	"With A alone, print A's own figures: coverage and the three seam\n"
+	"ratios (an exemplar's tell how rough the seams of a fabric\n"
+	"synthesized from it will be).\n"
 	"Streamed in bounded memory.  Definitions: docs/fidelity.md.\n";
 
 #define HIST_BINS 16
@@ -724,7 +728,7 @@ int cmd_compare(int argc, char **argv)
 	const char *prog = "loom compare";
 	const char *pos[2] = {NULL, NULL}, *picdir = NULL;
 	double budget_mb = 64, thr = 0.2, t0 = now_s();
-	int json = 0, quiet = 0;
+	int json = 0, quiet = 0, single;
 	box r;
 	uint32_t blk[3] = {0, 0, 0};
 	src A, B;
@@ -751,8 +755,8 @@ int cmd_compare(int argc, char **argv)
 		OPT_QUIET(&quiet, "no table"),
 		OPT_END()
 	};
-	opts_cmd c = {.prog = prog, .usage = "loom compare A B [OPTIONS]", .about = about,
-	              .opts = opts, .pos_name = "A B", .pos_min = 2, .pos_max = 2,
+	opts_cmd c = {.prog = prog, .usage = "loom compare A [B] [OPTIONS]", .about = about,
+	              .opts = opts, .pos_name = "A [B]", .pos_min = 1, .pos_max = 2,
 	              .pos = pos};
 
 	memset(&r, 0, sizeof r);
@@ -761,6 +765,12 @@ int cmd_compare(int argc, char **argv)
 	budget = (size_t)(budget_mb * 1048576.0);
 	if (budget < ((size_t)8 << 20))
 		opts_usage(&c, "--budget: at least 8 MiB");
+	/* one input: A against itself, reporting only A's own figures */
+	single = !pos[1];
+	if (single && picdir)
+		opts_usage(&c, "--pictures compares two inputs: give B");
+	if (single)
+		pos[1] = pos[0];
 	open_src(prog, &A, pos[0], budget / 4, &diag);
 	open_src(prog, &B, pos[1], budget / 4, &diag);
 	for (int k = 0; k < 2; k++) {
@@ -772,7 +782,9 @@ int cmd_compare(int argc, char **argv)
 		} else if (o->type != SRC_VOLUME) {
 			s->b1 = o->b1, s->b2 = o->b2, s->b3 = o->b3;
 		} else {
-			opts_usage(&c, "two volumes: give their block size with --block B1xB2xB3");
+			opts_usage(&c, single ? "a volume alone: give its block size with --block "
+			           "B1xB2xB3" : "two volumes: give their block size with --block "
+			           "B1xB2xB3");
 		}
 		for (int a = 0; a < 3; a++)
 			if (s->lo[a] < 0)
@@ -992,7 +1004,18 @@ int cmd_compare(int argc, char **argv)
 		if (picdir)
 			pic_write(prog, &pic, picdir, -mean, deb, &range, &diag);
 		secs = now_s() - t0;
-		if (json) {
+		if (json && single) {
+			json_w w;
+			jw_begin(&w, stdout);
+			jw_num(&w, "coverage", cova);
+			jw_num(&w, "seam_ratio", sra);
+			jw_num(&w, "corner_seam_ratio", cra);
+			jw_uint(&w, "corner_pairs", A.corner_n);
+			jw_num(&w, "coverage_seam_ratio", csa);
+			jw_uint(&w, "voxels", ac.voxels);
+			jw_num(&w, "seconds", secs);
+			jw_end(&w);
+		} else if (json) {
 			json_w w;
 			jw_begin(&w, stdout);
 			jw_num(&w, "top_agreement_centres", agc);
@@ -1015,6 +1038,20 @@ int cmd_compare(int argc, char **argv)
 			jw_uint(&w, "voxels", ac.voxels);
 			jw_num(&w, "seconds", secs);
 			jw_end(&w);
+		} else if (!quiet && single) {
+			printf("%s\n", A.arg);
+			printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks "
+			       "%ux%ux%u of %g um, threshold %.3f\n", (long long)r.lo[0],
+			       (long long)r.lo[1], (long long)r.lo[2], (long long)r.hi[0],
+			       (long long)r.hi[1], (long long)r.hi[2],
+			       (unsigned long long)ac.voxels, A.b1, A.b2, A.b3, (double)A.vs, thr);
+			printf("  %-28s %10s\n", "measure", "value");
+			printf("  %-28s %10.4f\n", "coverage", cova);
+			printf("  %-28s %10.4f\n", "seam ratio", sra);
+			printf("  %-28s %10.4f  (%llu pairs)\n", "  at block corners", cra,
+			       (unsigned long long)A.corner_n);
+			printf("  %-28s %10.4f\n", "coverage seam ratio", csa);
+			printf("  %.2f s\n", secs);
 		} else if (!quiet) {
 			printf("A %s\nB %s\n", A.arg, B.arg);
 			printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks "
