@@ -163,12 +163,14 @@ $(DATA): $(wildcard data/*)
 	@mkdir -p $(@D)
 	$(Q)cp data/* $(DATA_DIR)/
 
-# The default exemplar database (small preset, fixed seed; docs/exemplars.md),
-# made by the loom binary and remade when it changes.
+# The default exemplar database (small preset, fixed seed, exemplars of at
+# least 10 crossings a side: docs/exemplars.md, docs/fidelity.md "The
+# satins' seams follow their exemplar"), made by the loom binary and remade
+# when it changes.
 $(DEFAULT_DB): $(LOOM) | $(DATA)
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  GEN     $@")
-	$(Q)$(LOOM) exemplar generate --preset small --seed 1 --quiet -o $@
+	$(Q)$(LOOM) exemplar generate --preset small --seed 1 --min-crossings 10 --quiet -o $@
 
 # The page of `loom serve` (tools/web): OpenSeadragon from npm, installed
 # into the build tree by `npm ci` from the committed package-lock.json when

@@ -65,14 +65,14 @@ expect_ok synth_xdg env -u LOOM_CACHE_DIR XDG_CACHE_HOME="$T/xdg" "$LOOM" synth 
 if ls "$T/xdg/loom"/sett-*.ldb >/dev/null 2>&1; then pass xdg_cache; else fail xdg_cache "nothing in $T/xdg/loom"; fi
 # --fibre: the generated database's yarns (part of the key); for a draft
 # that states no sett, the small preset's geometry with those yarns, the
-# same bytes as `loom exemplar generate --preset small --fibre ...`
+# same bytes as `loom exemplar generate --preset small --min-crossings 10 --fibre ...`
 hash_of() { # DB -> content hash
 	"$LOOM" exemplar info "$1" --json | python3 -c \
 		'import json,sys; print(json.load(sys.stdin)["content_hash"])'
 }
 expect_ok fibre_no_sett "$LOOM" synth "$W/basic-twill.wif" --fibre silk,wool -o "$T/k.loomf"
 expect_err_contains fibre_no_sett_msg "yarns silk/wool: generated $T/cache/sett-"
-expect_ok fibre_ref "$LOOM" exemplar generate --preset small --seed 1 --fibre silk,wool \
+expect_ok fibre_ref "$LOOM" exemplar generate --preset small --seed 1 --min-crossings 10 --fibre silk,wool \
 	--quiet -o "$T/silkwool.ldb"
 a=$(hash_of "$(db_of "$T/k.loomf")"); b=$(hash_of "$T/silkwool.ldb")
 if [ "$a" = "$b" ]; then pass fibre_same_as_generate; else fail fibre_same_as_generate "$a vs $b"; fi

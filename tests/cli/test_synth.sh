@@ -92,7 +92,9 @@ expect_out_contains synth_rank0_info_rank "rank 0"
 expect_ok synth_rank0_preview "$LOOM" preview "$T/r0.loomf" --width 64 -q -o "$T/r0.png"
 # --edge-fix full: the exact fix (each side at its whole rank: the default
 # database's 24 x 16 blocks give 24 and 14), the same bytes as --rank 128,
-# its seams closer than without a fix; not with --rank
+# its seams closer than without a fix (it keeps the woven cloth's own jumps,
+# 1.2 times the step inside blocks, so it takes off about a third: 0.62
+# against 0.89 on this draft); not with --rank
 expect_ok synth_edge_full "$LOOM" synth "$WIF" --edge-fix full --json -o "$T/full.loomf"
 cp "$T/out" "$T/full.json"
 expect_ok synth_rank128 "$LOOM" synth "$WIF" --rank 128 --quiet -o "$T/r128.loomf"
@@ -102,7 +104,7 @@ import json, sys
 j = json.load(open(sys.argv[1]))
 r0 = json.load(open(sys.argv[2]))
 assert j["rank"] == 128 and j["rank_h"] == 24 and j["rank_v"] == 14, j
-assert j["seam_after"] < 0.7 * r0["seam_after"], (j["seam_after"], r0["seam_after"])
+assert j["seam_after"] < 0.75 * r0["seam_after"], (j["seam_after"], r0["seam_after"])
 EOF
 then pass synth_edge_full_ranks; else fail synth_edge_full_ranks "$(head -c 600 "$T/py")"; fi
 expect_exit synth_edge_full_rank 2 "$LOOM" synth "$WIF" --edge-fix full --rank 5 -o "$T/x.loomf"

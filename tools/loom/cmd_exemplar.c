@@ -214,7 +214,8 @@ static int sub_generate(int argc, char **argv)
 		OPT_U32(0, "min-crossings", &min_cross, "N", 1, 64, "without --crossings: "
 		        "each side the smallest multiple of the weave's repeat >= N, %r "
 		        "(default 4; 10 makes 10x10 twills and 16x16 1/7 satins, a file 4x "
-		        "larger whose figures vary less from seed to seed)"),
+		        "larger whose figures vary less from seed to seed, as the default "
+		        "database and the databases made for a draft's sett)"),
 		OPT_SIZE3(0, "block", block, "B1xB2xB3", 0, UINT32_MAX,
 		          "block size in voxels (overrides the preset)"),
 		OPT_DOUBLE(0, "voxel-size", &vs, "UM", "(]", 0, 10000, "micrometres",

@@ -6,6 +6,8 @@
  *
  * A draft that states its sett (WIF Spacing) gets a database generated for
  * that sett and those yarn diameters: the small preset's weaves and seed,
+ * exemplars of at least SETT_MIN_CROSSINGS crossings a side (as the default
+ * database's),
  * cotton fibre-level yarns (as loom exemplar generate's default) or the
  * yarns of loom synth --fibre (which also makes one for a draft that states
  * no sett: the small preset's geometry with those yarns); a design whose
@@ -34,6 +36,7 @@
 #define SETT_FINE_VOXELS 16.0 /* voxels along the finer spacing */
 #define CACHE_MAX_MB_DEFAULT 256.0
 #define SETT_FIBRE "cotton"   /* the yarns, as loom exemplar generate's default */
+#define SETT_MIN_CROSSINGS 10 /* exemplar sides, as the default database's */
 
 static uint64_t fnv(uint64_t h, const void *p, size_t n)
 {
@@ -205,6 +208,7 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 		         "LOOM_CACHE_DIR, XDG_CACHE_HOME or HOME, or give --db DB");
 	cli_diag_init(&diag, &quiet);
 	loom_exgen_preset("small", &p);
+	p.min_crossings = SETT_MIN_CROSSINGS;
 	/* --fibre WARP[,WEFT] (one name: both), checked by the generator */
 	snprintf(fbuf, sizeof fbuf, "%s", fibre ? fibre : SETT_FIBRE);
 	fcomma = strchr(fbuf, ',');
@@ -279,6 +283,7 @@ const char *cli_sett_db(const char *prog, const loom_design *d,
 	h = fnv(h, &p.seed, sizeof p.seed);
 	h = fnv(h, p.brick, sizeof p.brick);
 	h = fnv(h, &p.level, sizeof p.level);
+	h = fnv(h, &p.min_crossings, sizeof p.min_crossings);
 	for (uint32_t k = 0; k < p.n_weaves; k++)
 		h = fnv(h, p.weaves[k], strlen(p.weaves[k]) + 1);
 	if (p.n_pairs < 2)
