@@ -8,7 +8,8 @@
  *   Step 2.  Crossing: if (x, y) lies in the thread's current crossing
  *            entry, use it; else I = floor(y / b2), J = floor(x / b1) and
  *            find (I, J) in its set of XENT_WAYS among the thread's n_ent
- *            entries (the set: low bits of I and J, a tile of crossings), or
+ *            entries (the set: low bits of I and J, a tile of crossings;
+ *            its keys in one cache line, the slot's etag), or
  *            set one up (evicting the set's least recently
  *            used): the crossing's sources
  *            and its neighbours' (loom__fabric_crossing: base assignment of
@@ -231,16 +232,23 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	uint32_t si = ((uint32_t)(uint64_t)I & ((1u << ib) - 1)) << jb |
 	              ((uint32_t)(uint64_t)J & ((1u << jb) - 1));
 	struct xent *set = s->ent + (size_t)si * XENT_WAYS;
+	int64_t *tag = s->etag + (size_t)si * 2 * XENT_WAYS;
+	int v = 0;
 
-	for (int k = 0; k < XENT_WAYS; k++) {
-		struct xent *q = &set[k];
-		if (q->valid && q->I == I && q->J == J) {
-			e = q;
+	/* the keys first: one cache line for the set (the entries are 352
+	   bytes apart) */
+	for (int k = 0; k < XENT_WAYS; k++)
+		if (tag[2 * k] == I && tag[2 * k + 1] == J) {
+			e = &set[k];
 			goto found;
 		}
+	for (int k = 0; k < XENT_WAYS; k++) {
+		struct xent *q = &set[k];
 		if (!e || !q->valid || (e->valid && q->stamp < e->stamp))
-			e = q;
+			e = q, v = k;
 	}
+	tag[2 * v] = I;
+	tag[2 * v + 1] = J;
 	loom__fabric_crossing(t->fab, I, J, &xg);
 	for (int k = 0; k < 4; k++) /* the column memo may hold e */
 		s->cm[k].e = NULL;

@@ -428,6 +428,10 @@ static void lay_out_slots(loom_texture *t)
 		p += 6 * RCOLS * RZ;
 		s->ent = (struct xent *)p;
 		p += round_up(sizeof(struct xent) * t->n_ent, ALIGN);
+		s->etag = (int64_t *)p;
+		p += round_up(2 * sizeof(int64_t) * t->n_ent, ALIGN);
+		for (uint32_t k = 0; k < 2 * t->n_ent; k++)
+			s->etag[k] = XENT_NONE;
 		for (uint32_t k = 0; k < t->n_ent; k++) {
 			s->ent[k].a = (float *)p;
 			s->ent[k].map = NO_MAP;
@@ -466,6 +470,7 @@ static size_t fixed_bytes(unsigned T, uint32_t n_ent, size_t ent_bytes, size_t e
 {
 	*slot_bytes = round_up(sizeof(struct tslot), ALIGN) + 6 * RCOLS * RZ +
 	              round_up(sizeof(struct xent) * n_ent, ALIGN) +
+	              round_up(2 * sizeof(int64_t) * n_ent, ALIGN) +
 	              n_ent * (ent_bytes - sizeof(struct xent));
 	return round_up(sizeof(struct loom_texture), ALIGN) + ex_bytes +
 	       maps_bytes(n_maps, map_words) + (size_t)(T + 1) * *slot_bytes;
