@@ -717,6 +717,17 @@ static double hist_l1(const src *a, const src *b, int kind)
 	return l1;
 }
 
+/* The table's region line and column heads. */
+static void table_head(const box *r, uint64_t voxels, const src *a, double thr)
+{
+	printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks %ux%ux%u of "
+	       "%g um, threshold %.3f\n", (long long)r->lo[0], (long long)r->lo[1],
+	       (long long)r->lo[2], (long long)r->hi[0], (long long)r->hi[1],
+	       (long long)r->hi[2], (unsigned long long)voxels, a->b1, a->b2, a->b3,
+	       (double)a->vs, thr);
+	printf("  %-28s %10s\n", "measure", "value");
+}
+
 static int same_geometry(const src *a, const src *b)
 {
 	return a->b1 == b->b1 && a->b2 == b->b2 && a->b3 == b->b3 &&
@@ -1040,12 +1051,7 @@ int cmd_compare(int argc, char **argv)
 			jw_end(&w);
 		} else if (!quiet && single) {
 			printf("%s\n", A.arg);
-			printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks "
-			       "%ux%ux%u of %g um, threshold %.3f\n", (long long)r.lo[0],
-			       (long long)r.lo[1], (long long)r.lo[2], (long long)r.hi[0],
-			       (long long)r.hi[1], (long long)r.hi[2],
-			       (unsigned long long)ac.voxels, A.b1, A.b2, A.b3, (double)A.vs, thr);
-			printf("  %-28s %10s\n", "measure", "value");
+			table_head(&r, ac.voxels, &A, thr);
 			printf("  %-28s %10.4f\n", "coverage", cova);
 			printf("  %-28s %10.4f\n", "seam ratio", sra);
 			printf("  %-28s %10.4f  (%llu pairs)\n", "  at block corners", cra,
@@ -1054,12 +1060,7 @@ int cmd_compare(int argc, char **argv)
 			printf("  %.2f s\n", secs);
 		} else if (!quiet) {
 			printf("A %s\nB %s\n", A.arg, B.arg);
-			printf("  region %lld,%lld,%lld:%lld,%lld,%lld (%llu voxels), blocks "
-			       "%ux%ux%u of %g um, threshold %.3f\n", (long long)r.lo[0],
-			       (long long)r.lo[1], (long long)r.lo[2], (long long)r.hi[0],
-			       (long long)r.hi[1], (long long)r.hi[2],
-			       (unsigned long long)ac.voxels, A.b1, A.b2, A.b3, (double)A.vs, thr);
-			printf("  %-28s %10s\n", "measure", "value");
+			table_head(&r, ac.voxels, &A, thr);
 			printf("  %-28s %10.4f\n", "top agreement, centres", agc);
 			printf("  %-28s %10.4f\n", "top agreement, columns", aga);
 			printf("  %-28s %10.4f\n", "height RMSE (voxels)", rmse);
