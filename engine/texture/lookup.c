@@ -242,11 +242,11 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 			e = &set[k];
 			goto found;
 		}
-	for (int k = 0; k < XENT_WAYS; k++) {
-		struct xent *q = &set[k];
-		if (!e || !q->valid || (e->valid && q->stamp < e->stamp))
-			e = q, v = k;
-	}
+	/* the victim: a way not set up, else the least recently used */
+	for (int k = 1; k < XENT_WAYS && tag[2 * v] != XENT_NONE; k++)
+		if (tag[2 * k] == XENT_NONE || set[k].stamp < set[v].stamp)
+			v = k;
+	e = &set[v];
 	tag[2 * v] = I;
 	tag[2 * v + 1] = J;
 	loom__fabric_crossing(t->fab, I, J, &xg);
@@ -267,7 +267,6 @@ struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64
 	xent_coef(t, &xg.nb, e->a);
 	xent_bound(t, e);
 	loom__dzmap_attach(t, e, 0); /* evicting waits for a run (loom__dz_slow) */
-	e->valid = 1;
 	bump(&s->cnt.xings, 1);
 found:
 	e->stamp = ++s->clock;

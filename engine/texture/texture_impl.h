@@ -104,8 +104,7 @@ struct xent {
 	int64_t x0, y0;          /* its first output voxel: J*b1, I*b2 */
 	const struct exm *ex;    /* source exemplar */
 	uint32_t sx0, sy0;       /* source block origin in the exemplar */
-	uint32_t stamp;          /* last use (LRU) */
-	uint8_t valid;
+	uint32_t stamp;          /* last use (LRU); set up: the slot's etag */
 	uint8_t tok[4];          /* yarn type by kind: 0, warp, weft, 0 */
 	uint8_t tlut_ok;         /* tlut is built */
 	uint32_t map;            /* the shared offset map of (I, J) (NO_MAP: none,

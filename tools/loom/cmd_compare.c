@@ -739,7 +739,7 @@ int cmd_compare(int argc, char **argv)
 	const char *prog = "loom compare";
 	const char *pos[2] = {NULL, NULL}, *picdir = NULL;
 	double budget_mb = 64, thr = 0.2, t0 = now_s();
-	int json = 0, quiet = 0, single;
+	int json = 0, quiet = 0, single, nin;
 	box r;
 	uint32_t blk[3] = {0, 0, 0};
 	src A, B;
@@ -776,14 +776,17 @@ int cmd_compare(int argc, char **argv)
 	budget = (size_t)(budget_mb * 1048576.0);
 	if (budget < ((size_t)8 << 20))
 		opts_usage(&c, "--budget: at least 8 MiB");
-	/* one input: A against itself, reporting only A's own figures */
+	/* one input: A read once and compared with itself (B a copy of its
+	   geometry, its column state A's), reporting only A's own figures */
 	single = !pos[1];
+	nin = single ? 1 : 2;
 	if (single && picdir)
 		opts_usage(&c, "--pictures compares two inputs: give B");
-	if (single)
-		pos[1] = pos[0];
 	open_src(prog, &A, pos[0], budget / 4, &diag);
-	open_src(prog, &B, pos[1], budget / 4, &diag);
+	if (single)
+		B = A;
+	else
+		open_src(prog, &B, pos[1], budget / 4, &diag);
 	for (int k = 0; k < 2; k++) {
 		src *s = k ? &B : &A, *o = k ? &A : &B;
 		if (s->type != SRC_VOLUME)
@@ -892,7 +895,7 @@ int cmd_compare(int argc, char **argv)
 		cli_fail(prog, "--region %zu voxels wide needs %.0f MiB of row state; raise "
 		         "--budget or narrow the region", W, (double)W * band * 24 * 4 / 1048576.0);
 	memset(&ac, 0, sizeof ac);
-	for (int k = 0; k < 2; k++) {
+	for (int k = 0; k < nin; k++) {
 		src *s = k ? &B : &A;
 		s->dens = malloc(chunk_cols * band * nz);
 		s->kind = malloc(chunk_cols * band * nz);
@@ -904,6 +907,10 @@ int cmd_compare(int argc, char **argv)
 			cli_fail(prog, "out of memory");
 		if (!s->dens || !s->kind || !s->h || !s->hprev || !s->k)
 			cli_fail(prog, "out of memory");
+	}
+	if (single) {
+		B.h = A.h;
+		B.k = A.k;
 	}
 	ac.blk_sum = calloc(W / A.b1 + 2, sizeof *ac.blk_sum);
 	ac.blk_n = calloc(W / A.b1 + 2, sizeof *ac.blk_n);
@@ -939,7 +946,7 @@ int cmd_compare(int argc, char **argv)
 			size_t nx = (size_t)((xb < r.hi[0] ? xb : r.hi[0]) - gx);
 			if (nx > chunk_cols)
 				nx = chunk_cols;
-			for (int k = 0; k < 2; k++) {
+			for (int k = 0; k < nin; k++) {
 				src *s = k ? &B : &A;
 				read_box(prog, s, gx, y0, r.lo[2], (uint32_t)nx, ny, nz, &diag);
 				tops(s, (uint32_t)nx, ny, nz, thr8, x, W, r.lo[2]);
@@ -984,7 +991,8 @@ int cmd_compare(int argc, char **argv)
 				ac.bo_n++;
 			}
 		seams(&A, &r, y0, ny, W, y0 > r.lo[1]);
-		seams(&B, &r, y0, ny, W, y0 > r.lo[1]);
+		if (!single)
+			seams(&B, &r, y0, ny, W, y0 > r.lo[1]);
 		if (picdir)
 			pic_add(&pic, &r, y0, ny, W, &A, &B);
 		ac.voxels += (uint64_t)W * ny * nz;
@@ -1085,7 +1093,8 @@ int cmd_compare(int argc, char **argv)
 		}
 	}
 	close_src(&A);
-	close_src(&B);
+	if (!single)
+		close_src(&B);
 	free(ac.blk_sum);
 	free(ac.blk_n);
 	free(pic.ha);
