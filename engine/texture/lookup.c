@@ -215,33 +215,59 @@ float loom__texture_dz(const loom_texture *t, int64_t I, int64_t J, uint32_t lx,
 	return dz_value(t, a, I, J, lx, ly);
 }
 
+/* floor(v / b) for a block side b, rb = floor((2^64 - 1) / b) + 1
+   (texture.c; 0 for b = 1): for 0 <= v < 2^32 the high half of rb * v,
+   exact for every 32-bit v and b > 1 (Lemire, Kaser and Kurz 2019,
+   "Faster remainder by direct computation"), instead of two 64-bit
+   divisions on the way to every new crossing's entry. */
+static inline int64_t xing_div(int64_t v, uint32_t b, uint64_t rb)
+{
+#ifdef __SIZEOF_INT128__
+	__extension__ typedef unsigned __int128 u128;
+	if ((uint64_t)v <= UINT32_MAX && rb)
+		return (int64_t)(((u128)rb * (uint64_t)v) >> 64);
+#else
+	(void)rb;
+#endif
+	return loom_synth_floordiv(v, b);
+}
+
+/* The set of crossing (I, J): the low bits of J and I side by side (a
+   tile of 2^jb x 2^ib crossings, n_ent / XENT_WAYS sets), so that any
+   rectangle of up to XENT_WAYS tiles' worth of crossings (16 x 16 with
+   256 entries) fills every set evenly; a hash left a sixth of the warm
+   random lookups of such a region setting up a crossing again
+   (conflicts in sets holding more than XENT_WAYS of its crossings). */
+static inline uint32_t xent_set(const loom_texture *t, int64_t I, int64_t J)
+{
+	return ((uint32_t)(uint64_t)I & ((1u << t->xent_ib) - 1)) << t->xent_jb |
+	       ((uint32_t)(uint64_t)J & ((1u << t->xent_jb) - 1));
+}
+
+/* The entry of set si holding (I, J), or NULL.  The keys only (one cache
+   line for the set; the entries are 352 bytes apart), without branches:
+   which way holds a random lookup's crossing is unpredictable. */
+static inline struct xent *xent_find(struct tslot *s, uint32_t si, int64_t I, int64_t J)
+{
+	const int64_t *tag = s->etag + (size_t)si * 2 * XENT_WAYS;
+	int hit = -1;
+
+	for (int k = 0; k < XENT_WAYS; k++)
+		hit = ((tag[2 * k] ^ I) | (tag[2 * k + 1] ^ J)) == 0 ? k : hit;
+	return hit < 0 ? NULL : s->ent + (size_t)si * XENT_WAYS + hit;
+}
+
 struct xent *loom__xent_enter(loom_texture *t, struct tslot *s, int64_t x, int64_t y)
 {
-	int64_t I = loom_synth_floordiv(y, t->b2), J = loom_synth_floordiv(x, t->b1);
-	struct xent *e = NULL;
-	loom__fabric_xing xg;
-
-	/* the set of (I, J): the low bits of J and I side by side (a tile of
-	   2^jb x 2^ib crossings, n_ent / XENT_WAYS sets), so that any
-	   rectangle of up to XENT_WAYS tiles' worth of crossings (16 x 16 with
-	   256 entries) fills every set evenly; a hash left a sixth of the
-	   warm random lookups of such a region setting up a crossing again
-	   (conflicts in sets holding more than XENT_WAYS of its crossings) */
-	uint32_t nset = t->n_ent / XENT_WAYS, lg = (uint32_t)__builtin_ctz(nset);
-	uint32_t jb = (lg + 1) / 2, ib = lg - jb;
-	uint32_t si = ((uint32_t)(uint64_t)I & ((1u << ib) - 1)) << jb |
-	              ((uint32_t)(uint64_t)J & ((1u << jb) - 1));
-	struct xent *set = s->ent + (size_t)si * XENT_WAYS;
+	int64_t I = xing_div(y, t->b2, t->rb2), J = xing_div(x, t->b1, t->rb1);
+	uint32_t si = xent_set(t, I, J);
+	struct xent *set = s->ent + (size_t)si * XENT_WAYS, *e;
 	int64_t *tag = s->etag + (size_t)si * 2 * XENT_WAYS;
+	loom__fabric_xing xg;
 	int v = 0;
 
-	/* the keys first: one cache line for the set (the entries are 352
-	   bytes apart) */
-	for (int k = 0; k < XENT_WAYS; k++)
-		if (tag[2 * k] == I && tag[2 * k + 1] == J) {
-			e = &set[k];
-			goto found;
-		}
+	if ((e = xent_find(s, si, I, J)) != NULL)
+		goto found;
 	/* the victim: a way not set up, else the least recently used */
 	for (int k = 1; k < XENT_WAYS && tag[2 * v] != XENT_NONE; k++)
 		if (tag[2 * k] == XENT_NONE || set[k].stamp < set[v].stamp)

@@ -674,6 +674,13 @@ LOOM_API int loom_texture_open(const loom_fabric *fabric, const loom_db *db,
 	t->n_slots = T + 1;
 	t->slot_bytes = slot_bytes;
 	t->n_ent = n_ent;
+	{
+		uint32_t lg = (uint32_t)__builtin_ctz(n_ent / XENT_WAYS);
+		t->xent_jb = (lg + 1) / 2;
+		t->xent_ib = lg - t->xent_jb;
+		t->rb1 = UINT64_MAX / t->b1 + 1;
+		t->rb2 = UINT64_MAX / t->b2 + 1;
+	}
 	t->fixed_bytes = fixed;
 	t->budget = o.budget_bytes;
 	pthread_mutex_init(&t->pool_lock, NULL);

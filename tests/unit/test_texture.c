@@ -814,6 +814,12 @@ static void brute_force_voxels(void)
 		int64_t hi[3] = {lo[0] + 5 * b1, lo[1] + 4 * b2, b3};
 		bad = check_box(t, &g_ref, lo, hi, 0, NULL);
 		CHECK_EQ_INT(bad, 0);
+		/* across 2^32 (crossings found by a multiply below it, by
+		   division above: the last block edges below it included) */
+		lo[0] = ((int64_t)1 << 32) - 2 * b1 - 1, lo[1] = ((int64_t)1 << 32) - 2 * b2 - 3;
+		hi[0] = lo[0] + 4 * b1 + 2, hi[1] = lo[1] + 4 * b2 + 2;
+		bad = check_box(t, &g_ref, lo, hi, 1, NULL);
+		CHECK_EQ_INT(bad, 0);
 		lo[0] = -((int64_t)1 << 61) - 5, lo[1] = ((int64_t)1 << 61) + 3;
 		hi[0] = lo[0] + 3 * b1, hi[1] = lo[1] + 3 * b2;
 		bad = check_box(t, &g_ref, lo, hi, 1, NULL);
