@@ -24,14 +24,23 @@ export LOOM_CACHE_DIR="$LOOM_TEST_TMP/cache"
 passed=0
 failed=0
 
+# a program that hangs fails after LOOM_TEST_TIMEOUT seconds (default 30
+# minutes, far above any program's time under ThreadSanitizer) instead of
+# holding the run until CI's own limit
+TIMEOUT=${LOOM_TEST_TIMEOUT:-1800}
+case $TIMEOUT in '' | *[!0-9]*) echo "run.sh: LOOM_TEST_TIMEOUT=$TIMEOUT: expected seconds" >&2; exit 2 ;; esac
+
 run_one() { # run_one NAME COMMAND...
 	name=$1; shift
 	log=$LOGS/$name.log
-	"$@" >"$log" 2>&1
+	timeout -k 10 "$TIMEOUT" "$@" >"$log" 2>&1
 	rc=$?
 	p=$(grep -c '^PASS ' "$log")
 	f=$(grep -c '^FAIL ' "$log")
-	if [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then
+	if [ "$rc" -eq 124 ]; then
+		echo "FAIL $name (no end after $TIMEOUT s: stopped; LOOM_TEST_TIMEOUT)" >>"$log"
+		f=$((f + 1))
+	elif [ "$rc" -ne 0 ] && [ "$f" -eq 0 ]; then
 		echo "FAIL $name (exit status $rc)" >>"$log"
 		f=1
 	fi

@@ -2,7 +2,11 @@
 # Source it; each check prints "PASS name" or "FAIL name: why".
 # $LOOM is the binary, $LOOM_TEST_TMP a scratch directory (set by run.sh).
 : "${LOOM:?run through tests/run.sh}"
-T=$(mktemp -d "$LOOM_TEST_TMP/$(basename "$0" .sh).XXXXXX")
+# without a scratch directory a suite would write into the working one
+: "${LOOM_TEST_TMP:?set LOOM_TEST_TMP to a scratch directory}"
+mkdir -p "$LOOM_TEST_TMP" || exit 1
+T=$(mktemp -d "$LOOM_TEST_TMP/$(basename "$0" .sh).XXXXXX") || exit 1
+[ -d "$T" ] || exit 1
 DATA=$LOOM_TOP/tests/data
 
 pass() { echo "PASS $SUITE/$1"; }

@@ -78,6 +78,12 @@ a=$(hash_of "$(db_of "$T/k.loomf")"); b=$(hash_of "$T/silkwool.ldb")
 if [ "$a" = "$b" ]; then pass fibre_same_as_generate; else fail fibre_same_as_generate "$a vs $b"; fi
 c=$(hash_of "$LOOM_BUILD/share/loom/default.ldb")
 if [ "$a" != "$c" ]; then pass fibre_not_default; else fail fibre_not_default "$a"; fi
+# the default yarns named: the same database as the built-in one, so that
+# the Makefile's default.ldb recipe (seed, --min-crossings) and the
+# generated databases' parameters (settdb.c) cannot drift apart
+expect_ok fibre_cotton "$LOOM" synth "$W/basic-twill.wif" --fibre cotton -o "$T/k2.loomf" --quiet
+a=$(hash_of "$(db_of "$T/k2.loomf")")
+if [ "$a" = "$c" ]; then pass fibre_cotton_is_default; else fail fibre_cotton_is_default "$a vs $c"; fi
 # on a draft with a sett: the sett's block, another key than cotton's
 expect_ok fibre_sett "$LOOM" synth "$W/sett-square.wif" --fibre silk -o "$T/l.loomf" --quiet
 p=$(db_of "$T/l.loomf")
