@@ -18,6 +18,10 @@
 #   FIDELITY_REUSE=1 keeps the references already in WORKDIR, to compare
 #   another database against the same ones; FIDELITY_SYNTH="--rank 15"
 #   adds options to the synthesis, e.g. the smaller rank of the former default)
+# Leaves in WORKDIR, per design D: D-synthesis.json (loom synth --json),
+# D-floor.json, D-synth.json and D-rank0.json (loom compare --json against
+# the seed-1 reference; bench/fidelity-draws.sh reads them) and
+# D-pictures/ (loom compare --pictures of the synthesized fabric).
 set -eu
 LOOM=${1:-build/loom}
 DB=${2:-build/share/loom/default.ldb}
@@ -54,11 +58,11 @@ for d in ${FIDELITY_DESIGNS:-herringbone wavy-twill broken-twill basket satin-1-
 		"$LOOM" exemplar generate --design "$f" --like "$DB" --seed $seed $win ${FIDELITY_GEN:-} --quiet -o "$W/$d-gt$seed.ldb"
 	done
 	# shellcheck disable=SC2086
-	"$LOOM" synth "$f" --db "$DB" ${FIDELITY_SYNTH:-} --json -o "$W/$d.loomf" >"$W/$d-synth.json"
+	"$LOOM" synth "$f" --db "$DB" ${FIDELITY_SYNTH:-} --json -o "$W/$d.loomf" >"$W/$d-synthesis.json"
 	"$LOOM" synth "$f" --db "$DB" --rank 0 --quiet -o "$W/$d-r0.loomf"
-	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synth.json")
+	rows=$(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); print('%dx%d' % (j['rows'], j['cols']))" "$W/$d-synthesis.json")
 	[ -n "$win" ] && rows="$rows ($WIN x $WIN compared)"
-	cons=$(get "$W/$d-synth.json" consistency)
+	cons=$(get "$W/$d-synthesis.json" consistency)
 	for pair in floor synth rank0; do
 		case $pair in
 		floor) b="$W/$d-gt2.ldb#0"; label="seed 2 vs seed 1 (floor)" ;;
