@@ -257,8 +257,9 @@ struct loom_texture {
 	                            XENT_WAYS .. XENT_MAX, from the budget) */
 	uint32_t xent_ib, xent_jb; /* a set's index: the low xent_ib bits of I
 	                              beside the low xent_jb bits of J */
-	uint64_t rb1, rb2;       /* floor(2^64 / b) + 1 for b1, b2: x / b1 by
-	                            a multiply for 0 <= x < 2^32 (lookup.c) */
+	uint64_t rb1, rb2;       /* ceil(2^64 / b) for b1, b2 (0 for b = 1):
+	                            x / b1 by a multiply for 0 <= x < 2^32
+	                            (lookup.c xing_div) */
 	uint32_t n_maps;         /* shared offset maps (DZ_WAYS x a power of
 	                            two, from the budget) */
 	size_t map_words;        /* 64-bit words of one map */
